@@ -1,0 +1,68 @@
+"""Exceptions raised by urdfpost.
+
+One base class, :class:`UrdfpostError`, and one subclass per kind of failure. Every message
+names what was at fault (file, line, joint, link) and what was expected, so the command line can
+print it as it is.
+"""
+
+from __future__ import annotations
+
+
+class UrdfpostError(Exception):
+    """Base class of every error urdfpost raises on purpose."""
+
+
+class MachineDefinitionError(UrdfpostError):
+    """A machine file (URDF) does not describe a machine urdfpost can post for."""
+
+
+class CLDataError(UrdfpostError):
+    """Cutter-location data that cannot be read.
+
+    Parameters
+    ----------
+    path : str
+        File the data came from (``"<string>"`` for text without a file).
+    line : int
+        1-based line number of the record at fault.
+    message : str
+        What was found and what was expected.
+    """
+
+    def __init__(self, path: str, line: int, message: str) -> None:
+        self.path = path
+        self.line = line
+        self.detail = message
+        super().__init__(f"{path}:{line}: {message}")
+
+
+class UnreachableError(UrdfpostError):
+    """A CL point that no inverse-kinematics branch reaches within the machine's travel."""
+
+
+class ToleranceError(UrdfpostError):
+    """A program whose verified deviation from the CL data exceeds the tolerance."""
+
+
+class DialectError(UrdfpostError):
+    """An unknown control, or an NC program that cannot be read back in its dialect."""
+
+
+class ProgramParseError(DialectError):
+    """An NC program line that cannot be read back.
+
+    Parameters
+    ----------
+    path : str
+        Program file name.
+    line : int
+        1-based line number.
+    message : str
+        What was found and what was expected.
+    """
+
+    def __init__(self, path: str, line: int, message: str) -> None:
+        self.path = path
+        self.line = line
+        self.detail = message
+        super().__init__(f"{path}:{line}: {message}")

@@ -1,0 +1,80 @@
+"""Every numerical threshold urdfpost uses, in one documented place.
+
+Thresholds are passed explicitly (a :class:`Tolerances` instance travels with the options); there
+is no mutable module state. Lengths are millimetres, angles radians, unless a name says otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+MM_PER_INCH = 25.4
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Thresholds for posting and verification.
+
+    Attributes
+    ----------
+    tip : float
+        Allowed tool-tip deviation from the CL path, mm. 0.01 mm is a common finishing chord
+        tolerance and the issue's default; inch programs use 0.0004 in (0.01016 mm).
+    orientation : float
+        Allowed tool-axis deviation from the CL tool axis (slerp between CL points), rad.
+        0.5 degree: well below what changes a ball-end cut, above the rounding of 0.0001 degree
+        output on any realistic machine.
+    interpolation_share : float
+        Share of ``tip`` given to the interpolation between blocks when subdividing
+        machine-coordinate moves; the rest is kept for the rounding of the written program
+        (0.001 mm, 0.0001 in, 0.0001 degree at up to a metre from the rotary axis).
+    pole : float
+        Sine of the angle between the tool axis and the first rotary axis below which that
+        axis' angle is taken as undetermined (the pole). 1e-9: a CL axis written with 9-10
+        significant digits cannot be closer to the pole than this unless it is exactly on it.
+    reach : float
+        Slack, in the cosine domain of the tilt equation, for orientations at the edge of what
+        the machine can reach (clipped onto the edge instead of rejected). 1e-9.
+    branch_merge : float
+        Two tilt solutions closer than this (rad) are one branch (the edge of the reachable
+        set). 1e-7 rad: the arccos near 1 amplifies rounding of 1e-14 to about 1.5e-7.
+    four_axis_axis : float
+        Angle (rad) by which a CL tool axis may miss the cone a single rotary axis can reach
+        on a 4-axis machine. 1e-6 rad: CL files print 6-10 decimals.
+    max_subdivision_depth : int
+        Cap on recursive bisection of one block (2**depth pieces at most).
+    samples_per_block : int
+        Samples per block when measuring the deviation between two blocks (the maximum is
+        refined around the worst sample by golden-section search).
+    """
+
+    tip: float = 0.01
+    orientation: float = 0.008726646259971648  # 0.5 degree
+    interpolation_share: float = 0.8
+    pole: float = 1e-9
+    reach: float = 1e-9
+    branch_merge: float = 1e-7
+    four_axis_axis: float = 1e-6
+    max_subdivision_depth: int = 12
+    samples_per_block: int = 9
+
+    @classmethod
+    def for_units(cls, units: str, tip: float | None = None) -> Tolerances:
+        """Default tolerances for a program in ``units`` ("mm" or "inch").
+
+        Parameters
+        ----------
+        units : str
+            "mm" or "inch".
+        tip : float, optional
+            Tool-tip tolerance in ``units``; default 0.01 mm or 0.0004 in.
+
+        Returns
+        -------
+        Tolerances
+            With ``tip`` converted to mm.
+        """
+        scale = MM_PER_INCH if units == "inch" else 1.0
+        if tip is None:
+            tip = 0.0004 if units == "inch" else 0.01
+        return cls(tip=tip * scale)

@@ -1,0 +1,152 @@
+"""Cutter-location data as arrays.
+
+A :class:`Toolpath` is what every reader returns and what the pipeline consumes: motion points as
+numpy arrays in the workpiece frame (millimetres, unit tool axes) and the non-motion records as
+:class:`Event` objects that point at the motion they precede. Readers convert inch files to mm
+and remember the file's units so the program is written in them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Any
+
+import numpy as np
+
+
+class Motion(IntEnum):
+    """Kind of a motion point."""
+
+    FEED = 0
+    RAPID = 1
+
+
+@dataclass(frozen=True)
+class Event:
+    """A non-motion record of the CL data.
+
+    Attributes
+    ----------
+    index : int
+        Index of the motion point this event comes before (``len(toolpath)`` for events after
+        the last motion).
+    kind : str
+        One of:
+
+        - ``"partno"``: ``data["text"]``
+        - ``"comment"``: ``data["text"]`` (``$$`` comments, PPRINT)
+        - ``"insert"``: ``data["text"]`` passed through verbatim to the program
+        - ``"tool"``: tool change, ``data["number"]`` (int), optional ``data["diameter"]``,
+          ``data["corner_radius"]``, ``data["length"]`` (mm), ``data["name"]``
+        - ``"spindle"``: ``data["rpm"]`` (float), ``data["direction"]`` ("cw", "ccw" or "off")
+        - ``"coolant"``: ``data["mode"]`` ("flood", "mist", "through", "air", "off")
+        - ``"home"``: GOHOME
+        - ``"stop"``: ``data["optional"]`` (bool)
+        - ``"operation"``: start of an operation (NX ``TOOL PATH/``), ``data["name"]``
+        - ``"unknown"``: a record the reader does not translate, ``data["text"]`` (carried
+          into the program as a comment; the reader also adds a warning)
+    line : int
+        1-based source line of the record.
+    data : dict
+        Kind-specific values, as listed above.
+    """
+
+    index: int
+    kind: str
+    line: int
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Toolpath:
+    """CL data of one file, in the workpiece frame.
+
+    Attributes
+    ----------
+    tip : ndarray, shape (n, 3), mm
+        Tool tip (CL point) per motion point.
+    axis : ndarray, shape (n, 3)
+        Unit tool axis, from the tip toward the spindle.
+    feed : ndarray, shape (n,), mm/min
+        Programmed feed of the move that ends at the point; NaN for rapid moves or when no
+        feed was programmed yet.
+    motion : ndarray, shape (n,), int8
+        :class:`Motion` per point.
+    line : ndarray, shape (n,), int
+        1-based source line of the record that produced the point (the first line of a
+        continued record; for points interpolated on an arc, the CIRCLE record's line).
+    events : tuple of Event
+        Non-motion records in file order.
+    units : str
+        Units the file was written in ("mm" or "inch"); the program is written in them.
+    source : str
+        File name, for messages.
+    warnings : tuple of str
+        Reader warnings, each naming file and line.
+    multiaxis : bool
+        Whether any record carried a tool axis (MULTAX/ON or six-value GOTO).
+    """
+
+    tip: np.ndarray
+    axis: np.ndarray
+    feed: np.ndarray
+    motion: np.ndarray
+    line: np.ndarray
+    events: tuple[Event, ...] = ()
+    units: str = "mm"
+    source: str = "<string>"
+    warnings: tuple[str, ...] = ()
+    multiaxis: bool = True
+
+    def __len__(self) -> int:
+        return int(self.tip.shape[0])
+
+    def __post_init__(self) -> None:
+        n = self.tip.shape[0]
+        shapes = {
+            "tip": (self.tip.shape, (n, 3)),
+            "axis": (self.axis.shape, (n, 3)),
+            "feed": (self.feed.shape, (n,)),
+            "motion": (self.motion.shape, (n,)),
+            "line": (self.line.shape, (n,)),
+        }
+        for name, (got, want) in shapes.items():
+            if got != want:
+                raise ValueError(f"Toolpath.{name}: expected shape {want}, got {got}")
+
+    @classmethod
+    def from_points(
+        cls,
+        tip: np.ndarray,
+        axis: np.ndarray,
+        feed: float | np.ndarray = np.nan,
+        units: str = "mm",
+        source: str = "<points>",
+    ) -> Toolpath:
+        """Build a feed-only toolpath from arrays (for scripts and tests).
+
+        Parameters
+        ----------
+        tip : array_like, shape (n, 3), mm
+        axis : array_like, shape (n, 3)
+            Normalised here.
+        feed : float or array_like, shape (n,), mm/min
+        units : str
+            Units to write the program in.
+        source : str
+            Name used in messages.
+        """
+        tip = np.asarray(tip, dtype=float).reshape(-1, 3)
+        axis = np.asarray(axis, dtype=float).reshape(-1, 3)
+        axis = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+        n = tip.shape[0]
+        return cls(
+            tip=tip,
+            axis=axis,
+            feed=np.broadcast_to(np.asarray(feed, dtype=float), (n,)).copy(),
+            motion=np.full(n, Motion.FEED, dtype=np.int8),
+            line=np.arange(1, n + 1),
+            units=units,
+            source=source,
+        )
