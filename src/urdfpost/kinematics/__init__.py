@@ -1,0 +1,37 @@
+"""Forward and inverse kinematics of the tool relative to the workpiece."""
+
+from urdfpost.kinematics.forward import (
+    jacobian_pin,
+    rotate,
+    rotation_about,
+    tip_and_axis,
+    tip_and_axis_pin,
+    tool_in_work,
+    tool_in_work_pin,
+)
+from urdfpost.kinematics.inverse import (
+    IKResult,
+    IKStatus,
+    RotarySolutions,
+    assemble,
+    inverse,
+    solve_linear,
+    solve_rotary,
+)
+
+__all__ = [
+    "IKResult",
+    "IKStatus",
+    "RotarySolutions",
+    "assemble",
+    "inverse",
+    "jacobian_pin",
+    "rotate",
+    "rotation_about",
+    "solve_linear",
+    "solve_rotary",
+    "tip_and_axis",
+    "tip_and_axis_pin",
+    "tool_in_work",
+    "tool_in_work_pin",
+]

@@ -1,0 +1,355 @@
+"""Reading and checking a machine URDF against the urdfpost convention.
+
+Validation happens here, once, before Pinocchio sees the file, so every message can name the
+file, the line and the joint or link at fault.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from lxml import etree
+
+from urdfpost.errors import MachineDefinitionError
+
+if TYPE_CHECKING:
+    from urdfpost.machine import Machine, Settings
+
+NC_ADDRESSES = ("X", "Y", "Z", "A", "B", "C")
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """A joint as written in the URDF (URDF units: metres, radians)."""
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    axis: tuple[float, float, float]
+    lower: float
+    upper: float
+    velocity: float | None
+    line: int
+    side: str = ""
+
+
+@dataclass(frozen=True)
+class Chain:
+    """Moving joints between ``workpiece`` and ``tool``, ordered from the workpiece."""
+
+    joints: tuple[JointSpec, ...]
+    ancestor: str
+
+
+@dataclass(frozen=True)
+class UrdfDoc:
+    """The parts of a URDF that the checks need."""
+
+    root: etree._Element
+    links: dict[str, int]  # name -> line
+    joints: dict[str, JointSpec]
+
+
+def _where(source: str, line: int | None) -> str:
+    return f"{source}:{line}" if line else source
+
+
+def _float(source: str, el: etree._Element, attr: str, default: float | None) -> float | None:
+    raw = el.get(attr)
+    if raw is None:
+        return default
+    try:
+        return float(raw)
+    except ValueError as e:
+        raise MachineDefinitionError(
+            f"{_where(source, el.sourceline)}: <{el.tag}> {attr}={raw!r}: expected a number"
+        ) from e
+
+
+def parse_urdf(text: str, source: str) -> UrdfDoc:
+    """Parse URDF text into links and joints, checking well-formedness.
+
+    Raises
+    ------
+    MachineDefinitionError
+        For broken XML, a root that is not ``<robot>``, links or joints without names, joints
+        without parent or child, axes that are not three numbers.
+    """
+    try:
+        root = etree.fromstring(text.encode("utf-8"), parser=etree.XMLParser(remove_comments=True))
+    except etree.XMLSyntaxError as e:
+        raise MachineDefinitionError(f"{source}: not a URDF: broken XML: {e}") from e
+    if root.tag != "robot":
+        raise MachineDefinitionError(
+            f"{_where(source, root.sourceline)}: not a URDF: expected root element <robot>, "
+            f"got <{root.tag}>"
+        )
+    links: dict[str, int] = {}
+    for el in root.findall("link"):
+        name = el.get("name")
+        if not name:
+            raise MachineDefinitionError(f"{_where(source, el.sourceline)}: <link> without name")
+        links[name] = el.sourceline
+    joints: dict[str, JointSpec] = {}
+    for el in root.findall("joint"):
+        spec = _joint_spec(source, el)
+        if spec.name in joints:
+            raise MachineDefinitionError(
+                f"{_where(source, spec.line)}: joint {spec.name!r} defined twice"
+            )
+        joints[spec.name] = spec
+    return UrdfDoc(root=root, links=links, joints=joints)
+
+
+def _joint_spec(source: str, el: etree._Element) -> JointSpec:
+    where = _where(source, el.sourceline)
+    name = el.get("name")
+    jtype = el.get("type")
+    if not name or not jtype:
+        raise MachineDefinitionError(f"{where}: <joint> needs name and type attributes")
+    parent, child = el.find("parent"), el.find("child")
+    if parent is None or child is None or not parent.get("link") or not child.get("link"):
+        raise MachineDefinitionError(f"{where}: joint {name!r} needs <parent link> and <child link>")
+    axis_el = el.find("axis")
+    axis = (1.0, 0.0, 0.0)
+    if axis_el is not None:
+        parts = (axis_el.get("xyz") or "").split()
+        try:
+            axis = tuple(float(p) for p in parts)  # type: ignore[assignment]
+        except ValueError as e:
+            raise MachineDefinitionError(
+                f"{where}: joint {name!r}: axis xyz={axis_el.get('xyz')!r}: expected 3 numbers"
+            ) from e
+        if len(axis) != 3:
+            raise MachineDefinitionError(
+                f"{where}: joint {name!r}: axis xyz={axis_el.get('xyz')!r}: expected 3 numbers"
+            )
+    limit = el.find("limit")
+    lower = upper = 0.0
+    velocity = None
+    if limit is not None:
+        lower = _float(source, limit, "lower", 0.0)  # type: ignore[assignment]
+        upper = _float(source, limit, "upper", 0.0)  # type: ignore[assignment]
+        velocity = _float(source, limit, "velocity", None)
+    return JointSpec(
+        name=name,
+        type=jtype,
+        parent=parent.get("link"),
+        child=child.get("link"),
+        axis=axis,
+        lower=lower,
+        upper=upper,
+        velocity=velocity,
+        line=el.sourceline,
+    )
+
+
+def _path_to_root(doc: UrdfDoc, link: str) -> list[JointSpec]:
+    """Joints from ``link`` up to the root, nearest first."""
+    by_child = {j.child: j for j in doc.joints.values()}
+    path: list[JointSpec] = []
+    seen = {link}
+    while link in by_child:
+        j = by_child[link]
+        path.append(j)
+        link = j.parent
+        if link in seen:
+            raise MachineDefinitionError(f"joint {j.name!r} closes a loop at link {link!r}")
+        seen.add(link)
+    return path
+
+
+def check_chain(doc: UrdfDoc, source: str) -> Chain:
+    """Find and check the moving joints between ``workpiece`` and ``tool``.
+
+    Returns
+    -------
+    Chain
+        Moving joints ordered from the workpiece, each with ``side`` "table" (moves the
+        workpiece) or "head" (moves the tool).
+
+    Raises
+    ------
+    MachineDefinitionError
+        Missing links, floating/planar joints on the chain, wrong joint count, bad names,
+        duplicate NC addresses, zero axes, inverted limits.
+    """
+    for link in ("workpiece", "tool"):
+        if link not in doc.links:
+            raise MachineDefinitionError(
+                f"{source}: no link named {link!r}: the convention needs a 'workpiece' link "
+                "(CL frame) and a 'tool' link (gauge point, +Z toward the spindle)"
+            )
+    try:
+        up_w = _path_to_root(doc, "workpiece")
+        up_t = _path_to_root(doc, "tool")
+    except MachineDefinitionError as e:
+        raise MachineDefinitionError(f"{source}: {e}") from e
+    links_w = ["workpiece"] + [j.parent for j in up_w]
+    links_t = ["tool"] + [j.parent for j in up_t]
+    common = next((lk for lk in links_w if lk in links_t), None)
+    if common is None:
+        raise MachineDefinitionError(
+            f"{source}: links 'workpiece' and 'tool' are not connected by joints"
+        )
+    table_side = [
+        _sided(j, "table") for j in up_w[: links_w.index(common)]
+    ]  # from workpiece upward
+    head_side = [_sided(j, "head") for j in reversed(up_t[: links_t.index(common)])]
+    chain = table_side + head_side
+    for j in chain:
+        if j.type in ("floating", "planar"):
+            raise MachineDefinitionError(
+                f"{_where(source, j.line)}: joint {j.name!r} is {j.type}: a machine axis must "
+                "be prismatic, revolute or continuous (fixed joints are allowed too)"
+            )
+        if j.type not in ("fixed", "prismatic", "revolute", "continuous"):
+            raise MachineDefinitionError(
+                f"{_where(source, j.line)}: joint {j.name!r} has unknown type {j.type!r}"
+            )
+    moving = [j for j in chain if j.type != "fixed"]
+    n_lin = sum(j.type == "prismatic" for j in moving)
+    n_rot = len(moving) - n_lin
+    if n_lin != 3 or n_rot not in (1, 2):
+        names = ", ".join(f"{j.name} ({j.type})" for j in moving) or "none"
+        raise MachineDefinitionError(
+            f"{source}: the chain between 'workpiece' and 'tool' must have exactly 3 prismatic "
+            f"and 1 or 2 revolute/continuous joints; it has {n_lin} prismatic and {n_rot} "
+            f"rotary: {names}"
+        )
+    seen: dict[str, JointSpec] = {}
+    for j in moving:
+        where = _where(source, j.line)
+        if j.name.upper() not in NC_ADDRESSES or j.name != j.name.upper():
+            raise MachineDefinitionError(
+                f"{where}: joint {j.name!r}: a moving joint must be named with its NC address, "
+                f"one of {' '.join(NC_ADDRESSES)}"
+            )
+        if j.name in seen:
+            raise MachineDefinitionError(
+                f"{where}: joint {j.name!r}: NC address {j.name} used by two joints"
+            )
+        seen[j.name] = j
+        if j.type == "prismatic" and j.name not in ("X", "Y", "Z"):
+            raise MachineDefinitionError(
+                f"{where}: joint {j.name!r} is prismatic: linear axes are named X, Y or Z"
+            )
+        if j.type != "prismatic" and j.name not in ("A", "B", "C"):
+            raise MachineDefinitionError(
+                f"{where}: joint {j.name!r} is {j.type}: rotary axes are named A, B or C"
+            )
+        if float(np.linalg.norm(j.axis)) < 1e-9:
+            raise MachineDefinitionError(
+                f"{where}: joint {j.name!r}: zero axis vector {j.axis}: expected a direction"
+            )
+        if j.type != "continuous" and j.lower > j.upper:
+            raise MachineDefinitionError(
+                f"{where}: joint {j.name!r}: lower limit {j.lower} is above upper limit {j.upper}"
+            )
+        if j.type != "continuous" and j.lower == j.upper:
+            raise MachineDefinitionError(
+                f"{where}: joint {j.name!r}: no travel (lower == upper == {j.lower}); "
+                "give <limit lower=... upper=...>"
+            )
+        if j.velocity is not None and j.velocity <= 0:
+            raise MachineDefinitionError(
+                f"{where}: joint {j.name!r}: velocity limit {j.velocity} must be positive"
+            )
+    return Chain(joints=tuple(moving), ancestor=common)
+
+
+def _sided(j: JointSpec, side: str) -> JointSpec:
+    return JointSpec(**{**j.__dict__, "side": side})
+
+
+def parse_settings(doc: UrdfDoc, source: str, axis_names: list[str]) -> Settings:
+    """Read the ``<urdfpost>`` extension element (all settings optional).
+
+    Raises
+    ------
+    MachineDefinitionError
+        For an unknown controller or units, a preference or home naming a missing axis, or a
+        value that is not a number.
+    """
+    from urdfpost.machine import CONTROLLERS, M_TO_MM, Settings
+
+    el = doc.root.find("urdfpost")
+    if el is None:
+        return Settings()
+    where = _where(source, el.sourceline)
+    controller = el.get("controller", "heidenhain")
+    if controller not in CONTROLLERS:
+        raise MachineDefinitionError(
+            f"{where}: <urdfpost controller={controller!r}>: expected one of {CONTROLLERS}"
+        )
+    units = el.get("units", "mm")
+    if units not in ("mm", "inch"):
+        raise MachineDefinitionError(f"{where}: <urdfpost units={units!r}>: expected mm or inch")
+    tool_length = (_float(source, el, "tool_length", 0.0) or 0.0) * M_TO_MM
+    prefer = None
+    pref_el = el.find("prefer")
+    if pref_el is not None:
+        axis, sign = pref_el.get("axis"), pref_el.get("sign", "+")
+        if axis not in axis_names or sign not in ("+", "-"):
+            raise MachineDefinitionError(
+                f"{_where(source, pref_el.sourceline)}: <prefer axis={axis!r} sign={sign!r}>: "
+                f"expected a rotary axis of the chain ({' '.join(axis_names)}) and sign + or -"
+            )
+        prefer = (axis, 1 if sign == "+" else -1)
+    home: dict[str, float] = {}
+    home_el = el.find("home")
+    if home_el is not None:
+        for key in home_el.keys():  # noqa: SIM118 (lxml attribute map)
+            if key not in axis_names:
+                raise MachineDefinitionError(
+                    f"{_where(source, home_el.sourceline)}: <home {key}=...>: no such axis; "
+                    f"expected one of {' '.join(axis_names)}"
+                )
+            value = _float(source, home_el, key, 0.0) or 0.0
+            home[key] = value * (M_TO_MM if key in ("X", "Y", "Z") else 1.0)
+    desc_el = el.find("description")
+    description = " ".join((desc_el.text or "").split()) if desc_el is not None else ""
+    return Settings(
+        controller=controller,
+        units=units,
+        tool_length=tool_length,
+        prefer=prefer,
+        home=home,
+        description=description,
+    )
+
+
+def check_geometry(machine: Machine, source: str) -> None:
+    """Checks that need the numbers: independent linear axes, usable rotary axes.
+
+    Raises
+    ------
+    MachineDefinitionError
+        When two rotary axes are parallel, when the second rotary axis is parallel to the
+        tool axis (it would not change the orientation), or when the linear axes do not span
+        space.
+    """
+    lin = np.array([a.direction for a in machine.linear])
+    if abs(np.linalg.det(lin)) < 1e-6:
+        names = ", ".join(a.name for a in machine.linear)
+        raise MachineDefinitionError(
+            f"{source}: linear axes {names} do not span space (their directions are coplanar)"
+        )
+    rot = machine.rotary
+    v0 = machine.home_tool_axis
+    if len(rot) == 2:
+        k1, k2 = rot[0].direction, rot[1].direction
+        if np.linalg.norm(np.cross(k1, k2)) < 1e-6:
+            raise MachineDefinitionError(
+                f"{source}: rotary joints {rot[0].name!r} and {rot[1].name!r} are parallel: "
+                "no five-axis orientation is possible"
+            )
+    last = rot[-1]
+    if len(rot) == 2 and np.linalg.norm(np.cross(last.direction, v0)) < 1e-6:
+        raise MachineDefinitionError(
+            f"{source}: rotary joint {last.name!r} is parallel to the tool axis at home, so it "
+            "cannot change the tool orientation"
+        )
