@@ -1,0 +1,831 @@
+"""Reader of APT-family CL data: generic APT, CATIA, Creo and Siemens NX CLSF listings.
+
+A file is read in three steps:
+
+1. :func:`scan_records` turns lines into logical records: ``$`` continuations are joined, ``$$``
+   comments split off, NX listing header/trailer lines skipped, and reading stops at ``FINI``.
+2. The file's units are taken from the records (``UNITS/``, else the first ``IPM``/``MMPM``/
+   ``IPR``/``MMPR`` keyword), and the dialect from NX-only records (``TOOL PATH/``, ``TLDATA/``,
+   ``MSYS/``, ``PAINT/``, ``END-OF-PATH``, listing lines).
+3. :class:`_AptInterpreter` walks the records with the modal state (tool axis, feed, spindle,
+   coordinate frame, pending ``RAPID``/``CIRCLE``) and fills a toolpath builder.
+
+Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
+
+- ``"partno"``: ``text``
+- ``"comment"``: ``text`` (whole-line ``$$`` comments and ``PPRINT``)
+- ``"insert"``: ``text`` (``INSERT``, verbatim)
+- ``"operation"``: ``name``, and ``tool_name`` when given (NX ``TOOL PATH/op,TOOL,tool``)
+- ``"cutter"``: ``diameter``, and ``corner_radius``, ``length`` when given (``CUTTER/``,
+  NX ``TLDATA/MILL``). The same values are also put into the ``"tool"`` event of the tool
+  change they belong to (the next one, or the last one when no motion came in between).
+- ``"tool"``: ``number`` (int), and ``diameter``, ``corner_radius``, ``length``, ``name`` when
+  known (``LOADTL/``, NX ``LOAD/TOOL``, ``SELECT/TOOL``)
+- ``"spindle"``: ``rpm`` (float; 0.0 for off, NaN for ``SPINDL/ON`` with no speed yet) and
+  ``direction`` ("cw", "ccw", "off")
+- ``"coolant"``: ``mode`` ("flood", "mist", "through", "air", "off")
+- ``"home"`` (``GOHOME``), ``"stop"``: ``optional`` (``STOP`` False, ``OPSTOP`` True)
+- ``"unknown"``: ``text`` (the record as written; a warning is added too)
+
+Arc direction (``CIRCLE/xc,yc,zc,i,j,k,r``): generic APT arcs turn counter-clockwise seen from
+the tip of (i,j,k) (right-hand rule). NX CLSF arcs turn the other way, clockwise about (i,j,k):
+in the 146 CIRCLE records of a real NX file every arc whose neighbouring linear moves are not
+perpendicular to it continues them tangentially only with that sense, and its ``TIMES,7``
+helical ramps come out at exactly the 3.00 degree ramp angle only with it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from urdfpost.errors import CLDataError
+from urdfpost.tolerances import MM_PER_INCH
+from urdfpost.toolpath import Motion, Toolpath
+
+from ._common import (
+    ToolpathBuilder,
+    format_values,
+    normalise_units,
+    ordinal,
+    parse_number,
+    scale_of,
+    unit_vector,
+)
+from ._geometry import IDENTITY, Frame, interpolate_arc
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["Record", "detect_apt", "read_apt_text", "scan_records"]
+
+#: NX "Information listing" header and "Tool Path Listing" trailer lines.
+_LISTING_LINE = re.compile(
+    r"(?:information listing created by\b"
+    r"|(?:date|current work part|node name)\s*[:\t]"
+    r"|tool path listing has \d+ lines\b"
+    r"|[-=]{3,}\s*$)",
+    re.IGNORECASE,
+)
+#: Records whose whole text after the keyword is free text.
+_TEXT_RECORD = re.compile(r"(PPRINT|PARTNO|INSERT)(?![A-Za-z0-9_])[ \t]*/?(.*)", re.I | re.S)
+#: ``WORD[ WORD]/args`` or a bare ``WORD``.
+_WORD_RECORD = re.compile(
+    r"([A-Za-z][A-Za-z0-9_-]*(?:[ \t]+[A-Za-z][A-Za-z0-9_-]*)*)[ \t]*(?:/(.*))?", re.S
+)
+#: A line that looks like an APT/CLSF record (``WORD/...``) or an APT comment.
+APT_LINE = re.compile(
+    r"^[ \t]*(?:[A-Za-z][A-Za-z0-9_-]*(?:[ \t]+[A-Za-z][A-Za-z0-9_-]*)*[ \t]*/|\$\$)", re.M
+)
+_KEYWORD = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+_NOT_KEYWORDS = frozenset({"NAN", "INF", "INFINITY"})
+
+_NX_WORDS = frozenset({"TOOL PATH", "TLDATA", "MSYS", "PAINT", "END-OF-PATH"})
+_UNITS_WORDS = {"INCHES": "inch", "INCH": "inch", "MM": "mm"}
+_FEED_MODES = {  # keyword: (per revolution, mm per unit)
+    "IPM": (False, MM_PER_INCH),
+    "MMPM": (False, 1.0),
+    "IPR": (True, MM_PER_INCH),
+    "MMPR": (True, 1.0),
+}
+_COOLANT_MODES = {
+    "FLOOD": "flood",
+    "MIST": "mist",
+    "THRU": "through",
+    "THROUGH": "through",
+    "AIR": "air",
+    "OFF": "off",
+}
+
+
+@dataclass(frozen=True)
+class Record:
+    """One logical record of an APT file.
+
+    Attributes
+    ----------
+    line : int
+        1-based line where the record starts.
+    word : str
+        Major word, upper case, blanks collapsed ("GOTO", "TOOL PATH"); "$$" for a whole-line
+        comment; "" when the record does not start with a word.
+    args : list of str or None
+        Comma-separated values after "/", stripped; None when there is no "/".
+    text : str
+        The record as written (continuations joined, trailing ``$$`` comment removed).
+    rest : str
+        For free-text records (PPRINT, PARTNO, INSERT, ``$$``): the text after the keyword.
+    """
+
+    line: int
+    word: str
+    args: list[str] | None
+    text: str
+    rest: str = ""
+
+
+@dataclass
+class _Scan:
+    """Result of :func:`scan_records`."""
+
+    records: list[Record] = field(default_factory=list)
+    listing_lines: int = 0
+    trailing_comments: int = 0
+    after_fini: list[int] = field(default_factory=list)
+
+
+def split_lines(text: str) -> list[str]:
+    """Split on LF, CRLF or CR, keeping line numbers as editors count them."""
+    return re.split(r"\r\n|\r|\n", text)
+
+
+def parse_record(code: str, line: int) -> Record:
+    """Split the text of one logical record into word and arguments."""
+    code = code.strip()
+    match = _TEXT_RECORD.fullmatch(code)
+    if match:
+        return Record(line, match[1].upper(), None, code, match[2].strip())
+    match = _WORD_RECORD.fullmatch(code)
+    if not match:
+        return Record(line, "", None, code)
+    word = " ".join(match[1].upper().split())
+    args = None if match[2] is None else [a.strip() for a in match[2].split(",")]
+    return Record(line, word, args, code)
+
+
+def scan_records(lines: Sequence[str], source: str) -> _Scan:
+    """Turn lines into logical records.
+
+    ``$`` at the end of a line continues the record on the next line; ``$$`` starts a comment
+    (a whole-line one becomes a "$$" record, a trailing one is dropped: NX writes contact
+    points there). Blank lines and NX listing lines are skipped. Scanning stops after FINI;
+    the numbers of non-blank lines after it are returned in ``after_fini``.
+
+    Raises
+    ------
+    CLDataError
+        When the file ends inside a continued record.
+    """
+    scan = _Scan()
+    pending: str | None = None
+    start = 0
+    for number, raw in enumerate(lines, start=1):
+        stripped = raw.strip()
+        if not stripped:
+            continue
+        if pending is None and _LISTING_LINE.match(stripped):
+            scan.listing_lines += 1
+            continue
+        if stripped.startswith("$$"):
+            scan.records.append(Record(number, "$$", None, stripped, stripped[2:].strip()))
+            continue
+        code, sep, _ = stripped.partition("$$")
+        scan.trailing_comments += bool(sep)
+        code = code.rstrip()
+        continued = code.endswith("$")
+        if continued:
+            code = code[:-1]
+        if pending is None:
+            pending, start = code, number
+        else:
+            pending += code
+        if continued:
+            continue
+        record = parse_record(pending, start)
+        pending = None
+        scan.records.append(record)
+        if record.word == "FINI":
+            scan.after_fini = [
+                number + 1 + k
+                for k, rest in enumerate(lines[number:])
+                if rest.strip() and not _LISTING_LINE.match(rest.strip())
+            ]
+            break
+    if pending is not None:
+        raise CLDataError(
+            source,
+            start,
+            "expected the continuation of this record (its last line ends with '$'), "
+            "got the end of the file",
+        )
+    return scan
+
+
+def detect_apt(text: str) -> bool:
+    """Whether any line of ``text`` looks like an APT/CLSF record (``WORD/...`` or ``$$``)."""
+    return APT_LINE.search(text) is not None
+
+
+def _file_units(records: Sequence[Record]) -> str | None:
+    """Units the records declare: the first UNITS record, else the first feed-unit keyword."""
+    for record in records:
+        if record.word == "UNITS" and record.args:
+            units = _UNITS_WORDS.get(record.args[0].upper())
+            if units:
+                return units
+    for record in records:
+        for token in record.args or ():
+            upper = token.upper()
+            if upper in ("IPM", "IPR"):
+                return "inch"
+            if upper in ("MMPM", "MMPR"):
+                return "mm"
+    return None
+
+
+def _split_tokens(record: Record, source: str) -> tuple[list[str], list[float]]:
+    """Keywords (upper case) and numbers of a record's arguments, in their own order.
+
+    Raises
+    ------
+    CLDataError
+        For an argument that is neither a keyword nor a number.
+    """
+    words: list[str] = []
+    numbers: list[float] = []
+    for position, token in enumerate(record.args or (), start=1):
+        if _KEYWORD.fullmatch(token) and token.upper() not in _NOT_KEYWORDS:
+            words.append(token.upper())
+        else:
+            what = f"the {ordinal(position)} value of {record.word}"
+            numbers.append(parse_number(token, source=source, line=record.line, what=what))
+    return words, numbers
+
+
+@dataclass(frozen=True)
+class _PendingCircle:
+    """A CIRCLE record waiting for its end GOTO (all in the workpiece frame, mm)."""
+
+    line: int
+    centre: tuple[float, float, float]
+    rotation_axis: tuple[float, float, float]
+    radius: float
+    turns: int
+
+
+class _AptInterpreter:
+    """Walks the records of one file with the modal state of an APT post-processor.
+
+    Parameters
+    ----------
+    source : str
+        File name for messages.
+    units : str
+        Units of the file ("mm" or "inch").
+    chord_tolerance : float, mm
+        Chord error allowed when interpolating arcs.
+    nx : bool
+        NX CLSF dialect (arcs turn clockwise about the circle axis).
+    """
+
+    def __init__(self, source: str, units: str, chord_tolerance: float, nx: bool) -> None:
+        self.source = source
+        self.units = units
+        self.scale = scale_of(units)
+        self.chord_tolerance = chord_tolerance
+        self.arc_sense = -1.0 if nx else 1.0
+        self.builder = ToolpathBuilder(source)
+        self.frame: Frame = IDENTITY
+        self.axis_local: tuple[float, float, float] = (0.0, 0.0, 1.0)
+        self.axis = self.axis_local
+        self.multiaxis = False
+        self.rapid_next = False
+        self.feed_value = math.nan
+        self.feed_per_rev = False
+        self.feed_scale = self.scale
+        self.rpm: float | None = None
+        self.spindle_direction = "cw"
+        self.spindle_on = False
+        self.coolant_mode = "flood"
+        self.tool_data: dict[str, object] = {}
+        self.circle: _PendingCircle | None = None
+        self.last_point_on_arc = False
+        self.ignored: dict[str, int] = {}
+        self.handlers: dict[str, Callable[[Record], None]] = {
+            "$$": self._comment,
+            "GOTO": self._goto,
+            "FROM": self._from,
+            "CIRCLE": self._circle,
+            "RAPID": self._rapid,
+            "FEDRAT": self._fedrat,
+            "SPINDL": self._spindl,
+            "COOLNT": self._coolnt,
+            "LOADTL": self._loadtl,
+            "LOAD": self._load,
+            "SELECT": self._load,
+            "CUTTER": self._cutter,
+            "TLDATA": self._tldata,
+            "TOOL PATH": self._tool_path,
+            "MSYS": self._msys,
+            "MULTAX": self._multax,
+            "UNITS": self._units,
+            "PARTNO": self._text_event("partno"),
+            "PPRINT": self._text_event("comment"),
+            "INSERT": self._text_event("insert"),
+            "GOHOME": self._bare_event("home"),
+            "STOP": self._bare_event("stop", optional=False),
+            "OPSTOP": self._bare_event("stop", optional=True),
+            "END": self._ignore,
+            "FINI": self._ignore,
+            "PAINT": self._ignore,
+            "END-OF-PATH": self._ignore,
+        }
+
+    # -- driving --------------------------------------------------------------------------
+
+    def run(self, records: Sequence[Record]) -> None:
+        """Interpret ``records`` in order."""
+        for record in records:
+            if self.circle is not None and record.word not in ("GOTO", "PAINT", "$$"):
+                raise CLDataError(
+                    self.source,
+                    self.circle.line,
+                    f"expected a GOTO after CIRCLE, got '{record.text}' on line {record.line}",
+                )
+            self.handlers.get(record.word, self._unknown)(record)
+        if self.circle is not None:
+            raise CLDataError(
+                self.source, self.circle.line, "expected a GOTO after CIRCLE, got the end of file"
+            )
+        if self.ignored:
+            logger.debug("%s: ignored records %s", self.source, self.ignored)
+
+    def error(self, record: Record, message: str) -> CLDataError:
+        """A CLDataError for ``record``."""
+        return CLDataError(self.source, record.line, message)
+
+    def _unknown(self, record: Record) -> None:
+        self.builder.add_event("unknown", record.line, text=record.text)
+        self.builder.warn(record.line, f"unknown record '{record.text}' carried as a comment")
+
+    def _ignore(self, record: Record) -> None:
+        """Records that carry nothing for the program (display, end markers)."""
+        self.ignored[record.word] = self.ignored.get(record.word, 0) + 1
+
+    # -- motion ---------------------------------------------------------------------------
+
+    def _point(self, record: Record) -> tuple[tuple[float, float, float], bool]:
+        """Tip (mm, workpiece frame) of a GOTO/FROM; updates the modal tool axis.
+
+        Returns
+        -------
+        tip : tuple of 3 floats, mm
+        has_axis : bool
+            Whether the record carried its own tool axis.
+        """
+        args = record.args or []
+        if len(args) not in (3, 6):
+            raise self.error(record, f"expected 3 or 6 values in {record.word}, got {len(args)}")
+        values = [
+            parse_number(
+                token,
+                source=self.source,
+                line=record.line,
+                what=f"the {ordinal(k)} value of {record.word}",
+            )
+            for k, token in enumerate(args, start=1)
+        ]
+        for k, value in enumerate(values[:3], start=1):
+            if not math.isfinite(value):
+                raise self.error(
+                    record,
+                    f"expected a finite number for the {ordinal(k)} value of {record.word}, "
+                    f"got '{args[k - 1]}'",
+                )
+        tip = self.frame.point([v * self.scale for v in values[:3]])
+        if len(values) == 6:
+            self.axis_local = unit_vector(values[3:], builder=self.builder, line=record.line)
+            self.axis = self.frame.vector(self.axis_local)
+            self.multiaxis = True
+        return tip, len(values) == 6
+
+    def _current_feed(self) -> float:
+        """Feed of a feed move now, mm/min (NaN when unknown)."""
+        if not self.feed_per_rev:
+            return self.feed_value * self.feed_scale
+        if self.rpm is None or not self.spindle_on:
+            return math.nan
+        return self.feed_value * self.feed_scale * self.rpm
+
+    def _goto(self, record: Record) -> None:
+        axis_before = self.axis
+        tip, has_axis = self._point(record)
+        if self.circle is not None:
+            self._finish_arc(record, tip, axis_before, has_axis)
+            return
+        if self.rapid_next:
+            self.builder.add_point(tip, self.axis, math.nan, Motion.RAPID, record.line)
+            self.rapid_next = False
+        else:
+            self.builder.add_point(tip, self.axis, self._current_feed(), Motion.FEED, record.line)
+        self.last_point_on_arc = False
+
+    def _from(self, record: Record) -> None:
+        tip, _ = self._point(record)
+        self.builder.add_point(tip, self.axis, math.nan, Motion.RAPID, record.line)
+        self.last_point_on_arc = False
+
+    def _rapid(self, record: Record) -> None:
+        if record.args is not None:
+            self._unknown(record)
+            return
+        self.rapid_next = True
+
+    def _circle(self, record: Record) -> None:
+        args = record.args or []
+        if len(args) < 7:
+            raise self.error(record, f"expected at least 7 values in CIRCLE, got {len(args)}")
+        values = [
+            parse_number(
+                token,
+                source=self.source,
+                line=record.line,
+                what=f"the {ordinal(k)} value of CIRCLE",
+            )
+            for k, token in enumerate(args[:7], start=1)
+        ]
+        for k in (1, 2, 3):
+            if not math.isfinite(values[k - 1]):
+                raise self.error(
+                    record,
+                    f"expected a finite number for the {ordinal(k)} value of CIRCLE, "
+                    f"got '{args[k - 1]}'",
+                )
+        radius = values[6]
+        if not (math.isfinite(radius) and radius > 0.0):
+            raise self.error(
+                record, f"expected a positive radius for the 7th value of CIRCLE, got '{args[6]}'"
+            )
+        axis = unit_vector(values[3:6], builder=self.builder, line=record.line, what="circle axis")
+        turns = self._circle_turns(record, args[7:])
+        if self.builder.last_tip is None:
+            raise self.error(
+                record, "expected a motion before CIRCLE (the arc starts there), got none"
+            )
+        if self.rapid_next:
+            self.builder.warn(record.line, "RAPID before CIRCLE ignored: arcs are feed moves")
+            self.rapid_next = False
+        world_axis = self.frame.vector(axis)
+        self.circle = _PendingCircle(
+            line=record.line,
+            centre=self.frame.point([v * self.scale for v in values[:3]]),
+            rotation_axis=tuple(self.arc_sense * a for a in world_axis),  # type: ignore[arg-type]
+            radius=radius * self.scale,
+            turns=turns,
+        )
+
+    def _circle_turns(self, record: Record, extra: Sequence[str]) -> int:
+        """``TIMES,n`` among the values after the 7th (tolerances etc. are ignored)."""
+        turns = 1
+        for k, token in enumerate(extra):
+            if token.upper() != "TIMES":
+                continue
+            value = extra[k + 1] if k + 1 < len(extra) else ""
+            position = ordinal(8 + k + 1)
+            n = parse_number(
+                value, source=self.source, line=record.line, what=f"the {position} value of CIRCLE"
+            )
+            if not (math.isfinite(n) and n >= 1 and n == int(n)):
+                raise self.error(
+                    record, f"expected a whole number of turns after TIMES, got '{value}'"
+                )
+            turns = int(n)
+        return turns
+
+    def _finish_arc(
+        self,
+        record: Record,
+        end: tuple[float, float, float],
+        axis_before: tuple[float, float, float],
+        has_axis: bool,
+    ) -> None:
+        circle = self.circle
+        assert circle is not None
+        self.circle = None
+        start = self.builder.last_tip
+        assert start is not None
+        try:
+            arc = interpolate_arc(
+                start,
+                end,
+                circle.centre,
+                circle.rotation_axis,
+                circle.radius,
+                turns=circle.turns,
+                chord_tolerance=self.chord_tolerance,
+            )
+        except ValueError:
+            raise CLDataError(
+                self.source,
+                circle.line,
+                "expected the arc's start and end points off the circle axis, got a point on it",
+            ) from None
+        if arc.radius_error > self.chord_tolerance:
+            self.builder.warn(
+                circle.line,
+                f"arc end points are {arc.radius_error:.4g} mm off the CIRCLE radius "
+                f"{circle.radius:.6g} mm; the arc is blended between them",
+            )
+        self._check_arc_start(circle.line, start, arc.start_tangent)
+        self.builder.add_points(
+            arc.points, axis_before, self._current_feed(), Motion.FEED, circle.line
+        )
+        if has_axis:
+            self.builder.set_last_axis(self.axis)
+            if float(np.dot(axis_before, self.axis)) < math.cos(1e-6):
+                self.builder.warn(
+                    record.line,
+                    "tool axis changes on an arc; the interpolated points keep the start axis",
+                )
+        self.last_point_on_arc = True
+
+    def _check_arc_start(
+        self, line: int, start: tuple[float, float, float], tangent: np.ndarray
+    ) -> None:
+        """Warn when an arc starts backwards against the linear move before it."""
+        if self.last_point_on_arc or len(self.builder) < 2:
+            return
+        before = self.builder.last_tips(2)
+        incoming = before[1] - before[0]
+        length = float(np.linalg.norm(incoming))
+        if length < 1e-6:
+            return
+        cosine = float(incoming @ tangent) / length
+        if cosine < -0.5:
+            self.builder.warn(
+                line,
+                f"arc starts against the move before it (cosine {cosine:.2f}); "
+                "check the CIRCLE direction convention",
+            )
+
+    # -- feeds, spindle, coolant ----------------------------------------------------------
+
+    def _fedrat(self, record: Record) -> None:
+        words, numbers = _split_tokens(record, self.source)
+        if any(w not in _FEED_MODES for w in words) or len(words) > 1:
+            self._unknown(record)
+            return
+        if len(numbers) != 1:
+            raise self.error(record, f"expected one feed value in FEDRAT, got {len(numbers)}")
+        value = numbers[0]
+        if not (math.isfinite(value) and value > 0.0):
+            raise self.error(record, f"expected a positive feed in FEDRAT, got {value:g}")
+        per_rev, feed_scale = _FEED_MODES[words[0]] if words else (False, self.scale)
+        self.feed_value, self.feed_per_rev, self.feed_scale = value, per_rev, feed_scale
+        if per_rev and (self.rpm is None or not self.spindle_on):
+            self.builder.warn(
+                record.line,
+                "feed per revolution with no spindle speed; feed left unset until a SPINDL record",
+            )
+
+    def _spindl(self, record: Record) -> None:
+        words, numbers = _split_tokens(record, self.source)
+        known = {"RPM", "CLW", "CCLW", "ON", "OFF"}
+        if any(w not in known for w in words) or len(numbers) > 1:
+            self._unknown(record)
+            return
+        if "OFF" in words:
+            if numbers or len(words) > 1:
+                self._unknown(record)
+                return
+            self.spindle_on = False
+            self.builder.add_event("spindle", record.line, rpm=0.0, direction="off")
+            return
+        if numbers:
+            rpm = numbers[0]
+            if not (math.isfinite(rpm) and rpm >= 0.0):
+                raise self.error(record, f"expected a spindle speed >= 0 in SPINDL, got {rpm:g}")
+            self.rpm = rpm
+        if "CLW" in words:
+            self.spindle_direction = "cw"
+        if "CCLW" in words:
+            self.spindle_direction = "ccw"
+        if self.rpm is None:
+            self.builder.warn(record.line, "spindle turned on with no speed programmed yet")
+        self.spindle_on = True
+        rpm = math.nan if self.rpm is None else self.rpm
+        self.builder.add_event("spindle", record.line, rpm=rpm, direction=self.spindle_direction)
+
+    def _coolnt(self, record: Record) -> None:
+        words = [a.upper() for a in record.args or ()]
+        modes = [w for w in words if w != "ON"]
+        if not words or len(modes) > 1 or any(m not in _COOLANT_MODES for m in modes):
+            self._unknown(record)
+            return
+        mode = _COOLANT_MODES[modes[0]] if modes else self.coolant_mode
+        if mode != "off":
+            self.coolant_mode = mode
+        self.builder.add_event("coolant", record.line, mode=mode)
+
+    # -- tools ----------------------------------------------------------------------------
+
+    def _tool_change(self, record: Record, tokens: Sequence[str], position: int) -> None:
+        """Tool change: ``tokens[0]`` is the tool number (the ``position``-th value)."""
+        what = f"the {ordinal(position)} value of {record.word}"
+        token = tokens[0] if tokens else ""
+        number = parse_number(token, source=self.source, line=record.line, what=what)
+        if not (math.isfinite(number) and number >= 0 and number == int(number)):
+            raise self.error(record, f"expected a tool number for {what}, got '{token}'")
+        data: dict[str, object] = {"number": int(number), **self.tool_data}
+        upper = [t.upper() for t in tokens]
+        if "LENGTH" in upper:
+            k = upper.index("LENGTH")
+            value = tokens[k + 1] if k + 1 < len(tokens) else ""
+            length = parse_number(
+                value,
+                source=self.source,
+                line=record.line,
+                what=f"the {ordinal(position + k + 1)} value of {record.word}",
+            )
+            data["length"] = length * self.scale
+        self.tool_data = {}
+        self.builder.add_event("tool", record.line, **data)
+
+    def _loadtl(self, record: Record) -> None:
+        self._tool_change(record, record.args or [], 1)
+
+    def _load(self, record: Record) -> None:
+        """NX ``LOAD/TOOL,n[,...]`` and ``SELECT/TOOL,n``."""
+        args = record.args or []
+        if not args or args[0].upper() != "TOOL":
+            self._unknown(record)
+            return
+        self._tool_change(record, args[1:], 2)
+
+    def _set_cutter(self, record: Record, data: dict[str, float]) -> None:
+        if not self.builder.amend_last_event("tool", **data):
+            self.tool_data.update(data)
+        self.builder.add_event("cutter", record.line, **data)
+
+    def _cutter(self, record: Record) -> None:
+        args = record.args or []
+        if not args or not all(_is_value(a) for a in args):
+            self._unknown(record)
+            return
+        _, values = _split_tokens(record, self.source)
+        data = self._tool_geometry(record, values, length_index=6)
+        self._set_cutter(record, data)
+
+    def _tldata(self, record: Record) -> None:
+        args = record.args or []
+        if len(args) < 2 or args[0].upper() != "MILL":
+            self._unknown(record)
+            return
+        sub = Record(record.line, record.word, args[1:], record.text)
+        _, values = _split_tokens(sub, self.source)
+        self._set_cutter(record, self._tool_geometry(record, values, length_index=2))
+
+    def _tool_geometry(
+        self, record: Record, values: Sequence[float], length_index: int
+    ) -> dict[str, float]:
+        """Diameter, corner radius and length (mm) from the values of CUTTER/TLDATA."""
+        for value in values:
+            if not (math.isfinite(value) and value >= 0.0):
+                raise self.error(
+                    record, f"expected tool dimensions >= 0 in {record.word}, got {value:g}"
+                )
+        data = {"diameter": values[0] * self.scale}
+        if len(values) > 1:
+            data["corner_radius"] = values[1] * self.scale
+        if len(values) > length_index:
+            data["length"] = values[length_index] * self.scale
+        return data
+
+    def _tool_path(self, record: Record) -> None:
+        args = record.args or []
+        if not args or not args[0]:
+            self._unknown(record)
+            return
+        data = {"name": args[0]}
+        if len(args) >= 3 and args[1].upper() == "TOOL":
+            data["tool_name"] = args[2]
+            self.tool_data["name"] = args[2]
+        self.builder.add_event("operation", record.line, **data)
+
+    # -- frames, modes, units -------------------------------------------------------------
+
+    def _msys(self, record: Record) -> None:
+        args = record.args or []
+        if len(args) != 9:
+            raise self.error(record, f"expected 9 values in MSYS, got {len(args)}")
+        _, v = _split_tokens(record, self.source)
+        if not all(math.isfinite(x) for x in v):
+            raise self.error(record, f"expected finite numbers in MSYS, got {format_values(v)}")
+        origin = [x * self.scale for x in v[:3]]
+        try:
+            self.frame = Frame.from_axes(origin, v[3:6], v[6:9])
+        except ValueError:
+            raise self.error(
+                record,
+                f"expected two independent axis vectors in MSYS, got {format_values(v[3:6])} "
+                f"and {format_values(v[6:9])}",
+            ) from None
+        x, y = np.asarray(v[3:6]), np.asarray(v[6:9])
+        if abs(float(x @ y)) > 1e-3 * float(np.linalg.norm(x) * np.linalg.norm(y)):
+            self.builder.warn(record.line, "MSYS axes are not orthogonal; orthonormalised")
+        self.axis = self.frame.vector(self.axis_local)
+        logger.debug("%s:%d: MSYS frame %s", self.source, record.line, self.frame)
+
+    def _multax(self, record: Record) -> None:
+        mode = [a.upper() for a in record.args] if record.args is not None else ["ON"]
+        if mode == ["ON"]:
+            self.multiaxis = True
+        elif mode != ["OFF"]:
+            self._unknown(record)
+
+    def _units(self, record: Record) -> None:
+        units = _UNITS_WORDS.get(record.args[0].upper()) if record.args else None
+        if units is None or len(record.args or ()) != 1:
+            self._unknown(record)
+            return
+        if units != self.units:
+            self.builder.warn(
+                record.line, f"UNITS change from {self.units} to {units}; later values in {units}"
+            )
+            self.units, self.scale = units, scale_of(units)
+
+    # -- events ---------------------------------------------------------------------------
+
+    def _comment(self, record: Record) -> None:
+        if record.rest:
+            self.builder.add_event("comment", record.line, text=record.rest)
+
+    def _text_event(self, kind: str) -> Callable[[Record], None]:
+        def handler(record: Record) -> None:
+            self.builder.add_event(kind, record.line, text=record.rest)
+
+        return handler
+
+    def _bare_event(self, kind: str, **data: object) -> Callable[[Record], None]:
+        def handler(record: Record) -> None:
+            if record.args is not None:
+                self._unknown(record)
+                return
+            self.builder.add_event(kind, record.line, **data)
+
+        return handler
+
+
+def _is_value(token: str) -> bool:
+    """Whether a token is meant as a number (not a keyword)."""
+    return not (_KEYWORD.fullmatch(token) and token.upper() not in _NOT_KEYWORDS)
+
+
+def read_apt_text(
+    text: str,
+    *,
+    source: str = "<string>",
+    units: str | None = None,
+    chord_tolerance: float = 0.01,
+) -> Toolpath:
+    """Read APT / CATIA / Creo / NX CLSF cutter-location data.
+
+    Parameters
+    ----------
+    text : str
+        Whole file contents.
+    source : str
+        File name for messages.
+    units : str, optional
+        Units assumed when the file does not say ("mm" or "inch"; default "mm").
+    chord_tolerance : float, mm
+        Largest chord error of the points interpolated on CIRCLE arcs.
+
+    Returns
+    -------
+    Toolpath
+        Tips in mm in the workpiece frame (after MSYS), unit axes, feeds in mm/min.
+
+    Raises
+    ------
+    CLDataError
+        For data that cannot be read (message names the line and what was expected).
+    """
+    fallback = normalise_units(units)
+    if not (math.isfinite(chord_tolerance) and chord_tolerance > 0.0):
+        raise ValueError(f"chord_tolerance: expected a positive length, got {chord_tolerance!r}")
+    scan = scan_records(split_lines(text), source)
+    file_units = _file_units(scan.records) or fallback
+    nx = scan.listing_lines > 0 or any(r.word in _NX_WORDS for r in scan.records)
+    logger.debug(
+        "%s: %d records, units %s, dialect %s, %d listing lines skipped, "
+        "%d trailing $$ comments ignored",
+        source,
+        len(scan.records),
+        file_units,
+        "NX CLSF" if nx else "APT",
+        scan.listing_lines,
+        scan.trailing_comments,
+    )
+    interpreter = _AptInterpreter(source, file_units, chord_tolerance, nx)
+    interpreter.run(scan.records)
+    if scan.after_fini:
+        interpreter.builder.warn(
+            scan.after_fini[0],
+            f"{len(scan.after_fini)} non-blank line(s) after FINI ignored",
+        )
+    return interpreter.builder.build(units=file_units, multiaxis=interpreter.multiaxis)

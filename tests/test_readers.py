@@ -1,0 +1,844 @@
+"""Tests of the CL data readers (urdfpost.readers)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from urdfpost.errors import CLDataError
+from urdfpost.readers import READERS, detect_format, read_cl, read_cl_text
+from urdfpost.readers._geometry import max_arc_step
+from urdfpost.tolerances import MM_PER_INCH
+from urdfpost.toolpath import Motion
+
+DATA = Path(__file__).parent / "data" / "cl"
+REAL = Path(__file__).parents[1].parent / "shared" / "testdata" / "cl"
+BALLMILL = REAL / "nx_variable_axis_ballmill_inch.cls"
+PROJECT2 = REAL / "nx_project2_15ops_inch.cls"
+
+
+def real_file(path: Path) -> Path:
+    if not path.is_file():
+        pytest.skip(f"real CL sample {path} absent (it lives in ../shared/testdata/cl)")
+    return path
+
+
+def apt(text: str, **kwargs):
+    """Read APT text under the name 'src.apt'."""
+    return read_cl_text(text, source="src.apt", format="apt", **kwargs)
+
+
+# -- an independent, minimal view of an NX listing, for cross-checking the reader -------------
+
+
+def raw_records(path: Path) -> list[tuple[int, str]]:
+    """(line, record text without trailing $$ comment) of every non-blank line."""
+    out = []
+    lines = re.split(r"\r\n|\r|\n", path.read_text())
+    for number, line in enumerate(lines, start=1):
+        code = line.split("$$")[0].strip()
+        if code:
+            out.append((number, code))
+    return out
+
+
+def goto_values(code: str) -> list[float]:
+    return [float(v) for v in code.split("/", 1)[1].split(",")]
+
+
+# -- API ---------------------------------------------------------------------------------------
+
+
+def test_readers_registry():
+    assert set(READERS) == {"apt", "plain"}
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("GOTO/1,2,3\n", "apt"),
+        ("  goto / 1, 2, 3", "apt"),
+        ("TOOL PATH/OP,TOOL,T1\n", "apt"),
+        ("$$ only a comment\n", "apt"),
+        ("1 2 3\n4 5 6 0 0 1\n", "plain"),
+        ("# a/b comment\n1,2,3\n", "plain"),
+        ("", "plain"),
+    ],
+)
+def test_detect_format(text, expected):
+    assert detect_format(text) == expected
+
+
+def test_read_cl_missing_file(tmp_path):
+    missing = tmp_path / "missing.cls"
+    with pytest.raises(CLDataError, match=r"missing\.cls:0: cannot read: ") as info:
+        read_cl(missing)
+    assert info.value.line == 0
+    assert info.value.path == str(missing)
+
+
+def test_read_cl_detects_format_and_names_source(tmp_path):
+    path = tmp_path / "a.txt"
+    path.write_text("0 0 0\n1 0 0\n")
+    tp = read_cl(path)
+    assert tp.source == str(path)
+    assert len(tp) == 2
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"format": "gcode"}, {"units": "furlong"}, {"chord_tolerance": 0.0}, {"chord_tolerance": -1}],
+)
+def test_bad_arguments(kwargs):
+    with pytest.raises(ValueError):
+        read_cl_text("GOTO/1,2,3", **kwargs)
+
+
+# -- real NX files -----------------------------------------------------------------------------
+
+
+def test_nx_ballmill_file():
+    path = real_file(BALLMILL)
+    tp = read_cl(path)
+    records = raw_records(path)
+    gotos = []  # (line, values, rapid)
+    rapid = False
+    for line, code in records:
+        if code.upper() == "RAPID":
+            rapid = True
+        elif code.upper().startswith("GOTO/"):
+            gotos.append((line, goto_values(code), rapid))
+            rapid = False
+    assert len(gotos) == 348
+    assert len(tp) == 348
+    assert tp.units == "inch"
+    assert tp.multiaxis
+    assert tp.warnings == ()
+    np.testing.assert_array_equal(tp.line, [g[0] for g in gotos])
+    expected_motion = [Motion.RAPID if g[2] else Motion.FEED for g in gotos]
+    np.testing.assert_array_equal(tp.motion, expected_motion)
+    assert (tp.motion == Motion.RAPID).sum() == 3
+    # MSYS/3,3,0 with identity axes: the MCS origin in part coordinates, added to every point.
+    origin = np.array([3.0, 3.0, 0.0])
+    expected_tip = (np.array([g[1][:3] for g in gotos]) + origin) * MM_PER_INCH
+    np.testing.assert_allclose(tp.tip, expected_tip, rtol=0, atol=1e-9)
+    axis = np.array([0.0, 0.0, 1.0])
+    for k, (_, values, _) in enumerate(gotos):
+        if len(values) == 6:
+            axis = np.array(values[3:]) / np.linalg.norm(values[3:])
+        np.testing.assert_allclose(tp.axis[k], axis, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(tp.axis, axis=1), 1.0, atol=1e-12)
+    assert sum(len(g[1]) == 6 for g in gotos) == 329
+    # feeds: NaN on rapids and before the first FEDRAT, then 10 IPM
+    feed_line = next(line for line, code in records if code.startswith("FEDRAT"))
+    after = (tp.motion == Motion.FEED) & (tp.line > feed_line)
+    np.testing.assert_allclose(tp.feed[after], 10 * MM_PER_INCH)
+    assert np.isnan(tp.feed[tp.motion == Motion.RAPID]).all()
+    kinds = [(e.kind, e.index) for e in tp.events]
+    assert kinds == [("operation", 0), ("cutter", 0), ("comment", 0)]
+    assert tp.events[0].data == {"name": "NORM_PART", "tool_name": "BALL_MILL_1.00"}
+    cutter = tp.events[1].data
+    assert cutter["diameter"] == pytest.approx(25.4)
+    assert cutter["corner_radius"] == pytest.approx(12.7)
+    assert cutter["length"] == pytest.approx(76.2)
+    assert tp.events[2].data == {"text": "centerline data"}
+
+
+@pytest.fixture(scope="module")
+def project2():
+    path = real_file(PROJECT2)
+    return path, read_cl(path), raw_records(path)
+
+
+def test_nx_project2_counts_and_units(project2):
+    path, tp, records = project2
+    assert not path.read_bytes().endswith(b"\n")  # the file has no final newline
+    goto_lines = [line for line, code in records if code.startswith("GOTO/")]
+    circle_lines = [line for line, code in records if code.startswith("CIRCLE/")]
+    assert len(goto_lines) == 10585
+    assert len(circle_lines) == 146
+    assert tp.units == "inch"
+    assert tp.multiaxis
+    assert tp.warnings == ()
+    # every GOTO that does not end an arc is one point on its own line, in file order
+    ends = set()
+    for (_, first), (line, second) in itertools.pairwise(records):
+        if first.startswith("CIRCLE/"):
+            assert second.startswith("GOTO/")
+            ends.add(line)
+    plain = [line for line in goto_lines if line not in ends]
+    on_goto = np.isin(tp.line, plain)
+    np.testing.assert_array_equal(tp.line[on_goto], plain)
+    on_circle = np.isin(tp.line, circle_lines)
+    assert on_goto.sum() + on_circle.sum() == len(tp)
+    extra = int(on_circle.sum()) - len(circle_lines)
+    assert extra > 0
+    assert len(tp) == 10585 + extra
+    assert np.all(np.diff(tp.line) >= 0)
+    assert (tp.motion == Motion.RAPID).sum() == sum(code == "RAPID" for _, code in records)
+    np.testing.assert_allclose(np.linalg.norm(tp.axis, axis=1), 1.0, atol=1e-12)
+
+
+def test_nx_project2_points_are_file_values_in_mm(project2):
+    _, tp, records = project2
+    # inline "$$ x,y,z" contact points are ignored: the tip is the GOTO's first three values
+    by_line = {line: goto_values(code) for line, code in records if code.startswith("GOTO/")}
+    text_lines = PROJECT2.read_text().splitlines()
+    assert sum("GOTO/" in line and "$$" in line for line in text_lines) == 2445
+    goto_points = np.isin(tp.line, list(by_line))
+    expected = np.array([by_line[line][:3] for line in tp.line[goto_points]]) * MM_PER_INCH
+    np.testing.assert_allclose(tp.tip[goto_points], expected, rtol=0, atol=1e-9)
+    horizontal = np.abs(tp.axis[:, 2]) < 1e-12
+    assert horizontal.any()  # tool axes down to exactly horizontal (k = 0)
+
+
+def test_nx_project2_arcs(project2):
+    _, tp, records = project2
+    tol = 0.01
+    checked = 0
+    for k, (line, code) in enumerate(records):
+        if not code.startswith("CIRCLE/"):
+            continue
+        values = code.split("/", 1)[1].split(",")
+        centre = np.array([float(v) for v in values[:3]]) * MM_PER_INCH
+        normal = np.array([float(v) for v in values[3:6]])
+        normal /= np.linalg.norm(normal)
+        radius = float(values[6]) * MM_PER_INCH
+        end = np.array(goto_values(records[k + 1][1])[:3]) * MM_PER_INCH
+        idx = np.flatnonzero(tp.line == line)
+        assert idx.size >= 1
+        points = tp.tip[idx]
+        start = tp.tip[idx[0] - 1]
+        # the arc ends exactly on the GOTO after the CIRCLE
+        np.testing.assert_allclose(points[-1], end, rtol=0, atol=1e-12)
+        # every point on the circle's cylinder within the chord tolerance
+        rel = np.vstack([start, points]) - centre
+        height = rel @ normal
+        radial = rel - height[:, None] * normal
+        dist = np.linalg.norm(radial, axis=1)
+        assert np.abs(dist - radius).max() <= tol
+        # height along the axis goes linearly from start to end (a plane or a helix)
+        if abs(height[0] - height[-1]) > 1e-3:
+            assert np.all(np.diff(height) * np.sign(height[-1] - height[0]) > 0)
+        assert np.all(height >= min(height[0], height[-1]) - 1e-9)
+        assert np.all(height <= max(height[0], height[-1]) + 1e-9)
+        # NX turns clockwise about (i,j,k): each step turns about -normal
+        turn = np.cross(radial[:-1], radial[1:]) @ -normal
+        assert np.all(turn > 0)
+        # chord error (sagitta of each step) within the tolerance
+        cosine = np.sum(radial[:-1] * radial[1:], axis=1) / (dist[:-1] * dist[1:])
+        step = np.arccos(np.clip(cosine, -1, 1))
+        assert np.all(dist.max() * (1 - np.cos(step / 2)) <= tol + 1e-12)
+        # feed moves with the operation's feed, current tool axis
+        assert np.all(tp.motion[idx] == Motion.FEED)
+        assert np.all(tp.feed[idx] > 0)
+        np.testing.assert_allclose(
+            tp.axis[idx], np.broadcast_to(tp.axis[idx[0] - 1], (idx.size, 3))
+        )
+        checked += 1
+    assert checked == 146
+
+
+def test_nx_project2_helix_times(project2):
+    """CIRCLE ... TIMES,7: a helical ramp of 6 turns plus the partial arc, at a 3 degree ramp."""
+    _, tp, _ = project2
+    idx = np.flatnonzero(tp.line == 4641)
+    normal = np.array([0.0, -0.9922779, -0.1240347])
+    d = np.diff(tp.tip[idx[0] - 1 : idx[-1] + 1], axis=0)
+    along = d @ normal
+    across = np.linalg.norm(d - along[:, None] * normal, axis=1)
+    np.testing.assert_allclose(np.degrees(np.arctan(np.abs(along) / across)), 3.0, atol=0.01)
+    radial = tp.tip[idx] - np.array([1.9949, 3.6307, 1.9391]) * MM_PER_INCH
+    radial -= (radial @ normal)[:, None] * normal
+    swept = np.sum(
+        np.arctan2(
+            np.cross(radial[:-1], radial[1:]) @ -normal, np.sum(radial[:-1] * radial[1:], axis=1)
+        )
+    )
+    assert 6 < swept / (2 * math.pi) < 7
+
+
+def test_nx_project2_events(project2):
+    _, tp, _ = project2
+    tools = [e for e in tp.events if e.kind == "tool"]
+    assert [e.data["number"] for e in tools] == [1, 2, 1, 3]
+    assert [e.data["name"] for e in tools] == [
+        "MILL_0.120RAD",
+        "MILL_0RAD",
+        "MILL_0.120RAD",
+        "BALL_MILL_0.24DIA",
+    ]
+    assert [round(e.data["diameter"] / MM_PER_INCH, 4) for e in tools] == [0.75, 0.375, 0.75, 0.24]
+    assert [e.line for e in tools] == [13, 4632, 4737, 5323]
+    operations = [e.data["name"] for e in tp.events if e.kind == "operation"]
+    assert len(operations) == 15
+    assert operations[0] == "CAVITY_MILL" and operations[-1] == "ROTARY_FLOOR"
+    comments = [e.data["text"] for e in tp.events if e.kind == "comment"]
+    assert len(comments) == 20
+    assert "centerline and contact point" in comments
+    assert {e.kind for e in tp.events} == {"operation", "cutter", "tool", "comment"}
+    # each tool event precedes the first motion of its operation
+    for event in tools:
+        assert tp.line[event.index] > event.line
+
+
+# -- APT family: syntax ------------------------------------------------------------------------
+
+
+def test_creo_continuation_equals_single_lines():
+    split = read_cl(DATA / "creo_split.ncl")
+    single = read_cl(DATA / "creo_oneline.ncl")
+    np.testing.assert_array_equal(split.tip, single.tip)
+    np.testing.assert_array_equal(split.axis, single.axis)
+    np.testing.assert_array_equal(split.feed, single.feed)
+    np.testing.assert_array_equal(split.motion, single.motion)
+    assert [e.kind for e in split.events] == [e.kind for e in single.events]
+    # a continued record's line is its first line
+    assert list(split.line) == [13, 16, 18, 19]
+    assert split.units == "mm"
+    np.testing.assert_allclose(split.axis[1], [0, math.sqrt(0.5), math.sqrt(0.5)])
+    np.testing.assert_allclose(split.axis[2], split.axis[1])  # modal
+    assert list(split.motion) == [Motion.RAPID, Motion.FEED, Motion.FEED, Motion.FEED]
+    np.testing.assert_allclose(split.feed[1:], 500.0)
+    assert split.warnings == (
+        f"{DATA / 'creo_split.ncl'}:5: unknown record 'MACHIN / UNCX01, 1' carried as a comment",
+    )
+    kinds = [e.kind for e in split.events]
+    assert kinds == [
+        "comment", "comment", "partno", "comment", "unknown", "comment",
+        "tool", "comment", "spindle", "coolant", "coolant", "spindle",
+    ]  # fmt: skip
+    assert split.events[2].data == {"text": "SAMPLE"}
+    assert split.events[6].data == {"number": 1}
+    assert split.events[8].data == {"rpm": 1000.0, "direction": "cw"}
+    assert split.events[9].data == {"mode": "flood"}
+    assert split.events[11].data == {"rpm": 0.0, "direction": "off"}
+    assert split.events[11].index == 4
+
+
+def test_catia_sample():
+    tp = read_cl(DATA / "catia_style.aptsource")
+    src = str(DATA / "catia_style.aptsource")
+    assert tp.units == "mm"
+    assert tp.multiaxis
+    assert tp.warnings == (
+        f"{src}:12: unknown record 'TPRINT/T1 End Mill D 10,T1 End Mill D 10,MfgTool.1' "
+        "carried as a comment",
+    )
+    np.testing.assert_allclose(
+        tp.tip, [[0, 0, 100], [10, 10, 20], [10, 10, 0], [50, 10, 0], [60, 10, 0]]
+    )
+    assert list(tp.motion) == [Motion.RAPID, Motion.RAPID, Motion.FEED, Motion.FEED, Motion.FEED]
+    np.testing.assert_allclose(tp.feed[2:], [1000.0, 1000.0, 0.1 * 3000])
+    np.testing.assert_allclose(tp.axis[3], [0, 0.5, 0.866025] / np.linalg.norm([0, 0.5, 0.866025]))
+    by_kind = {}
+    for event in tp.events:
+        by_kind.setdefault(event.kind, []).append(event)
+    assert by_kind["partno"][0].data == {"text": "PART TO BE MACHINED"}
+    assert by_kind["cutter"][0].data == {"diameter": 10.0, "corner_radius": 2.0, "length": 100.0}
+    assert by_kind["tool"][0].data == {
+        "number": 1,
+        "diameter": 10.0,
+        "corner_radius": 2.0,
+        "length": 100.0,
+    }
+    assert by_kind["spindle"][0].data == {"rpm": 3000.0, "direction": "cw"}
+    assert by_kind["coolant"][0].data == {"mode": "mist"}
+    assert by_kind["insert"][0].data == {"text": "G90 G54  (verbatim)"}
+    assert [e.data for e in by_kind["stop"]] == [{"optional": True}, {"optional": False}]
+    assert by_kind["home"][0].index == 5
+    assert by_kind["comment"][-1].data == {"text": "MEASURE HERE"}
+    assert by_kind["comment"][-1].index == 4
+
+
+def test_trailing_comment_is_not_an_event():
+    tp = apt("GOTO/1,2,3 $$ 4,5,6\nGOTO/7,8,9$$ contact")
+    np.testing.assert_allclose(tp.tip, [[1, 2, 3], [7, 8, 9]])
+    assert tp.events == ()
+    assert tp.warnings == ()
+
+
+def test_whole_line_comment_event_index():
+    tp = apt("GOTO/1,2,3\n$$ between\nGOTO/4,5,6\n$$ after\n")
+    assert [(e.kind, e.index, e.line, e.data["text"]) for e in tp.events] == [
+        ("comment", 1, 2, "between"),
+        ("comment", 2, 4, "after"),
+    ]
+
+
+def test_modal_tool_axis_and_multiaxis_flag():
+    tp = apt("GOTO/0,0,0\nGOTO/1,0,0,0,0.6,0.8\nGOTO/2,0,0\n")
+    np.testing.assert_allclose(tp.axis, [[0, 0, 1], [0, 0.6, 0.8], [0, 0.6, 0.8]])
+    assert tp.multiaxis
+    assert not apt("GOTO/0,0,0\nGOTO/1,0,0\n").multiaxis
+    assert apt("MULTAX\nGOTO/0,0,0\n").multiaxis
+    assert apt("MULTAX/ON\nGOTO/0,0,0\n").multiaxis
+    assert not apt("MULTAX/OFF\nGOTO/0,0,0\n").multiaxis
+
+
+def test_non_unit_axis_is_normalised_with_warning():
+    tp = apt("GOTO/0,0,0,0,0,2\n")
+    np.testing.assert_allclose(tp.axis, [[0, 0, 1]])
+    assert tp.warnings == ("src.apt:1: tool axis (0, 0, 2) has length 2; normalised",)
+
+
+def test_msys_rotation_hand_computed():
+    # X axis = part +Y, Y axis = part -X (so Z = part +Z): a 90 degree turn about Z.
+    tp = apt("MSYS/10,20,30,0,1,0,-1,0,0\nGOTO/1,2,3,1,0,0\nGOTO/0,0,0\n")
+    np.testing.assert_allclose(tp.tip, [[10 - 2, 20 + 1, 30 + 3], [10, 20, 30]], atol=1e-12)
+    np.testing.assert_allclose(tp.axis, [[0, 1, 0], [0, 1, 0]], atol=1e-12)
+    # X = part X, Y = part Z, so Z = X x Y = part -Y; axes given unnormalised
+    tp = apt("MSYS/0,0,0,2,0,0,0,0,5\nGOTO/1,2,3\n")
+    np.testing.assert_allclose(tp.tip, [[1, -3, 2]], atol=1e-12)
+    np.testing.assert_allclose(tp.axis, [[0, -1, 0]], atol=1e-12)
+    # inch: the origin is scaled too; a new MSYS replaces the previous one
+    tp = apt("UNITS/INCHES\nMSYS/1,0,0,1,0,0,0,1,0\nGOTO/1,0,0\nMSYS/0,0,0,1,0,0,0,1,0\nGOTO/1,0,0")
+    np.testing.assert_allclose(tp.tip, [[2 * MM_PER_INCH, 0, 0], [MM_PER_INCH, 0, 0]])
+
+
+def test_msys_not_orthogonal_warns():
+    tp = apt("MSYS/0,0,0,1,0,0,0.1,1,0\nGOTO/0,1,0\n")
+    np.testing.assert_allclose(tp.tip, [[0, 1, 0]], atol=1e-12)
+    assert tp.warnings == ("src.apt:1: MSYS axes are not orthogonal; orthonormalised",)
+
+
+@pytest.mark.parametrize("ending", ["", "\n", "\n\n  \n"])
+def test_missing_or_extra_final_newline(ending):
+    tp = apt("GOTO/1,2,3\nGOTO/4,5,$\n6" + ending)
+    np.testing.assert_allclose(tp.tip, [[1, 2, 3], [4, 5, 6]])
+
+
+def test_crlf_and_cr_line_endings():
+    text = "$$ c\nRAPID\nGOTO/1,2,3\nGOTO/4,5,$\n6,0,0,1\nFOO/1\n"
+    lf = apt(text)
+    for newline in ("\r\n", "\r"):
+        other = apt(text.replace("\n", newline))
+        np.testing.assert_array_equal(other.tip, lf.tip)
+        np.testing.assert_array_equal(other.line, lf.line)
+        assert other.events == lf.events
+        assert other.warnings == lf.warnings
+
+
+def test_crlf_file(tmp_path):
+    path = tmp_path / "crlf.cls"
+    path.write_bytes(b"UNITS/MM\r\nGOTO/1,2,3\r\nGOTO/4,5,$\r\n6\r\nFINI")
+    tp = read_cl(path)
+    np.testing.assert_allclose(tp.tip, [[1, 2, 3], [4, 5, 6]])
+    assert list(tp.line) == [2, 3]
+    assert tp.warnings == ()
+
+
+def test_case_insensitive_keywords():
+    tp = apt("units/inches\nrapid\ngoto/1,0,0\nFedRat/ipm,10\nGoto/2,0,0\n")
+    assert tp.units == "inch"
+    assert list(tp.motion) == [Motion.RAPID, Motion.FEED]
+    np.testing.assert_allclose(tp.feed[1], 254.0)
+
+
+def test_unknown_record_is_comment_and_warning():
+    tp = apt("GOTO/0,0,0\nAUXFUN/12\nGOTO/1,0,0\n")
+    assert [(e.kind, e.index, e.line, e.data) for e in tp.events] == [
+        ("unknown", 1, 2, {"text": "AUXFUN/12"})
+    ]
+    assert tp.warnings == ("src.apt:2: unknown record 'AUXFUN/12' carried as a comment",)
+
+
+@pytest.mark.parametrize(
+    "record",
+    [
+        "COOLNT/TAPKUL",
+        "SPINDL/SFM,300",
+        "RAPID/ON",
+        "LOAD/FIXTURE,1",
+        "TLDATA/DRILL,5,118",
+        "1 2 3",
+    ],
+)
+def test_partly_understood_records_are_unknown(record):
+    tp = apt(record + "\n")
+    assert [e.kind for e in tp.events] == ["unknown"]
+    assert tp.warnings == (f"src.apt:1: unknown record '{record}' carried as a comment",)
+
+
+def test_rapid_applies_to_next_goto_only():
+    tp = apt("FEDRAT/100\nRAPID\nGOTO/0,0,10\nGOTO/0,0,0\nGOTO/1,0,0\nRAPID\nGOTO/1,0,10\n")
+    assert list(tp.motion) == [Motion.RAPID, Motion.FEED, Motion.FEED, Motion.RAPID]
+    np.testing.assert_array_equal(np.isnan(tp.feed), [True, False, False, True])
+    np.testing.assert_allclose(tp.feed[1:3], 100.0)
+
+
+def test_from_is_a_rapid_point():
+    tp = apt("FROM/0,0,100,0,0,1\nGOTO/0,0,0\n")
+    assert list(tp.motion) == [Motion.RAPID, Motion.FEED]
+    assert np.isnan(tp.feed).all()
+
+
+@pytest.mark.parametrize(
+    ("records", "units", "feed"),
+    [
+        ("FEDRAT/100", "mm", 100.0),
+        ("FEDRAT/MMPM,100", "mm", 100.0),
+        ("FEDRAT/100,MMPM", "mm", 100.0),
+        ("FEDRAT/IPM,10", "inch", 254.0),
+        ("FEDRAT/10,IPM", "inch", 254.0),
+        ("FEDRAT / 10.000000, IPM", "inch", 254.0),
+        ("UNITS/INCHES\nFEDRAT/10", "inch", 254.0),
+        ("SPINDL/1000,CLW\nFEDRAT/MMPR,0.1", "mm", 100.0),
+        ("SPINDL/RPM,2000,CCLW\nFEDRAT/0.002,IPR", "inch", 0.002 * 2000 * 25.4),
+    ],
+)
+def test_fedrat_variants(records, units, feed):
+    tp = apt(records + "\nGOTO/1,0,0\n")
+    assert tp.units == units
+    np.testing.assert_allclose(tp.feed, [feed])
+    np.testing.assert_allclose(tp.tip, [[1 * (25.4 if units == "inch" else 1), 0, 0]])
+
+
+def test_feed_per_rev_without_spindle_warns_until_speed_known():
+    tp = apt("FEDRAT/MMPR,0.1\nGOTO/1,0,0\nSPINDL/500\nGOTO/2,0,0\nSPINDL/OFF\nGOTO/3,0,0")
+    np.testing.assert_array_equal(np.isnan(tp.feed), [True, False, True])
+    assert tp.feed[1] == pytest.approx(50.0)
+    assert tp.warnings == (
+        "src.apt:1: feed per revolution with no spindle speed; feed left unset until a SPINDL "
+        "record",
+    )
+
+
+def test_units_fallback_and_file_wins():
+    assert apt("GOTO/1,0,0", units="inch").units == "inch"
+    np.testing.assert_allclose(apt("GOTO/1,0,0", units="inch").tip, [[25.4, 0, 0]])
+    tp = apt("UNITS/MM\nGOTO/1,0,0", units="inch")
+    assert tp.units == "mm"
+    np.testing.assert_allclose(tp.tip, [[1, 0, 0]])
+    # a feed unit anywhere decides, even after the first points
+    tp = apt("GOTO/1,0,0\nFEDRAT/IPM,5\nGOTO/2,0,0")
+    assert tp.units == "inch"
+    np.testing.assert_allclose(tp.tip[:, 0], [25.4, 50.8])
+
+
+def test_spindle_and_coolant_events():
+    tp = apt(
+        "SPINDL/ON\nSPINDL/1200\nSPINDL/CCLW\nSPINDL/OFF\nSPINDL/ON\n"
+        "COOLNT/ON\nCOOLNT/MIST\nCOOLNT/OFF\nCOOLNT/ON\nCOOLNT/THRU\nCOOLNT/AIR\n"
+    )
+    spindle = [e.data for e in tp.events if e.kind == "spindle"]
+    assert math.isnan(spindle[0]["rpm"]) and spindle[0]["direction"] == "cw"
+    assert spindle[1:] == [
+        {"rpm": 1200.0, "direction": "cw"},
+        {"rpm": 1200.0, "direction": "ccw"},
+        {"rpm": 0.0, "direction": "off"},
+        {"rpm": 1200.0, "direction": "ccw"},
+    ]
+    coolant = [e.data["mode"] for e in tp.events if e.kind == "coolant"]
+    assert coolant == ["flood", "mist", "off", "mist", "through", "air"]
+    assert tp.warnings == ("src.apt:1: spindle turned on with no speed programmed yet",)
+
+
+def test_tool_records():
+    tp = apt(
+        "TOOL PATH/OP1,TOOL,EM10\nTLDATA/MILL,10,1,50,0,0\nLOAD/TOOL,3,ADJUST,3\nGOTO/0,0,0\n"
+        "SELECT/TOOL,4\nCUTTER/6\nGOTO/1,0,0\nLOADTL/5,LENGTH,80\nGOTO/2,0,0\n"
+    )
+    events = [(e.kind, e.index, e.data) for e in tp.events]
+    assert events == [
+        ("operation", 0, {"name": "OP1", "tool_name": "EM10"}),
+        ("cutter", 0, {"diameter": 10.0, "corner_radius": 1.0, "length": 50.0}),
+        (
+            "tool",
+            0,
+            {"number": 3, "name": "EM10", "diameter": 10.0, "corner_radius": 1.0, "length": 50.0},
+        ),
+        # CUTTER right after the tool change (no motion between) completes it
+        ("tool", 1, {"number": 4, "diameter": 6.0}),
+        ("cutter", 1, {"diameter": 6.0}),
+        ("tool", 2, {"number": 5, "length": 80.0}),
+    ]
+    assert tp.warnings == ()
+
+
+def test_events_text_records():
+    tp = apt("PARTNO  BRACKET 12/B\nPPRINT/ROUGHING, 2 MM\nINSERT M08 (x,y)\nGOHOME\nEND\nFINI\n")
+    assert [(e.kind, e.data) for e in tp.events] == [
+        ("partno", {"text": "BRACKET 12/B"}),
+        ("comment", {"text": "ROUGHING, 2 MM"}),
+        ("insert", {"text": "M08 (x,y)"}),
+        ("home", {}),
+    ]
+    assert tp.warnings == ()
+
+
+def test_text_after_fini_warns():
+    tp = apt("GOTO/1,2,3\nFINI\n\nGOTO/9,9,9\n$$ x\n")
+    assert len(tp) == 1
+    assert tp.warnings == ("src.apt:4: 2 non-blank line(s) after FINI ignored",)
+
+
+def test_nx_listing_lines_and_paint_are_skipped():
+    text = (
+        "\nInformation listing created by\tuser\nDate : 18-Dec-2021\n"
+        "Current work part : C:\\part.prt\nNode name\thost\n-----------\n=======\n"
+        "TOOL PATH/OP,TOOL,T\nPAINT/COLOR,3\nGOTO/1,2,3\nEND-OF-PATH\n"
+        "Tool Path Listing has 4 lines."
+    )
+    tp = apt(text)
+    assert len(tp) == 1
+    assert [e.kind for e in tp.events] == ["operation"]
+    assert tp.warnings == ()
+
+
+# -- CIRCLE ------------------------------------------------------------------------------------
+
+
+def arc_check(tp, line, centre, normal, radius, sense, tol=0.01):
+    """Points of the arc on line ``line``: on the circle, turning about ``sense * normal``."""
+    idx = np.flatnonzero(tp.line == line)
+    pts = np.vstack([tp.tip[idx[0] - 1], tp.tip[idx]])
+    rel = pts - centre
+    normal = np.asarray(normal, dtype=float)
+    assert np.abs(rel @ normal).max() < 1e-9
+    np.testing.assert_allclose(np.linalg.norm(rel, axis=1), radius, atol=1e-9)
+    turn = np.cross(rel[:-1], rel[1:]) @ (sense * normal)
+    assert np.all(turn > 0)
+    cosine = np.sum(rel[:-1] * rel[1:], axis=1) / radius**2
+    step = np.arccos(np.clip(cosine, -1, 1))
+    assert np.all(radius * (1 - np.cos(step / 2)) <= tol + 1e-12)
+    return float(step.sum())
+
+
+@pytest.mark.parametrize(
+    ("normal", "end", "sweep"),
+    [
+        ((0, 0, 1), (0, 10, 0), math.pi / 2),  # counter-clockwise quarter
+        ((0, 0, -1), (0, 10, 0), 3 * math.pi / 2),  # clockwise three quarters
+        ((0, 0, 1), (10, 0, 0), 2 * math.pi),  # full circle
+        ((0, 0, -1), (10, 0, 0), 2 * math.pi),
+        ((0, 0, 1), (-10, 0, 0), math.pi),
+    ],
+)
+def test_circle_apt_right_hand_rule(normal, end, sweep):
+    i, j, k = normal
+    goto_end = f"GOTO/{end[0]},{end[1]},{end[2]}"
+    text = f"FEDRAT/200\nGOTO/10,0,0\nCIRCLE/0,0,0,{i},{j},{k},10,0.01\n{goto_end}\n"
+    tp = apt(text)
+    assert arc_check(tp, 3, np.zeros(3), normal, 10.0, +1) == pytest.approx(sweep)
+    idx = np.flatnonzero(tp.line == 3)
+    np.testing.assert_array_equal(tp.tip[idx[-1]], end)
+    assert len(idx) == math.ceil(sweep / max_arc_step(10.0, 0.01))
+    assert np.all(tp.motion[idx] == Motion.FEED)
+    np.testing.assert_allclose(tp.feed[idx], 200.0)
+    assert len(tp) == 1 + len(idx)
+    assert tp.warnings == ()
+
+
+def test_circle_nx_turns_clockwise_about_axis():
+    text = "TOOL PATH/OP,TOOL,T\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1,10\nGOTO/0,10,0\n"
+    tp = apt(text)
+    assert arc_check(tp, 3, np.zeros(3), (0, 0, -1), 10.0, -1) == pytest.approx(math.pi / 2)
+
+
+def test_circle_chord_tolerance_and_tilted_plane():
+    n = np.array([1.0, 1.0, 1.0]) / math.sqrt(3)
+    u = np.array([1.0, -1.0, 0.0]) / math.sqrt(2)
+    centre = np.array([5.0, 6.0, 7.0])
+    start = centre + 20 * u
+    end = centre + 20 * np.cross(n, u)  # a quarter turn counter-clockwise about n
+
+    def csv(values):
+        return ",".join(repr(float(v)) for v in values)
+
+    text = f"GOTO/{csv(start)}\nCIRCLE/{csv(centre)},{csv(n)},20\nGOTO/{csv(end)}\n"
+    for tol in (0.1, 0.01, 0.001):
+        tp = apt(text, chord_tolerance=tol)
+        assert arc_check(tp, 2, centre, n, 20.0, +1, tol=tol) == pytest.approx(math.pi / 2)
+
+
+def test_circle_keeps_tool_axis_and_helix():
+    tp = apt("GOTO/10,0,5,0,0.6,0.8\nCIRCLE/0,0,0,0,0,1,10\nGOTO/-10,0,0\n")
+    idx = np.flatnonzero(tp.line == 2)
+    np.testing.assert_allclose(tp.axis[idx], np.broadcast_to([0, 0.6, 0.8], (idx.size, 3)))
+    z = tp.tip[idx, 2]
+    assert np.all(np.diff(z) < 0) and z[-1] == 0.0
+    np.testing.assert_allclose(np.hypot(tp.tip[idx, 0], tp.tip[idx, 1]), 10.0)
+
+
+def test_circle_times_adds_turns():
+    tp = apt("GOTO/10,0,3\nCIRCLE/0,0,0,0,0,1,10,0.01,TIMES,3\nGOTO/0,10,0\n")
+    idx = np.flatnonzero(tp.line == 2)
+    rel = np.vstack([tp.tip[idx[0] - 1], tp.tip[idx]])
+    x, y = rel[:, 0], rel[:, 1]
+    steps = np.arctan2(x[:-1] * y[1:] - y[:-1] * x[1:], x[:-1] * x[1:] + y[:-1] * y[1:])
+    assert np.all(steps > 0)
+    assert steps.sum() == pytest.approx(2 * 2 * math.pi + math.pi / 2)
+    assert np.all(np.diff(rel[:, 2]) < 0)
+
+
+def test_circle_radius_mismatch_warns():
+    tp = apt("GOTO/10.5,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n")
+    assert tp.warnings == (
+        "src.apt:2: arc end points are 0.5 mm off the CIRCLE radius 10 mm; "
+        "the arc is blended between them",
+    )
+
+
+def test_circle_against_incoming_move_warns():
+    tp = apt("GOTO/10,10,0\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n")
+    assert len(tp.warnings) == 1
+    assert tp.warnings[0].startswith("src.apt:3: arc starts against the move before it")
+
+
+def test_circle_may_be_separated_by_paint_and_comments():
+    tp = apt("GOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nPAINT/COLOR,3\n$$ x\nGOTO/0,10,0\n")
+    assert tp.tip[-1].tolist() == [0, 10, 0]
+
+
+# -- plain format ------------------------------------------------------------------------------
+
+
+def test_plain_sample():
+    tp = read_cl(DATA / "plain_points.txt")
+    np.testing.assert_allclose(tp.tip, [[0, 0, 10], [1.5, 2.5, 3.5], [10, 0, 0], [11, 0, 0]])
+    np.testing.assert_allclose(tp.axis, [[0, 0, 1], [0, 0, 1], [0.6, 0, 0.8], [0.6, 0, 0.8]])
+    assert list(tp.line) == [2, 3, 5, 6]
+    assert np.all(tp.motion == Motion.FEED)
+    assert np.isnan(tp.feed).all()
+    assert [(e.kind, e.index, e.data["text"]) for e in tp.events] == [
+        ("comment", 0, "x y z i j k, millimetres"),
+        ("comment", 2, "tilt"),
+    ]
+    assert tp.units == "mm" and tp.multiaxis and tp.warnings == ()
+
+
+def test_plain_units_and_modal_axis():
+    tp = read_cl_text("1 2 3\n4 5 6 # end\n", format="plain", units="inch")
+    assert tp.units == "inch"
+    np.testing.assert_allclose(tp.tip, np.array([[1, 2, 3], [4, 5, 6]]) * MM_PER_INCH)
+    np.testing.assert_allclose(tp.axis, [[0, 0, 1], [0, 0, 1]])
+    assert not tp.multiaxis
+    assert [e.index for e in tp.events] == [1]
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("1 2 3\n1 2\n", r"p\.txt:2: expected 3 or 6 values \(x y z \[i j k\]\), got 2"),
+        ("1 2 3 4\n", r"p\.txt:1: expected 3 or 6 values \(x y z \[i j k\]\), got 4"),
+        ("1 x 3\n", r"p\.txt:1: expected a number for the 2nd value, got 'x'"),
+        ("1,,3\n", r"p\.txt:1: expected a number for the 2nd value, got ''"),
+        ("\n\n1 2 3 0 0 0\n", r"p\.txt:3: expected a unit tool axis, got \(0, 0, 0\)"),
+        ("inf 2 3\n", r"p\.txt:1: expected a finite number for the 1st value"),
+    ],
+)
+def test_plain_errors(text, message):
+    with pytest.raises(CLDataError, match=message):
+        read_cl_text(text, source="p.txt", format="plain")
+
+
+# -- errors ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "message"),
+    [
+        (
+            "GOTO/0,0,0\nGOTO/1,2,3,1.2.3,0,1\n",
+            2,
+            r"src\.apt:2: expected a number for the 4th value of GOTO, got '1\.2\.3'",
+        ),
+        ("GOTO/1,2,3,4\n", 1, r"src\.apt:1: expected 3 or 6 values in GOTO, got 4"),
+        ("GOTO/1,2\n", 1, r"expected 3 or 6 values in GOTO, got 2"),
+        ("FROM/1,2,3,4,5\n", 1, r"expected 3 or 6 values in FROM, got 5"),
+        ("GOTO/1,,3\n", 1, r"expected a number for the 2nd value of GOTO, got ''"),
+        ("\nGOTO/1,2,3,0,0,0\n", 2, r"src\.apt:2: expected a unit tool axis, got \(0, 0, 0\)"),
+        ("GOTO/1,2,3,nan,0,1\n", 1, r"expected a unit tool axis, got \(nan, 0, 1\)"),
+        ("GOTO/1,2,3,1e999,0,1\n", 1, r"expected a unit tool axis, got \(inf, 0, 1\)"),
+        ("GOTO/1e999,2,3\n", 1, r"expected a finite number for the 1st value of GOTO"),
+        ("GOTO/1,2,3\nGOTO/4,5,$\n\n", 2, r"src\.apt:2: expected the continuation of this record"),
+        ("GOTO/4,5,$", 1, r"got the end of the file"),
+        (
+            "GOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nFEDRAT/10\nGOTO/0,10,0\n",
+            2,
+            r"src\.apt:2: expected a GOTO after CIRCLE, got 'FEDRAT/10' on line 3",
+        ),
+        (
+            "GOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\n",
+            2,
+            r"src\.apt:2: expected a GOTO after CIRCLE, got the end of file",
+        ),
+        ("CIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n", 1, r"expected a motion before CIRCLE"),
+        ("GOTO/1,0,0\nCIRCLE/0,0,0,0,0,1\n", 2, r"expected at least 7 values in CIRCLE, got 6"),
+        ("GOTO/1,0,0\nCIRCLE/0,0,0,0,0,1,-2\n", 2, r"expected a positive radius"),
+        ("GOTO/1,0,0\nCIRCLE/0,0,0,0,0,0,2\n", 2, r"expected a unit circle axis, got \(0, 0, 0\)"),
+        ("GOTO/1,0,0\nCIRCLE/0,0,0,0,0,1,1,TIMES,x\n", 2, r"the 9th value of CIRCLE, got 'x'"),
+        ("GOTO/1,0,0\nCIRCLE/0,0,0,0,0,1,1,TIMES,0\n", 2, r"whole number of turns"),
+        ("GOTO/0,0,0\nCIRCLE/0,0,0,0,0,1,1\nGOTO/1,0,0\n", 2, r"off the circle axis"),
+        ("FEDRAT/-5\n", 1, r"src\.apt:1: expected a positive feed in FEDRAT, got -5"),
+        ("FEDRAT/IPM,nan\n", 1, r"expected a positive feed in FEDRAT, got nan"),
+        ("FEDRAT/IPM\n", 1, r"expected one feed value in FEDRAT, got 0"),
+        ("FEDRAT/1.2.3\n", 1, r"expected a number for the 1st value of FEDRAT, got '1\.2\.3'"),
+        ("MSYS/0,0,0,1,0,0\n", 1, r"expected 9 values in MSYS, got 6"),
+        ("MSYS/0,0,0,1,0,0,2,0,0\n", 1, r"expected two independent axis vectors in MSYS"),
+        ("LOADTL/1.5\n", 1, r"expected a tool number for the 1st value of LOADTL, got '1\.5'"),
+        ("LOAD/TOOL,x\n", 1, r"expected a number for the 2nd value of LOAD, got 'x'"),
+        ("SPINDL/-100\n", 1, r"expected a spindle speed >= 0"),
+        ("CUTTER/-1\n", 1, r"expected tool dimensions >= 0 in CUTTER"),
+    ],
+)
+def test_apt_errors(text, line, message):
+    with pytest.raises(CLDataError, match=message) as info:
+        apt(text)
+    assert info.value.path == "src.apt"
+    assert info.value.line == line
+
+
+def test_error_names_the_file(tmp_path):
+    path = tmp_path / "bad.cls"
+    path.write_text("GOTO/1,2,3\nGOTO/a,2,3")
+    with pytest.raises(CLDataError, match=r"bad\.cls:2: expected a number for the 1st value"):
+        read_cl(path)
+
+
+# -- properties --------------------------------------------------------------------------------
+
+coordinate = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False).map(lambda v: round(v, 6))
+unit_axes = (
+    st.tuples(*[st.floats(min_value=-1, max_value=1)] * 3)
+    .filter(lambda v: 0.1 < math.sqrt(sum(c * c for c in v)))
+    .map(lambda v: tuple(c / math.sqrt(sum(x * x for x in v)) for c in v))
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(coordinate, coordinate, coordinate, unit_axes), min_size=1, max_size=8))
+def test_goto_values_round_trip(points):
+    lines = ["GOTO/" + ",".join(f"{v:.6f}" for v in (*tip, *axis)) for *tip, axis in points]
+    tp = apt("\n".join(lines))
+    np.testing.assert_allclose(tp.tip, [p[:3] for p in points], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(tp.axis, [p[3] for p in points], rtol=0, atol=1e-5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.tuples(coordinate, coordinate, coordinate, unit_axes),
+    st.sets(st.integers(min_value=0, max_value=4)),
+    st.sampled_from(["\n", "\r\n"]),
+    st.sampled_from(["", " ", "      "]),
+)
+def test_continuation_split_at_any_comma(point, cuts, newline, indent):
+    values = [f"{v:.6f}" for v in (*point[:3], *point[3])]
+    pieces = [values[0]]
+    for k, value in enumerate(values[1:]):
+        pieces.append(("," + "$" + newline + indent if k in cuts else ",") + value)
+    record = "GOTO/" + "".join(pieces)
+    split = apt("RAPID\n" + record + newline + "GOTO/0,0,0")
+    single = apt("RAPID\nGOTO/" + ",".join(values) + "\nGOTO/0,0,0")
+    np.testing.assert_array_equal(split.tip, single.tip)
+    np.testing.assert_array_equal(split.axis, single.axis)
+    np.testing.assert_array_equal(split.motion, single.motion)
+    assert split.line[0] == 2
