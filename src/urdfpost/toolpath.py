@@ -43,7 +43,10 @@ class Event:
         - ``"coolant"``: ``data["mode"]`` ("flood", "mist", "through", "air", "off")
         - ``"home"``: GOHOME
         - ``"stop"``: ``data["optional"]`` (bool)
-        - ``"operation"``: start of an operation (NX ``TOOL PATH/``), ``data["name"]``
+        - ``"operation"``: start of an operation (NX ``TOOL PATH/``), ``data["name"]``,
+          optional ``data["tool_name"]``
+        - ``"cutter"``: tool size (CUTTER, TLDATA): ``data["diameter"]``, optional
+          ``data["corner_radius"]``, ``data["length"]`` (mm)
         - ``"unknown"``: a record the reader does not translate, ``data["text"]`` (carried
           into the program as a comment; the reader also adds a warning)
     line : int
