@@ -1,5 +1,364 @@
-"""Command line (filled in by the pipeline work)."""
+"""The ``urdfpost`` command line.
+
+``main(argv) -> int``: usage errors exit 2 (argparse), domain errors print ``urdfpost: <message>``
+on stderr and exit 1. Files are read and written only here and in the readers; outputs are
+written to a temporary file and renamed, so a failed run leaves no half-written file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from urdfpost import __version__
+from urdfpost.errors import UrdfpostError
+
+log = logging.getLogger("urdfpost")
+
+MAX_WARNINGS_SHOWN = 20
 
 
-def main(argv: list[str] | None = None) -> int:
+def _write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _length(value: str) -> float:
+    try:
+        v = float(value)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"expected a number, got {value!r}") from e
+    if not np.isfinite(v) or v < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {value!r}")
+    return v
+
+
+def _positive(value: str) -> float:
+    v = _length(value)
+    if v == 0:
+        raise argparse.ArgumentTypeError("expected a positive number, got 0")
+    return v
+
+
+def _prefer(value: str) -> Any:
+    from urdfpost.branches import Preference
+
+    try:
+        return Preference.parse(value)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from e
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (exposed for documentation and tests)."""
+    from urdfpost.dialects import DIALECTS
+
+    controllers = sorted(DIALECTS)
+    p = argparse.ArgumentParser(
+        prog="urdfpost",
+        description="Five-axis post-processor for any machine described by a URDF.",
+    )
+    p.add_argument("--version", action="version", version=f"urdfpost {__version__}")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="more detail (-vv: debug)")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    po = sub.add_parser("post", help="post a CL file for a machine and control")
+    po.add_argument("cl", help="CL file (APT, CATIA, Creo, NX CLSF, or plain 'x y z i j k')")
+    po.add_argument("--machine", "-m", required=True, help="machine name or URDF file")
+    po.add_argument("--controller", "-c", choices=controllers, help="control dialect")
+    po.add_argument("-o", "--output", help="program file (default: CL name + control extension)")
+    tcp = po.add_mutually_exclusive_group()
+    tcp.add_argument(
+        "--tcp",
+        dest="tcp",
+        action="store_true",
+        default=True,
+        help="tool tip in workpiece coordinates, TCP on (default)",
+    )
+    tcp.add_argument(
+        "--no-tcp",
+        dest="tcp",
+        action="store_false",
+        help="machine axis positions: the post does the kinematics",
+    )
+    po.add_argument(
+        "--units",
+        choices=("mm", "inch"),
+        help="units of the CL data when the file does not say (default mm)",
+    )
+    po.add_argument(
+        "--tool-length", type=_length, help="tool length, gauge point to tip, in program units"
+    )
+    po.add_argument(
+        "--tolerance",
+        type=_positive,
+        help="tool-tip tolerance in program units (default 0.01 mm / 0.0004 in)",
+    )
+    po.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+ or B-")
+    po.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
+    po.add_argument("--block-numbers", action="store_true", help="number the blocks")
+    po.add_argument("--name", help="program name (default: PARTNO or URDFPOST)")
+    po.add_argument("--report", help="write a JSON report here")
+    po.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+
+    ve = sub.add_parser("verify", help="check an NC program against its CL data")
+    ve.add_argument("program", help="NC program in any supported dialect")
+    ve.add_argument("--machine", "-m", required=True, help="machine name or URDF file")
+    ve.add_argument("--cl", required=True, help="the CL file the program was made from")
+    ve.add_argument(
+        "--controller",
+        "-c",
+        choices=controllers,
+        help="dialect of the program (default: from its extension)",
+    )
+    ve.add_argument(
+        "--units", choices=("mm", "inch"), help="units of the CL data when the file does not say"
+    )
+    ve.add_argument(
+        "--tool-length",
+        type=_length,
+        help="tool length in program units (machine-coordinate programs)",
+    )
+    ve.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
+    ve.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
+    ve.add_argument("--report", help="write a JSON report here")
+
+    sub.add_parser("machines", help="list the machines urdfpost knows by name")
+    ma = sub.add_parser("machine", help="describe a machine")
+    ma_sub = ma.add_subparsers(dest="machine_command", required=True, metavar="ACTION")
+    show = ma_sub.add_parser("show", help="family, axes, travels, singular directions")
+    show.add_argument("name", help="machine name or URDF file")
+    return p
+
+
+def _setup_logging(verbose: int) -> None:
+    level = logging.WARNING if verbose == 0 else logging.INFO if verbose == 1 else logging.DEBUG
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("urdfpost: %(levelname)s: %(message)s"))
+    root = logging.getLogger("urdfpost")
+    root.handlers[:] = [handler]
+    root.setLevel(level)
+    root.propagate = False
+
+
+def _show_warnings(warnings: Sequence[str]) -> None:
+    for w in warnings[:MAX_WARNINGS_SHOWN]:
+        print(f"urdfpost: warning: {w}", file=sys.stderr)
+    if len(warnings) > MAX_WARNINGS_SHOWN:
+        print(
+            f"urdfpost: warning: ... and {len(warnings) - MAX_WARNINGS_SHOWN} more warnings "
+            "(all are in the --report JSON)",
+            file=sys.stderr,
+        )
+
+
+def _cmd_post(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from urdfpost.dialects import dialect_for
+    from urdfpost.machine import load_machine
+    from urdfpost.pipeline import PostOptions, post
+    from urdfpost.readers import read_cl
+    from urdfpost.tolerances import MM_PER_INCH, Tolerances
+
+    machine = load_machine(args.machine)
+    units_hint = args.units or machine.settings.units
+    tol_pre = Tolerances.for_units(units_hint)
+    toolpath = read_cl(args.cl, format=args.format, units=units_hint, chord_tolerance=tol_pre.tip)
+    units = toolpath.units
+    scale = MM_PER_INCH if units == "inch" else 1.0
+    dialect = dialect_for(
+        args.controller or (None if args.output else machine.settings.controller), args.output
+    )
+    options = PostOptions(
+        controller=dialect.name,
+        tcp=args.tcp,
+        units=units,
+        tool_length=None if args.tool_length is None else args.tool_length * scale,
+        tolerance=args.tolerance,
+        prefer=args.prefer,
+        block_numbers=args.block_numbers,
+        program_name=args.name,
+    )
+    _show_warnings(toolpath.warnings)
+    with tqdm(
+        total=len(toolpath),
+        unit="pt",
+        desc="posting",
+        disable=args.quiet or None,
+        file=sys.stderr,
+        leave=False,
+    ) as bar:
+        result = post(toolpath, machine, options, progress=bar.update)
+    out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
+    _write_atomic(out, result.text)
+    if args.report:
+        _write_atomic(Path(args.report), json.dumps(result.report, indent=2) + "\n")
+    mode = "TCP" if args.tcp else "machine coordinates"
+    print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
+    print(result.verification.summary(units))
     return 0
+
+
+def _cmd_verify(args: argparse.Namespace) -> int:
+    from urdfpost.dialects import dialect_for
+    from urdfpost.machine import load_machine
+    from urdfpost.pipeline import make_report
+    from urdfpost.readers import read_cl
+    from urdfpost.tolerances import MM_PER_INCH, Tolerances
+    from urdfpost.verify import verify
+
+    machine = load_machine(args.machine)
+    dialect = dialect_for(args.controller, None if args.controller else args.program)
+    try:
+        text = Path(args.program).read_text(encoding="utf-8", errors="replace")
+    except OSError as e:
+        raise UrdfpostError(f"{args.program}: cannot read: {e}") from e
+    program = dialect.read(text, path=args.program)
+    toolpath = read_cl(args.cl, format=args.format, units=args.units or machine.settings.units)
+    scale = MM_PER_INCH if program.units == "inch" else 1.0
+    tol = Tolerances.for_units(program.units, args.tolerance)
+    tool_length = (
+        machine.settings.tool_length if args.tool_length is None else args.tool_length * scale
+    )
+    check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol)
+    _show_warnings(toolpath.warnings)
+    if args.report:
+        report = make_report(toolpath, machine, program, check, dialect.name)
+        _write_atomic(Path(args.report), json.dumps(report, indent=2) + "\n")
+    print(f"{args.program}: {check.summary(program.units)}")
+    if check.missed_lines:
+        shown = ", ".join(str(x) for x in check.missed_lines[:10])
+        print(f"missed CL lines: {shown}{' ...' if len(check.missed_lines) > 10 else ''}")
+    if not check.ok and check.worst_cl_line:
+        print(f"worst deviation near CL line {check.worst_cl_line}")
+    return 0 if check.ok else 1
+
+
+def _cmd_machines(args: argparse.Namespace) -> int:
+    from urdfpost.machine import list_machines, load_machine
+
+    rows = []
+    for name, path in sorted(list_machines().items()):
+        try:
+            m = load_machine(path)
+        except UrdfpostError as e:
+            rows.append((name, "INVALID", "", str(e)))
+            continue
+        rot = " ".join(a.name for a in m.rotary)
+        rows.append((name, m.family, rot, m.settings.description))
+    if not rows:
+        print("no machines found")
+        return 0
+    width = max(len(r[0]) for r in rows)
+    for name, family, rot, desc in rows:
+        print(f"{name:<{width}}  {family:<11}  {rot:<4}  {desc}")
+    return 0
+
+
+def describe_machine(name: str) -> str:
+    """Human-readable description of a machine (what ``urdfpost machine show`` prints)."""
+    from urdfpost.kinematics.inverse import singular_sets
+    from urdfpost.machine import load_machine
+
+    m = load_machine(name)
+    s = m.settings
+    lines = [
+        f"machine   {m.name}  ({m.path})",
+        f"family    {m.family}",
+    ]
+    if s.description:
+        lines.append(f"about     {s.description}")
+    pref = f"{s.prefer[0]}{'+' if s.prefer[1] > 0 else '-'}" if s.prefer else "none"
+    lines += [
+        f"control   {s.controller}, units {s.units}, tool length {s.tool_length:g} mm, "
+        f"preferred branch {pref}",
+        "axes (workpiece frame at home; linear mm, rotary deg):",
+    ]
+    for a in m.axes:
+        d = ", ".join(f"{x:+.4f}" for x in a.direction)
+        if a.rotary:
+            travel = (
+                "continuous"
+                if a.continuous
+                else (f"{np.degrees(a.lower):.3f} .. {np.degrees(a.upper):.3f} deg")
+            )
+            vel = f"{np.degrees(a.velocity):.1f} deg/s" if np.isfinite(a.velocity) else "-"
+            piv = ", ".join(f"{x:.3f}" for x in a.pivot)
+            lines.append(
+                f"  {a.name}  {a.kind:<10} {a.side:<5}  dir ({d})  through ({piv}) mm  "
+                f"travel {travel}  max {vel}"
+            )
+        else:
+            vel = f"{a.velocity * 60 / 1000:.1f} m/min" if np.isfinite(a.velocity) else "-"
+            lines.append(
+                f"  {a.name}  {a.kind:<10} {a.side:<5}  dir ({d})  "
+                f"travel {a.lower:.3f} .. {a.upper:.3f} mm  max {vel}"
+            )
+    v0 = ", ".join(f"{x:+.4f}" for x in m.home_tool_axis)
+    g0 = ", ".join(f"{x:.3f}" for x in m.home_tool_in_work[:3, 3])
+    lines.append(f"home      tool axis ({v0}), gauge point ({g0}) mm at q = 0")
+    lines.append("singular tool directions (workpiece frame at home):")
+    for sing in singular_sets(m):
+        d = ", ".join(f"{x:+.4f}" for x in sing.direction)
+        reach = "within travel" if sing.within_travel else "outside travel"
+        if sing.kind == "pole":
+            lines.append(
+                f"  pole  tool axis along ({d}): {m.rotary[0].name} undetermined ({reach})"
+            )
+        else:
+            lines.append(
+                f"  edge  tool axis {np.degrees(sing.cone_angle):.3f} deg from ({d}): branches "
+                f"merge, limit of reachable tilt ({reach})"
+            )
+    return "\n".join(lines)
+
+
+def _cmd_machine(args: argparse.Namespace) -> int:
+    print(describe_machine(args.name))
+    return 0
+
+
+COMMANDS = {
+    "post": _cmd_post,
+    "verify": _cmd_verify,
+    "machines": _cmd_machines,
+    "machine": _cmd_machine,
+}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _setup_logging(args.verbose)
+    try:
+        return COMMANDS[args.command](args)
+    except UrdfpostError as e:
+        print(f"urdfpost: {e}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("urdfpost: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -19,7 +19,7 @@ import logging
 import os
 from dataclasses import dataclass, field
 from functools import cached_property
-from importlib import resources
+import importlib.util
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -267,10 +267,10 @@ def machine_dirs() -> list[Path]:
 
 def shipped_machine_dir() -> Path:
     """Folder of the machines shipped with urdfpost."""
-    try:
-        return Path(str(resources.files("urdfpost.robots")))
-    except ModuleNotFoundError:  # running from a source tree without installation
-        return Path(__file__).resolve().parents[2] / "robots" / "urdf"
+    spec = importlib.util.find_spec("urdfpost.robots")
+    if spec is not None and spec.submodule_search_locations:
+        return Path(next(iter(spec.submodule_search_locations)))
+    return Path(__file__).resolve().parents[2] / "robots" / "urdf"  # source tree
 
 
 def list_machines() -> dict[str, Path]:

@@ -112,7 +112,9 @@ def _joint_spec(source: str, el: etree._Element) -> JointSpec:
         raise MachineDefinitionError(f"{where}: <joint> needs name and type attributes")
     parent, child = el.find("parent"), el.find("child")
     if parent is None or child is None or not parent.get("link") or not child.get("link"):
-        raise MachineDefinitionError(f"{where}: joint {name!r} needs <parent link> and <child link>")
+        raise MachineDefinitionError(
+            f"{where}: joint {name!r} needs <parent link> and <child link>"
+        )
     axis_el = el.find("axis")
     axis = (1.0, 0.0, 0.0)
     if axis_el is not None:
@@ -302,7 +304,7 @@ def parse_settings(doc: UrdfDoc, source: str, axis_names: list[str]) -> Settings
     home: dict[str, float] = {}
     home_el = el.find("home")
     if home_el is not None:
-        for key in home_el.keys():  # noqa: SIM118 (lxml attribute map)
+        for key in home_el.keys():
             if key not in axis_names:
                 raise MachineDefinitionError(
                     f"{_where(source, home_el.sourceline)}: <home {key}=...>: no such axis; "

@@ -65,8 +65,8 @@ def rotate(k: np.ndarray, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
     ndarray, shape (n, 3)
     """
     theta = np.asarray(theta, dtype=float)[..., None]
-    k = np.broadcast_to(k, theta.shape[:-1] + (3,))
-    v = np.broadcast_to(v, theta.shape[:-1] + (3,))
+    k = np.broadcast_to(k, (*theta.shape[:-1], 3))
+    v = np.broadcast_to(v, (*theta.shape[:-1], 3))
     kv = np.sum(k * v, axis=-1, keepdims=True)
     return v * np.cos(theta) + np.cross(k, v) * np.sin(theta) + k * kv * (1.0 - np.cos(theta))
 

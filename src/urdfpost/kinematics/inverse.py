@@ -285,3 +285,83 @@ def inverse(
         lin = solve_linear(machine, ang, tip[ok], tool_length)
         q[ok, br] = assemble(machine, ang, lin)
     return IKResult(q=q, rotary=sols)
+
+
+@dataclass(frozen=True)
+class SingularSet:
+    """A set of tool directions where the inverse kinematics degenerates.
+
+    Attributes
+    ----------
+    kind : str
+        "pole" (the first rotary angle is undetermined) or "edge" (the two branches merge at
+        the boundary of the reachable orientations).
+    direction : ndarray, shape (3,)
+        The pole direction, or the cone axis for an edge (the first rotary axis), in the
+        workpiece frame at home.
+    cone_angle : float, rad
+        Angle of the tool axis from ``direction`` (0 for a pole).
+    within_travel : bool
+        Whether the machine's rotary travel reaches it.
+    """
+
+    kind: str
+    direction: np.ndarray
+    cone_angle: float
+    within_travel: bool
+
+
+def _within_travel(machine: Machine, axis: np.ndarray, tol: Tolerances) -> bool:
+    sols = solve_rotary(machine, axis[None, :], tol)
+    for b in range(2):
+        if not sols.valid[0, b]:
+            continue
+        ok = True
+        for j, a in enumerate(machine.rotary):
+            value = sols.angles[0, b, j]
+            if np.isnan(value) or a.continuous:
+                continue
+            shifts = value + 2 * np.pi * np.arange(-3, 4)
+            ok &= bool(np.any((shifts >= a.lower - 1e-9) & (shifts <= a.upper + 1e-9)))
+        if ok:
+            return True
+    return False
+
+
+def singular_sets(machine: Machine, tol: Tolerances | None = None) -> list[SingularSet]:
+    """The singular tool directions of a machine, derived from its rotary axes.
+
+    Returns
+    -------
+    list of SingularSet
+    """
+    tol = tol or Tolerances()
+    rot = machine.rotary
+    k1 = rot[0].direction
+    v0 = machine.home_tool_axis
+    out: list[SingularSet] = []
+    if len(rot) == 1:
+        cos_lo = cos_hi = float(k1 @ v0)
+    else:
+        k2 = rot[1].direction
+        a = k1 @ (v0 - k2 * (k2 @ v0))
+        b = k1 @ np.cross(k2, v0)
+        c = (k1 @ k2) * (k2 @ v0)
+        r = float(np.hypot(a, b))
+        cos_lo, cos_hi = max(-1.0, c - r), min(1.0, c + r)
+    for sign in (1.0, -1.0):
+        if (sign > 0 and cos_hi >= 1 - 1e-9) or (sign < 0 and cos_lo <= -1 + 1e-9):
+            d = sign * k1
+            out.append(SingularSet("pole", d, 0.0, _within_travel(machine, d, tol)))
+    if len(rot) == 2:
+        for cos_edge in {cos_lo, cos_hi}:
+            if abs(cos_edge) < 1 - 1e-9:
+                ang = float(np.arccos(cos_edge))
+                # one direction on the cone, to test travel
+                perp = np.cross(k1, [1.0, 0.0, 0.0])
+                if np.linalg.norm(perp) < 1e-6:
+                    perp = np.cross(k1, [0.0, 1.0, 0.0])
+                perp /= np.linalg.norm(perp)
+                d = np.cos(ang) * k1 + np.sin(ang) * perp
+                out.append(SingularSet("edge", k1.copy(), ang, _within_travel(machine, d, tol)))
+    return out

@@ -1,0 +1,127 @@
+"""The one :class:`Dialect` class: a spec plus the shared writer and reader."""
+
+from __future__ import annotations
+
+from urdfpost.dialects.reader import read_program
+from urdfpost.dialects.spec import ROTARY_ADDRESSES, DialectSpec
+from urdfpost.dialects.writer import write_program
+from urdfpost.program import Program
+from urdfpost.tolerances import MM_PER_INCH
+
+
+class Dialect:
+    """An NC control: writes a :class:`Program` as text and reads such text back.
+
+    Parameters
+    ----------
+    spec : DialectSpec
+        What this control writes and understands.
+    """
+
+    def __init__(self, spec: DialectSpec) -> None:
+        self.spec = spec
+
+    @property
+    def name(self) -> str:
+        """Control name (``"heidenhain"``)."""
+        return self.spec.name
+
+    @property
+    def extensions(self) -> tuple[str, ...]:
+        """Program file extensions, lower case with the dot; the first is the default."""
+        return self.spec.extensions
+
+    def __repr__(self) -> str:
+        return f"Dialect({self.name!r})"
+
+    def write(
+        self,
+        program: Program,
+        *,
+        block_numbers: bool | None = None,
+        header: str | None = None,
+        program_number: int | None = None,
+    ) -> str:
+        """The program as NC text.
+
+        Parameters
+        ----------
+        program : Program
+            Positions in mm and degrees; written in inch when ``program.units == "inch"``.
+        block_numbers : bool, optional
+            Number the blocks (default: the control's practice; Heidenhain always numbers).
+        header : str, optional
+            Text written as comments after the program start. Without it the output depends
+            on ``program`` only (no dates).
+        program_number : int, optional
+            Fanuc ``O``-number (default: the program name if it is a number, else 1000).
+
+        Returns
+        -------
+        str
+            The program, one block per line, ending with a newline.
+
+        Raises
+        ------
+        DialectError
+            The program cannot be written for this control (unknown axis, TCP without a tool
+            for controls that need its offset number, ...).
+        """
+        return write_program(
+            self.spec,
+            program,
+            block_numbers=block_numbers,
+            header=header,
+            program_number=program_number,
+        )
+
+    def read(self, text: str, *, path: str = "<string>") -> Program:
+        """Read a program of this control.
+
+        Parameters
+        ----------
+        text : str
+            Program text (as written by :meth:`write`, or edited by hand).
+        path : str
+            File name for error messages.
+
+        Returns
+        -------
+        Program
+            Positions in mm and degrees whatever the file units; axes not yet programmed (or
+            unknown after a home return) are NaN. See :mod:`urdfpost.dialects.reader`.
+
+        Raises
+        ------
+        ProgramParseError
+            A line that cannot be read, with path, line number and what was expected.
+        """
+        return read_program(self.spec, text, path)
+
+    def comment_text(self, text: str) -> str:
+        """``text`` as a comment reads back after writing (case, replaced characters)."""
+        return self.spec.comment_text(text)
+
+    def resolution(self, address: str, units: str) -> float:
+        """One unit of the last written decimal, in mm, degrees or mm/min.
+
+        Parameters
+        ----------
+        address : str
+            An axis letter, or ``"F"`` for the feed.
+        units : str
+            Program units, "mm" or "inch".
+
+        Returns
+        -------
+        float
+            Written values are within half of this of the program's values.
+        """
+        inch = units == "inch"
+        if address == "F":
+            fmt = self.spec.feed_inch if inch else self.spec.feed_mm
+            return fmt.resolution * (self.spec.feed_inch_unit if inch else 1.0)
+        if address in ROTARY_ADDRESSES:
+            return self.spec.rotary.resolution
+        fmt = self.spec.linear_inch if inch else self.spec.linear_mm
+        return fmt.resolution * (MM_PER_INCH if inch else 1.0)

@@ -1,0 +1,88 @@
+"""Fanuc 30i/31i-B5 (``.nc``): ISO G-code with the Fanuc program frame.
+
+Written::
+
+    %
+    O1000 (NAME)
+    G21
+    G90 G17 G40 G49 G80 G94
+    T1 M6
+    S12000 M3
+    G43.4 H1            (TCP on with the tool's length offset; G49 off)
+    G0 X10.000 Y-5.000 Z50.000 B0.0000 C90.0000
+    G1 Z2.000 F500.
+    G28 G91 Z0.         (home: Z first, then X Y, back to G90)
+    M30
+    %
+
+Every axis value carries a decimal point: without it the control reads least input increments
+(``X10`` is 0.010 mm), so the reader rejects axis words without a point.
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, NumberFormat
+
+
+def _program_name(name: str) -> str:
+    """Name inside the ``O1000 (NAME)`` comment."""
+    return SPEC.comment_text(name) or "PROGRAM"
+
+
+G_CODES = MappingProxyType(
+    {
+        "0": "rapid",
+        "1": "linear",
+        "4": "dwell",
+        "17": "noop",
+        "18": "noop",
+        "19": "noop",
+        "21": "mm",
+        "20": "inch",
+        "28": "home",
+        "40": "noop",
+        "43.4": "tcp_on",
+        "49": "tcp_off",
+        "53": "machine",
+        **{str(code): "work_offset" for code in range(54, 60)},
+        "54.1": "work_offset",
+        "61": "noop",
+        "64": "noop",
+        "80": "noop",
+        "90": "absolute",
+        "91": "incremental",
+        "94": "noop",
+    }
+)
+
+SPEC = DialectSpec(
+    name="fanuc",
+    extensions=(".nc",),
+    comment_open="(",
+    comment_close=")",
+    comment_upper=True,
+    comment_replace=MappingProxyType({"(": "[", ")": "]", "%": "", ";": ","}),
+    paren_comments=True,
+    percent_lines=True,
+    program_open=("%", "O{number:04d} ({name})"),
+    program_close=("%",),
+    setup=("{unit_code}", "G90 G17 G40 G49 G80 G94"),
+    finish=("M30",),
+    format_name=_program_name,
+    program_number_line=True,
+    g_codes=G_CODES,
+    m_codes=STANDARD_M_CODES,
+    tool_change=("T{tool} M6",),
+    tcp_on=("G43.4 H{tool}",),
+    tcp_off=("G49",),
+    home=("G28 G91 Z0.", "G28 X0. Y0.", "G90"),
+    linear_mm=NumberFormat(3, point=True),
+    linear_inch=NumberFormat(4, point=True),
+    rotary=NumberFormat(4, point=True),
+    feed_mm=NumberFormat(1, trim=True, point=True),
+    feed_inch=NumberFormat(2, trim=True, point=True),
+    require_point=True,
+    block_max=99999,
+)

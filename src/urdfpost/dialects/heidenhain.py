@@ -1,0 +1,263 @@
+"""Heidenhain TNC 640 conversational (Klartext, ``.h``).
+
+Written (every line numbered from 0)::
+
+    0 BEGIN PGM NAME MM
+    1 M126                                   (shortest path; only with continuous rotary axes)
+    2 TOOL CALL 1 Z S12000                   (speed of the following spindle start merged in)
+    3 M3
+    4 M8
+    5 FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS
+    6 L X+10.000 Y-5.000 Z+50.000 B+0.0000 C+90.0000 FMAX
+    7 L Z+2.000 F500
+    8 FUNCTION RESET TCPM
+    9 ; home
+    10 L Z+0 R0 FMAX M91
+    11 L X+0 Y+0 R0 FMAX M91
+    12 M30
+    13 END PGM NAME MM
+
+``FMAX`` acts on its own block only; the programmed feed stays modal across it. In INCH
+programs coordinates are inch and feeds are in 0.1 inch/min (TNC convention). A spindle speed
+that cannot go into a tool call is written as ``TOOL CALL Z S<rpm>`` (speed-only tool call).
+
+The reader accepts the lines above plus ``* - structure comments``, inline ``; comments``,
+``STOP``, ``TOOL DEF``, ``BLK FORM``, ``CYCL DEF 32`` (tolerance), ``M128``/``M129`` (older TCPM),
+``IX+..`` incremental coordinates and ``R0``. ``L ... M91``/``M92`` blocks are machine
+coordinates and read as a home return.
+"""
+
+from __future__ import annotations
+
+import re
+from types import MappingProxyType
+
+from urdfpost.dialects.reader import BEFORE_MOTION_M, ProgramBuilder, apply_m_action
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionWords, NumberFormat
+
+_LINE = re.compile(r"\s*(\d+)(?:\s+(.*))?\Z")
+_BEGIN = re.compile(r"BEGIN PGM (\S+) (MM|INCH)\Z")
+_END = re.compile(r"END PGM (\S+) (MM|INCH)\Z")
+_AXIS = re.compile(r"(I?)([XYZABC])(.*)\Z")
+_MOTION_WORDS = "X.. Y.. Z.. A.. B.. C.. (IX.. incremental), R0, F.., FMAX, M.."
+
+
+def format_name(name: str) -> str:
+    """Program name for BEGIN/END PGM: upper case, letters, digits, ``_`` and ``-`` only."""
+    return re.sub(r"[^A-Z0-9_-]", "_", name.strip().upper()) or "PROGRAM"
+
+
+def format_motion(words: MotionWords) -> str:
+    """``L X+1.000 Y-2.000 FMAX`` or ``L Z+2.000 F500``."""
+    parts = ["L", *(f"{address}{value}" for address, value in words.axes)]
+    if words.rapid:
+        parts.append("FMAX")
+    elif words.feed is not None:
+        parts.append(f"F{words.feed}")
+    return " ".join(parts)
+
+
+def parse_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
+    """Read one numbered conversational line into ``builder``.
+
+    Parameters
+    ----------
+    spec : DialectSpec
+        The Heidenhain spec.
+    builder : ProgramBuilder
+        Receives the events.
+    raw : str
+        The line.
+
+    Raises
+    ------
+    ProgramParseError
+        Missing block number, unknown block or word, malformed number.
+    """
+    match = _LINE.match(raw)
+    if match is None:
+        raise builder.error(f"expected a block number at the start of {raw.strip()!r}")
+    content = (match.group(2) or "").strip()
+    if content.startswith(";"):
+        builder.comment(content[1:].strip())
+        return
+    if content.startswith("*"):
+        builder.comment(content[1:].strip().removeprefix("-").strip())
+        return
+    code, semicolon, comment = content.partition(";")
+    code = code.strip()
+    if code:
+        _parse_code(spec, builder, code)
+    if semicolon:
+        builder.comment(comment.strip())
+
+
+def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
+    if begin := _BEGIN.match(code):
+        builder.code()
+        builder.name = begin.group(1)
+        builder.set_units("mm" if begin.group(2) == "MM" else "inch")
+        return
+    if _END.match(code):
+        builder.end()
+        return
+    builder.code()
+    words = code.split()
+    head = " ".join(words[:2])
+    if head == "TOOL CALL":
+        _tool_call(builder, words[2:])
+    elif head in ("TOOL DEF", "BLK FORM") or code.startswith("CYCL DEF 32."):
+        return  # tool preselection, graphics blank, path tolerance: no motion
+    elif code == "FUNCTION RESET TCPM":
+        builder.set_tcp(False)
+    elif code.startswith("FUNCTION TCPM"):
+        builder.set_tcp(True)
+    elif words[0] == "L":
+        _line(spec, builder, words[1:])
+    elif words[0] == "STOP":
+        builder.stop(False)
+        _m_only(spec, builder, words[1:])
+    elif words[0].startswith("M"):
+        _m_only(spec, builder, words)
+    else:
+        raise builder.error(
+            f"unknown block {code!r}; expected L, TOOL CALL, FUNCTION TCPM, FUNCTION RESET "
+            "TCPM, M.., STOP or a ; comment"
+        )
+
+
+def _tool_call(builder: ProgramBuilder, words: list[str]) -> None:
+    """``TOOL CALL [n] [Z] [S..] [F..] [DL..] [DR..] [DR2..]``."""
+    number = speed = None
+    if words and re.fullmatch(r"\d+", words[0]):
+        number = int(words.pop(0))
+    elif words and words[0].startswith('"'):
+        raise builder.error("tool called by name; expected TOOL CALL <number>")
+    for word in words:
+        if word in ("X", "Y"):
+            raise builder.error(f"tool axis {word} is not supported; expected Z")
+        if word == "Z":
+            continue
+        address = "DR2" if word.startswith("DR2") else word[:2] if word[:2] in ("DL", "DR") else word[:1]
+        value = builder.number(address, word[len(address) :])
+        if address == "S":
+            speed = value
+        elif address == "F":
+            builder.set_feed(value)
+        elif address == "DL" and value != 0.0:
+            raise builder.error(f"tool length oversize {word} is not supported; expected DL+0")
+        elif address not in ("DL", "DR", "DR2"):
+            raise builder.error(f"unknown word {word!r} in TOOL CALL; expected n Z S.. F..")
+    if number is not None:
+        builder.tool_change(number)
+    if speed is not None:
+        builder.set_speed(speed)
+
+
+def _m_codes(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> list[str]:
+    actions = []
+    for word in words:
+        if not re.fullmatch(r"M\d+", word):
+            raise builder.error(f"unexpected {word!r}; expected M-codes only")
+        code = int(word[1:])
+        if code not in spec.m_codes:
+            known = " ".join(f"M{c}" for c in spec.m_codes)
+            raise builder.error(f"unknown M-code {word}; this reader understands {known}")
+        actions.append(spec.m_codes[code])
+    return actions
+
+
+def _m_only(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
+    for action in _m_codes(spec, builder, words):
+        if action == "machine":
+            raise builder.error("M91/M92 without coordinates; expected L ... M91")
+        apply_m_action(builder, action)
+
+
+def _line(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
+    """``L`` block: coordinates, R0, F/FMAX, M-codes."""
+    values: dict[str, tuple[float, bool]] = {}
+    rapid = False
+    m_words = []
+    for word in words:
+        axis = _AXIS.match(word)
+        if axis:
+            incremental, address, text = axis.groups()
+            if address in values:
+                raise builder.error(f"two {address} coordinates in one block")
+            values[address] = (builder.number(address, text), bool(incremental))
+        elif word == "FMAX":
+            rapid = True
+        elif word == "FAUTO":
+            continue
+        elif word.startswith("F"):
+            builder.set_feed(builder.number("F", word[1:]))
+        elif word == "R0":
+            continue
+        elif word in ("RL", "RR", "R+", "R-"):
+            raise builder.error(f"radius compensation {word} is not supported; expected R0")
+        elif word.startswith("M"):
+            m_words.append(word)
+        else:
+            raise builder.error(f"unknown word {word!r} in L block; expected {_MOTION_WORDS}")
+    actions = _m_codes(spec, builder, m_words)
+    for action in actions:
+        if action in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+    if "machine" in actions:
+        builder.home(list(values))
+    elif values:
+        builder.move(values, rapid)
+    for action in actions:
+        if action not in BEFORE_MOTION_M and action != "machine":
+            apply_m_action(builder, action)
+
+
+M_CODES = MappingProxyType(
+    {
+        **{code: action for code, action in STANDARD_M_CODES.items() if code != 6},
+        91: "machine",
+        92: "machine",
+        126: "shortest_path",
+        127: "noop",
+        128: "tcp_on",
+        129: "tcp_off",
+    }
+)
+
+SPEC = DialectSpec(
+    name="heidenhain",
+    extensions=(".h",),
+    comment_open="; ",
+    comment_close="",
+    program_open=("BEGIN PGM {name} {unit_code}",),
+    program_close=("END PGM {name} {unit_code}",),
+    finish=("M30",),
+    format_name=format_name,
+    unit_words=MappingProxyType({"mm": "MM", "inch": "INCH"}),
+    m_codes=M_CODES,
+    tool_change=("TOOL CALL {tool} Z",),
+    tool_change_speed=("TOOL CALL {tool} Z S{rpm}",),
+    spindle_speed="TOOL CALL Z S{rpm}",
+    spindle_on="{code}",
+    tcp_on=("FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS",),
+    tcp_off=("FUNCTION RESET TCPM",),
+    home=("L Z+0 R0 FMAX M91", "L X+0 Y+0 R0 FMAX M91"),
+    home_comment="home",
+    shortest_path="M126",
+    linear_mm=NumberFormat(3, plus_sign=True),
+    linear_inch=NumberFormat(4, plus_sign=True),
+    rotary=NumberFormat(4, plus_sign=True),
+    feed_mm=NumberFormat(1, trim=True),
+    feed_inch=NumberFormat(1, trim=True),
+    feed_inch_unit=2.54,
+    block_format="{n}",
+    block_start=0,
+    block_step=1,
+    block_numbers_mandatory=True,
+    number_frame=True,
+    number_comments=True,
+    rapid_modal=False,
+    format_motion=format_motion,
+    parse_line=parse_line,
+)

@@ -1,0 +1,97 @@
+"""LinuxCNC RS274NGC (``.ngc``).
+
+Written (no ``%`` delimiters)::
+
+    (NAME)
+    G21
+    G90 G17 G40 G49 G80 G94
+    T1 M6
+    S12000 M3
+    G43 H1              (TCP on: tool length offset, then the TCP kinematics)
+    M428
+    G0 X10.000 Y-5.000 Z50.000 A0.0000 C90.0000
+    G1 Z2.000 F500
+    M429                (TCP off: identity kinematics, then no length offset)
+    G49
+    M2
+
+LinuxCNC has no standard TCP G-code. Switchable kinematics configurations switch with
+user M-codes remapped to ngc subroutines; in the LinuxCNC 2.9 sims
+``configs/sim/axis/vismach/5axis/table-rotary-tilting`` (xyzac-trt, xyzbc-trt) **M428 selects
+the XYZAC/XYZBC (TCP) kinematics and M429 the identity kinematics** (see that directory's
+``xyzac-trt.txt``/``xyzac-trt.ini``, ``remap_subs/428remap.ngc``, ``429remap.ngc``). Those
+kinematics take the tool length from ``motion.tooloffset.z``, i.e. from G43, hence ``G43 H<n>``
+before M428. Machines remapped differently need their own ``tcp_on``/``tcp_off`` and
+``m_codes`` entries.
+
+Comments are ``(...)``; text that LinuxCNC would act on (``(MSG,``, ``(DEBUG,``, ``(PRINT,``,
+``(LOG...``, ``(PROBE...``, ``(ABORT,``) has its comma replaced so it stays a plain comment.
+The reader also accepts ``;`` comments, ``%`` lines and lower case.
+"""
+
+from __future__ import annotations
+
+import re
+from types import MappingProxyType
+
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec
+
+_ACTIVE_COMMENT = re.compile(
+    r"^(\s*(?:MSG|DEBUG|PRINT|LOG|LOGOPEN|LOGAPPEND|LOGCLOSE|PROBEOPEN|PROBECLOSE|ABORT))\s*,",
+    re.IGNORECASE,
+)
+
+
+def _passive_comment(text: str) -> str:
+    """Keep LinuxCNC from acting on a comment (``MSG, x`` -> ``MSG: x``)."""
+    return _ACTIVE_COMMENT.sub(r"\1:", text)
+
+
+G_CODES = MappingProxyType(
+    {
+        "0": "rapid",
+        "1": "linear",
+        "4": "dwell",
+        "17": "noop",
+        "18": "noop",
+        "19": "noop",
+        "21": "mm",
+        "20": "inch",
+        "28": "home",
+        "40": "noop",
+        "43": "length_on",
+        "49": "noop",
+        "53": "machine",
+        **{str(code): "work_offset" for code in range(54, 60)},
+        "61": "noop",
+        "64": "blend",
+        "80": "noop",
+        "90": "absolute",
+        "91": "incremental",
+        "94": "noop",
+    }
+)
+
+M_CODES = MappingProxyType({**STANDARD_M_CODES, 428: "tcp_on", 429: "tcp_off"})
+
+SPEC = DialectSpec(
+    name="linuxcnc",
+    extensions=(".ngc",),
+    comment_open="(",
+    comment_close=")",
+    comment_replace=MappingProxyType({"(": "[", ")": "]"}),
+    comment_filter=_passive_comment,
+    paren_comments=True,
+    semicolon_comments=True,
+    percent_lines=True,
+    name_comment=True,
+    setup=("{unit_code}", "G90 G17 G40 G49 G80 G94"),
+    finish=("M2",),
+    g_codes=G_CODES,
+    m_codes=M_CODES,
+    tool_change=("T{tool} M6",),
+    tcp_on=("G43 H{tool}", "M428"),
+    tcp_off=("M429", "G49"),
+    home=("G28 G91 Z0", "G28 X0 Y0", "G90"),
+    block_max=99999,
+)

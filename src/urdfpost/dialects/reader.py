@@ -1,0 +1,662 @@
+"""NC text -> Program, for any :class:`~urdfpost.dialects.spec.DialectSpec`.
+
+Two layers:
+
+* :class:`ProgramBuilder` holds the control's modal state while a program is read (units,
+  absolute/incremental, motion mode, feed, axis positions, tool, spindle, TCP) and turns
+  semantic events into :class:`~urdfpost.program.Program` blocks.
+* :func:`parse_gcode_line` reads one line of word-address G-code (Fanuc, Siemens, LinuxCNC) into
+  those events, driven by the spec's code tables. Heidenhain conversational brings its own line
+  parser (:attr:`DialectSpec.parse_line`) feeding the same builder.
+
+Reading rules:
+
+* Positions come out in mm and degrees whatever the file units; feeds in mm/min.
+* Axis words are modal: every :class:`Move` carries the position of every axis of the program.
+  An axis that has not been programmed yet, or whose position became unknown after a home
+  return or a machine-coordinate block, is NaN.
+* Rapid moves have ``feed=None``; feed moves carry the modal feed (None before any F word).
+* A program's ``axes`` are the axis letters used in motion blocks, in X Y Z A B C order.
+* ``tcp`` is whether TCP was on at the first feed move (or was switched on at all, when the
+  program has no feed move).
+* Spindle and TCP blocks are emitted when the state changes, so a repeated ``M3`` or a ``G49``
+  in the safety line with TCP already off adds nothing.
+* Consecutive home returns (Fanuc ``G28 G91 Z0.`` then ``G28 X0. Y0.``) are one :class:`Home`.
+* Nothing that can move the machine is skipped: an unknown word, code or line, a malformed
+  number, circular moves, cutter compensation, canned cycles and the like raise
+  :class:`~urdfpost.errors.ProgramParseError` with the file, line and what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import PurePath
+
+from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec
+from urdfpost.errors import ProgramParseError
+from urdfpost.program import (
+    Block,
+    Comment,
+    Coolant,
+    Home,
+    Move,
+    Program,
+    Spindle,
+    Stop,
+    Tcp,
+    ToolChange,
+)
+from urdfpost.tolerances import MM_PER_INCH
+
+NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)\Z")
+
+#: Why common codes this reader refuses are refused.
+_G_HINTS = {
+    "2": "circular interpolation is not supported",
+    "3": "circular interpolation is not supported",
+    "41": "cutter radius compensation is not supported",
+    "42": "cutter radius compensation is not supported",
+    "43": "tool length compensation without TCP is not supported",
+    "43.5": "vector TCP (G43.5) is not supported",
+    "93": "inverse-time feed is not supported",
+    "95": "feed per revolution is not supported",
+    **{str(c): "canned cycles are not supported" for c in range(73, 90) if c != 80},
+}
+
+
+@dataclass
+class _ReadMove:
+    rapid: bool
+    position: dict[str, float]
+    feed: float | None
+
+
+class ProgramBuilder:
+    """Modal state of a control while a program is read, and the blocks read so far.
+
+    Parameters
+    ----------
+    spec : DialectSpec
+        The control.
+    path : str
+        File name for error messages.
+    """
+
+    def __init__(self, spec: DialectSpec, path: str) -> None:
+        self.spec = spec
+        self.path = path
+        self.line = 0
+        self.name: str | None = None
+        self.units: str | None = None
+        self.linear_scale = 1.0
+        self.feed_scale = 1.0
+        self.absolute = True
+        self.motion: bool | None = None  # True rapid, False linear
+        self.feed: float | None = None
+        self.position: dict[str, float] = {}
+        self.axes_seen: set[str] = set()
+        self.tcp = False
+        self.tcp_ever = False
+        self.tcp_at_first_feed: bool | None = None
+        self.tool: int | None = None
+        self.rpm = 0.0
+        self.spindle_state: tuple[str, float] = ("off", 0.0)
+        self._speed_change: Block | None = None
+        self.continuous = False
+        self.work_offset: str | None = None
+        self.ended = False
+        self.code_seen = False
+        self.items: list[Block | _ReadMove] = []
+
+    # -- helpers -----------------------------------------------------------------------------
+
+    def error(self, message: str) -> ProgramParseError:
+        """A parse error at the current line."""
+        return ProgramParseError(self.path, self.line, message)
+
+    def number(self, address: str, text: str) -> float:
+        """Check and convert the number of word ``address``."""
+        if not NUMBER.match(text):
+            raise self.error(f"malformed number {address}{text}; expected e.g. {address}12.345")
+        return float(text)
+
+    def to_internal(self, address: str, value: float) -> float:
+        """File units -> mm (linear axes) or degrees (rotary)."""
+        return value if address in ROTARY_ADDRESSES else value * self.linear_scale
+
+    def _add(self, item: Block | _ReadMove) -> None:
+        if self.ended and not isinstance(item, Comment):
+            raise self.error("code after the program end; expected nothing but comments")
+        self.items.append(item)
+
+    # -- events ------------------------------------------------------------------------------
+
+    def code(self) -> None:
+        """Note that the current line holds code (the name comment must come first)."""
+        if self.ended:
+            raise self.error("code after the program end; expected nothing but comments")
+        self.code_seen = True
+
+    def comment(self, text: str) -> None:
+        """A comment; the first one is the program name for controls that write it so."""
+        if self.spec.name_comment and self.name is None and not self.code_seen:
+            self.name = text
+            return
+        self._add(Comment(text))
+
+    def set_units(self, units: str, feeds: bool = True) -> None:
+        """Switch units of lengths (and feeds); the first units seen are the program's."""
+        self.units = self.units or units
+        self.linear_scale = MM_PER_INCH if units == "inch" else 1.0
+        if feeds:
+            self.feed_scale = self.spec.feed_inch_unit if units == "inch" else 1.0
+
+    def set_feed(self, value: float) -> None:
+        """Modal feed in file units per minute."""
+        if value <= 0.0:
+            raise self.error(f"feed F{value:g} must be positive")
+        self.feed = value * self.feed_scale
+
+    def select_work_offset(self, code: str) -> None:
+        """Work offset (G54...): one per program."""
+        if self.work_offset not in (None, code):
+            raise self.error(
+                f"work offset changes from {self.work_offset} to {code}; expected one work "
+                "offset per program"
+            )
+        self.work_offset = code
+
+    def move(self, values: dict[str, tuple[float, bool]], rapid: bool | None) -> None:
+        """A motion block.
+
+        Parameters
+        ----------
+        values : dict
+            Address -> (value in file units, incremental).
+        rapid : bool or None
+            Rapid traverse; None when no motion mode has been programmed.
+        """
+        if rapid is None:
+            raise self.error("axis words before any motion mode; expected G0 or G1 first")
+        position = dict(self.position)
+        for address, (value, incremental) in values.items():
+            target = self.to_internal(address, value)
+            if incremental:
+                start = self.position.get(address, math.nan)
+                if math.isnan(start):
+                    raise self.error(
+                        f"incremental {address} move from an unknown position; expected an "
+                        "absolute position first"
+                    )
+                target += start
+            position[address] = target
+        self.position = position
+        self.axes_seen.update(values)
+        if not rapid and self.tcp_at_first_feed is None:
+            self.tcp_at_first_feed = self.tcp
+        self._add(_ReadMove(rapid, position, None if rapid else self.feed))
+
+    def home(self, axes: list[str]) -> None:
+        """Reference return or machine-coordinate block: the axes' positions become unknown."""
+        self.position = {**self.position, **dict.fromkeys(axes or AXIS_ORDER, math.nan)}
+        home_comment = self.spec.home_comment
+        if home_comment is not None and self.items and self.items[-1] == Comment(home_comment):
+            self.items.pop()  # written by the dialect as part of its home sequence
+        if not (self.items and isinstance(self.items[-1], Home)):
+            self._add(Home())
+
+    def select_tool(self, number: int) -> None:
+        """T word (tool selection, executed by the tool change)."""
+        self.tool = number
+
+    def tool_change(self, number: int | None = None) -> None:
+        """Tool change (M6, TOOL CALL)."""
+        if number is not None:
+            self.tool = number
+        if self.tool is None:
+            raise self.error("tool change without a tool number; expected T<number>")
+        self._add(ToolChange(self.tool))
+
+    def set_speed(self, rpm: float) -> None:
+        """Spindle speed; a running spindle changes speed."""
+        self.rpm = rpm
+        if self.spindle_state[0] != "off":
+            count = len(self.items)
+            self.spindle(self.spindle_state[0])
+            self._speed_change = self.items[-1] if len(self.items) > count else None
+
+    def spindle(self, direction: str) -> None:
+        """Spindle start or stop (a block only when the state changes).
+
+        A speed change directly followed by a start or stop (``S6000 M4``, or Heidenhain
+        ``TOOL CALL Z S6000`` then ``M4``) is one block.
+        """
+        state = (direction, 0.0 if direction == "off" else self.rpm)
+        if state != self.spindle_state:
+            if self.items and self._speed_change is self.items[-1]:
+                self.items.pop()
+            self.spindle_state = state
+            self._add(Spindle(*state))
+        self._speed_change = None
+
+    def coolant(self, mode: str) -> None:
+        """Coolant on/off."""
+        self._add(Coolant(mode))
+
+    def set_tcp(self, on: bool) -> None:
+        """TCP on/off (a block only when the state changes)."""
+        if on != self.tcp:
+            self.tcp = on
+            self.tcp_ever |= on
+            self._add(Tcp(on))
+
+    def stop(self, optional: bool) -> None:
+        """Program stop (M0) or optional stop (M1)."""
+        self._add(Stop(optional))
+
+    def end(self) -> None:
+        """Program end (M2, M30, END PGM)."""
+        self.ended = True
+
+    # -- result ------------------------------------------------------------------------------
+
+    def build(self) -> Program:
+        """The program read."""
+        axes = tuple(a for a in AXIS_ORDER if a in self.axes_seen)
+        blocks: list[Block] = []
+        for item in self.items:
+            if isinstance(item, _ReadMove):
+                position = tuple(item.position.get(a, math.nan) for a in axes)
+                blocks.append(Move(item.rapid, position, item.feed))
+            else:
+                blocks.append(item)
+        rotary = frozenset(axes) & ROTARY_ADDRESSES
+        tcp = self.tcp_at_first_feed if self.tcp_at_first_feed is not None else self.tcp_ever
+        name = self.name or (PurePath(self.path).stem if self.path != "<string>" else "PROGRAM")
+        return Program(
+            name=name,
+            axes=axes,
+            rotary=rotary,
+            units=self.units or "mm",
+            tcp=tcp,
+            blocks=tuple(blocks),
+            continuous=rotary if self.continuous else frozenset(),
+        )
+
+
+# -- word-address G-code ---------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Word:
+    address: str
+    text: str
+    mode: str | None = None  # Siemens AC/IC/DC/ACP/ACN value form
+
+
+@dataclass(frozen=True)
+class _Keyword:
+    name: str
+
+
+@dataclass(frozen=True)
+class _Assign:
+    name: str
+    text: str
+
+
+_Token = _Word | _Keyword | _Assign
+
+_IDENT = re.compile(r"[A-Z_][A-Z0-9_]*")
+_LETTER_NUMBER = re.compile(r"([A-Z])\s*([+\-0-9.]*)")
+_ASSIGN = re.compile(r"([A-Z]{1,3}\d?)\s*=\s*")
+_ASSIGN_VALUE = re.compile(r"(?:(AC|IC|DC|ACP|ACN)\(\s*([^)\s]*)\s*\)|([+\-0-9.]+))")
+_KEYWORD_ARGS = re.compile(r"\(\s*\d*\s*\)")
+
+
+def split_comments(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> tuple[str, list[str]]:
+    """Separate code from ``(...)`` and ``;`` comments.
+
+    Returns
+    -------
+    tuple
+        The code text and the comment texts (stripped), in order.
+    """
+    code: list[str] = []
+    comments: list[str] = []
+    i = 0
+    while i < len(raw):
+        char = raw[i]
+        if char == "(" and spec.paren_comments:
+            close = raw.find(")", i + 1)
+            if close < 0:
+                raise builder.error("comment '(' is not closed; expected ')'")
+            inner = raw[i + 1 : close]
+            if "(" in inner:
+                raise builder.error("nested '(' inside a comment; expected one level of (...)")
+            comments.append(inner.strip())
+            i = close + 1
+            continue
+        if char == ";" and spec.semicolon_comments:
+            comments.append(raw[i + 1 :].strip())
+            break
+        code.append(char)
+        i += 1
+    return "".join(code), comments
+
+
+def tokenize(spec: DialectSpec, builder: ProgramBuilder, text: str) -> list[_Token]:
+    """Split upper-case code text into words, keywords and Siemens assignments."""
+    tokens: list[_Token] = []
+    pos = 0
+    while pos < len(text):
+        if text[pos].isspace():
+            pos += 1
+            continue
+        token, pos = _next_token(spec, builder, text, pos)
+        tokens.append(token)
+    return tokens
+
+
+def _next_token(
+    spec: DialectSpec, builder: ProgramBuilder, text: str, pos: int
+) -> tuple[_Token, int]:
+    ident = _IDENT.match(text, pos)
+    if ident and ident.group() in spec.keywords:
+        end = ident.end()
+        args = _KEYWORD_ARGS.match(text, end)
+        return _Keyword(ident.group()), args.end() if args else end
+    if spec.assignments:
+        assign = _ASSIGN.match(text, pos)
+        if assign:
+            return _assignment(builder, text, assign)
+    if ident and len(ident.group()) > 1 and ident.group()[1].isalpha():
+        raise builder.error(f"unknown word {ident.group()!r}; expected address words like X12.5")
+    word = _LETTER_NUMBER.match(text, pos)
+    if word is None:
+        raise builder.error(f"unexpected {text[pos]!r}; expected address words like X12.5")
+    if not word.group(2):
+        raise builder.error(f"address {word.group(1)} without a number; expected e.g. X12.5")
+    return _Word(word.group(1), word.group(2)), word.end()
+
+
+def _assignment(builder: ProgramBuilder, text: str, assign: re.Match[str]) -> tuple[_Token, int]:
+    name = assign.group(1)
+    value = _ASSIGN_VALUE.match(text, assign.end())
+    if value is None:
+        raise builder.error(f"unreadable value for {name}=; expected a number or AC/IC/DC(...)")
+    if value.group(1):
+        if len(name) != 1:
+            raise builder.error(f"{name}={value.group(1)}(...) is not supported")
+        return _Word(name, value.group(2), value.group(1)), value.end()
+    if len(name) == 1:
+        return _Word(name, value.group(3)), value.end()
+    return _Assign(name, value.group(3)), value.end()
+
+
+def canonical_g(builder: ProgramBuilder, text: str) -> str:
+    """``"00"`` -> ``"0"``, ``"43.40"`` -> ``"43.4"``."""
+    return f"{builder.number('G', text):g}"
+
+
+def _integer(builder: ProgramBuilder, address: str, text: str) -> int:
+    if not re.fullmatch(r"\d+", text):
+        raise builder.error(f"{address}{text}: expected a whole number after {address}")
+    return int(text)
+
+
+@dataclass
+class _Block:
+    """One G-code line, sorted by kind."""
+
+    g_actions: list[tuple[str, str]]  # (code, action)
+    m_actions: list[str]
+    keywords: list[str]
+    words: dict[str, _Word]
+    assigns: dict[str, str]
+
+    @property
+    def actions(self) -> set[str]:
+        return {a for _, a in self.g_actions} | set(self.keywords)
+
+
+def _classify(spec: DialectSpec, builder: ProgramBuilder, tokens: list[_Token]) -> _Block:
+    block = _Block([], [], [], {}, {})
+    for token in tokens:
+        if isinstance(token, _Keyword):
+            block.keywords.append(spec.keywords[token.name])
+        elif isinstance(token, _Assign):
+            block.assigns[token.name] = token.text
+        elif token.address == "G":
+            code = canonical_g(builder, token.text)
+            if code not in spec.g_codes:
+                hint = _G_HINTS.get(code, "unknown G-code")
+                known = " ".join(f"G{c}" for c in spec.g_codes)
+                raise builder.error(f"G{token.text}: {hint}; this reader understands {known}")
+            block.g_actions.append((code, spec.g_codes[code]))
+        elif token.address == "M":
+            code = _integer(builder, "M", token.text)
+            if code not in spec.m_codes:
+                known = " ".join(f"M{c}" for c in spec.m_codes)
+                raise builder.error(f"unknown M-code M{code}; this reader understands {known}")
+            block.m_actions.append(spec.m_codes[code])
+        elif token.address in block.words:
+            raise builder.error(f"two {token.address} words in one block")
+        else:
+            block.words[token.address] = token
+    return block
+
+
+def parse_gcode_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
+    """Read one line of word-address G-code into ``builder``.
+
+    Parameters
+    ----------
+    spec : DialectSpec
+        The control.
+    builder : ProgramBuilder
+        Receives the line's events; ``builder.line`` is the line number.
+    raw : str
+        The line without its end-of-line.
+
+    Raises
+    ------
+    ProgramParseError
+        The line cannot be read (see the module docstring).
+    """
+    text, comments = split_comments(spec, builder, raw)
+    text = text.strip().upper()
+    if spec.percent_lines and text == "%":
+        text = ""
+    if text.startswith("/"):  # block delete: the block runs unless the operator skips it
+        text = text[1:]
+    tokens = tokenize(spec, builder, text)
+    if tokens and isinstance(tokens[0], _Word) and tokens[0].address == "N":
+        _integer(builder, "N", tokens[0].text)
+        tokens = tokens[1:]
+    if tokens and isinstance(tokens[0], _Word) and tokens[0].address == "O":
+        _program_number_line(spec, builder, tokens, comments)
+        return
+    if tokens:
+        builder.code()
+        _execute(spec, builder, _classify(spec, builder, tokens))
+    for comment in comments:
+        builder.comment(comment)
+
+
+def _program_number_line(
+    spec: DialectSpec, builder: ProgramBuilder, tokens: list[_Token], comments: list[str]
+) -> None:
+    if not spec.program_number_line or len(tokens) != 1 or builder.code_seen:
+        raise builder.error("unexpected O word; expected a program number line before any code")
+    number = _integer(builder, "O", tokens[0].text)
+    builder.name = comments[0] if comments else f"O{number}"
+    for comment in comments[1:]:
+        builder.comment(comment)
+
+
+BEFORE_MOTION_M = {
+    "tool_change",
+    "spindle_cw",
+    "spindle_ccw",
+    "coolant_flood",
+    "coolant_mist",
+    "tcp_on",
+    "tcp_off",
+    "shortest_path",
+}
+
+
+def _execute(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
+    actions = block.actions | set(block.m_actions)
+    _check_words(builder, block, actions)
+    _apply_modes(builder, block)
+    dwell = "dwell" in actions
+    if "F" in block.words and not dwell:
+        builder.set_feed(builder.number("F", block.words["F"].text))
+    if "T" in block.words:
+        builder.select_tool(_integer(builder, "T", block.words["T"].text))
+    if "S" in block.words and not dwell:
+        builder.set_speed(builder.number("S", block.words["S"].text))
+    if "tcp_on" in actions:
+        builder.set_tcp(True)
+    if "tcp_off" in actions:
+        builder.set_tcp(False)
+    for action in block.m_actions:
+        if action in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+    _motion(spec, builder, block, actions)
+    for action in block.m_actions:
+        if action not in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+
+
+def _check_words(builder: ProgramBuilder, block: _Block, actions: set[str]) -> None:
+    allowed = set(AXIS_ORDER) | {"F", "S", "T"} | set(builder.spec.extra_words)
+    if actions & {"tcp_on", "length_on"}:
+        allowed.add("H")
+    if "dwell" in actions:
+        allowed |= {"P", "U"}
+    if "blend" in actions:
+        allowed |= {"P", "Q"}
+    for address in block.words:
+        if address not in allowed:
+            raise builder.error(
+                f"unknown word {address}{block.words[address].text}; expected "
+                f"{' '.join(sorted(allowed))} (and G, M)"
+            )
+    if block.assigns and not actions & {"home"}:
+        name = next(iter(block.assigns))
+        raise builder.error(f"unexpected {name}=; expected it only in a home block (G74/G75)")
+
+
+def _apply_modes(builder: ProgramBuilder, block: _Block) -> None:
+    for code, action in block.g_actions:
+        if action in ("rapid", "linear"):
+            builder.motion = action == "rapid"
+        elif action in ("mm", "inch"):
+            builder.set_units(action)
+        elif action in ("mm_geometry", "inch_geometry"):
+            builder.set_units(action.removesuffix("_geometry"), feeds=False)
+        elif action in ("absolute", "incremental"):
+            builder.absolute = action == "absolute"
+        elif action == "work_offset":
+            builder.select_work_offset(f"G{code}")
+
+
+def _motion(spec: DialectSpec, builder: ProgramBuilder, block: _Block, actions: set[str]) -> None:
+    axes = {a: w for a, w in block.words.items() if a in AXIS_ORDER}
+    if "dwell" in actions:
+        stray = [a for a in axes if a != "X"]  # Fanuc G4 X<seconds>
+        if stray:
+            raise builder.error(f"{stray[0]} word in a dwell block; expected only the dwell time")
+        return
+    if actions & {"home", "machine"}:
+        named = list(axes) + [n[0] for n in block.assigns if n[0] in AXIS_ORDER]
+        for word in axes.values():
+            _check_axis_number(spec, builder, word)
+        if axes or "home" in actions:
+            builder.home(named)
+        return
+    if not axes:
+        return
+    values = {}
+    for address in AXIS_ORDER:
+        if address in axes:
+            values[address] = _axis_value(spec, builder, axes[address])
+    builder.move(values, builder.motion)
+
+
+def _check_axis_number(spec: DialectSpec, builder: ProgramBuilder, word: _Word) -> float:
+    value = builder.number(word.address, word.text)
+    if spec.require_point and "." not in word.text:
+        raise builder.error(
+            f"{word.address}{word.text} has no decimal point: {spec.name} reads it in least "
+            f"input increments (0.001 mm); expected {word.address}{word.text}."
+        )
+    return value
+
+
+def _axis_value(spec: DialectSpec, builder: ProgramBuilder, word: _Word) -> tuple[float, bool]:
+    value = _check_axis_number(spec, builder, word)
+    if word.mode is None:
+        return value, not builder.absolute
+    if word.mode in ("DC", "ACP", "ACN") and word.address not in ROTARY_ADDRESSES:
+        raise builder.error(f"{word.address}={word.mode}(...) needs a rotary axis")
+    return value, word.mode == "IC"
+
+
+def apply_m_action(builder: ProgramBuilder, action: str) -> None:
+    """Apply one M-code action (shared with the Heidenhain reader)."""
+    match action:
+        case "stop" | "optional_stop":
+            builder.stop(action == "optional_stop")
+        case "end":
+            builder.end()
+        case "spindle_cw" | "spindle_ccw" | "spindle_off":
+            builder.spindle(action.removeprefix("spindle_"))
+        case "tool_change":
+            builder.tool_change()
+        case "coolant_flood" | "coolant_mist" | "coolant_off":
+            builder.coolant(action.removeprefix("coolant_"))
+        case "tcp_on" | "tcp_off":
+            builder.set_tcp(action == "tcp_on")
+        case "shortest_path":
+            builder.continuous = True
+        case "noop":
+            pass
+        case _:
+            raise builder.error(f"M-code action {action!r} is not allowed here")
+
+
+def read_program(spec: DialectSpec, text: str, path: str = "<string>") -> Program:
+    """Read NC text of the control described by ``spec``.
+
+    Parameters
+    ----------
+    spec : DialectSpec
+        The control.
+    text : str
+        The program.
+    path : str
+        File name for error messages.
+
+    Returns
+    -------
+    Program
+        Positions in mm and degrees; NaN where an axis position is not known.
+
+    Raises
+    ------
+    ProgramParseError
+        A line cannot be read.
+    """
+    builder = ProgramBuilder(spec, path)
+    parse_line = spec.parse_line or parse_gcode_line
+    for number, line in enumerate(text.splitlines(), start=1):
+        builder.line = number
+        if line.strip():
+            parse_line(spec, builder, line)
+    return builder.build()

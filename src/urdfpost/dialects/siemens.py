@@ -1,0 +1,77 @@
+"""Siemens Sinumerik 840D sl (``.mpf`` main program, ``.spf`` subprogram).
+
+Written::
+
+    ; NAME
+    G710                 (metric incl. feeds; G700 inch incl. feeds)
+    G90 G17 G94
+    T1 D1
+    M6
+    S12000 M3
+    TRAORI               (TCP on; TRAFOOF off)
+    G0 X10.000 Y-5.000 Z50.000 B0.0000 C90.0000
+    G1 Z2.000 F500
+    G75 FP=1 Z1=0        (home)
+    M30
+
+Home: ``G75 FP=1`` approaches fixed point 1 in machine axes (Z first, then X Y). It keeps
+frames and the tool offset (``SUPA G0 Z0 D0`` would cancel D and needs a D1 afterwards;
+``G74`` re-references the axes, which is slow and moves them all at once). Fixed point 1 is
+machine data (MD30600 FIX_POINT_POS), by convention the tool change / safe position.
+
+The reader also accepts ``N`` numbers, ``X=AC(..)``/``IC(..)``/``DC(..)`` values, ``TRAORI(1)``,
+``G70``/``G71`` (inch/mm for lengths only), ``G74`` and ``SUPA`` blocks (read as home).
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec
+
+G_CODES = MappingProxyType(
+    {
+        "0": "rapid",
+        "1": "linear",
+        "4": "dwell",
+        "17": "noop",
+        "18": "noop",
+        "19": "noop",
+        "40": "noop",
+        "710": "mm",
+        "700": "inch",
+        "71": "mm_geometry",
+        "70": "inch_geometry",
+        "74": "home",
+        "75": "home",
+        **{str(code): "work_offset" for code in range(54, 58)},
+        "500": "work_offset",
+        "60": "noop",
+        "64": "noop",
+        "90": "absolute",
+        "91": "incremental",
+        "94": "noop",
+    }
+)
+
+KEYWORDS = MappingProxyType({"TRAORI": "tcp_on", "TRAFOOF": "tcp_off", "SUPA": "machine"})
+
+SPEC = DialectSpec(
+    name="siemens",
+    extensions=(".mpf", ".spf"),
+    comment_open="; ",
+    comment_close="",
+    semicolon_comments=True,
+    name_comment=True,
+    setup=("{unit_code}", "G90 G17 G94"),
+    finish=("M30",),
+    g_codes=G_CODES,
+    m_codes=STANDARD_M_CODES,
+    keywords=KEYWORDS,
+    assignments=True,
+    extra_words=frozenset({"D"}),
+    tool_change=("T{tool} D1", "M6"),
+    tcp_on=("TRAORI",),
+    tcp_off=("TRAFOOF",),
+    home=("G75 FP=1 Z1=0", "G75 FP=1 X1=0 Y1=0"),
+)

@@ -1,0 +1,367 @@
+"""What differs between NC controls, as data.
+
+A :class:`DialectSpec` is a frozen table: comment delimiters, program frame templates, the
+G-, M- and keyword tables shared by the writer and the reader, number formats, block numbering,
+and two optional hooks for controls whose syntax is not word-address G-code (Heidenhain
+conversational). The writer (:mod:`urdfpost.dialects.writer`) and the reader
+(:mod:`urdfpost.dialects.reader`) hold all the logic; one module per control only fills a spec.
+
+Code tables map a code to an *action* name. The writer looks codes up by action (the first code
+listed for an action is the one written); the reader maps every listed code to its action, so a
+code the writer emits can always be read back.
+
+Reader actions for G-codes and keywords:
+
+``rapid``, ``linear``
+    Modal motion (G0, G1).
+``mm``, ``inch``
+    Units of lengths and feeds (G21/G20, Siemens G710/G700).
+``mm_geometry``, ``inch_geometry``
+    Units of lengths only, feeds unchanged (Siemens G71/G70).
+``absolute``, ``incremental``
+    Distance mode (G90/G91).
+``tcp_on``, ``tcp_off``
+    Tool-centre-point control (Fanuc G43.4/G49, Siemens TRAORI/TRAFOOF, LinuxCNC M428/M429).
+``length_on``
+    Tool length compensation that is part of the control's TCP sequence (LinuxCNC G43 before
+    M428); takes an H word.
+``home``
+    Reference/fixed point return (G28, Siemens G74/G75); the named axes become unknown.
+``machine``
+    One block in machine coordinates (G53, Siemens SUPA); read as a :class:`Home`.
+``dwell``
+    G4; its P/X/F/S/U words are the dwell time, not motion or feed.
+``work_offset``
+    Work offset selection (G54...); one offset per program, a change is an error.
+``blend``
+    Path blending with tolerance words (LinuxCNC ``G64 P0.01 Q0.01``).
+``noop``
+    Modes that do not change linear motion (plane, cutter compensation off, cycle cancel,
+    feed per minute, path control).
+
+Reader actions for M-codes: ``stop``, ``optional_stop``, ``end``, ``spindle_cw``,
+``spindle_ccw``, ``spindle_off``, ``tool_change``, ``coolant_mist``, ``coolant_flood``,
+``coolant_off``, ``tcp_on``, ``tcp_off``, ``shortest_path``, ``noop``, and ``machine`` (Heidenhain
+M91/M92: the block is in machine coordinates).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import TYPE_CHECKING
+
+from urdfpost.errors import DialectError
+
+if TYPE_CHECKING:
+    from urdfpost.dialects.reader import ProgramBuilder
+
+#: M-codes every control here shares (ISO 6983 / common practice).
+STANDARD_M_CODES: Mapping[int, str] = MappingProxyType(
+    {
+        0: "stop",
+        1: "optional_stop",
+        30: "end",
+        2: "end",
+        3: "spindle_cw",
+        4: "spindle_ccw",
+        5: "spindle_off",
+        6: "tool_change",
+        8: "coolant_flood",
+        7: "coolant_mist",
+        9: "coolant_off",
+    }
+)
+
+#: Axis addresses the dialects know, in output order; A, B, C are rotary (degrees).
+AXIS_ORDER = ("X", "Y", "Z", "A", "B", "C")
+ROTARY_ADDRESSES = frozenset("ABC")
+
+
+@dataclass(frozen=True)
+class NumberFormat:
+    """How one kind of number is written.
+
+    Attributes
+    ----------
+    decimals : int
+        Digits after the decimal point.
+    plus_sign : bool
+        Write ``+`` for positive values and zero (Heidenhain).
+    trim : bool
+        Drop trailing zeros after the decimal point (``F500`` rather than ``F500.0``).
+    point : bool
+        Keep the decimal point when trimming leaves an integer (``F500.``; Fanuc reads a number
+        without a point as least input increments).
+    """
+
+    decimals: int
+    plus_sign: bool = False
+    trim: bool = False
+    point: bool = False
+
+    def format(self, value: float) -> str:
+        """The text of ``value`` (never ``-0``).
+
+        Parameters
+        ----------
+        value : float
+            A finite number.
+
+        Returns
+        -------
+        str
+            E.g. ``"12.345"``, ``"+0.000"``, ``"500."``.
+        """
+        if not math.isfinite(value):
+            raise DialectError(f"cannot write the non-finite number {value!r}")
+        text = f"{value:.{self.decimals}f}"
+        if float(text) == 0.0:
+            text = text.lstrip("-")
+        if self.trim and "." in text:
+            text = text.rstrip("0")
+            if text.endswith(".") and not self.point:
+                text = text[:-1]
+        elif self.point and "." not in text:
+            text += "."
+        if self.plus_sign and not text.startswith("-"):
+            text = "+" + text
+        return text
+
+    @property
+    def resolution(self) -> float:
+        """One unit of the last written decimal."""
+        return 10.0**-self.decimals
+
+
+@dataclass(frozen=True)
+class MotionWords:
+    """One motion block, formatted, handed to :attr:`DialectSpec.format_motion`.
+
+    Attributes
+    ----------
+    rapid : bool
+        Rapid traverse.
+    code : str or None
+        Motion code to write (``"G0"``) or None when the modal code is unchanged.
+    axes : tuple of (str, str)
+        Address and formatted value of each axis to write.
+    feed : str or None
+        Formatted feed to write, or None to keep the modal feed.
+    """
+
+    rapid: bool
+    code: str | None
+    axes: tuple[tuple[str, str], ...]
+    feed: str | None
+
+
+def format_gcode_motion(words: MotionWords) -> str:
+    """Word-address motion block: ``G1 X1.000 Y2.000 F500``.
+
+    Parameters
+    ----------
+    words : MotionWords
+        The formatted parts.
+
+    Returns
+    -------
+    str
+        The block text without block number.
+    """
+    parts = [words.code] if words.code else []
+    parts += [f"{address}{value}" for address, value in words.axes]
+    if words.feed is not None:
+        parts.append(f"F{words.feed}")
+    return " ".join(parts)
+
+
+def _identity(text: str) -> str:
+    return text
+
+
+@dataclass(frozen=True)
+class DialectSpec:
+    """Everything that differs between two controls.
+
+    Attributes
+    ----------
+    name, extensions
+        Control name and output file extensions (lower case, with dot).
+    comment_open, comment_close
+        Comment delimiters as written (``"; "`` and ``""``, or ``"("`` and ``")"``).
+    comment_upper : bool
+        Write comments in upper case (Fanuc).
+    comment_replace : mapping
+        Characters replaced in comment text so it cannot end the comment early.
+    comment_filter : callable
+        Further clean-up of comment text (LinuxCNC active comments).
+    paren_comments, semicolon_comments : bool
+        Which comment forms the reader accepts.
+    percent_lines : bool
+        ``%`` tape delimiter lines are accepted by the reader.
+    program_open, program_close : tuple of str
+        Frame lines (templates with ``{name}``, ``{number}``, ``{unit_code}``); numbered only when
+        ``number_frame``.
+    setup, finish : tuple of str
+        Code lines after the header and before the close (numbered when numbering is on).
+    name_comment : bool
+        Write the program name as the first comment, and read the first comment as the name.
+    format_name : callable
+        Makes a program name valid for the frame templates.
+    default_program_number : int
+        Program number for ``{number}`` (Fanuc ``O1000``) when the name is not a number.
+    unit_words : mapping or None
+        ``{unit_code}`` for "mm" and "inch" when it is not a G-code (Heidenhain ``MM``).
+    g_codes, m_codes, keywords : mapping
+        Code tables (see the module docstring). G keys are canonical numbers (``"0"``,
+        ``"43.4"``).
+    assignments : bool
+        The reader accepts Siemens ``NAME=value`` words (``X=AC(1)``, ``FP=1``, ``Z1=0``).
+    extra_words : frozenset of str
+        Further addresses the reader accepts without effect on motion (Siemens ``D``).
+    program_number_line : bool
+        The reader accepts an ``O1000 (NAME)`` program number line (Fanuc).
+    tool_change : tuple of str
+        Tool change lines (``{tool}``).
+    tool_change_speed : tuple of str or None
+        Tool change with spindle speed merged in (Heidenhain ``TOOL CALL 1 Z S12000``).
+    spindle_speed : str or None
+        Separate speed-only line when speed cannot go on the spindle line (Heidenhain).
+    spindle_on : str
+        Spindle start (``{rpm}``, ``{code}``).
+    tcp_on, tcp_off : tuple of str
+        TCP switching lines (``{tool}`` is the last tool change number).
+    home : tuple of str
+        Lines written for a :class:`Home` block.
+    home_comment : str or None
+        Comment written before the home lines; the reader drops it again when a home return
+        follows it directly.
+    shortest_path : str or None
+        Line written once at the start when the program has continuous rotary axes.
+    linear_mm, linear_inch, rotary, feed_mm, feed_inch, rpm : NumberFormat
+        Number formats.
+    feed_inch_unit : float
+        Millimetres per unit of an inch-program feed per minute (25.4; Heidenhain 2.54).
+    require_point : bool
+        Axis values must carry a decimal point (written always; reader rejects ``X10``).
+    block_format : str
+        Block number prefix (``"N{n}"``; Heidenhain ``"{n}"``).
+    block_start, block_step, block_max : int
+        First number, increment, and the largest number before wrapping to ``block_step``
+        (0: never wrap).
+    block_numbers_default, block_numbers_mandatory : bool
+        Numbering when the caller does not say; whether every line must be numbered.
+    number_frame, number_comments : bool
+        Whether frame lines and comment lines get numbers.
+    modal_axes : bool
+        Write only the axes that changed since the last motion block.
+    rapid_modal : bool
+        The rapid code is modal (G0). False for Heidenhain ``FMAX`` (one block only).
+    format_motion : callable
+        Motion block formatter.
+    parse_line : callable or None
+        Reader hook for non-G-code syntax; None uses the shared word-address parser.
+    """
+
+    name: str
+    extensions: tuple[str, ...]
+    comment_open: str
+    comment_close: str
+    comment_upper: bool = False
+    comment_replace: Mapping[str, str] = field(default_factory=dict)
+    comment_filter: Callable[[str], str] = _identity
+    paren_comments: bool = False
+    semicolon_comments: bool = False
+    percent_lines: bool = False
+    program_open: tuple[str, ...] = ()
+    program_close: tuple[str, ...] = ()
+    setup: tuple[str, ...] = ()
+    finish: tuple[str, ...] = ()
+    name_comment: bool = False
+    format_name: Callable[[str], str] = _identity
+    default_program_number: int = 1000
+    unit_words: Mapping[str, str] | None = None
+    g_codes: Mapping[str, str] = field(default_factory=dict)
+    m_codes: Mapping[int, str] = field(default_factory=lambda: STANDARD_M_CODES)
+    keywords: Mapping[str, str] = field(default_factory=dict)
+    assignments: bool = False
+    extra_words: frozenset[str] = frozenset()
+    program_number_line: bool = False
+    tool_change: tuple[str, ...] = ("T{tool} M6",)
+    tool_change_speed: tuple[str, ...] | None = None
+    spindle_speed: str | None = None
+    spindle_on: str = "S{rpm} {code}"
+    tcp_on: tuple[str, ...] = ()
+    tcp_off: tuple[str, ...] = ()
+    home: tuple[str, ...] = ()
+    home_comment: str | None = None
+    shortest_path: str | None = None
+    linear_mm: NumberFormat = NumberFormat(3)
+    linear_inch: NumberFormat = NumberFormat(4)
+    rotary: NumberFormat = NumberFormat(4)
+    feed_mm: NumberFormat = NumberFormat(1, trim=True)
+    feed_inch: NumberFormat = NumberFormat(2, trim=True)
+    rpm: NumberFormat = NumberFormat(0)
+    feed_inch_unit: float = 25.4
+    require_point: bool = False
+    block_format: str = "N{n}"
+    block_start: int = 10
+    block_step: int = 10
+    block_max: int = 0
+    block_numbers_default: bool = False
+    block_numbers_mandatory: bool = False
+    number_frame: bool = False
+    number_comments: bool = False
+    modal_axes: bool = True
+    rapid_modal: bool = True
+    format_motion: Callable[[MotionWords], str] = format_gcode_motion
+    parse_line: Callable[[DialectSpec, ProgramBuilder, str], None] | None = None
+
+    def g_code_for(self, action: str) -> str:
+        """The G-code (``"G21"``) the writer uses for ``action``."""
+        for code, act in self.g_codes.items():
+            if act == action:
+                return f"G{code}"
+        raise DialectError(f"{self.name}: no G-code for {action!r}")
+
+    def m_code_for(self, action: str) -> str:
+        """The M-code (``"M8"``) the writer uses for ``action``."""
+        for code, act in self.m_codes.items():
+            if act == action:
+                return f"M{code}"
+        raise DialectError(f"{self.name}: no M-code for {action!r}")
+
+    def unit_code(self, units: str) -> str:
+        """The units word for the program frame or setup (``G21``, ``G710``, ``MM``)."""
+        if units not in ("mm", "inch"):
+            raise DialectError(f"unknown program units {units!r}; expected 'mm' or 'inch'")
+        if self.unit_words is not None:
+            return self.unit_words[units]
+        return self.g_code_for(units)
+
+    def comment_text(self, text: str) -> str:
+        """``text`` as it is written between the comment delimiters (and read back).
+
+        Parameters
+        ----------
+        text : str
+            Any text.
+
+        Returns
+        -------
+        str
+            One line, stripped, with delimiter characters replaced.
+        """
+        text = " ".join(text.split())
+        for old, new in self.comment_replace.items():
+            text = text.replace(old, new)
+        if self.comment_upper:
+            text = text.upper()
+        return self.comment_filter(text).strip()
+
+    def format_comment(self, text: str) -> str:
+        """A whole comment line."""
+        return f"{self.comment_open}{self.comment_text(text)}{self.comment_close}"

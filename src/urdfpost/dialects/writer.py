@@ -1,0 +1,343 @@
+"""Program -> NC text, for any :class:`~urdfpost.dialects.spec.DialectSpec`.
+
+The writer keeps the modal state a control keeps: the last written value of every axis (as
+text, so a value that rounds to the same text is not repeated), the motion code, the feed, the
+tool and the spindle speed. The first motion block after the start, a tool change, a TCP
+switch, a home return or an inserted text writes every axis, the motion code and the feed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec, MotionWords
+from urdfpost.errors import DialectError
+from urdfpost.program import (
+    Block,
+    Comment,
+    Coolant,
+    Home,
+    Insert,
+    Move,
+    Program,
+    Spindle,
+    Stop,
+    Tcp,
+    ToolChange,
+)
+from urdfpost.tolerances import MM_PER_INCH
+
+logger = logging.getLogger(__name__)
+
+_SPINDLE_ACTIONS = {"cw": "spindle_cw", "ccw": "spindle_ccw", "off": "spindle_off"}
+_COOLANT_ACTIONS = {"flood": "coolant_flood", "mist": "coolant_mist", "off": "coolant_off"}
+_COOLANT_FALLBACK = frozenset({"through", "air"})
+
+
+@dataclass
+class _Modal:
+    """What the control remembers between blocks (writer side)."""
+
+    axes: dict[str, str] = field(default_factory=dict)
+    motion: bool | None = None  # True rapid, False linear, None unknown
+    feed: str | None = None
+    tool: int | None = None
+    rpm: str | None = None
+    spindle: str = "off"
+    force: bool = True
+
+    def invalidate(self) -> None:
+        """Forget axes, motion code and feed: the next motion block writes them all."""
+        self.axes.clear()
+        self.motion = None
+        self.feed = None
+        self.force = True
+
+
+class ProgramWriter:
+    """Writes one program; use :func:`write_program`.
+
+    Parameters
+    ----------
+    spec : DialectSpec
+        The control.
+    program : Program
+        What to write.
+    block_numbers : bool
+        Number the blocks.
+    program_number : int or None
+        Program number for ``{number}`` templates.
+    """
+
+    def __init__(
+        self,
+        spec: DialectSpec,
+        program: Program,
+        block_numbers: bool,
+        program_number: int | None,
+    ) -> None:
+        self.spec = spec
+        self.program = program
+        self.numbered = block_numbers
+        self.lines: list[str] = []
+        self.modal = _Modal()
+        self._next_number = spec.block_start
+        self._merges: dict[int, int] = {}  # tool change index -> merged spindle index
+        self._check_program()
+        self.fields = {
+            "name": spec.format_name(program.name),
+            "number": program_number if program_number is not None else _number(spec, program),
+            "unit_code": spec.unit_code(program.units),
+        }
+        self.scale = MM_PER_INCH if program.units == "inch" else 1.0
+        self.feed_scale = spec.feed_inch_unit if program.units == "inch" else 1.0
+        self.linear = spec.linear_inch if program.units == "inch" else spec.linear_mm
+        self.feed_format = spec.feed_inch if program.units == "inch" else spec.feed_mm
+
+    # -- output primitives -------------------------------------------------------------------
+
+    def emit(self, text: str, numbered: bool = True) -> None:
+        """Append one line, with a block number when numbering is on and ``numbered``."""
+        if self.numbered and numbered:
+            number = self.spec.block_format.format(n=self._next_number)
+            text = f"{number} {text}" if text else number
+            self._next_number += self.spec.block_step
+            if self.spec.block_max and self._next_number > self.spec.block_max:
+                self._next_number = self.spec.block_step
+        self.lines.append(text)
+
+    def emit_templates(self, templates: tuple[str, ...], numbered: bool = True, **extra) -> None:
+        """Append template lines filled with the program fields and ``extra``."""
+        for template in templates:
+            self.emit(template.format(**self.fields, **extra), numbered)
+
+    def emit_comment(self, text: str) -> None:
+        """Append a comment line."""
+        self.emit(self.spec.format_comment(text), self.spec.number_comments)
+
+    # -- program -----------------------------------------------------------------------------
+
+    def write(self, header: str | None) -> str:
+        """The whole program text, ending with a newline."""
+        spec = self.spec
+        self.emit_templates(spec.program_open, spec.number_frame)
+        if spec.name_comment:
+            self.emit_comment(self.program.name)
+        for line in (header or "").splitlines():
+            self.emit_comment(line)
+        self.emit_templates(spec.setup)
+        rotary_continuous = self.program.continuous & frozenset(self.program.axes)
+        if spec.shortest_path and rotary_continuous & self.program.rotary:
+            self.emit(spec.shortest_path)
+        self._plan_spindle_merges()
+        for index, block in enumerate(self.program.blocks):
+            self.write_block(index, block)
+        self.emit_templates(spec.finish)
+        self.emit_templates(spec.program_close, spec.number_frame)
+        return "\n".join(self.lines) + "\n"
+
+    def _check_program(self) -> None:
+        axes = self.program.axes
+        unknown = [a for a in axes if a not in AXIS_ORDER]
+        if unknown or len(set(axes)) != len(axes):
+            raise DialectError(
+                f"program axes {axes} must be distinct letters among {' '.join(AXIS_ORDER)}"
+            )
+        wrong = set(axes) & (self.program.rotary ^ ROTARY_ADDRESSES)
+        if wrong:
+            raise DialectError(
+                f"axes {sorted(wrong)}: X, Y, Z must be linear and A, B, C rotary "
+                f"(program.rotary={sorted(self.program.rotary)})"
+            )
+
+    def _plan_spindle_merges(self) -> None:
+        """Find spindle starts whose speed can go into the preceding tool change block."""
+        if self.spec.tool_change_speed is None:
+            return
+        blocks = self.program.blocks
+        for index, block in enumerate(blocks):
+            if not isinstance(block, ToolChange):
+                continue
+            for later in range(index + 1, len(blocks)):
+                candidate = blocks[later]
+                if isinstance(candidate, Spindle):
+                    if candidate.direction != "off" and candidate.rpm > 0:
+                        self._merges[index] = later
+                    break
+                if not isinstance(candidate, Comment | Coolant):
+                    break
+
+    # -- blocks ------------------------------------------------------------------------------
+
+    def write_block(self, index: int, block: Block) -> None:
+        """Write one program block."""
+        match block:
+            case Move():
+                self.write_move(block)
+            case ToolChange():
+                self.write_tool_change(index, block)
+            case Spindle():
+                self.write_spindle(block)
+            case Coolant():
+                self.write_coolant(block)
+            case Comment():
+                self.emit_comment(block.text)
+            case Insert():
+                for line in block.text.splitlines():
+                    self.emit(line, self.spec.block_numbers_mandatory)
+                self.modal.invalidate()
+            case Tcp():
+                self.write_tcp(block)
+            case Stop():
+                self.emit(self.spec.m_code_for("optional_stop" if block.optional else "stop"))
+            case Home():
+                if self.spec.home_comment is not None:
+                    self.emit_comment(self.spec.home_comment)
+                self.emit_templates(self.spec.home)
+                self.modal.invalidate()
+            case _:
+                raise DialectError(f"cannot write block {block!r}")
+
+    def write_move(self, move: Move) -> None:
+        """Write a motion block with only the changed axes (all after a forced state)."""
+        if len(move.position) != len(self.program.axes):
+            raise DialectError(
+                f"move {move} has {len(move.position)} values for axes {self.program.axes}"
+            )
+        known = [(a, self.format_axis(a, v)) for a, v in zip(self.program.axes, move.position)
+                 if not math.isnan(v)]  # fmt: skip
+        if not known:
+            raise DialectError(f"move {move} has no axis value (all NaN)")
+        modal = self.modal
+        changed = [(a, text) for a, text in known if modal.axes.get(a) != text]
+        if modal.force or not self.spec.modal_axes or not changed:
+            changed = known
+        modal.axes.update(changed)
+        code = None
+        if self.spec.rapid_modal and (modal.force or modal.motion is not move.rapid):
+            code = self.spec.g_code_for("rapid" if move.rapid else "linear")
+        modal.motion = move.rapid
+        feed = None
+        if not move.rapid and move.feed is not None:
+            text = self.feed_format.format(move.feed / self.feed_scale)
+            if float(text) <= 0.0:
+                raise DialectError(f"feed {move.feed} mm/min is written as F{text}")
+            if text != modal.feed:
+                feed = modal.feed = text
+        modal.force = False
+        words = MotionWords(move.rapid, code, tuple(changed), feed)
+        self.emit(self.spec.format_motion(words))
+
+    def format_axis(self, address: str, value: float) -> str:
+        """Axis value text in program units."""
+        if address in ROTARY_ADDRESSES:
+            return self.spec.rotary.format(value)
+        return self.linear.format(value / self.scale)
+
+    def write_tool_change(self, index: int, block: ToolChange) -> None:
+        """Tool change, with the next spindle speed merged in when the control does that."""
+        if block.number < 0:
+            raise DialectError(f"tool number {block.number} must not be negative")
+        self.modal.tool = block.number
+        merged = self.program.blocks[self._merges[index]] if index in self._merges else None
+        if isinstance(merged, Spindle) and self.spec.tool_change_speed is not None:
+            rpm = self.spec.rpm.format(merged.rpm)
+            self.emit_templates(self.spec.tool_change_speed, tool=block.number, rpm=rpm)
+            self.modal.rpm = rpm
+        else:
+            self.emit_templates(self.spec.tool_change, tool=block.number)
+        self.modal.invalidate()
+
+    def write_spindle(self, block: Spindle) -> None:
+        """Spindle start, stop or speed change."""
+        action = _SPINDLE_ACTIONS.get(block.direction)
+        if action is None:
+            raise DialectError(
+                f"unknown spindle direction {block.direction!r}; expected 'cw', 'ccw' or 'off'"
+            )
+        code = self.spec.m_code_for(action)
+        self.modal.spindle = block.direction
+        if block.direction == "off":
+            self.emit(code)
+            return
+        rpm = self.spec.rpm.format(block.rpm)
+        if self.spec.spindle_speed is not None and rpm != self.modal.rpm:
+            self.emit(self.spec.spindle_speed.format(rpm=rpm))  # not merged into a tool call
+        self.modal.rpm = rpm
+        self.emit(self.spec.spindle_on.format(rpm=rpm, code=code))
+
+    def write_coolant(self, block: Coolant) -> None:
+        """Coolant on or off; modes without a standard code are written as flood."""
+        mode = block.mode
+        if mode in _COOLANT_FALLBACK:
+            logger.warning(
+                "%s has no standard code for coolant %r; writing flood coolant", self.spec.name, mode
+            )
+            mode = "flood"
+        action = _COOLANT_ACTIONS.get(mode)
+        if action is None:
+            raise DialectError(
+                f"unknown coolant mode {block.mode!r}; expected flood, mist, through, air or off"
+            )
+        self.emit(self.spec.m_code_for(action))
+
+    def write_tcp(self, block: Tcp) -> None:
+        """TCP on or off; the on lines may need the current tool number."""
+        templates = self.spec.tcp_on if block.on else self.spec.tcp_off
+        if any("{tool}" in t for t in templates) and self.modal.tool is None:
+            raise DialectError(
+                f"{self.spec.name}: switching TCP {'on' if block.on else 'off'} needs the tool "
+                "length offset number; put a ToolChange before the Tcp block"
+            )
+        self.emit_templates(templates, tool=self.modal.tool)
+        self.modal.invalidate()
+
+
+def _number(spec: DialectSpec, program: Program) -> int:
+    """Program number: the name when it is one (``"1234"``, ``"O1234"``), else the default."""
+    digits = program.name.upper().removeprefix("O")
+    return int(digits) if digits.isdigit() else spec.default_program_number
+
+
+def write_program(
+    spec: DialectSpec,
+    program: Program,
+    *,
+    block_numbers: bool | None = None,
+    header: str | None = None,
+    program_number: int | None = None,
+) -> str:
+    """Write ``program`` for the control described by ``spec``.
+
+    Parameters
+    ----------
+    spec : DialectSpec
+        The control.
+    program : Program
+        The program (mm and degrees; converted to inch when ``program.units == "inch"``).
+    block_numbers : bool, optional
+        Number the blocks; default the control's usual practice. Controls that require
+        numbers reject False.
+    header : str, optional
+        Text written as comment lines after the program start (e.g. a date, the machine).
+    program_number : int, optional
+        Program number where the control has one (Fanuc ``O``-number).
+
+    Returns
+    -------
+    str
+        The program text.
+
+    Raises
+    ------
+    DialectError
+        The program cannot be written for this control.
+    """
+    if block_numbers is None:
+        block_numbers = spec.block_numbers_default or spec.block_numbers_mandatory
+    if spec.block_numbers_mandatory and not block_numbers:
+        raise DialectError(f"{spec.name} programs are always numbered")
+    writer = ProgramWriter(spec, program, block_numbers, program_number)
+    return writer.write(header)

@@ -1,0 +1,375 @@
+"""Posting: CL toolpath to a checked NC program, with no files opened.
+
+``post(toolpath, machine, options)`` runs the whole chain: solution choice per point
+(:mod:`urdfpost.branches`), subdivision of feed moves until the nonlinear error is within
+tolerance (:mod:`urdfpost.linearize`), the controller-neutral program (:mod:`urdfpost.program`),
+its text in the chosen dialect, and the verification of that text read back through the machine
+(:mod:`urdfpost.verify`). A program that misses its tolerance is an error.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from urdfpost.branches import Preference, select
+from urdfpost.errors import ToleranceError
+from urdfpost.kinematics.inverse import IKStatus
+from urdfpost.linearize import subdivide
+from urdfpost.machine import Machine
+from urdfpost.program import (
+    Block,
+    Comment,
+    Coolant,
+    Home,
+    Insert,
+    Move,
+    Program,
+    Spindle,
+    Stop,
+    Tcp,
+    ToolChange,
+)
+from urdfpost.tolerances import MM_PER_INCH, Tolerances
+from urdfpost.toolpath import Event, Motion, Toolpath
+from urdfpost.verify import Verification, verify
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PostOptions:
+    """How to post.
+
+    Attributes
+    ----------
+    controller : str or None
+        Dialect name; default the machine file's controller.
+    tcp : bool
+        Write the tool tip in workpiece coordinates with TCP on (the control does the
+        kinematics) instead of machine axis positions.
+    units : str or None
+        Program units ("mm" or "inch"); default the CL file's units.
+    tool_length : float or None
+        Tool length in mm (gauge point to tip); default the machine file's.
+    tolerance : float or None
+        Tool-tip tolerance in program units; default 0.01 mm or 0.0004 in.
+    prefer : Preference or None
+        Preferred rotary branch; default the machine file's.
+    block_numbers : bool
+        Number the blocks (Heidenhain always does).
+    program_name : str or None
+        Default: the CL PARTNO, else "URDFPOST".
+    """
+
+    controller: str | None = None
+    tcp: bool = True
+    units: str | None = None
+    tool_length: float | None = None
+    tolerance: float | None = None
+    prefer: Preference | None = None
+    block_numbers: bool = False
+    program_name: str | None = None
+
+
+@dataclass(frozen=True)
+class PostResult:
+    """Everything a post produces.
+
+    Attributes
+    ----------
+    program : Program
+        The controller-neutral program.
+    text : str
+        The program in the dialect.
+    verification : Verification
+        Of ``text`` read back through the machine.
+    report : dict
+        Figures for people and JSON (lengths in program units, angles in degrees).
+    """
+
+    program: Program
+    text: str
+    verification: Verification
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+def _program_name(toolpath: Toolpath, options: PostOptions) -> str:
+    if options.program_name:
+        return options.program_name
+    for e in toolpath.events:
+        if e.kind == "partno" and e.data.get("text", "").strip():
+            name = re.sub(r"[^A-Za-z0-9_]+", "_", e.data["text"].strip()).strip("_")
+            return name.upper()[:24] or "URDFPOST"
+    return "URDFPOST"
+
+
+def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]:
+    """Blocks for one CL event; ``tcp_state`` is updated when TCP is switched."""
+    kind, data = event.kind, event.data
+    out: list[Block] = []
+
+    def tcp_off() -> None:
+        if tcp_state[0]:
+            out.append(Tcp(on=False))
+            tcp_state[0] = False
+
+    if kind in ("comment", "partno", "unknown"):
+        out.append(Comment(str(data.get("text", ""))))
+    elif kind == "operation":
+        out.append(Comment(f"operation {data.get('name', '')}".strip()))
+    elif kind == "insert":
+        out.append(Insert(str(data.get("text", ""))))
+    elif kind == "tool":
+        tcp_off()
+        out.append(
+            ToolChange(
+                number=int(data.get("number", 0)),
+                length=data.get("length"),
+                diameter=data.get("diameter"),
+                name=data.get("name"),
+            )
+        )
+    elif kind == "cutter":
+        size = ", ".join(
+            f"{k.replace('_', ' ')} {float(v):.4g} mm" for k, v in data.items() if v is not None
+        )
+        out.append(Comment(f"cutter {size}"))
+    elif kind == "spindle":
+        rpm = float(data.get("rpm", 0.0))
+        out.append(
+            Spindle(
+                direction=str(data.get("direction", "cw")), rpm=rpm if np.isfinite(rpm) else 0.0
+            )
+        )
+    elif kind == "coolant":
+        out.append(Coolant(mode=str(data.get("mode", "flood"))))
+    elif kind == "home":
+        tcp_off()
+        out.append(Home())
+    elif kind == "stop":
+        out.append(Stop(optional=bool(data.get("optional", False))))
+    else:
+        text = " ".join(f"{k}={v}" for k, v in data.items())
+        out.append(Comment(f"{kind} {text}".strip()))
+    return out
+
+
+def _feed_runs(joined: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs [s, e] of points joined by feed moves (e > s).
+
+    ``joined[i]`` says point i is reached from point i - 1 by a feed move of the same cut.
+    """
+    runs = []
+    n = len(joined)
+    i = 0
+    while i < n - 1:
+        if joined[i + 1]:
+            j = i + 1
+            while j + 1 < n and joined[j + 1]:
+                j += 1
+            runs.append((i, j))
+            i = j
+        else:
+            i += 1
+    return runs
+
+
+def build_program(
+    toolpath: Toolpath,
+    machine: Machine,
+    options: PostOptions,
+    tol: Tolerances,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[Program, dict[str, Any]]:
+    """The controller-neutral program for a toolpath (no verification).
+
+    Returns
+    -------
+    program : Program
+    figures : dict
+        Counts gathered on the way (branch switches, pole points, inserted blocks).
+    """
+    units = options.units or toolpath.units
+    tool_length = (
+        machine.settings.tool_length if options.tool_length is None else options.tool_length
+    )
+    n = len(toolpath)
+    entry = np.zeros(n, dtype=bool)
+    for e in toolpath.events:
+        if e.kind == "tool" and e.index < n:
+            entry[e.index] = True
+    figures: dict[str, Any] = {"branch_switches": 0, "pole_points": 0, "inserted_blocks": 0}
+    rows: list[tuple[np.ndarray, np.ndarray, int]] = []  # per output move: q, tip, cl index
+    if n:
+        sel = select(
+            machine,
+            toolpath.tip,
+            toolpath.axis,
+            tool_length=tool_length,
+            prefer=options.prefer,
+            entry=entry,
+            lines=toolpath.line,
+            source=toolpath.source,
+            tol=tol,
+        )
+        figures["branch_switches"] = int(np.sum(np.diff(sel.branch) != 0))
+        figures["pole_points"] = int(np.sum(sel.status == IKStatus.POLE))
+        inserted: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        for s, e in _feed_runs((toolpath.motion == Motion.FEED) & ~entry):
+            lin = subdivide(
+                machine,
+                sel.q[s : e + 1],
+                toolpath.tip[s : e + 1],
+                toolpath.axis[s : e + 1],
+                tool_length=tool_length,
+                tcp=options.tcp,
+                tol=tol,
+            )
+            owner = np.maximum.accumulate(np.where(lin.source >= 0, lin.source, -1)) + s
+            for k in np.flatnonzero(lin.source < 0):
+                inserted.setdefault(int(owner[k]) + 1, ([], []))
+                inserted[int(owner[k]) + 1][0].append(lin.q[k])
+                inserted[int(owner[k]) + 1][1].append(lin.tip[k])
+            figures["inserted_blocks"] += int(np.sum(lin.source < 0))
+            if progress:
+                progress(e - s)
+        for i in range(n):
+            for q, tip in zip(*inserted.get(i, ([], [])), strict=True):
+                rows.append((q, tip, -1))
+            rows.append((sel.q[i], toolpath.tip[i], i))
+
+    axes = machine.axis_names
+    rotary = frozenset(a.name for a in machine.rotary)
+    lin_cols = list(machine.linear_columns)
+    blocks: list[Block] = []
+    tcp_state = [False]
+    events = sorted(toolpath.events, key=lambda e: e.index)
+    ev = 0
+    row = 0
+    for i in range(n + 1):
+        while ev < len(events) and events[ev].index <= i:
+            blocks.extend(_event_blocks(events[ev], tcp_state, options.tcp))
+            ev += 1
+        if i == n:
+            break
+        while row < len(rows):
+            q, tip, cl = rows[row]
+            position = np.where([a in rotary for a in axes], np.degrees(q), q)
+            if options.tcp:
+                position[lin_cols] = tip
+                if not tcp_state[0]:
+                    blocks.append(Tcp(on=True))
+                    tcp_state[0] = True
+            rapid = bool(toolpath.motion[i] == Motion.RAPID)
+            feed = float(toolpath.feed[i]) if np.isfinite(toolpath.feed[i]) else None
+            blocks.append(
+                Move(
+                    rapid=rapid,
+                    position=tuple(float(x) for x in position),
+                    feed=None if rapid else feed,
+                    cl_line=int(toolpath.line[i]) if cl >= 0 else None,
+                )
+            )
+            row += 1
+            if cl == i:
+                break
+    if tcp_state[0]:
+        blocks.append(Tcp(on=False))
+    program = Program(
+        name=_program_name(toolpath, options),
+        axes=axes,
+        rotary=rotary,
+        units=units,
+        tcp=options.tcp,
+        blocks=tuple(blocks),
+        tool_length=tool_length,
+        continuous=frozenset(a.name for a in machine.rotary if a.continuous),
+    )
+    return program, figures
+
+
+def post(
+    toolpath: Toolpath,
+    machine: Machine,
+    options: PostOptions | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> PostResult:
+    """Post a toolpath for a machine and check the program against the CL data.
+
+    Parameters
+    ----------
+    toolpath : Toolpath
+    machine : Machine
+    options : PostOptions, optional
+    progress : callable, optional
+        Called with the number of CL points just processed.
+
+    Returns
+    -------
+    PostResult
+
+    Raises
+    ------
+    UnreachableError
+        A CL point no branch reaches within travel.
+    ToleranceError
+        The program read back deviates from the CL data beyond tolerance (the message carries
+        the figures); nothing should be written then.
+    """
+    from urdfpost.dialects import dialect_for
+
+    options = options or PostOptions()
+    units = options.units or toolpath.units
+    tol = Tolerances.for_units(units, options.tolerance)
+    dialect = dialect_for(options.controller or machine.settings.controller)
+    program, figures = build_program(toolpath, machine, options, tol, progress)
+    text = dialect.write(program, block_numbers=options.block_numbers or None)
+    readback = dialect.read(text, path=f"<{dialect.name} program>")
+    check = verify(readback, machine, toolpath, tool_length=program.tool_length, tol=tol)
+    report = make_report(toolpath, machine, program, check, dialect.name, figures)
+    if not check.ok:
+        raise ToleranceError(
+            f"{toolpath.source}: the program misses its tolerance, nothing written: "
+            f"{check.summary(units)}"
+            + (f"; worst near CL line {check.worst_cl_line}" if check.worst_cl_line else "")
+        )
+    return PostResult(program=program, text=text, verification=check, report=report)
+
+
+def make_report(
+    toolpath: Toolpath,
+    machine: Machine,
+    program: Program,
+    check: Verification,
+    controller: str,
+    figures: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Report figures: lengths in program units, angles in degrees."""
+    scale = MM_PER_INCH if program.units == "inch" else 1.0
+    return {
+        "machine": machine.name,
+        "controller": controller,
+        "tcp": program.tcp,
+        "units": program.units,
+        "cl_points": check.cl_points,
+        "cl_points_reached": check.reached,
+        "cl_lines_missed": check.missed_lines,
+        "blocks": check.blocks,
+        "max_tip_deviation": check.max_tip_deviation / scale,
+        "mean_tip_deviation": check.mean_tip_deviation / scale,
+        "tip_tolerance": check.tip_tolerance / scale,
+        "max_orientation_deviation_deg": check.max_orientation_deviation_deg,
+        "orientation_tolerance_deg": check.orientation_tolerance_deg,
+        "max_rotary_step_deg": check.max_rotary_step_deg,
+        "worst_cl_line": check.worst_cl_line,
+        "tool_length_mm": program.tool_length,
+        "verified": check.ok,
+        "warnings": list(toolpath.warnings),
+        **(figures or {}),
+    }

@@ -1,0 +1,36 @@
+"""Shared test configuration.
+
+Cases marked ``slow`` run in CI (``CI=true``) and with ``--runslow``; a local default run skips
+them to stay fast.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED_CL = ROOT.parent / "shared" / "testdata" / "cl"
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--runslow", action="store_true", help="run tests marked slow")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if config.getoption("--runslow") or os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+        return
+    skip = pytest.mark.skip(reason="slow: runs in CI or with --runslow")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)
+
+
+def shared_cl(name: str) -> Path:
+    """Path of a real CL file in ../shared/testdata/cl, skipping the test when absent."""
+    path = SHARED_CL / name
+    if not path.is_file():
+        pytest.skip(f"real CL file {path} not present (../shared is not part of a fresh clone)")
+    return path
