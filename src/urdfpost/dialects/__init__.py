@@ -29,9 +29,7 @@ DIALECTS: dict[str, Dialect] = {
 
 
 def _known() -> str:
-    return ", ".join(
-        f"{name} ({'/'.join(d.extensions)})" for name, d in sorted(DIALECTS.items())
-    )
+    return ", ".join(f"{name} ({'/'.join(d.extensions)})" for name, d in sorted(DIALECTS.items()))
 
 
 def dialect_for(name: str | None = None, path: str | os.PathLike[str] | None = None) -> Dialect:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from urdfpost.dialects.reader import read_program
 from urdfpost.dialects.spec import ROTARY_ADDRESSES, DialectSpec
 from urdfpost.dialects.writer import write_program
@@ -75,7 +77,7 @@ class Dialect:
             program_number=program_number,
         )
 
-    def read(self, text: str, *, path: str = "<string>") -> Program:
+    def read(self, text: str, *, path: str = "<string>", verbatim: Iterable[str] = ()) -> Program:
         """Read a program of this control.
 
         Parameters
@@ -84,6 +86,10 @@ class Dialect:
             Program text (as written by :meth:`write`, or edited by hand).
         path : str
             File name for error messages.
+        verbatim : iterable of str
+            Texts of the :class:`~urdfpost.program.Insert` blocks the program was written with.
+            Lines equal to one of their lines are read back as ``Insert`` blocks, unparsed and
+            trusted; other inserted text must be readable like any other line.
 
         Returns
         -------
@@ -96,7 +102,7 @@ class Dialect:
         ProgramParseError
             A line that cannot be read, with path, line number and what was expected.
         """
-        return read_program(self.spec, text, path)
+        return read_program(self.spec, text, path, verbatim)
 
     def comment_text(self, text: str) -> str:
         """``text`` as a comment reads back after writing (case, replaced characters)."""

@@ -39,6 +39,7 @@ _LINE = re.compile(r"\s*(\d+)(?:\s+(.*))?\Z")
 _BEGIN = re.compile(r"BEGIN PGM (\S+) (MM|INCH)\Z")
 _END = re.compile(r"END PGM (\S+) (MM|INCH)\Z")
 _AXIS = re.compile(r"(I?)([XYZABC])(.*)\Z")
+_TOOL_CALL_WORD = re.compile(r"(DR2|DL|DR|S|F)(.*)\Z")  # DR, DR2: radius only, no effect
 _MOTION_WORDS = "X.. Y.. Z.. A.. B.. C.. (IX.. incremental), R0, F.., FMAX, M.."
 
 
@@ -111,6 +112,8 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
     elif code == "FUNCTION RESET TCPM":
         builder.set_tcp(False)
     elif code.startswith("FUNCTION TCPM"):
+        if "AXIS SPAT" in code:
+            raise builder.error("FUNCTION TCPM ... AXIS SPAT (spatial angles); expected AXIS POS")
         builder.set_tcp(True)
     elif words[0] == "L":
         _line(spec, builder, words[1:])
@@ -138,16 +141,17 @@ def _tool_call(builder: ProgramBuilder, words: list[str]) -> None:
             raise builder.error(f"tool axis {word} is not supported; expected Z")
         if word == "Z":
             continue
-        address = "DR2" if word.startswith("DR2") else word[:2] if word[:2] in ("DL", "DR") else word[:1]
-        value = builder.number(address, word[len(address) :])
+        parts = _TOOL_CALL_WORD.match(word)
+        if parts is None:
+            raise builder.error(f"unknown word {word!r} in TOOL CALL; expected n Z S.. F..")
+        address = parts.group(1)
+        value = builder.number(address, parts.group(2))
         if address == "S":
             speed = value
         elif address == "F":
             builder.set_feed(value)
         elif address == "DL" and value != 0.0:
             raise builder.error(f"tool length oversize {word} is not supported; expected DL+0")
-        elif address not in ("DL", "DR", "DR2"):
-            raise builder.error(f"unknown word {word!r} in TOOL CALL; expected n Z S.. F..")
     if number is not None:
         builder.tool_change(number)
     if speed is not None:

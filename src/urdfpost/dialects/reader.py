@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import PurePath
 
@@ -41,6 +42,7 @@ from urdfpost.program import (
     Comment,
     Coolant,
     Home,
+    Insert,
     Move,
     Program,
     Spindle,
@@ -251,6 +253,11 @@ class ProgramBuilder:
             self.tcp = on
             self.tcp_ever |= on
             self._add(Tcp(on))
+
+    def insert(self, text: str) -> None:
+        """A line inserted verbatim, taken on trust."""
+        self.code()
+        self._add(Insert(text))
 
     def stop(self, optional: bool) -> None:
         """Program stop (M0) or optional stop (M1)."""
@@ -520,10 +527,8 @@ def _execute(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
         builder.select_tool(_integer(builder, "T", block.words["T"].text))
     if "S" in block.words and not dwell:
         builder.set_speed(builder.number("S", block.words["S"].text))
-    if "tcp_on" in actions:
-        builder.set_tcp(True)
-    if "tcp_off" in actions:
-        builder.set_tcp(False)
+    for action in block.actions & {"tcp_on", "tcp_off"}:  # G-codes and keywords
+        builder.set_tcp(action == "tcp_on")
     for action in block.m_actions:
         if action in BEFORE_MOTION_M:
             apply_m_action(builder, action)
@@ -631,7 +636,9 @@ def apply_m_action(builder: ProgramBuilder, action: str) -> None:
             raise builder.error(f"M-code action {action!r} is not allowed here")
 
 
-def read_program(spec: DialectSpec, text: str, path: str = "<string>") -> Program:
+def read_program(
+    spec: DialectSpec, text: str, path: str = "<string>", verbatim: Iterable[str] = ()
+) -> Program:
     """Read NC text of the control described by ``spec``.
 
     Parameters
@@ -642,6 +649,11 @@ def read_program(spec: DialectSpec, text: str, path: str = "<string>") -> Progra
         The program.
     path : str
         File name for error messages.
+    verbatim : iterable of str
+        Texts inserted verbatim (:class:`Insert` blocks of the program written). Lines equal
+        to one of their lines (after the block number, for controls that number every line)
+        are read as :class:`Insert` blocks without being parsed: taken on trust, they do not
+        change the modal state.
 
     Returns
     -------
@@ -655,8 +667,14 @@ def read_program(spec: DialectSpec, text: str, path: str = "<string>") -> Progra
     """
     builder = ProgramBuilder(spec, path)
     parse_line = spec.parse_line or parse_gcode_line
+    trusted = {line.strip() for insert in verbatim for line in insert.splitlines()} - {""}
     for number, line in enumerate(text.splitlines(), start=1):
         builder.line = number
-        if line.strip():
+        content = line.strip()
+        if spec.block_numbers_mandatory:
+            content = re.sub(r"^\d+\s+", "", content)
+        if content in trusted:
+            builder.insert(content)
+        elif content:
             parse_line(spec, builder, line)
     return builder.build()

@@ -182,6 +182,10 @@ def _identity(text: str) -> str:
     return text
 
 
+def _empty() -> Mapping[str, str]:
+    return MappingProxyType({})
+
+
 @dataclass(frozen=True)
 class DialectSpec:
     """Everything that differs between two controls.
@@ -271,7 +275,7 @@ class DialectSpec:
     comment_open: str
     comment_close: str
     comment_upper: bool = False
-    comment_replace: Mapping[str, str] = field(default_factory=dict)
+    comment_replace: Mapping[str, str] = field(default_factory=_empty)
     comment_filter: Callable[[str], str] = _identity
     paren_comments: bool = False
     semicolon_comments: bool = False
@@ -284,9 +288,9 @@ class DialectSpec:
     format_name: Callable[[str], str] = _identity
     default_program_number: int = 1000
     unit_words: Mapping[str, str] | None = None
-    g_codes: Mapping[str, str] = field(default_factory=dict)
+    g_codes: Mapping[str, str] = field(default_factory=_empty)
     m_codes: Mapping[int, str] = field(default_factory=lambda: STANDARD_M_CODES)
-    keywords: Mapping[str, str] = field(default_factory=dict)
+    keywords: Mapping[str, str] = field(default_factory=_empty)
     assignments: bool = False
     extra_words: frozenset[str] = frozenset()
     program_number_line: bool = False

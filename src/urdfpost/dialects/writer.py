@@ -153,12 +153,19 @@ class ProgramWriter:
             )
 
     def _plan_spindle_merges(self) -> None:
-        """Find spindle starts whose speed can go into the preceding tool change block."""
+        """Find spindle starts whose speed can go into the preceding tool change block.
+
+        Only while the spindle is stopped: a speed in the tool change would otherwise change
+        the speed of the running spindle before its next start block.
+        """
         if self.spec.tool_change_speed is None:
             return
         blocks = self.program.blocks
+        running = False
         for index, block in enumerate(blocks):
-            if not isinstance(block, ToolChange):
+            if isinstance(block, Spindle):
+                running = block.direction != "off"
+            if not isinstance(block, ToolChange) or running:
                 continue
             for later in range(index + 1, len(blocks)):
                 candidate = blocks[later]
@@ -206,8 +213,8 @@ class ProgramWriter:
             raise DialectError(
                 f"move {move} has {len(move.position)} values for axes {self.program.axes}"
             )
-        known = [(a, self.format_axis(a, v)) for a, v in zip(self.program.axes, move.position)
-                 if not math.isnan(v)]  # fmt: skip
+        pairs = zip(self.program.axes, move.position, strict=True)
+        known = [(a, self.format_axis(a, v)) for a, v in pairs if not math.isnan(v)]
         if not known:
             raise DialectError(f"move {move} has no axis value (all NaN)")
         modal = self.modal
@@ -273,7 +280,9 @@ class ProgramWriter:
         mode = block.mode
         if mode in _COOLANT_FALLBACK:
             logger.warning(
-                "%s has no standard code for coolant %r; writing flood coolant", self.spec.name, mode
+                "%s has no standard code for coolant %r; writing flood coolant",
+                self.spec.name,
+                mode,
             )
             mode = "flood"
         action = _COOLANT_ACTIONS.get(mode)
