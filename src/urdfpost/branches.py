@@ -6,6 +6,8 @@ The rules of Source A (``docs`` of the project: seeds.md), applied to the whole 
   candidate left is an error naming its CL line;
 - at the start (and where the path is entered by a rapid move with no previous block), the
   preferred branch is taken when it is within travel;
+- a switch of branch between two regular points costs half a turn (it is a jump of the first
+  rotary axis within one block); at a pole or edge the branches meet and switching is free;
 - otherwise the choice follows the previous block: the total rotary motion along the path is
   minimised by dynamic programming (Viterbi) over every branch and every 360-degree multiple
   within travel, which is "nearest to the previous block" made global, so one block's greedy
@@ -243,6 +245,7 @@ def select(
     pref_cost = pref_cost + 1e-9 * np.abs(np.nan_to_num(values)).sum(axis=2)
 
     cont = np.array([a.continuous for a in machine.rotary])
+    singular = (ik.status == IKStatus.POLE) | (ik.status == IKStatus.EDGE)
     n_cand = values.shape[1]
     cost = np.where(ok[0], pref_cost[0], np.inf)
     state = values[0].copy()  # (K, r) actual values of each candidate state
@@ -258,6 +261,10 @@ def select(
         diff[:, :, cont] = _wrap(diff[:, :, cont])
         diff = np.nan_to_num(diff, nan=0.0)  # undetermined angle: held, no motion
         step = np.abs(diff).sum(axis=2)
+        # the branches meet only at singular points; a switch between two regular points
+        # needs a jump of the first axis somewhere in the block, which no subdivision removes
+        if not (singular[i] or singular[i - 1]):
+            step = step + np.pi * (branch[:, None] != branch[None, :])
         total = cost[:, None] + step
         best = np.argmin(total, axis=0)
         cost = np.where(ok[i], total[best, np.arange(n_cand)] + pref_cost[i], np.inf)

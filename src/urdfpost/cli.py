@@ -198,7 +198,6 @@ def _cmd_post(args: argparse.Namespace) -> int:
         block_numbers=args.block_numbers,
         program_name=args.name,
     )
-    _show_warnings(toolpath.warnings)
     with tqdm(
         total=len(toolpath),
         unit="pt",
@@ -208,6 +207,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         leave=False,
     ) as bar:
         result = post(toolpath, machine, options, progress=bar.update)
+    _show_warnings(result.report["warnings"])
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     _write_atomic(out, result.text)
     if args.report:

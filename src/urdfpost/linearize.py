@@ -287,8 +287,8 @@ def subdivide(
 ) -> Linearized:
     """Bisect blocks until the tip and orientation deviations are within tolerance.
 
-    The tip target is ``tol.tip * tol.interpolation_share`` (the rest of the tolerance is kept
-    for the rounding of the written program); the orientation target is ``tol.orientation``.
+    The targets are ``tol.tip`` and ``tol.orientation`` times ``tol.interpolation_share`` (the
+    rest of each tolerance is kept for the rounding of the written program).
     Blocks are bisected at most ``tol.max_subdivision_depth`` times.
 
     Parameters
@@ -310,9 +310,10 @@ def subdivide(
     q, tip, axis = np.array(q, dtype=float), np.array(tip, dtype=float), np.array(axis, dtype=float)
     source = np.arange(len(q))
     target_tip = tol.tip * tol.interpolation_share
+    target_ori = tol.orientation * tol.interpolation_share
     err_tip, err_ori = _measure(machine, q, tip, axis, None, tool_length, tcp, tol)
     for depth in range(tol.max_subdivision_depth):
-        bad = (err_tip > target_tip) | (err_ori > tol.orientation)
+        bad = (err_tip > target_tip) | (err_ori > target_ori)
         if not bad.any():
             break
         idx = np.flatnonzero(bad)

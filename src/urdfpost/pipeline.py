@@ -19,7 +19,7 @@ import numpy as np
 
 from urdfpost.branches import Preference, select
 from urdfpost.errors import ToleranceError
-from urdfpost.kinematics.inverse import IKStatus
+from urdfpost.kinematics.inverse import IKStatus, solve_linear
 from urdfpost.linearize import subdivide
 from urdfpost.machine import Machine
 from urdfpost.program import (
@@ -180,6 +180,41 @@ def _feed_runs(joined: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
+def _turn_at_poles(
+    machine: Machine, sel: Any, toolpath: Toolpath, tool_length: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Insert a turn of the first rotary axis in place where the path leaves a pole.
+
+    At a pole the first rotary axis lies along the tool axis, so turning it does not change
+    the orientation: the angle the next point needs is reached while the tool stands on the
+    pole point (tip held, linear axes re-solved), instead of during the move away from it.
+
+    Returns
+    -------
+    q : ndarray, shape (N, m)
+    tip, axis : ndarray, shape (N, 3)
+    owner : ndarray, shape (N,), int
+        CL point index of each row (an inserted row repeats its pole point).
+    """
+    n = len(toolpath)
+    col = machine.rotary_columns[0]
+    pole = sel.status == IKStatus.POLE
+    entry = np.zeros(n, dtype=bool)
+    for e in toolpath.events:
+        if e.kind == "tool" and e.index < n:
+            entry[e.index] = True
+    turn = np.flatnonzero(pole[:-1] & (np.abs(np.diff(sel.q[:, col])) > 1e-9) & ~entry[1:])
+    owner = np.insert(np.arange(n), turn + 1, turn)
+    q = sel.q[owner].copy()
+    rows = turn + 1 + np.arange(len(turn))  # positions of the inserted rows
+    if len(turn):
+        q[rows, col] = sel.q[turn + 1, col]
+        rot = q[rows][:, list(machine.rotary_columns)]
+        lin = solve_linear(machine, rot, toolpath.tip[turn], tool_length)
+        q[rows[:, None], list(machine.linear_columns)] = lin
+    return q, toolpath.tip[owner], toolpath.axis[owner], owner
+
+
 def build_program(
     toolpath: Toolpath,
     machine: Machine,
@@ -205,6 +240,15 @@ def build_program(
         if e.kind == "tool" and e.index < n:
             entry[e.index] = True
     figures: dict[str, Any] = {"branch_switches": 0, "pole_points": 0, "inserted_blocks": 0}
+    warnings: list[str] = []
+    first_tool = min((e.index for e in toolpath.events if e.kind == "tool"), default=n + 1)
+    tool_events: tuple[Event, ...] = ()
+    if n and first_tool > 0:
+        # controls need a tool (and its length offset) before motion; the CL data has none
+        warnings.append(
+            f"{toolpath.source}: no tool change before the first move; tool 1 assumed"
+        )
+        tool_events = (Event(index=0, kind="tool", line=int(toolpath.line[0]), data={"number": 1}),)
     rows: list[tuple[np.ndarray, np.ndarray, int]] = []  # per output move: q, tip, cl index
     if n:
         sel = select(
@@ -220,65 +264,79 @@ def build_program(
         )
         figures["branch_switches"] = int(np.sum(np.diff(sel.branch) != 0))
         figures["pole_points"] = int(np.sum(sel.status == IKStatus.POLE))
-        inserted: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        for s, e in _feed_runs((toolpath.motion == Motion.FEED) & ~entry):
+        q, tip, axis, owner = _turn_at_poles(machine, sel, toolpath, tool_length)
+        figures["pole_turns"] = int(len(q) - n)
+        first = np.ones(len(q), dtype=bool)
+        first[1:] = owner[1:] != owner[:-1]  # the row arriving at its CL point
+        joined = ((toolpath.motion[owner] == Motion.FEED) & ~entry[owner]) | ~first
+        parts_q, parts_tip, parts_src = [], [], []
+        done = 0
+        for s, e in _feed_runs(joined):
             lin = subdivide(
                 machine,
-                sel.q[s : e + 1],
-                toolpath.tip[s : e + 1],
-                toolpath.axis[s : e + 1],
+                q[s : e + 1],
+                tip[s : e + 1],
+                axis[s : e + 1],
                 tool_length=tool_length,
                 tcp=options.tcp,
                 tol=tol,
             )
-            owner = np.maximum.accumulate(np.where(lin.source >= 0, lin.source, -1)) + s
-            for k in np.flatnonzero(lin.source < 0):
-                inserted.setdefault(int(owner[k]) + 1, ([], []))
-                inserted[int(owner[k]) + 1][0].append(lin.q[k])
-                inserted[int(owner[k]) + 1][1].append(lin.tip[k])
+            parts_q += [q[done:s], lin.q]
+            parts_tip += [tip[done:s], lin.tip]
+            parts_src += [np.arange(done, s), np.where(lin.source >= 0, lin.source + s, -1)]
+            done = e + 1
             figures["inserted_blocks"] += int(np.sum(lin.source < 0))
             if progress:
-                progress(e - s)
-        for i in range(n):
-            for q, tip in zip(*inserted.get(i, ([], [])), strict=True):
-                rows.append((q, tip, -1))
-            rows.append((sel.q[i], toolpath.tip[i], i))
+                progress(int(owner[e] - owner[s]))
+        parts_q.append(q[done:])
+        parts_tip.append(tip[done:])
+        parts_src.append(np.arange(done, len(q)))
+        out_q, out_tip = np.concatenate(parts_q), np.concatenate(parts_tip)
+        src = np.concatenate(parts_src)
+        # an inserted row belongs to the move towards the next original row
+        nxt = np.where(src >= 0, src, len(q))
+        nxt = np.minimum.accumulate(nxt[::-1])[::-1]
+        group = owner[np.minimum(nxt, len(q) - 1)]
+        is_cl = (src >= 0) & first[np.maximum(src, 0)]
+        rows = [
+            (out_q[k], out_tip[k], int(group[k]) if is_cl[k] else -1 - int(group[k]))
+            for k in range(len(out_q))
+        ]
 
     axes = machine.axis_names
     rotary = frozenset(a.name for a in machine.rotary)
     lin_cols = list(machine.linear_columns)
     blocks: list[Block] = []
     tcp_state = [False]
-    events = sorted(toolpath.events, key=lambda e: e.index)
+    events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
     ev = 0
-    row = 0
-    for i in range(n + 1):
-        while ev < len(events) and events[ev].index <= i:
+    arrived = -1  # last CL point reached
+    for q, tip, code in rows:
+        g = code if code >= 0 else -1 - code  # the CL point this row reaches or stands on
+        while ev < len(events) and events[ev].index <= g:
             blocks.extend(_event_blocks(events[ev], tcp_state, options.tcp))
             ev += 1
-        if i == n:
-            break
-        while row < len(rows):
-            q, tip, cl = rows[row]
-            position = np.where([a in rotary for a in axes], np.degrees(q), q)
-            if options.tcp:
-                position[lin_cols] = tip
-                if not tcp_state[0]:
-                    blocks.append(Tcp(on=True))
-                    tcp_state[0] = True
-            rapid = bool(toolpath.motion[i] == Motion.RAPID)
-            feed = float(toolpath.feed[i]) if np.isfinite(toolpath.feed[i]) else None
-            blocks.append(
-                Move(
-                    rapid=rapid,
-                    position=tuple(float(x) for x in position),
-                    feed=None if rapid else feed,
-                    cl_line=int(toolpath.line[i]) if cl >= 0 else None,
-                )
+        position = np.where([a in rotary for a in axes], np.degrees(q), q)
+        if options.tcp:
+            position[lin_cols] = tip
+            if not tcp_state[0]:
+                blocks.append(Tcp(on=True))
+                tcp_state[0] = True
+        # rows standing on a reached point (a turn at a pole) move at feed
+        rapid = bool(toolpath.motion[g] == Motion.RAPID) and g != arrived
+        feed = float(toolpath.feed[g]) if np.isfinite(toolpath.feed[g]) else None
+        blocks.append(
+            Move(
+                rapid=rapid,
+                position=tuple(float(x) for x in position),
+                feed=None if rapid else feed,
+                cl_line=int(toolpath.line[g]) if code >= 0 else None,
             )
-            row += 1
-            if cl == i:
-                break
+        )
+        if code >= 0:
+            arrived = g
+    for e in events[ev:]:
+        blocks.extend(_event_blocks(e, tcp_state, options.tcp))
     if tcp_state[0]:
         blocks.append(Tcp(on=False))
     program = Program(
@@ -291,6 +349,7 @@ def build_program(
         tool_length=tool_length,
         continuous=frozenset(a.name for a in machine.rotary if a.continuous),
     )
+    figures["warnings"] = warnings
     return program, figures
 
 
@@ -329,8 +388,15 @@ def post(
     tol = Tolerances.for_units(units, options.tolerance)
     dialect = dialect_for(options.controller or machine.settings.controller)
     program, figures = build_program(toolpath, machine, options, tol, progress)
-    text = dialect.write(program, block_numbers=options.block_numbers or None)
-    readback = dialect.read(text, path=f"<{dialect.name} program>")
+    header = None
+    if not options.tcp:
+        header = (
+            f"machine coordinates for machine {machine.name} with tool length "
+            f"{program.tool_length:.3f} mm from the gauge point: the tool table length must be 0"
+        )
+    text = dialect.write(program, block_numbers=options.block_numbers or None, header=header)
+    inserts = [b.text for b in program.blocks if isinstance(b, Insert)]
+    readback = dialect.read(text, path=f"<{dialect.name} program>", verbatim=inserts)
     check = verify(readback, machine, toolpath, tool_length=program.tool_length, tol=tol)
     report = make_report(toolpath, machine, program, check, dialect.name, figures)
     if not check.ok:
@@ -370,6 +436,6 @@ def make_report(
         "worst_cl_line": check.worst_cl_line,
         "tool_length_mm": program.tool_length,
         "verified": check.ok,
-        "warnings": list(toolpath.warnings),
         **(figures or {}),
+        "warnings": list(toolpath.warnings) + list((figures or {}).get("warnings", [])),
     }
