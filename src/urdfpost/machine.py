@@ -334,7 +334,7 @@ def machine_from_urdf(text: str, source: str = "<string>", name: str = "machine"
 
     doc = urdf.parse_urdf(text, source)
     chain = urdf.check_chain(doc, source)
-    settings = urdf.parse_settings(doc, source, [j.name for j in chain.joints])
+    settings = urdf.parse_settings(doc, source, chain.joints)
     return _build(text, source, name, chain, settings)
 
 

@@ -37,7 +37,9 @@ class Tolerances:
         the machine can reach (clipped onto the edge instead of rejected). 1e-9.
     branch_merge : float
         Two tilt solutions closer than this (rad) are one branch (the edge of the reachable
-        set). 1e-7 rad: the arccos near 1 amplifies rounding of 1e-14 to about 1.5e-7.
+        set), and the tilt is snapped onto the edge. 2e-6 rad: the arccos near 1 turns rounding
+        of k * 1e-16 into sqrt(2k) * 1e-8 rad, while snapping moves the orientation by only
+        half^2 / 2 < 1e-12 rad.
     four_axis_axis : float
         Angle (rad) by which a CL tool axis may miss the cone a single rotary axis can reach
         on a 4-axis machine. 1e-6 rad: CL files print 6-10 decimals.
@@ -53,7 +55,7 @@ class Tolerances:
     interpolation_share: float = 0.8
     pole: float = 1e-9
     reach: float = 1e-9
-    branch_merge: float = 1e-7
+    branch_merge: float = 2e-6
     four_axis_axis: float = 1e-6
     max_subdivision_depth: int = 12
     samples_per_block: int = 9

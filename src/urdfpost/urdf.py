@@ -267,7 +267,7 @@ def _sided(j: JointSpec, side: str) -> JointSpec:
     return JointSpec(**{**j.__dict__, "side": side})
 
 
-def parse_settings(doc: UrdfDoc, source: str, axis_names: list[str]) -> Settings:
+def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> Settings:
     """Read the ``<urdfpost>`` extension element (all settings optional).
 
     Raises
@@ -278,6 +278,8 @@ def parse_settings(doc: UrdfDoc, source: str, axis_names: list[str]) -> Settings
     """
     from urdfpost.machine import CONTROLLERS, M_TO_MM, Settings
 
+    axis_names = [j.name for j in joints]
+    rotary_names = [j.name for j in joints if j.type != "prismatic"]
     el = doc.root.find("urdfpost")
     if el is None:
         return Settings()
@@ -295,10 +297,10 @@ def parse_settings(doc: UrdfDoc, source: str, axis_names: list[str]) -> Settings
     pref_el = el.find("prefer")
     if pref_el is not None:
         axis, sign = pref_el.get("axis"), pref_el.get("sign", "+")
-        if axis not in axis_names or sign not in ("+", "-"):
+        if axis not in rotary_names or sign not in ("+", "-"):
             raise MachineDefinitionError(
                 f"{_where(source, pref_el.sourceline)}: <prefer axis={axis!r} sign={sign!r}>: "
-                f"expected a rotary axis of the chain ({' '.join(axis_names)}) and sign + or -"
+                f"expected a rotary axis of the chain ({' '.join(rotary_names)}) and sign + or -"
             )
         prefer = (axis, 1 if sign == "+" else -1)
     home: dict[str, float] = {}
@@ -311,6 +313,15 @@ def parse_settings(doc: UrdfDoc, source: str, axis_names: list[str]) -> Settings
                     f"expected one of {' '.join(axis_names)}"
                 )
             value = _float(source, home_el, key, 0.0) or 0.0
+            joint = joints[axis_names.index(key)]
+            if (
+                joint.type != "continuous"
+                and not joint.lower - 1e-12 <= value <= joint.upper + 1e-12
+            ):
+                raise MachineDefinitionError(
+                    f"{_where(source, home_el.sourceline)}: <home {key}={value:g}>: outside the "
+                    f"travel of joint {key!r} ({joint.lower:g} .. {joint.upper:g})"
+                )
             home[key] = value * (M_TO_MM if key in ("X", "Y", "Z") else 1.0)
     desc_el = el.find("description")
     description = " ".join((desc_el.text or "").split()) if desc_el is not None else ""

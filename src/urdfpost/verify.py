@@ -148,8 +148,9 @@ def _match(
     axis: np.ndarray,
     tol: Tolerances,
 ) -> np.ndarray:
-    """For each CL point, the first program point at or after the previous match that reaches
-    it (tip within tolerance, axis within orientation tolerance), or -1.
+    """For each CL point, the program point at or after the previous match that reaches it (tip
+    within tolerance, axis within orientation tolerance; the nearest of a run of such points),
+    or -1.
 
     Returns
     -------
@@ -166,8 +167,16 @@ def _match(
             a = angle_between(axis[start:stop], cl_axis[j])
             hit = np.flatnonzero((d <= tol.tip) & (a <= tol.orientation))
             if hit.size:
-                out[j] = start + int(hit[0])
-                ptr = out[j]
+                # CL points closer together than the tolerance: walk on to the nearest one
+                k = start + int(hit[0])
+                dist = float(np.linalg.norm(tip[k] - cl_tip[j]))
+                while k + 1 < n:
+                    nxt = float(np.linalg.norm(tip[k + 1] - cl_tip[j]))
+                    if nxt >= dist:
+                        break
+                    k, dist = k + 1, nxt
+                out[j] = k
+                ptr = k
                 break
             # a missed CL point must not make the search run away through the whole program
             if width >= 4096:

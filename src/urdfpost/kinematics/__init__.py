@@ -2,6 +2,7 @@
 
 from urdfpost.kinematics.forward import (
     jacobian_pin,
+    linear_directions,
     rotate,
     rotation_about,
     tip_and_axis,
@@ -26,6 +27,7 @@ __all__ = [
     "assemble",
     "inverse",
     "jacobian_pin",
+    "linear_directions",
     "rotate",
     "rotation_about",
     "solve_linear",

@@ -115,6 +115,34 @@ def tool_in_work(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return rot @ home[:3, :3], gauge
 
 
+def linear_directions(machine: Machine, q: np.ndarray) -> np.ndarray:
+    """Derivative of the gauge point with respect to each linear axis (exact, vectorised).
+
+    Each linear axis moves the tool, relative to the workpiece, along its direction rotated by
+    the rotary joints that come before it in the chain from the workpiece.
+
+    Parameters
+    ----------
+    machine : Machine
+    q : ndarray, shape (n, m), mm / rad
+
+    Returns
+    -------
+    ndarray, shape (n, 3, 3)
+        Column j is d(gauge)/d(linear axis j), linear axes in NC order (mm per mm).
+    """
+    q = _as_q(machine, q)
+    n = q.shape[0]
+    rot = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    cols: dict[str, np.ndarray] = {}
+    for a in sorted(machine.axes, key=lambda a: a.chain_index):
+        if a.rotary:
+            rot = rot @ rotation_about(a.screw[:3], q[:, machine.axis_names.index(a.name)])
+        else:
+            cols[a.name] = rot @ a.screw[3:]
+    return np.stack([cols[a.name] for a in machine.linear], axis=2)
+
+
 def tip_and_axis(
     machine: Machine, q: np.ndarray, tool_length: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:

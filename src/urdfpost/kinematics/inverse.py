@@ -30,7 +30,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from urdfpost.kinematics.forward import rotate, tool_in_work
+from urdfpost.kinematics.forward import linear_directions, rotate, tool_in_work
 from urdfpost.machine import Machine
 from urdfpost.tolerances import Tolerances
 
@@ -140,10 +140,14 @@ def solve_rotary(
     ratio = c / r
     reachable = np.abs(ratio) <= 1.0 + tol.reach
     half = np.arccos(np.clip(ratio, -1.0, 1.0))
+    # at the edge the two branches meet; arccos turns a ratio rounded to 1 - k eps into
+    # sqrt(2 k eps), so snap: the orientation then moves by only r * half^2 / 2
+    edge = 0.5 * tol.branch_merge
+    low, high = half < edge, np.pi - half < edge
+    merged = reachable & (low | high)
+    half = np.where(low, 0.0, np.where(high, np.pi, half))
     base = np.arctan2(b, a)
     t2 = np.stack([base + half, base - half], axis=1)  # (n, 2)
-    edge = 0.5 * tol.branch_merge
-    merged = reachable & ((half < edge) | (np.pi - half < edge))
     valid = np.stack([reachable, reachable & ~merged], axis=1)
 
     t1 = np.full((n, 2), np.nan)
@@ -209,13 +213,7 @@ def solve_linear(
     rot0, gauge0 = tool_in_work(machine, zero)
     # the tool axis reached with these angles (equal to ``axis`` for exact IK answers)
     target = np.asarray(tip, dtype=float) + tool_length * rot0[:, :, 2]
-    # d gauge / d x_j: the linear axis direction rotated by the rotary joints before it
-    cols = []
-    for j in machine.linear_columns:
-        step = zero.copy()
-        step[:, j] = 1.0
-        cols.append(tool_in_work(machine, step)[1] - gauge0)
-    jac = np.stack(cols, axis=2)  # (n, 3, 3)
+    jac = linear_directions(machine, zero)  # (n, 3, 3), exact
     return np.linalg.solve(jac, (target - gauge0)[:, :, None])[:, :, 0]
 
 
