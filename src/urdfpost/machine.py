@@ -15,11 +15,11 @@ Units inside urdfpost: millimetres and radians. URDF metres are converted here.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import os
 from dataclasses import dataclass, field
 from functools import cached_property
-import importlib.util
 from pathlib import Path
 from typing import TYPE_CHECKING
 
