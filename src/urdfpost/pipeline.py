@@ -245,9 +245,7 @@ def build_program(
     tool_events: tuple[Event, ...] = ()
     if n and first_tool > 0:
         # controls need a tool (and its length offset) before motion; the CL data has none
-        warnings.append(
-            f"{toolpath.source}: no tool change before the first move; tool 1 assumed"
-        )
+        warnings.append(f"{toolpath.source}: no tool change before the first move; tool 1 assumed")
         tool_events = (Event(index=0, kind="tool", line=int(toolpath.line[0]), data={"number": 1}),)
     rows: list[tuple[np.ndarray, np.ndarray, int]] = []  # per output move: q, tip, cl index
     if n:
