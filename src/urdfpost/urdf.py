@@ -98,7 +98,8 @@ def parse_urdf(text: str, source: str) -> UrdfDoc:
         spec = _joint_spec(source, el)
         if spec.name in joints:
             raise MachineDefinitionError(
-                f"{_where(source, spec.line)}: joint {spec.name!r} defined twice"
+                f"{_where(source, spec.line)}: joint {spec.name!r} defined twice (a moving "
+                "joint's name is its NC address, so two joints cannot share one)"
             )
         joints[spec.name] = spec
     return UrdfDoc(root=root, links=links, joints=joints)
@@ -222,7 +223,6 @@ def check_chain(doc: UrdfDoc, source: str) -> Chain:
             f"and 1 or 2 revolute/continuous joints; it has {n_lin} prismatic and {n_rot} "
             f"rotary: {names}"
         )
-    seen: dict[str, JointSpec] = {}
     for j in moving:
         where = _where(source, j.line)
         if j.name.upper() not in NC_ADDRESSES or j.name != j.name.upper():
@@ -230,11 +230,6 @@ def check_chain(doc: UrdfDoc, source: str) -> Chain:
                 f"{where}: joint {j.name!r}: a moving joint must be named with its NC address, "
                 f"one of {' '.join(NC_ADDRESSES)}"
             )
-        if j.name in seen:
-            raise MachineDefinitionError(
-                f"{where}: joint {j.name!r}: NC address {j.name} used by two joints"
-            )
-        seen[j.name] = j
         if j.type == "prismatic" and j.name not in ("X", "Y", "Z"):
             raise MachineDefinitionError(
                 f"{where}: joint {j.name!r} is prismatic: linear axes are named X, Y or Z"
