@@ -12,6 +12,7 @@ points on the neighbours' branch, until they are within tolerance.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +79,50 @@ def point_segment_distance(
     s = np.where(dd > 0, np.sum((p - a) * d, axis=-1) / np.where(dd > 0, dd, 1.0), 0.0)
     s = np.clip(s, 0.0, 1.0)
     return np.linalg.norm(p - (a + s[..., None] * d), axis=-1), s
+
+
+def refine_max(
+    f: Callable[[np.ndarray], np.ndarray],
+    t: np.ndarray,
+    values: np.ndarray,
+    iterations: int = 12,
+) -> np.ndarray:
+    """Maximum of a per-block function of the block parameter, refined around the worst sample.
+
+    Golden-section search on the bracket of one sample spacing either side of each block's
+    worst sample (the maximum is not always at a sample, nor at the midpoint).
+
+    Parameters
+    ----------
+    f : callable
+        ``f(t)`` with ``t`` of shape (n,) (one parameter per block) returns shape (n,).
+    t : ndarray, shape (n, s)
+        Sample parameters in [0, 1], evenly spaced.
+    values : ndarray, shape (n, s)
+        ``f`` at the samples.
+    iterations : int
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The largest value seen per block.
+    """
+    n = t.shape[0]
+    rows = np.arange(n)
+    h = t[0, 1] - t[0, 0] if t.shape[1] > 1 else 0.5
+    k = np.argmax(values, axis=1)
+    lo = np.clip(t[rows, k] - h, 0.0, 1.0)
+    hi = np.clip(t[rows, k] + h, 0.0, 1.0)
+    best = values[rows, k]
+    for _ in range(iterations):
+        a = hi - _GOLDEN * (hi - lo)
+        b = lo + _GOLDEN * (hi - lo)
+        fa, fb = f(a), f(b)
+        best = np.maximum(best, np.maximum(fa, fb))
+        left = fa > fb
+        hi = np.where(left, b, hi)
+        lo = np.where(left, lo, a)
+    return best
 
 
 @dataclass(frozen=True)
@@ -178,28 +223,14 @@ def _block_errors(
     s = tol.samples_per_block
     t = np.broadcast_to(np.arange(1, s + 1) / (s + 1), (n, s))
     d, o = _errors_at(machine, q0, q1, p0, p1, v0, v1, t, tool_length, tcp)
-    # refine each measure around its worst sample by golden-section search on [t-h, t+h]
-    h = 1.0 / (s + 1)
     out = []
     for values, pick in ((d, 0), (o, 1)):
-        k = np.argmax(values, axis=1)
-        lo = np.clip(t[np.arange(n), k] - h, 0.0, 1.0)
-        hi = np.clip(t[np.arange(n), k] + h, 0.0, 1.0)
-        best = values[np.arange(n), k]
-        for _ in range(12):
-            a = hi - _GOLDEN * (hi - lo)
-            b = lo + _GOLDEN * (hi - lo)
-            fa = _errors_at(machine, q0, q1, p0, p1, v0, v1, a[:, None], tool_length, tcp)[pick][
-                :, 0
-            ]
-            fb = _errors_at(machine, q0, q1, p0, p1, v0, v1, b[:, None], tool_length, tcp)[pick][
-                :, 0
-            ]
-            best = np.maximum(best, np.maximum(fa, fb))
-            left = fa > fb
-            hi = np.where(left, b, hi)
-            lo = np.where(left, lo, a)
-        out.append(best)
+
+        def measure(tt: np.ndarray, pick: int = pick) -> np.ndarray:
+            e = _errors_at(machine, q0, q1, p0, p1, v0, v1, tt[:, None], tool_length, tcp)
+            return e[pick][:, 0]
+
+        out.append(refine_max(measure, t, values))
     return BlockError(tip=out[0], orientation=out[1])
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 import re
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -180,6 +180,73 @@ def _feed_runs(joined: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
+def split_at_pole_crossings(toolpath: Toolpath, machine: Machine, tol: Tolerances) -> Toolpath:
+    """Insert the point where a feed move's tool axis sweeps through a pole.
+
+    Between two CL points the tool axis follows the great circle from one axis to the other.
+    Where that arc passes a pole (the tool axis along the first rotary axis) within
+    ``tol.pole_crossing``, the crossing point is added on the CL segment with its axis exactly
+    on the pole; the branch choice holds the first rotary angle there and the pipeline turns it
+    in place, instead of leaving a half turn inside one block.
+
+    Returns
+    -------
+    Toolpath
+        With the crossing points added (their ``line`` is that of the move's end point), events
+        re-indexed; the same object when nothing crosses.
+    """
+    n = len(toolpath)
+    if n < 2:
+        return toolpath
+    va, vb = toolpath.axis[:-1], toolpath.axis[1:]
+    normal = np.cross(va, vb)
+    size = np.linalg.norm(normal, axis=1)
+    span = np.arctan2(size, np.sum(va * vb, axis=1))
+    feed = toolpath.motion[1:] == Motion.FEED
+    inserts: list[tuple[int, float, np.ndarray]] = []
+    for pole in (machine.rotary[0].direction, -machine.rotary[0].direction):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            nrm = normal / size[:, None]
+            off_plane = np.abs(nrm @ pole)  # sine of the distance of the pole from the circle
+            proj = pole - (nrm @ pole)[:, None] * nrm
+            proj /= np.linalg.norm(proj, axis=1, keepdims=True)
+            sa = np.arctan2(np.linalg.norm(np.cross(va, proj), axis=1), np.sum(va * proj, axis=1))
+            sb = np.arctan2(np.linalg.norm(np.cross(proj, vb), axis=1), np.sum(proj * vb, axis=1))
+        on_arc = np.abs(sa + sb - span) < 1e-9
+        s = sa / np.where(span > 0, span, 1.0)
+        hit = (
+            feed
+            & (size > 1e-12)
+            & (off_plane < np.sin(tol.pole_crossing))
+            & on_arc
+            & (sa > tol.pole_crossing)
+            & (sb > tol.pole_crossing)
+        )
+        inserts += [(int(i), float(s[i]), pole) for i in np.flatnonzero(hit)]
+    if not inserts:
+        return toolpath
+    inserts.sort(key=lambda x: (x[0], x[1]))
+    at = np.array([i + 1 for i, _, _ in inserts])
+    tips = np.array(
+        [toolpath.tip[i] + s * (toolpath.tip[i + 1] - toolpath.tip[i]) for i, s, _ in inserts]
+    )
+    axes = np.array([pole for _, _, pole in inserts])
+    new_index = np.arange(n) + np.searchsorted(at, np.arange(n), side="right")
+    log.debug("%d pole crossings between CL points", len(inserts))
+    return replace(
+        toolpath,
+        tip=np.insert(toolpath.tip, at, tips, axis=0),
+        axis=np.insert(toolpath.axis, at, axes, axis=0),
+        feed=np.insert(toolpath.feed, at, toolpath.feed[at]),
+        motion=np.insert(toolpath.motion, at, Motion.FEED),
+        line=np.insert(toolpath.line, at, toolpath.line[at]),
+        events=tuple(
+            replace(e, index=int(new_index[e.index]) if e.index < n else len(toolpath) + len(at))
+            for e in toolpath.events
+        ),
+    )
+
+
 def _turn_at_poles(
     machine: Machine, sel: Any, toolpath: Toolpath, tool_length: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -231,6 +298,7 @@ def build_program(
         Counts gathered on the way (branch switches, pole points, inserted blocks).
     """
     units = options.units or toolpath.units
+    toolpath = split_at_pole_crossings(toolpath, machine, tol)
     tool_length = (
         machine.settings.tool_length if options.tool_length is None else options.tool_length
     )
@@ -306,6 +374,11 @@ def build_program(
     lin_cols = list(machine.linear_columns)
     blocks: list[Block] = []
     tcp_state = [False]
+    # first programmed feed after each point (backward fill), for turns in place
+    fill = np.where(np.isfinite(toolpath.feed), np.arange(n), n)
+    fill = np.minimum.accumulate(fill[::-1])[::-1]
+    feeds = np.append(toolpath.feed, np.nan)
+    next_feed = feeds[np.append(fill[1:], n)] if n else feeds
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
     ev = 0
     arrived = -1  # last CL point reached
@@ -320,9 +393,12 @@ def build_program(
             if not tcp_state[0]:
                 blocks.append(Tcp(on=True))
                 tcp_state[0] = True
-        # rows standing on a reached point (a turn at a pole) move at feed
-        rapid = bool(toolpath.motion[g] == Motion.RAPID) and g != arrived
-        feed = float(toolpath.feed[g]) if np.isfinite(toolpath.feed[g]) else None
+        # rows standing on a reached point (a turn at a pole) move at the feed of the move
+        # that follows, even when the point was reached by a rapid
+        turning = g == arrived
+        rapid = bool(toolpath.motion[g] == Motion.RAPID) and not turning
+        f = next_feed[g] if turning else toolpath.feed[g]
+        feed = float(f) if np.isfinite(f) else None
         blocks.append(
             Move(
                 rapid=rapid,

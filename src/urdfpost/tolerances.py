@@ -40,6 +40,10 @@ class Tolerances:
         set), and the tilt is snapped onto the edge. 2e-6 rad: the arccos near 1 turns rounding
         of k * 1e-16 into sqrt(2k) * 1e-8 rad, while snapping moves the orientation by only
         half^2 / 2 < 1e-12 rad.
+    pole_crossing : float
+        A feed block whose tool axis passes a pole closer than this (rad) crosses it: the
+        crossing point is inserted with the axis on the pole, so the first rotary axis can turn
+        there in place. 1e-6 rad changes the orientation by far less than any cut can show.
     four_axis_axis : float
         Angle (rad) by which a CL tool axis may miss the cone a single rotary axis can reach
         on a 4-axis machine. 1e-6 rad: CL files print 6-10 decimals.
@@ -56,6 +60,7 @@ class Tolerances:
     pole: float = 1e-9
     reach: float = 1e-9
     branch_merge: float = 2e-6
+    pole_crossing: float = 1e-6
     four_axis_axis: float = 1e-6
     max_subdivision_depth: int = 12
     samples_per_block: int = 9

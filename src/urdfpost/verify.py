@@ -18,7 +18,7 @@ import numpy as np
 
 from urdfpost.errors import DialectError
 from urdfpost.kinematics.forward import tip_and_axis, tip_and_axis_pin
-from urdfpost.linearize import angle_between, point_segment_distance, slerp
+from urdfpost.linearize import angle_between, point_segment_distance, refine_max, slerp
 from urdfpost.machine import Machine
 from urdfpost.program import Program
 from urdfpost.tolerances import Tolerances
@@ -27,7 +27,6 @@ from urdfpost.toolpath import Toolpath
 log = logging.getLogger(__name__)
 
 _SAMPLES = 16
-_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 
 
 @dataclass(frozen=True)
@@ -312,20 +311,8 @@ def verify(
         dmax = d.max(axis=1)
         omax = float(o.max())
         # refine the worst sample of each block (the maximum is not always at a sample)
-        k = np.argmax(d, axis=1)
-        h = 1.0 / (_SAMPLES + 1)
-        lo = np.clip(t[np.arange(len(k)), k] - h, 0, 1)
-        hi = np.clip(t[np.arange(len(k)), k] + h, 0, 1)
-        for _ in range(12):
-            a = hi - _GOLDEN * (hi - lo)
-            b = lo + _GOLDEN * (hi - lo)
-            fa, oa = measure(a[:, None])
-            fb, ob = measure(b[:, None])
-            dmax = np.maximum(dmax, np.maximum(fa[:, 0], fb[:, 0]))
-            omax = max(omax, float(oa.max()), float(ob.max()))
-            left = fa[:, 0] > fb[:, 0]
-            hi = np.where(left, b, hi)
-            lo = np.where(left, lo, a)
+        dmax = refine_max(lambda tt: measure(tt[:, None])[0][:, 0], t, d)
+        omax = max(omax, float(refine_max(lambda tt: measure(tt[:, None])[1][:, 0], t, o).max()))
     # the block ends themselves (rapids included) against their CL span
     ja_pt = np.maximum(before, 0)
     jb_pt = np.where(after < n_cl, after, n_cl - 1)
