@@ -1,0 +1,353 @@
+"""Verification: it accepts what the post wrote, catches edited programs (library and CLI), and
+measures the nonlinear error inside blocks, not only at their ends or midpoints."""
+
+from __future__ import annotations
+
+import functools
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from urdfpost import load_machine
+from urdfpost.cli import main
+from urdfpost.dialects import DIALECTS
+from urdfpost.kinematics.forward import tip_and_axis
+from urdfpost.machine import Machine
+from urdfpost.pipeline import PostOptions, PostResult, build_program, post
+from urdfpost.program import Move, Program, Tcp, ToolChange
+from urdfpost.readers import read_cl
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Toolpath
+from urdfpost.verify import Verification, verify
+
+ROOT = Path(__file__).resolve().parents[1]
+DOME = ROOT / "examples" / "dome.apt"
+
+_HOME_WORDS = ("M91", "G28", "G75", "G53")
+_AXIS_WORD = re.compile(r"(?<![A-Z0-9_=])([XYZABC])([-+]?\d*\.?\d+)")
+
+
+def code_body(line: str) -> str:
+    return re.sub(r"^(?:N?\d+\s+)", "", line.strip())
+
+
+def motion_lines(text: str) -> list[int]:
+    """Indices of the motion blocks of a program text (home moves excluded)."""
+    out = []
+    for i, line in enumerate(text.splitlines()):
+        body = code_body(line)
+        if not body or body.startswith((";", "(", "%")):
+            continue
+        if any(w in body.split() for w in _HOME_WORDS):
+            continue
+        if _AXIS_WORD.search(body):
+            out.append(i)
+    return out
+
+
+@functools.cache
+def machine(name: str) -> Machine:
+    return load_machine(name)
+
+
+@functools.cache
+def dome() -> Toolpath:
+    return read_cl(DOME)
+
+
+@functools.cache
+def dome_post(controller: str, tcp: bool) -> PostResult:
+    return post(dome(), machine("dmu50"), PostOptions(controller=controller, tcp=tcp))
+
+
+def check(text: str, controller: str, result: PostResult) -> Verification:
+    program = DIALECTS[controller].read(text, path=f"<edited {controller}>")
+    return verify(
+        program,
+        machine("dmu50"),
+        dome(),
+        tool_length=result.program.tool_length,
+        tol=Tolerances.for_units("mm"),
+    )
+
+
+def pick_block(result: PostResult, address: str) -> tuple[int, int]:
+    """A feed block in the middle of the program that reaches a CL point and writes
+    ``address``, as does the next motion block (so an edit of it stays in one block).
+
+    Returns (text line index, CL line)."""
+    lines = result.text.splitlines()
+    motion = motion_lines(result.text)
+    moves = result.program.moves()
+    assert len(motion) == len(moves)
+    for k in range(len(moves) // 2, len(moves) - 1):
+        mv = moves[k]
+        if mv.rapid or moves[k + 1].rapid or mv.cl_line is None:
+            continue
+        here = dict(_AXIS_WORD.findall(code_body(lines[motion[k]])))
+        there = dict(_AXIS_WORD.findall(code_body(lines[motion[k + 1]])))
+        if address in here and address in there:
+            return motion[k], mv.cl_line
+    raise AssertionError(f"no block writing {address} twice in a row")
+
+
+def edit_word(line: str, address: str, delta: float) -> str:
+    """Add ``delta`` to the value of ``address`` in ``line``, keeping the number format."""
+
+    def repl(m: re.Match[str]) -> str:
+        text = m.group(2)
+        decimals = len(text.split(".")[1]) if "." in text else 0
+        value = float(text) + delta
+        sign = "+" if text.startswith("+") and value >= 0 else ""
+        return f"{m.group(1)}{sign}{value:.{decimals}f}"
+
+    out, n = re.subn(rf"(?<![A-Z0-9_=])({address})([-+]?\d*\.?\d+)", repl, line, count=1)
+    assert n == 1 and out != line
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# edited programs are caught
+
+CONTROLLERS = ("heidenhain", "fanuc")
+MODES = {"tcp": True, "mc": False}
+#: edit name -> (address, delta); None = delete the block
+EDITS = {
+    "x+0.1mm": ("X", 0.1),
+    "z-0.1mm": ("Z", -0.1),
+    "b+1deg": ("B", 1.0),
+    "c+1deg": ("C", 1.0),
+    "delete": None,
+}
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize("mode", MODES)
+def test_unedited_program_verifies(controller: str, mode: str) -> None:
+    result = dome_post(controller, MODES[mode])
+    v = check(result.text, controller, result)
+    assert v.ok
+    assert v.reached == v.cl_points == len(dome())
+    assert v.max_tip_deviation == pytest.approx(result.verification.max_tip_deviation)
+
+
+#: With TCP, 1 deg of C turns the tool axis by only sin(tilt) deg (about 0.4 deg in the middle
+#: of a dome pass, under the 0.5 deg tolerance): C edits are checked in machine coordinates.
+EDIT_CASES = [
+    (mode, controller, edit)
+    for mode in MODES
+    for controller in CONTROLLERS
+    for edit in EDITS
+    if not (MODES[mode] and edit == "c+1deg")
+]
+
+
+@pytest.mark.parametrize(("mode", "controller", "edit"), EDIT_CASES)
+def test_edited_program_fails(controller: str, mode: str, edit: str) -> None:
+    tcp = MODES[mode]
+    result = dome_post(controller, tcp)
+    spec = EDITS[edit]
+    address = spec[0] if spec else "X"
+    index, cl_line = pick_block(result, address)
+    lines = result.text.splitlines()
+    if spec is None:
+        del lines[index]
+    else:
+        lines[index] = edit_word(lines[index], *spec)
+    v = check("\n".join(lines) + "\n", controller, result)
+    assert not v.ok
+    # the CL point of that block is no longer reached, and only it
+    assert v.missed_lines == [cl_line]
+    if tcp and edit == "b+1deg":
+        assert v.max_orientation_deviation_deg > 0.9
+
+
+def test_cli_verify_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for controller in CONTROLLERS:
+        for mode, tcp in MODES.items():
+            result = dome_post(controller, tcp)
+            ext = DIALECTS[controller].extensions[0]
+            good = tmp_path / f"dome_{mode}{ext}"
+            good.write_text(result.text)
+            index, cl_line = pick_block(result, "X")
+            lines = result.text.splitlines()
+            lines[index] = edit_word(lines[index], "X", 0.1)
+            bad = tmp_path / f"dome_{mode}_edited{ext}"
+            bad.write_text("\n".join(lines) + "\n")
+            common = ["--machine", "dmu50", "--cl", str(DOME)]  # control from the extension
+            assert main(["verify", str(good), *common]) == 0
+            out = capsys.readouterr().out
+            assert "within tolerance" in out and f"{len(dome())}/{len(dome())}" in out
+            report = tmp_path / "report.json"
+            assert main(["verify", str(bad), *common, "--report", str(report)]) == 1
+            out = capsys.readouterr().out
+            assert "BEYOND TOLERANCE" in out
+            assert f"missed CL lines: {cl_line}" in out
+            data = json.loads(report.read_text())
+            assert data["verified"] is False
+            assert data["cl_lines_missed"] == [cl_line]
+            assert data["cl_points_reached"] == len(dome()) - 1
+
+
+def test_cli_verify_machine_coordinates_needs_the_tool_length(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A machine-coordinate program holds the tool length: verifying it with another one
+    fails, with the one it was posted for (mm here) passes."""
+    result = dome_post("heidenhain", False)
+    prog = tmp_path / "dome.h"
+    prog.write_text(result.text)
+    common = ["verify", str(prog), "-m", "dmu50", "--cl", str(DOME)]
+    assert main([*common, "--tool-length", "100"]) == 0
+    assert main([*common, "--tool-length", "99.9"]) == 1
+    capsys.readouterr()
+
+
+# --------------------------------------------------------------------------------------------
+# nonlinear error of machine-coordinate moves
+
+
+def test_machine_coordinates_are_subdivided_until_within_tolerance() -> None:
+    m, tp = machine("dmu50"), dome()
+    options = PostOptions(controller="heidenhain", tcp=False)
+    default = Tolerances.for_units("mm")
+    coarse, coarse_fig = build_program(tp, m, options, Tolerances.for_units("mm", 1000.0))
+    fine, fine_fig = build_program(tp, m, options, default)
+    assert coarse_fig["inserted_blocks"] == 0
+    assert fine_fig["inserted_blocks"] > 100
+    assert len(fine.moves()) == len(coarse.moves()) + fine_fig["inserted_blocks"]
+    # the CL points alone, joined by straight lines in machine axes, miss the path
+    v_coarse = verify(coarse, m, tp, tol=default)
+    assert v_coarse.reached == len(tp)  # every end point is right ...
+    assert not v_coarse.ok
+    assert v_coarse.max_tip_deviation > 1.0  # ... but between them the tip leaves the path
+    v_fine = verify(fine, m, tp, tol=default)
+    assert v_fine.ok
+    assert v_fine.max_tip_deviation <= default.tip
+    # and the program as written and read back (rounded) is still within tolerance
+    result = dome_post("heidenhain", False)
+    assert result.verification.ok
+    assert result.verification.max_tip_deviation <= default.tip
+    assert len(result.program.moves()) == len(fine.moves())
+
+
+def _two_block_program(m: Machine, q0: np.ndarray, q1: np.ndarray, tool_length: float) -> Program:
+    """Machine-coordinate program of two feed moves (joint values in mm and rad)."""
+    rotary = frozenset(a.name for a in m.rotary)
+    deg = [a in rotary for a in m.axis_names]
+    blocks = [ToolChange(1)]
+    for q in (q0, q1):
+        pos = np.where(deg, np.degrees(q), q)
+        blocks.append(Move(False, tuple(float(x) for x in pos), feed=1000.0))
+    return Program(
+        name="TWO",
+        axes=m.axis_names,
+        rotary=rotary,
+        units="mm",
+        tcp=False,
+        blocks=tuple(blocks),
+        tool_length=tool_length,
+    )
+
+
+def _chord_deviation(m: Machine, q0: np.ndarray, q1: np.ndarray, tool_length: float) -> float:
+    """Largest distance of the tip from the chord of its end points, by dense sampling."""
+    t = np.linspace(0.0, 1.0, 200001)[:, None]
+    tip, _ = tip_and_axis(m, q0 + t * (q1 - q0), tool_length)
+    a, b = tip[0], tip[-1]
+    u = (b - a) / np.linalg.norm(b - a)
+    rel = tip - a
+    s = np.clip(rel @ u, 0.0, np.linalg.norm(b - a))
+    return float(np.linalg.norm(rel - s[:, None] * u, axis=1).max())
+
+
+@pytest.mark.parametrize(
+    ("label", "dx", "db"),
+    [("C only", 0.0, 0.0), ("C with X", 12.0, 0.0), ("C with B and X", -8.0, 20.0)],
+)
+def test_deviation_inside_a_block_is_measured(label: str, dx: float, db: float) -> None:
+    m = machine("dmu50")
+    tool_length = m.settings.tool_length
+    cols = {name: i for i, name in enumerate(m.axis_names)}
+    c_axis = next(a for a in m.rotary if a.name == "C")
+    # put the tip 50 mm from the C axis: at home the workpiece frame is the table's, so the
+    # tip at q = 0 is the gauge point minus the tool length along +Z
+    home_tip, _ = tip_and_axis(m, np.zeros((1, len(m.axes))), tool_length)
+    q0 = np.zeros(len(m.axes))
+    q0[cols["X"]] = c_axis.pivot[0] + 50.0 - home_tip[0, 0]
+    q0[cols["Y"]] = c_axis.pivot[1] - home_tip[0, 1]
+    q0[cols["Z"]] = -350.0
+    q1 = q0.copy()
+    q1[cols["C"]] = np.radians(90.0)
+    q1[cols["X"]] += dx
+    q1[cols["B"]] = np.radians(db)
+    tip0, _ = tip_and_axis(m, q0[None], tool_length)
+    radius = np.linalg.norm((tip0[0] - c_axis.pivot)[:2])
+    assert radius == pytest.approx(50.0)
+    tips, axes = tip_and_axis(m, np.vstack([q0, q1]), tool_length)
+    tp = Toolpath.from_points(tips, axes, feed=1000.0)
+    program = _two_block_program(m, q0, q1, tool_length)
+    v = verify(program, m, tp, tol=Tolerances.for_units("mm"))
+    expected = _chord_deviation(m, q0, q1, tool_length)
+    if label == "C only":
+        # an arc of 90 deg at radius 50 mm: sagitta r (1 - cos 45 deg)
+        assert expected == pytest.approx(50.0 * (1 - np.cos(np.radians(45.0))), abs=1e-6)
+    assert v.reached == 2
+    assert v.max_tip_deviation == pytest.approx(expected, abs=1e-3)
+    assert not v.ok
+    # the midpoint of the block alone would not give this figure unless the curve is symmetric
+    mid, _ = tip_and_axis(m, ((q0 + q1) / 2)[None], tool_length)
+    u = (tips[1] - tips[0]) / np.linalg.norm(tips[1] - tips[0])
+    rel = mid[0] - tips[0]
+    at_mid = float(np.linalg.norm(rel - (rel @ u) * u))
+    if label != "C only":
+        assert abs(at_mid - expected) > 1e-3
+    # the same move with TCP on is a straight line: no deviation
+    lin = list(m.linear_columns)
+    tcp_blocks = []
+    for q, tip in ((q0, tips[0]), (q1, tips[1])):
+        pos = np.where([a in program.rotary for a in m.axis_names], np.degrees(q), q)
+        pos[lin] = tip
+        tcp_blocks.append(Move(False, tuple(float(x) for x in pos), feed=1000.0))
+    tcp_program = Program(
+        name="TWO",
+        axes=m.axis_names,
+        rotary=program.rotary,
+        units="mm",
+        tcp=True,
+        blocks=(Tcp(True), *tcp_blocks),
+        tool_length=tool_length,
+    )
+    v_tcp = verify(tcp_program, m, tp, tol=Tolerances.for_units("mm"))
+    assert v_tcp.max_tip_deviation < 1e-9
+    # (turning B and C together is not a great circle of the tool axis: only C alone is)
+    assert v_tcp.ok is (db == 0.0)
+
+
+def test_cl_points_closer_than_the_tolerance() -> None:
+    """A program through exactly the CL points deviates by nothing, even where the CL points
+    are closer together than the tolerance (a CL point must not be matched to a block that
+    only passes near it, which would measure the next block against the wrong CL span)."""
+    m = machine("dmu50")
+    tips = np.array(
+        [[0, 0, 5.0], [0.008, 0, 5], [0.008, 20, 5], [0.008, 20.006, 5], [10, 20.006, 5]]
+    )
+    axes = np.tile([0.0, 0.0, 1.0], (len(tips), 1))
+    tp = Toolpath.from_points(tips, axes, feed=1000.0)
+    blocks = (Tcp(True), *(Move(False, (*t, 0.0, 0.0), feed=1000.0) for t in tips))
+    program = Program(
+        name="DENSE",
+        axes=m.axis_names,
+        rotary=frozenset({"B", "C"}),
+        units="mm",
+        tcp=True,
+        blocks=blocks,
+        tool_length=100.0,
+    )
+    v = verify(program, m, tp)
+    assert v.ok
+    assert v.reached == 5
+    assert v.max_tip_deviation < 1e-9
