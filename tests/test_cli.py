@@ -442,18 +442,9 @@ def test_console_script_version() -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# known bugs
+# regressions (bugs found while writing these tests, now fixed)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "bug: cli._cmd_verify reads the CL file with the default arc chord tolerance (0.01 mm) "
-        "while cli._cmd_post used the machine-units default (0.0004 in = 0.01016 mm): on an "
-        "inch machine the two interpolate CIRCLE records into different points, and verify "
-        "rejects the program post just wrote (4/27 CL points reached)"
-    ),
-)
 def test_verify_accepts_what_post_wrote_with_arcs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -480,15 +471,6 @@ def _arc_chord_errors(text: str, radius_in: float) -> np.ndarray:
     return radius_in * (1 - np.cos(half))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "bug: cli._cmd_post interpolates CIRCLE records with the default chord tolerance "
-        "(tol_pre ignores --tolerance): with --tolerance 0.0001 in the program's chords sit "
-        "0.00039 in inside the arc, yet the report says max deviation 0.00006 in (verify "
-        "compares against the same coarse polyline)"
-    ),
-)
 def test_tolerance_option_applies_to_arcs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -501,15 +483,6 @@ def test_tolerance_option_applies_to_arcs(
     assert sagitta.max() <= 0.0001 + 0.00005
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=FileNotFoundError,
-    reason=(
-        "bug: cli._write_atomic lets OSError through main: an output (or --report) path in a "
-        "missing folder ends in a FileNotFoundError traceback instead of 'urdfpost: ...' and "
-        "exit 1; with a bad --report path the program file has already been written"
-    ),
-)
 def test_unwritable_output_is_a_domain_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -626,7 +626,7 @@ def test_circle_apt_right_hand_rule(normal, end, sweep):
     i, j, k = normal
     goto_end = f"GOTO/{end[0]},{end[1]},{end[2]}"
     text = f"FEDRAT/200\nGOTO/10,0,0\nCIRCLE/0,0,0,{i},{j},{k},10,0.01\n{goto_end}\n"
-    tp = apt(text)
+    tp = apt(text, chord_tolerance=0.01)
     assert arc_check(tp, 3, np.zeros(3), normal, 10.0, +1) == pytest.approx(sweep)
     idx = np.flatnonzero(tp.line == 3)
     np.testing.assert_array_equal(tp.tip[idx[-1]], end)

@@ -167,6 +167,34 @@ def _unreachable_message(
     )
 
 
+def _linear_message(
+    machine: Machine, q: np.ndarray, tip: np.ndarray, line: int, source: str
+) -> str:
+    """Message for a point whose rotary angles fit but whose linear axes leave their travel.
+
+    Parameters
+    ----------
+    q : ndarray, shape (2, m)
+        The point's solutions per branch (NaN rows for missing branches).
+    """
+    cols = list(machine.linear_columns)
+    parts = []
+    for b in range(q.shape[0]):
+        if np.isnan(q[b, cols]).any():
+            continue
+        for j, a in zip(cols, machine.linear, strict=True):
+            if not a.lower - _SLACK <= q[b, j] <= a.upper + _SLACK:
+                parts.append(
+                    f"{a.name} would need {q[b, j]:.3f} mm (travel {a.lower:.3f}..{a.upper:.3f})"
+                )
+    p = ", ".join(f"{c:.4f}" for c in tip)
+    return (
+        f"{source}:{line}: CL point ({p}) mm is outside the linear travel of machine "
+        f"{machine.name} on every branch: {'; '.join(dict.fromkeys(parts))}; check the tool "
+        "length and where the workpiece sits on the machine"
+    )
+
+
 def select(
     machine: Machine,
     tip: np.ndarray,
@@ -226,10 +254,13 @@ def select(
     pole = ik.status == IKStatus.POLE
     # linear travel: known per branch except at poles, where it depends on the held angle
     lin_ok = _linear_ok(machine, ik.q) | pole[:, None]
+    rotary_ok = ok.any(axis=1)
     ok &= lin_ok[:, branch]
     dead = ~ok.any(axis=1)
     if dead.any():
         i = int(np.argmax(dead))
+        if rotary_ok[i]:
+            raise UnreachableError(_linear_message(machine, ik.q[i], tip[i], int(lines[i]), source))
         raise UnreachableError(
             _unreachable_message(machine, i, axis[i], int(ik.status[i]), int(lines[i]), source)
         )

@@ -27,18 +27,53 @@ log = logging.getLogger("urdfpost")
 MAX_WARNINGS_SHOWN = 20
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder."""
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+def _write_atomic(files: dict[Path, str]) -> None:
+    """Write every file through a temporary file in its folder, then rename them all.
+
+    Nothing is left behind when any of them cannot be written.
+
+    Raises
+    ------
+    UrdfpostError
+        Naming the file that could not be written.
+    """
+    temps: dict[Path, str] = {}
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        for path, text in files.items():
+            folder = path.parent if str(path.parent) else Path(".")
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+            except OSError as e:
+                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+            temps[path] = tmp
+            with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+                f.write(text)
+        for path, tmp in temps.items():
+            try:
+                os.replace(tmp, path)
+            except OSError as e:
+                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+    finally:
+        for tmp in temps.values():
+            Path(tmp).unlink(missing_ok=True)
+
+
+def _read_cl(args: argparse.Namespace, machine: Any) -> Any:
+    """Read the CL file, interpolating arcs with the chord tolerance of the program units.
+
+    The units are the file's own when it says, else ``--units``, else the machine's; arcs are
+    read again when the file's units turn out to differ from the guess.
+    """
+    from urdfpost.readers import read_cl
+    from urdfpost.tolerances import Tolerances
+
+    units = args.units or machine.settings.units
+    chord = Tolerances.for_units(units, args.tolerance).chord
+    toolpath = read_cl(args.cl, format=args.format, units=units, chord_tolerance=chord)
+    if toolpath.units != units:
+        chord = Tolerances.for_units(toolpath.units, args.tolerance).chord
+        toolpath = read_cl(args.cl, format=args.format, units=units, chord_tolerance=chord)
+    return toolpath
 
 
 def _length(value: str) -> float:
@@ -176,13 +211,10 @@ def _cmd_post(args: argparse.Namespace) -> int:
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
     from urdfpost.pipeline import PostOptions, post
-    from urdfpost.readers import read_cl
-    from urdfpost.tolerances import MM_PER_INCH, Tolerances
+    from urdfpost.tolerances import MM_PER_INCH
 
     machine = load_machine(args.machine)
-    units_hint = args.units or machine.settings.units
-    tol_pre = Tolerances.for_units(units_hint)
-    toolpath = read_cl(args.cl, format=args.format, units=units_hint, chord_tolerance=tol_pre.tip)
+    toolpath = _read_cl(args, machine)
     units = toolpath.units
     scale = MM_PER_INCH if units == "inch" else 1.0
     dialect = dialect_for(
@@ -209,9 +241,10 @@ def _cmd_post(args: argparse.Namespace) -> int:
         result = post(toolpath, machine, options, progress=bar.update)
     _show_warnings(result.report["warnings"])
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
-    _write_atomic(out, result.text)
+    files = {out: result.text}
     if args.report:
-        _write_atomic(Path(args.report), json.dumps(result.report, indent=2) + "\n")
+        files[Path(args.report)] = json.dumps(result.report, indent=2) + "\n"
+    _write_atomic(files)
     mode = "TCP" if args.tcp else "machine coordinates"
     print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
     print(result.verification.summary(units))
@@ -222,7 +255,6 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
     from urdfpost.pipeline import make_report
-    from urdfpost.readers import read_cl
     from urdfpost.tolerances import MM_PER_INCH, Tolerances
     from urdfpost.verify import verify
 
@@ -233,7 +265,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     except OSError as e:
         raise UrdfpostError(f"{args.program}: cannot read: {e}") from e
     program = dialect.read(text, path=args.program)
-    toolpath = read_cl(args.cl, format=args.format, units=args.units or machine.settings.units)
+    toolpath = _read_cl(args, machine)
     scale = MM_PER_INCH if program.units == "inch" else 1.0
     tol = Tolerances.for_units(program.units, args.tolerance)
     tool_length = (
@@ -243,7 +275,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     _show_warnings(toolpath.warnings)
     if args.report:
         report = make_report(toolpath, machine, program, check, dialect.name)
-        _write_atomic(Path(args.report), json.dumps(report, indent=2) + "\n")
+        _write_atomic({Path(args.report): json.dumps(report, indent=2) + "\n"})
     print(f"{args.program}: {check.summary(program.units)}")
     if check.missed_lines:
         shown = ", ".join(str(x) for x in check.missed_lines[:10])

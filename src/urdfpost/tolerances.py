@@ -47,6 +47,11 @@ class Tolerances:
     four_axis_axis : float
         Angle (rad) by which a CL tool axis may miss the cone a single rotary axis can reach
         on a 4-axis machine. 1e-6 rad: CL files print 6-10 decimals.
+    chord_share : float
+        Share of ``tip`` allowed as chord error when CIRCLE records are interpolated into
+        points: the program is verified against those points, so the deviation from the true
+        arc is at most the verified deviation plus ``chord``. 0.1 keeps that within 1.1 times
+        the tolerance at about three times the points of a full-tolerance chord.
     max_subdivision_depth : int
         Cap on recursive bisection of one block (2**depth pieces at most).
     samples_per_block : int
@@ -62,8 +67,14 @@ class Tolerances:
     branch_merge: float = 2e-6
     pole_crossing: float = 1e-6
     four_axis_axis: float = 1e-6
+    chord_share: float = 0.1
     max_subdivision_depth: int = 12
     samples_per_block: int = 9
+
+    @property
+    def chord(self) -> float:
+        """Chord tolerance for arc interpolation, mm."""
+        return self.tip * self.chord_share
 
     @classmethod
     def for_units(cls, units: str, tip: float | None = None) -> Tolerances:

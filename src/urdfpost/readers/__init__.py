@@ -55,7 +55,7 @@ def read_cl_text(
     source: str = "<string>",
     format: str | None = None,
     units: str | None = None,
-    chord_tolerance: float = 0.01,
+    chord_tolerance: float = 0.001,
 ) -> Toolpath:
     """Read CL data from a string.
 
@@ -101,7 +101,7 @@ def read_cl(
     *,
     format: str | None = None,
     units: str | None = None,
-    chord_tolerance: float = 0.01,
+    chord_tolerance: float = 0.001,
 ) -> Toolpath:
     """Read a CL file (UTF-8; undecodable bytes are replaced).
 

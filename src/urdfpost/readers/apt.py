@@ -61,6 +61,10 @@ from ._geometry import IDENTITY, Frame, interpolate_arc
 
 logger = logging.getLogger(__name__)
 
+RADIUS_MISMATCH_WARN = 0.005
+"""mm. Arc end points further than this from the CIRCLE radius get a warning: files printed with
+four decimals in inch round by up to 0.0013 mm per coordinate, so less is only rounding."""
+
 __all__ = ["Record", "detect_apt", "read_apt_text", "scan_records"]
 
 #: NX "Information listing" header and "Tool Path Listing" trailer lines.
@@ -524,7 +528,7 @@ class _AptInterpreter:
                 circle.line,
                 "expected the arc's start and end points off the circle axis, got a point on it",
             ) from None
-        if arc.radius_error > self.chord_tolerance:
+        if arc.radius_error > max(self.chord_tolerance, RADIUS_MISMATCH_WARN):
             self.builder.warn(
                 circle.line,
                 f"arc end points are {arc.radius_error:.4g} mm off the CIRCLE radius "
@@ -780,7 +784,7 @@ def read_apt_text(
     *,
     source: str = "<string>",
     units: str | None = None,
-    chord_tolerance: float = 0.01,
+    chord_tolerance: float = 0.001,
 ) -> Toolpath:
     """Read APT / CATIA / Creo / NX CLSF cutter-location data.
 

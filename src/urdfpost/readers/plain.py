@@ -38,7 +38,7 @@ def read_plain_text(
     *,
     source: str = "<string>",
     units: str | None = None,
-    chord_tolerance: float = 0.01,
+    chord_tolerance: float = 0.001,
 ) -> Toolpath:
     """Read a plain list of points.
 
