@@ -4,8 +4,8 @@ The rules of Source A (``docs`` of the project: seeds.md), applied to the whole 
 
 - a candidate outside the travel of any axis (rotary or linear) is never taken; a point with no
   candidate left is an error naming its CL line;
-- at the start (and where the path is entered by a rapid move with no previous block), the
-  preferred branch is taken when it is within travel;
+- at the start (and after a tool change), the preferred branch is taken when it is within
+  travel, unless keeping it would force a flip of branch later in the cut;
 - a switch of branch between two regular points costs half a turn (it is a jump of the first
   rotary axis within one block); at a pole or edge the branches meet and switching is free;
 - otherwise the choice follows the previous block: the total rotary motion along the path is
@@ -271,7 +271,9 @@ def select(
     if prefer is not None and prefer.axis in [a.name for a in machine.rotary]:
         j = [a.name for a in machine.rotary].index(prefer.axis)
         wrong = np.nan_to_num(values[:, :, j] * prefer.sign, nan=0.0) < -1e-9
-        pref_cost = np.where(wrong, 1.0, 0.0) * np.where(entry, 1e3, 1e-6)[:, None]
+        # at an entry the preference outweighs any difference in motion but not a flip it
+        # would force later (a flip costs half a turn plus the jump); elsewhere it breaks ties
+        pref_cost = np.where(wrong, 1.0, 0.0) * np.where(entry, np.pi, 1e-6)[:, None]
     # a tiny pull toward small angles makes ties (e.g. +-180 degrees) deterministic
     pref_cost = pref_cost + 1e-9 * np.abs(np.nan_to_num(values)).sum(axis=2)
 
