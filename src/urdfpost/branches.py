@@ -144,7 +144,7 @@ def _linear_ok(machine: Machine, q: np.ndarray) -> np.ndarray:
 
 
 def _unreachable_message(
-    machine: Machine, i: int, axis: np.ndarray, status: int, line: int, source: str
+    machine: Machine, axis: np.ndarray, status: int, line: int, source: str
 ) -> str:
     v = ", ".join(f"{c:.6g}" for c in axis)
     where = f"{source}:{line}"
@@ -262,7 +262,7 @@ def select(
         if rotary_ok[i]:
             raise UnreachableError(_linear_message(machine, ik.q[i], tip[i], int(lines[i]), source))
         raise UnreachableError(
-            _unreachable_message(machine, i, axis[i], int(ik.status[i]), int(lines[i]), source)
+            _unreachable_message(machine, axis[i], int(ik.status[i]), int(lines[i]), source)
         )
 
     entry = np.zeros(n, dtype=bool) if entry is None else np.asarray(entry, dtype=bool).copy()

@@ -269,7 +269,7 @@ def verify(
             orientation_tolerance_deg=float(np.degrees(tol.orientation)),
             worst_cl_line=None,
             tcp=program.tcp,
-            notes=["program has no motion" if len(values) == 0 else ""],
+            notes=["program has no motion"] if len(values) == 0 else ["CL data has no motion"],
         )
     tip, axis = _pose(machine, values, program.tcp, tool_length, pin=True)
     match = _match(toolpath.tip, toolpath.axis, tip, axis, tol)
