@@ -207,6 +207,7 @@ def select(
     lines: np.ndarray | None = None,
     source: str = "<toolpath>",
     tol: Tolerances | None = None,
+    planner: str = "global",
 ) -> Selection:
     """Choose one solution per point (see the module docstring for the rules).
 
@@ -228,6 +229,10 @@ def select(
     source : str
         CL file name, for messages.
     tol : Tolerances, optional
+    planner : str
+        "global" (dynamic programming over the whole path, the default) or "local" (each
+        point takes the candidate nearest the previous one, the preference only at entries:
+        what a naive post does; kept as the baseline to compare against).
 
     Returns
     -------
@@ -284,6 +289,10 @@ def select(
     state = values[0].copy()  # (K, r) actual values of each candidate state
     state[:, 0] = np.where(np.isnan(state[:, 0]), start_rot[0], state[:, 0])
     state[:, cont] = state[:, cont] + TWO_PI * np.round((start_rot[cont] - state[:, cont]) / TWO_PI)
+    if planner == "local":
+        return _select_local(machine, values, ok, branch, cost, state, cont, tip, tool_length, ik)
+    if planner != "global":
+        raise ValueError(f"unknown planner {planner!r}; expected 'global' or 'local'")
     back = np.zeros((n, n_cand), dtype=np.int32)
     history = np.empty((n, n_cand, values.shape[2]))
     history[0] = state
@@ -321,6 +330,38 @@ def select(
         "selected %d points, branch switches: %d", n, int(np.sum(np.diff(branch[chosen]) != 0))
     )
     return Selection(q=q, branch=branch[chosen], status=ik.status.copy())
+
+
+def _select_local(
+    machine: Machine,
+    values: np.ndarray,
+    ok: np.ndarray,
+    branch: np.ndarray,
+    cost0: np.ndarray,
+    state0: np.ndarray,
+    cont: np.ndarray,
+    tip: np.ndarray,
+    tool_length: float,
+    ik: object,
+) -> Selection:
+    """Greedy choice: each point takes the candidate nearest the previous point's angles."""
+    n = values.shape[0]
+    k = int(np.argmin(cost0))
+    cur = state0[k].copy()
+    rot = np.empty((n, values.shape[2]))
+    chosen = np.empty(n, dtype=np.int64)
+    rot[0], chosen[0] = cur, k
+    for i in range(1, n):
+        diff = values[i] - cur[None, :]
+        diff[:, cont] = _wrap(diff[:, cont])
+        diff = np.nan_to_num(diff, nan=0.0)
+        step = np.where(ok[i], np.abs(diff).sum(axis=1) + 1e-9 * branch, np.inf)
+        k = int(np.argmin(step))
+        cur = cur + diff[k]
+        rot[i], chosen[i] = cur, k
+    lin = solve_linear(machine, rot, tip, tool_length)
+    q = assemble(machine, rot, lin)
+    return Selection(q=q, branch=branch[chosen], status=ik.status.copy())  # type: ignore[attr-defined]
 
 
 def _check_linear(

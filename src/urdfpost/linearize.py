@@ -315,6 +315,11 @@ def subdivide(
     tool_length: float = 0.0,
     tcp: bool = False,
     tol: Tolerances | None = None,
+    param: np.ndarray | None = None,
+    solve_at: Callable[
+        [np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]
+    ]
+    | None = None,
 ) -> Linearized:
     """Bisect blocks until the tip and orientation deviations are within tolerance.
 
@@ -332,6 +337,12 @@ def subdivide(
     tool_length : float, mm
     tcp : bool
     tol : Tolerances, optional
+    param : ndarray, shape (n,), optional
+        Position of each row along the path (any increasing measure); with ``solve_at``.
+    solve_at : callable, optional
+        ``solve_at(param (k,), qa (k, m), qb (k, m)) -> (q, tip, axis)``: the row at a position
+        between two rows (a strategy's joint curve). Default: the CL midpoint, solved exactly
+        on the branch nearest the neighbours' interpolation.
 
     Returns
     -------
@@ -348,17 +359,22 @@ def subdivide(
         if not bad.any():
             break
         idx = np.flatnonzero(bad)
-        qm, pm, vm = _midpoints(
-            machine,
-            q[idx],
-            q[idx + 1],
-            tip[idx],
-            tip[idx + 1],
-            axis[idx],
-            axis[idx + 1],
-            tool_length,
-            tol,
-        )
+        if solve_at is not None and param is not None:
+            pmid = 0.5 * (param[idx] + param[idx + 1])
+            qm, pm, vm = solve_at(pmid, q[idx], q[idx + 1])
+            param = np.insert(param, idx + 1, pmid)
+        else:
+            qm, pm, vm = _midpoints(
+                machine,
+                q[idx],
+                q[idx + 1],
+                tip[idx],
+                tip[idx + 1],
+                axis[idx],
+                axis[idx + 1],
+                tool_length,
+                tol,
+            )
         log.debug("subdivision depth %d: %d blocks bisected", depth + 1, len(idx))
         q = np.insert(q, idx + 1, qm, axis=0)
         tip = np.insert(tip, idx + 1, pm, axis=0)

@@ -113,6 +113,8 @@ class Settings:
         Machine home position, mm / rad per axis (0 for axes not given).
     description : str
         One line describing the machine.
+    strategy : str or None
+        Default singularity strategy for this machine (``strategy`` attribute).
     """
 
     controller: str = "heidenhain"
@@ -121,6 +123,7 @@ class Settings:
     prefer: tuple[str, int] | None = None
     home: dict[str, float] = field(default_factory=dict)
     description: str = ""
+    strategy: str | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,9 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from urdfpost.branches import Preference, select
-from urdfpost.errors import ToleranceError
-from urdfpost.kinematics.inverse import IKStatus, solve_linear
+from urdfpost.branches import Preference
+from urdfpost.errors import ToleranceError, UrdfpostError
 from urdfpost.linearize import subdivide
 from urdfpost.machine import Machine
 from urdfpost.program import (
@@ -34,6 +33,15 @@ from urdfpost.program import (
     Stop,
     Tcp,
     ToolChange,
+)
+from urdfpost.singularity.strategies import (
+    DEFAULT_STRATEGY,
+    STRATEGIES,
+    Plan,
+    Problem,
+    entry_mask,
+    midpoint_solver,
+    realise,
 )
 from urdfpost.tolerances import MM_PER_INCH, Tolerances
 from urdfpost.toolpath import Event, Motion, Toolpath
@@ -65,6 +73,16 @@ class PostOptions:
         Number the blocks (Heidenhain always does).
     program_name : str or None
         Default: the CL PARTNO, else "URDFPOST".
+    strategy : str or None
+        Singularity strategy (:data:`urdfpost.singularity.strategies.STRATEGIES`); default the
+        machine file's, else :data:`~urdfpost.singularity.strategies.DEFAULT_STRATEGY`.
+    angle_tolerance : float
+        How far a strategy may bend the tool axis from the programmed one, degrees.
+    planner : str
+        Branch choice over the whole path ("global") or point by point ("local").
+    lift : float
+        Lift along the tool axis inside singular spans (``spline`` strategy), program units;
+        0 = off.
     """
 
     controller: str | None = None
@@ -75,6 +93,10 @@ class PostOptions:
     prefer: Preference | None = None
     block_numbers: bool = False
     program_name: str | None = None
+    strategy: str | None = None
+    angle_tolerance: float = 2.0
+    planner: str = "global"
+    lift: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -180,106 +202,79 @@ def _feed_runs(joined: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
-def split_at_pole_crossings(toolpath: Toolpath, machine: Machine, tol: Tolerances) -> Toolpath:
-    """Insert the point where a feed move's tool axis sweeps through a pole.
+def _reference(
+    toolpath: Toolpath,
+    tip: np.ndarray,
+    axis: np.ndarray,
+    owner: np.ndarray,
+    first: np.ndarray,
+    whole: np.ndarray,
+) -> Toolpath:
+    """The path a plan's rows follow, as CL data: every row but the turns in place.
 
-    Between two CL points the tool axis follows the great circle from one axis to the other.
-    Where that arc passes a pole (the tool axis along the first rotary axis) within
-    ``tol.pole_crossing``, the crossing point is added on the CL segment with its axis exactly
-    on the pole; the branch choice holds the first rotary angle there and the pipeline turns it
-    in place, instead of leaving a half turn inside one block.
-
-    Returns
-    -------
-    Toolpath
-        With the crossing points added (their ``line`` is that of the move's end point), events
-        re-indexed; the same object when nothing crosses.
+    Verification against it checks that the program does what the strategy intended; how far
+    that is from the CL data is checked separately.
     """
     n = len(toolpath)
-    if n < 2:
-        return toolpath
-    va, vb = toolpath.axis[:-1], toolpath.axis[1:]
-    normal = np.cross(va, vb)
-    size = np.linalg.norm(normal, axis=1)
-    span = np.arctan2(size, np.sum(va * vb, axis=1))
-    feed = toolpath.motion[1:] == Motion.FEED
-    inserts: list[tuple[int, float, np.ndarray]] = []
-    for pole in (machine.rotary[0].direction, -machine.rotary[0].direction):
-        with np.errstate(invalid="ignore", divide="ignore"):
-            nrm = normal / size[:, None]
-            off_plane = np.abs(nrm @ pole)  # sine of the distance of the pole from the circle
-            proj = pole - (nrm @ pole)[:, None] * nrm
-            proj /= np.linalg.norm(proj, axis=1, keepdims=True)
-            sa = np.arctan2(np.linalg.norm(np.cross(va, proj), axis=1), np.sum(va * proj, axis=1))
-            sb = np.arctan2(np.linalg.norm(np.cross(proj, vb), axis=1), np.sum(proj * vb, axis=1))
-        on_arc = np.abs(sa + sb - span) < 1e-9
-        s = sa / np.where(span > 0, span, 1.0)
-        hit = (
-            feed
-            & (size > 1e-12)
-            & (off_plane < np.sin(tol.pole_crossing))
-            & on_arc
-            & (sa > tol.pole_crossing)
-            & (sb > tol.pole_crossing)
-        )
-        inserts += [(int(i), float(s[i]), pole) for i in np.flatnonzero(hit)]
-    if not inserts:
-        return toolpath
-    inserts.sort(key=lambda x: (x[0], x[1]))
-    at = np.array([i + 1 for i, _, _ in inserts])
-    tips = np.array(
-        [toolpath.tip[i] + s * (toolpath.tip[i + 1] - toolpath.tip[i]) for i, s, _ in inserts]
-    )
-    axes = np.array([pole for _, _, pole in inserts])
-    new_index = np.arange(n) + np.searchsorted(at, np.arange(n), side="right")
-    log.debug("%d pole crossings between CL points", len(inserts))
+    idx = np.flatnonzero(first | ~whole)
+    own = owner[idx]
+    cl = first[idx]
+    motion = np.where(cl, toolpath.motion[own], int(Motion.FEED)).astype(toolpath.motion.dtype)
+    pos = np.full(n + 1, len(idx))
+    pos[own[cl]] = np.flatnonzero(cl)
     return replace(
         toolpath,
-        tip=np.insert(toolpath.tip, at, tips, axis=0),
-        axis=np.insert(toolpath.axis, at, axes, axis=0),
-        feed=np.insert(toolpath.feed, at, toolpath.feed[at]),
-        motion=np.insert(toolpath.motion, at, Motion.FEED),
-        line=np.insert(toolpath.line, at, toolpath.line[at]),
-        events=tuple(
-            replace(e, index=int(new_index[e.index]) if e.index < n else len(toolpath) + len(at))
-            for e in toolpath.events
-        ),
+        tip=tip[idx],
+        axis=axis[idx],
+        feed=toolpath.feed[own],
+        motion=motion,
+        line=toolpath.line[own],
+        events=tuple(replace(e, index=int(pos[min(e.index, n)])) for e in toolpath.events),
     )
 
 
-def _turn_at_poles(
-    machine: Machine, sel: Any, toolpath: Toolpath, tool_length: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Insert a turn of the first rotary axis in place where the path leaves a pole.
+def strategy_name(machine: Machine, options: PostOptions) -> str:
+    """The strategy a post uses: the options', the machine file's, or the default."""
+    name = options.strategy or machine.settings.strategy or DEFAULT_STRATEGY
+    if name not in STRATEGIES:
+        raise UrdfpostError(
+            f"unknown singularity strategy {name!r}; expected one of {', '.join(STRATEGIES)}"
+        )
+    return name
 
-    At a pole the first rotary axis lies along the tool axis, so turning it does not change
-    the orientation: the angle the next point needs is reached while the tool stands on the
-    pole point (tip held, linear axes re-solved), instead of during the move away from it.
 
-    Returns
-    -------
-    q : ndarray, shape (N, m)
-    tip, axis : ndarray, shape (N, 3)
-    owner : ndarray, shape (N,), int
-        CL point index of each row (an inserted row repeats its pole point).
-    """
-    n = len(toolpath)
-    col = machine.rotary_columns[0]
-    pole = sel.status == IKStatus.POLE
-    entry = np.zeros(n, dtype=bool)
+def ball_radius(toolpath: Toolpath) -> float:
+    """Ball radius of the first cutter in the CL data when it is a ball-end tool, else 0 (mm)."""
     for e in toolpath.events:
-        if e.kind == "tool" and e.index < n:
-            entry[e.index] = True
-    turn = np.flatnonzero(pole[:-1] & (np.abs(np.diff(sel.q[:, col])) > 1e-9) & ~entry[1:])
-    owner = np.insert(np.arange(n), turn + 1, turn)
-    q = sel.q[owner].copy()
-    rows = turn + 1 + np.arange(len(turn))  # positions of the inserted rows
-    if len(turn):
-        q[rows, col] = sel.q[turn + 1, col]
-        rot = q[rows][:, list(machine.rotary_columns)]
-        lin = solve_linear(machine, rot, toolpath.tip[turn], tool_length)
-        q[rows[:, None], list(machine.linear_columns)] = lin
-    return q, toolpath.tip[owner], toolpath.axis[owner], owner
+        if e.kind in ("cutter", "tool") and e.data.get("diameter") is not None:
+            d = float(e.data["diameter"])
+            r = e.data.get("corner_radius")
+            if r is not None and d > 0 and abs(float(r) - 0.5 * d) <= 1e-6 * max(d, 1.0):
+                return 0.5 * d
+            return 0.0
+    return 0.0
+
+
+def make_problem(
+    toolpath: Toolpath, machine: Machine, options: PostOptions, tol: Tolerances
+) -> Problem:
+    """The strategy input for a post."""
+    units = options.units or toolpath.units
+    scale = MM_PER_INCH if units == "inch" else 1.0
+    tool_length = (
+        machine.settings.tool_length if options.tool_length is None else options.tool_length
+    )
+    return Problem(
+        machine=machine,
+        toolpath=toolpath,
+        tool_length=tool_length,
+        tol=tol,
+        angle_tolerance=float(np.radians(options.angle_tolerance)),
+        pivot=ball_radius(toolpath),
+        prefer=options.prefer,
+        planner=options.planner,
+        lift=options.lift * scale,
+    )
 
 
 def build_program(
@@ -288,27 +283,37 @@ def build_program(
     options: PostOptions,
     tol: Tolerances,
     progress: Callable[[int], None] | None = None,
+    plan: Plan | None = None,
 ) -> tuple[Program, dict[str, Any]]:
     """The controller-neutral program for a toolpath (no verification).
+
+    Parameters
+    ----------
+    toolpath : Toolpath
+    machine : Machine
+    options : PostOptions
+    tol : Tolerances
+    progress : callable, optional
+    plan : Plan, optional
+        The strategy's plan, when already made.
 
     Returns
     -------
     program : Program
     figures : dict
-        Counts gathered on the way (branch switches, pole points, inserted blocks).
+        Counts gathered on the way (branch switches, pole points, inserted blocks), the plan
+        (``"plan"``) and the reference path the program follows (``"reference"``).
     """
     units = options.units or toolpath.units
-    toolpath = split_at_pole_crossings(toolpath, machine, tol)
-    tool_length = (
-        machine.settings.tool_length if options.tool_length is None else options.tool_length
-    )
+    problem = make_problem(toolpath, machine, options, tol)
+    tool_length = problem.tool_length
+    if plan is None:
+        plan = STRATEGIES[strategy_name(machine, options)](problem)
+    toolpath = plan.toolpath
     n = len(toolpath)
-    entry = np.zeros(n, dtype=bool)
-    for e in toolpath.events:
-        if e.kind == "tool" and e.index < n:
-            entry[e.index] = True
+    entry = entry_mask(toolpath)
     figures: dict[str, Any] = {"branch_switches": 0, "pole_points": 0, "inserted_blocks": 0}
-    warnings: list[str] = []
+    warnings: list[str] = list(plan.notes)
     first_tool = min((e.index for e in toolpath.events if e.kind == "tool"), default=n + 1)
     tool_events: tuple[Event, ...] = ()
     if n and first_tool > 0:
@@ -316,26 +321,27 @@ def build_program(
         warnings.append(f"{toolpath.source}: no tool change before the first move; tool 1 assumed")
         tool_events = (Event(index=0, kind="tool", line=int(toolpath.line[0]), data={"number": 1}),)
     rows: list[tuple[np.ndarray, np.ndarray, int]] = []  # per output move: q, tip, cl index
+    reference = toolpath
     if n:
-        sel = select(
-            machine,
-            toolpath.tip,
-            toolpath.axis,
-            tool_length=tool_length,
-            prefer=options.prefer,
-            entry=entry,
-            lines=toolpath.line,
-            source=toolpath.source,
-            tol=tol,
+        q, tip, axis = realise(problem, plan)
+        param = plan.param
+        whole = param == np.round(param)
+        owner = np.where(whole, np.round(param), np.ceil(param)).astype(int)
+        first = whole.copy()
+        first[1:] &= owner[1:] != owner[:-1]  # the row arriving at its CL point
+        rot = plan.rotary
+        figures["branch_switches"] = int(
+            np.sum(np.abs(np.diff(rot[:, -1])) > np.pi / 2) if len(rot) > 1 else 0
         )
-        figures["branch_switches"] = int(np.sum(np.diff(sel.branch) != 0))
-        figures["pole_points"] = int(np.sum(sel.status == IKStatus.POLE))
-        q, tip, axis, owner = _turn_at_poles(machine, sel, toolpath, tool_length)
-        figures["pole_turns"] = int(len(q) - n)
-        first = np.ones(len(q), dtype=bool)
-        first[1:] = owner[1:] != owner[:-1]  # the row arriving at its CL point
+        figures["pole_points"] = int(
+            np.sum(np.abs(toolpath.axis @ machine.rotary[0].direction) > 1 - 0.5 * tol.pole**2)
+            if machine.rotary
+            else 0
+        )
+        figures["pole_turns"] = int(np.sum(whole & ~first))
         joined = ((toolpath.motion[owner] == Motion.FEED) & ~entry[owner]) | ~first
-        parts_q, parts_tip, parts_src = [], [], []
+        solve_at = midpoint_solver(problem, plan)
+        parts_q, parts_tip, parts_src, parts_axis = [], [], [], []
         done = 0
         for s, e in _feed_runs(joined):
             lin = subdivide(
@@ -346,9 +352,12 @@ def build_program(
                 tool_length=tool_length,
                 tcp=options.tcp,
                 tol=tol,
+                param=param[s : e + 1],
+                solve_at=solve_at,
             )
             parts_q += [q[done:s], lin.q]
             parts_tip += [tip[done:s], lin.tip]
+            parts_axis += [axis[done:s], lin.axis]
             parts_src += [np.arange(done, s), np.where(lin.source >= 0, lin.source + s, -1)]
             done = e + 1
             figures["inserted_blocks"] += int(np.sum(lin.source < 0))
@@ -356,6 +365,7 @@ def build_program(
                 progress(int(owner[e] - owner[s]))
         parts_q.append(q[done:])
         parts_tip.append(tip[done:])
+        parts_axis.append(axis[done:])
         parts_src.append(np.arange(done, len(q)))
         out_q, out_tip = np.concatenate(parts_q), np.concatenate(parts_tip)
         src = np.concatenate(parts_src)
@@ -368,6 +378,18 @@ def build_program(
             (out_q[k], out_tip[k], int(group[k]) if is_cl[k] else -1 - int(group[k]))
             for k in range(len(out_q))
         ]
+        if plan.bent or plan.lift.any():
+            reference = _reference(toolpath, tip, axis, owner, first, whole)
+    figures["strategy"] = {
+        "name": strategy_name(machine, options),
+        "angle_tolerance_deg": options.angle_tolerance,
+        "pivot_mm": problem.pivot,
+        "bent": plan.bent,
+        "lifts": plan.lifts,
+        "spans": [sp.as_dict() for sp in plan.spans],
+    }
+    figures["plan"] = plan
+    figures["reference"] = reference
 
     axes = machine.axis_names
     rotary = frozenset(a.name for a in machine.rotary)
@@ -471,15 +493,81 @@ def post(
     text = dialect.write(program, block_numbers=options.block_numbers or None, header=header)
     inserts = [b.text for b in program.blocks if isinstance(b, Insert)]
     readback = dialect.read(text, path=f"<{dialect.name} program>", verbatim=inserts)
-    check = verify(readback, machine, toolpath, tool_length=program.tool_length, tol=tol)
+    check, intent = check_program(readback, machine, toolpath, figures, tol, program.tool_length)
     report = make_report(toolpath, machine, program, check, dialect.name, figures)
-    if not check.ok:
+    if intent is not None:
+        report["strategy"]["intended_path_check"] = intent.as_dict()
+    failed = [c for c in (intent, check) if c is not None and not c.ok]
+    if failed:
+        c = failed[0]
+        what = "the path its strategy intended" if c is intent else "the CL data"
         raise ToleranceError(
-            f"{toolpath.source}: the program misses its tolerance, nothing written: "
-            f"{check.summary(units)}"
-            + (f"; worst near CL line {check.worst_cl_line}" if check.worst_cl_line else "")
+            f"{toolpath.source}: the program misses its tolerance against {what}, nothing "
+            f"written: {c.summary(units)}"
+            + (f"; worst near CL line {c.worst_cl_line}" if c.worst_cl_line else "")
         )
     return PostResult(program=program, text=text, verification=check, report=report)
+
+
+def check_program(
+    program: Program,
+    machine: Machine,
+    toolpath: Toolpath,
+    figures: dict[str, Any],
+    tol: Tolerances,
+    tool_length: float,
+) -> tuple[Verification, Verification | None]:
+    """Verify a program against the CL data, and against its strategy's path when it bent it.
+
+    A strategy that bends the tool axis is checked twice: against the path it intended (rows
+    and curve: tip and orientation tolerances as usual), and against the CL data with the
+    orientation allowed the angle tolerance on top, measured at the cutting point (the ball
+    centre of a ball-end tool, whose tolerance is the tip tolerance plus the ball radius times
+    the orientation tolerance: what a ball centre may move when tip and axis are each within
+    theirs). A strategy that does not bend is checked against the CL data as it is.
+
+    Parameters
+    ----------
+    program : Program
+        As read back from the text.
+    machine : Machine
+    toolpath : Toolpath
+        The CL data.
+    figures : dict
+        From :func:`build_program` (its plan, reference path and strategy figures).
+    tol : Tolerances
+    tool_length : float, mm
+        Tool length the machine-coordinate positions include.
+
+    Returns
+    -------
+    cl : Verification
+        Against the CL data.
+    intended : Verification or None
+        Against the strategy's path (None when it did not bend the tool axis).
+    """
+    plan: Plan = figures["plan"]
+    reference: Toolpath = figures["reference"]
+    if reference is plan.toolpath and not plan.bent:
+        return verify(program, machine, toolpath, tool_length=tool_length, tol=tol), None
+    intended = verify(program, machine, reference, tool_length=tool_length, tol=tol)
+    pivot = figures["strategy"]["pivot_mm"]
+    loose = replace(
+        tol,
+        orientation=tol.orientation + np.radians(figures["strategy"]["angle_tolerance_deg"]),
+        tip=tol.tip + pivot * tol.orientation,
+    )
+    cl = verify(program, machine, toolpath, tool_length=tool_length, tol=loose, pivot=pivot)
+    if plan.lifts:
+        cl = replace(
+            cl,
+            ok=intended.ok,
+            notes=[
+                *cl.notes,
+                f"{plan.lifts} lifted spans: the tip leaves the CL path there by design",
+            ],
+        )
+    return cl, intended
 
 
 def make_report(
@@ -510,6 +598,6 @@ def make_report(
         "worst_cl_line": check.worst_cl_line,
         "tool_length_mm": program.tool_length,
         "verified": check.ok,
-        **(figures or {}),
+        **{k: v for k, v in (figures or {}).items() if k not in ("plan", "reference")},
         "warnings": list(toolpath.warnings) + list((figures or {}).get("warnings", [])),
     }

@@ -57,6 +57,22 @@ class Tolerances:
     samples_per_block : int
         Samples per block when measuring the deviation between two blocks (the maximum is
         refined around the worst sample by golden-section search).
+    singular_sigma : float
+        A CL point whose orientation Jacobian has a smallest singular value below this is
+        singular (see :mod:`urdfpost.singularity.detector`). sin(2 deg) = 0.0349: for an
+        orthogonal two-axis machine the tool axis lies within 2 degrees of the pole, where the
+        first rotary axis turns at least 29 times faster than the tool axis does.
+    swing_limit : float
+        A step between neighbouring CL points that turns a rotary axis by more than this (rad)
+        is flagged as a swing even where the conditioning is fine. 10 degrees: Fusion's
+        singularity "angle" default; a proper finishing path turns a few degrees per point.
+    singular_margin : int
+        CL points added on each side of a singular span (within its feed run); the span's end
+        points are where a strategy hands back to the exact inverse kinematics.
+    spline_step : float
+        Largest turn of the first rotary axis between rows the ``spline`` strategy inserts
+        along its curve, rad. 2 degrees (ModuleWorks interpolates poles in 3-degree steps);
+        the generic subdivision adds more where the nonlinear error needs them.
     """
 
     tip: float = 0.01
@@ -70,6 +86,10 @@ class Tolerances:
     chord_share: float = 0.1
     max_subdivision_depth: int = 12
     samples_per_block: int = 9
+    singular_sigma: float = 0.03489949670250097  # sin(2 deg)
+    swing_limit: float = 0.17453292519943295  # 10 deg
+    singular_margin: int = 1
+    spline_step: float = 0.03490658503988659  # 2 deg
 
     @property
     def chord(self) -> float:

@@ -318,6 +318,15 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
                     f"travel of joint {key!r} ({joint.lower:g} .. {joint.upper:g})"
                 )
             home[key] = value * (M_TO_MM if key in ("X", "Y", "Z") else 1.0)
+    strategy = el.get("strategy")
+    if strategy is not None:
+        from urdfpost.singularity.strategies import STRATEGIES
+
+        if strategy not in STRATEGIES:
+            raise MachineDefinitionError(
+                f"{where}: <urdfpost strategy={strategy!r}>: expected one of "
+                f"{', '.join(STRATEGIES)}"
+            )
     desc_el = el.find("description")
     description = " ".join((desc_el.text or "").split()) if desc_el is not None else ""
     return Settings(
@@ -327,6 +336,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         prefer=prefer,
         home=home,
         description=description,
+        strategy=strategy,
     )
 
 

@@ -231,6 +231,7 @@ def verify(
     *,
     tool_length: float | None = None,
     tol: Tolerances | None = None,
+    pivot: float = 0.0,
 ) -> Verification:
     """Run a program through the machine and compare it with the CL data.
 
@@ -244,6 +245,10 @@ def verify(
     tool_length : float, optional, mm
         Tool length machine-coordinate positions include (default: the program's).
     tol : Tolerances, optional
+    pivot : float, mm
+        Measure the point this far up the tool axis from the tip instead of the tip, on both
+        sides (the ball centre of a ball-end tool, about which a strategy that bends the tool
+        axis pivots). 0 measures the tip.
 
     Returns
     -------
@@ -272,7 +277,9 @@ def verify(
             notes=["program has no motion"] if len(values) == 0 else ["CL data has no motion"],
         )
     tip, axis = _pose(machine, values, program.tcp, tool_length, pin=True)
-    match = _match(toolpath.tip, toolpath.axis, tip, axis, tol)
+    tip = tip + pivot * axis
+    cl_tip = toolpath.tip + pivot * toolpath.axis
+    match = _match(cl_tip, toolpath.axis, tip, axis, tol)
     reached = match >= 0
     missed_lines = [int(x) for x in toolpath.line[~reached]]
 
@@ -301,9 +308,11 @@ def verify(
             p, v = _pose(machine, q.reshape(n * s, -1), program.tcp, tool_length, pin=False)
             if program.tcp:
                 p0, p1 = tip[blocks - 1], tip[blocks]
+                p0, p1 = p0 - pivot * axis[blocks - 1], p1 - pivot * axis[blocks]
                 p = (p0[:, None, :] + tt[..., None] * (p1 - p0)[:, None, :]).reshape(n * s, 3)
+            p = p + pivot * v
             return _span_deviation(
-                p.reshape(n, s, 3), v.reshape(n, s, 3), toolpath.tip, toolpath.axis, ja, jb
+                p.reshape(n, s, 3), v.reshape(n, s, 3), cl_tip, toolpath.axis, ja, jb
             )
 
         d, o = measure(t)
@@ -317,9 +326,7 @@ def verify(
     ja_pt = np.maximum(before, 0)
     jb_pt = np.where(after < n_cl, after, n_cl - 1)
     jb_pt = np.maximum(jb_pt, ja_pt)
-    dp, op = _span_deviation(
-        tip[:, None, :], axis[:, None, :], toolpath.tip, toolpath.axis, ja_pt, jb_pt
-    )
+    dp, op = _span_deviation(tip[:, None, :], axis[:, None, :], cl_tip, toolpath.axis, ja_pt, jb_pt)
     feed_pts = ~rapid | (owner >= 0)
     dp, op = dp[feed_pts, 0], op[feed_pts, 0]
     max_tip = float(max(dmax.max(initial=0.0), dp.max(initial=0.0)))
