@@ -40,6 +40,11 @@ class UnreachableError(UrdfpostError):
     """A CL point that no inverse-kinematics branch reaches within the machine's travel."""
 
 
+class CollisionError(UrdfpostError):
+    """Collision geometry that cannot be built: a stock or mesh file that cannot be read, a
+    ``<collision>`` element urdfpost does not understand, or tool sizes that make no sense."""
+
+
 class ToleranceError(UrdfpostError):
     """A program whose verified deviation from the CL data exceeds the tolerance."""
 
