@@ -102,6 +102,36 @@ def _prefer(value: str) -> Any:
         raise argparse.ArgumentTypeError(str(e)) from e
 
 
+def _strategy_arguments(p: argparse.ArgumentParser, single: bool) -> None:
+    from urdfpost.singularity.strategies import DEFAULT_STRATEGY, STRATEGIES
+
+    if single:
+        p.add_argument(
+            "--strategy",
+            choices=sorted(STRATEGIES),
+            help=f"singularity strategy (default: the machine file's, else {DEFAULT_STRATEGY})",
+        )
+    p.add_argument(
+        "--angle-tolerance",
+        type=_positive,
+        default=2.0,
+        metavar="DEG",
+        help="how far a strategy may bend the tool axis, degrees (default 2)",
+    )
+    p.add_argument(
+        "--planner",
+        choices=("global", "local"),
+        default="global",
+        help="branch choice over the whole path (default) or point by point",
+    )
+    p.add_argument(
+        "--lift",
+        type=_length,
+        default=0.0,
+        help="lift along the tool axis inside singular spans, program units (spline; default 0)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for documentation and tests)."""
     from urdfpost.dialects import DIALECTS
@@ -148,6 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="tool-tip tolerance in program units (default 0.01 mm / 0.0004 in)",
     )
     po.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+ or B-")
+    _strategy_arguments(po, single=True)
     po.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
     po.add_argument("--block-numbers", action="store_true", help="number the blocks")
     po.add_argument("--name", help="program name (default: PARTNO or URDFPOST)")
@@ -229,6 +260,10 @@ def _cmd_post(args: argparse.Namespace) -> int:
         prefer=args.prefer,
         block_numbers=args.block_numbers,
         program_name=args.name,
+        strategy=args.strategy,
+        angle_tolerance=args.angle_tolerance,
+        planner=args.planner,
+        lift=args.lift,
     )
     with tqdm(
         total=len(toolpath),
@@ -247,6 +282,16 @@ def _cmd_post(args: argparse.Namespace) -> int:
     _write_atomic(files)
     mode = "TCP" if args.tcp else "machine coordinates"
     print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
+    strat = result.report["strategy"]
+    kinds = ", ".join(
+        f"{sp['kind']} at CL lines {sp['first_line']}-{sp['last_line']}"
+        for sp in strat["spans"][:5]
+    )
+    more = f" and {len(strat['spans']) - 5} more" if len(strat["spans"]) > 5 else ""
+    print(
+        f"strategy {strat['name']}: {len(strat['spans'])} singular spans"
+        + (f" ({kinds}{more})" if kinds else "")
+    )
     print(result.verification.summary(units))
     return 0
 

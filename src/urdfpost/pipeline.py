@@ -206,19 +206,20 @@ def _reference(
     toolpath: Toolpath,
     tip: np.ndarray,
     axis: np.ndarray,
-    owner: np.ndarray,
-    first: np.ndarray,
-    whole: np.ndarray,
+    group: np.ndarray,
+    is_cl: np.ndarray,
+    turn: np.ndarray,
 ) -> Toolpath:
-    """The path a plan's rows follow, as CL data: every row but the turns in place.
+    """The path a plan follows, as CL data: every output row but the turns in place.
 
-    Verification against it checks that the program does what the strategy intended; how far
-    that is from the CL data is checked separately.
+    Verification against it checks that the program does what the strategy intended (its
+    rows and the points the subdivision took from its curve); how far that is from the CL
+    data is checked separately.
     """
     n = len(toolpath)
-    idx = np.flatnonzero(first | ~whole)
-    own = owner[idx]
-    cl = first[idx]
+    idx = np.flatnonzero(~turn)
+    own = group[idx]
+    cl = is_cl[idx]
     motion = np.where(cl, toolpath.motion[own], int(Motion.FEED)).astype(toolpath.motion.dtype)
     pos = np.full(n + 1, len(idx))
     pos[own[cl]] = np.flatnonzero(cl)
@@ -379,7 +380,9 @@ def build_program(
             for k in range(len(out_q))
         ]
         if plan.bent or plan.lift.any():
-            reference = _reference(toolpath, tip, axis, owner, first, whole)
+            out_axis = np.concatenate(parts_axis)
+            turn = (src >= 0) & whole[np.maximum(src, 0)] & ~first[np.maximum(src, 0)]
+            reference = _reference(toolpath, out_tip, out_axis, group, is_cl, turn)
     figures["strategy"] = {
         "name": strategy_name(machine, options),
         "angle_tolerance_deg": options.angle_tolerance,
