@@ -207,6 +207,36 @@ def build_parser() -> argparse.ArgumentParser:
     ve.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
     ve.add_argument("--report", help="write a JSON report here")
 
+    co = sub.add_parser("compare", help="post a CL file with several singularity strategies")
+    co.add_argument("cl", help="CL file")
+    co.add_argument("--machine", "-m", required=True, help="machine name or URDF file")
+    co.add_argument("--controller", "-c", choices=controllers, help="control dialect")
+    co.add_argument(
+        "--strategies",
+        default="all",
+        help="'all' or a comma-separated list of strategy names (default all)",
+    )
+    co.add_argument(
+        "--no-tcp",
+        dest="tcp",
+        action="store_false",
+        default=True,
+        help="machine axis positions instead of TCP",
+    )
+    co.add_argument("--units", choices=("mm", "inch"), help="units of the CL data if not given")
+    co.add_argument("--tool-length", type=_length, help="tool length in program units")
+    co.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
+    co.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+")
+    _strategy_arguments(co, single=False)
+    co.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
+    co.add_argument("--report", help="write the figures as JSON here")
+    co.add_argument("--plot", help="write a PNG of rotary angles and speeds here")
+
+    tp = sub.add_parser("testpath", help="write a shipped singular test path as APT")
+    tp.add_argument("name", help="path name (see --list)", nargs="?")
+    tp.add_argument("-o", "--output", help="APT file (default NAME.apt)")
+    tp.add_argument("--list", action="store_true", help="list the shipped paths")
+
     sub.add_parser("machines", help="list the machines urdfpost knows by name")
     ma = sub.add_parser("machine", help="describe a machine")
     ma_sub = ma.add_subparsers(dest="machine_command", required=True, metavar="ACTION")
@@ -330,6 +360,86 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     return 0 if check.ok else 1
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from urdfpost.machine import load_machine
+    from urdfpost.pipeline import PostOptions
+    from urdfpost.singularity.compare import compare, table
+    from urdfpost.singularity.strategies import STRATEGIES
+    from urdfpost.tolerances import MM_PER_INCH
+
+    machine = load_machine(args.machine)
+    names = list(STRATEGIES) if args.strategies == "all" else args.strategies.split(",")
+    names = [n.strip() for n in names if n.strip()]
+    unknown = [n for n in names if n not in STRATEGIES]
+    if unknown:
+        raise UrdfpostError(
+            f"--strategies: unknown {', '.join(unknown)}; expected 'all' or names from "
+            f"{', '.join(STRATEGIES)}"
+        )
+    toolpath = _read_cl(args, machine)
+    units = toolpath.units
+    scale = MM_PER_INCH if units == "inch" else 1.0
+    options = PostOptions(
+        controller=args.controller,
+        tcp=args.tcp,
+        units=units,
+        tool_length=None if args.tool_length is None else args.tool_length * scale,
+        tolerance=args.tolerance,
+        prefer=args.prefer,
+        angle_tolerance=args.angle_tolerance,
+        planner=args.planner,
+        lift=args.lift,
+    )
+    result = compare(
+        toolpath,
+        machine,
+        names,
+        options,
+        progress=lambda n: logging.getLogger("urdfpost").info("strategy %s", n),
+    )
+    files: dict[Path, str] = {}
+    if args.report:
+        files[Path(args.report)] = json.dumps(result.as_dict(), indent=2) + "\n"
+    _write_atomic(files)
+    if args.plot:
+        from urdfpost.singularity.plot import plot_comparison
+
+        plot_comparison(
+            [(o.strategy, o.metrics) for o in result.outcomes if o.metrics is not None],
+            result.spans,
+            result.cl_s,
+            args.plot,
+            title=f"{Path(args.cl).name} on {machine.name}",
+        )
+    print(table(result, units))
+    for sp in result.spans:
+        print(
+            f"span {sp.kind:5s} CL lines {sp.first_line}-{sp.last_line}: min sigma "
+            f"{sp.min_sigma:.4f}, exact swing {sp.swing_deg:.1f} deg, largest step "
+            f"{sp.max_step_deg:.1f} deg"
+        )
+    for o in result.outcomes:
+        if not o.verified and o.error:
+            print(f"{o.strategy}: {o.error}")
+    return 0
+
+
+def _cmd_testpath(args: argparse.Namespace) -> int:
+    from urdfpost.testpaths import PATHS, to_apt
+
+    if args.list or not args.name:
+        for name, make in PATHS.items():
+            tp = make()
+            print(f"{name:16s} {len(tp):5d} points  {tp.source}")
+        return 0
+    if args.name not in PATHS:
+        raise UrdfpostError(f"unknown test path {args.name!r}; expected one of {', '.join(PATHS)}")
+    out = Path(args.output or f"{args.name}.apt")
+    _write_atomic({out: to_apt(PATHS[args.name]())})
+    print(f"wrote {out}")
+    return 0
+
+
 def _cmd_machines(args: argparse.Namespace) -> int:
     from urdfpost.machine import list_machines, load_machine
 
@@ -418,6 +528,8 @@ COMMANDS = {
     "post": _cmd_post,
     "verify": _cmd_verify,
     "machines": _cmd_machines,
+    "compare": _cmd_compare,
+    "testpath": _cmd_testpath,
     "machine": _cmd_machine,
 }
 

@@ -725,8 +725,12 @@ def strategy_cone(problem: Problem) -> Plan:
         rot[s : e + 1] = cand
     if not changed:
         return _plain(problem, tp, sel, spans)
-    # rows are the CL points; the poles are no longer stood on with a held angle
-    param = np.arange(len(tp), dtype=float)
+    # rows are the CL points, with a turn in place where a row stands on the pole
+    q = sel.q.copy()
+    q[:, list(machine.rotary_columns)] = rot
+    param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
+
+    turns = param[1:][param[1:] == param[:-1]]
 
     def curve(x: np.ndarray) -> np.ndarray:
         t1 = np.interp(x, param, rot[:, 0])
@@ -735,13 +739,16 @@ def strategy_cone(problem: Problem) -> Plan:
         t2 = np.clip(
             best_tilt(machine, ax, t1, ref), machine.rotary[1].lower, machine.rotary[1].upper
         )
-        return np.stack([t1, t2], axis=1)
+        out = np.stack([t1, t2], axis=1)
+        # a turn in place on the pole: exact solution (the first angle between the two rows)
+        out[np.isin(x, turns)] = np.nan
+        return out
 
     return Plan(
         toolpath=tp,
         param=param,
         rotary=rot,
-        lift=np.zeros(len(tp)),
+        lift=np.zeros(len(param)),
         curve=curve,
         spans=spans,
         bent=True,
