@@ -97,15 +97,29 @@ def test_post_writes_the_program_and_reports(
 ) -> None:
     out = tmp_path / "job.h"
     report = tmp_path / "job.json"
-    rc = main(["post", str(JOB), "--machine", "dmu50", "-o", str(out), "--report", str(report)])
+    rc = main(
+        [
+            "post",
+            "--strategy",
+            "recursive",
+            str(JOB),
+            "--machine",
+            "dmu50",
+            "-o",
+            str(out),
+            "--report",
+            str(report),
+        ]
+    )
     assert rc == 0
     # the same text as the library writes (the golden file)
     assert out.read_text() == (GOLDEN / "dmu50_heidenhain_tcp.h").read_text()
     stdout = capsys.readouterr().out.splitlines()
     assert stdout[0] == f"wrote {out} (heidenhain, TCP, mm) for machine dmu50"
-    assert stdout[1].startswith("verification within tolerance: 16/16 CL points reached, 19 blocks")
-    assert re.search(r"tool tip deviation max \d\.\d{4} mean \d\.\d{4} mm", stdout[1])
-    assert "largest rotary step C 176.005, B 30.060 deg" in stdout[1]
+    assert stdout[1] == "strategy recursive: 1 singular spans (pole at CL lines 19-25)"
+    assert stdout[2].startswith("verification within tolerance: 16/16 CL points reached, 19 blocks")
+    assert re.search(r"tool tip deviation max \d\.\d{4} mean \d\.\d{4} mm", stdout[2])
+    assert "largest rotary step C 176.005, B 30.060 deg" in stdout[2]
     data = json.loads(report.read_text())
     for key in (
         "cl_points",
@@ -133,12 +147,40 @@ def test_post_machine_coordinates_and_block_numbers(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "job.nc"
-    rc = main(["post", str(JOB), "-m", "gantry-ca", "-o", str(out), "--no-tcp", "-q"])
+    rc = main(
+        [
+            "post",
+            "--strategy",
+            "recursive",
+            str(JOB),
+            "-m",
+            "gantry-ca",
+            "-o",
+            str(out),
+            "--no-tcp",
+            "-q",
+        ]
+    )
     assert rc == 0
     assert out.read_text() == (GOLDEN / "gantry-ca_fanuc_mc.nc").read_text()
     assert "(fanuc, machine coordinates, mm) for machine gantry-ca" in capsys.readouterr().out
     numbered = tmp_path / "numbered.nc"
-    assert main(["post", str(JOB), "-m", "gantry-ca", "-o", str(numbered), "--block-numbers"]) == 0
+    assert (
+        main(
+            [
+                "post",
+                "--strategy",
+                "recursive",
+                str(JOB),
+                "-m",
+                "gantry-ca",
+                "-o",
+                str(numbered),
+                "--block-numbers",
+            ]
+        )
+        == 0
+    )
     body = [x for x in numbered.read_text().splitlines() if x not in ("%",) and x.strip()]
     assert sum(bool(re.match(r"N\d+ ", x)) for x in body) >= 19
 
@@ -149,7 +191,7 @@ def test_post_default_output_name_and_controller(
     monkeypatch.chdir(tmp_path)
     shutil.copy(JOB, tmp_path / "short_job.apt")
     # gantry-ca's control is siemens: CL name + .mpf in the current folder
-    assert main(["post", "short_job.apt", "-m", "gantry-ca", "-q"]) == 0
+    assert main(["post", "--strategy", "recursive", "short_job.apt", "-m", "gantry-ca", "-q"]) == 0
     assert files(tmp_path) == {"short_job.apt", "short_job.mpf"}
     assert (tmp_path / "short_job.mpf").read_text() == (
         GOLDEN / "gantry-ca_siemens_tcp.mpf"
@@ -165,14 +207,34 @@ def test_output_extension_picks_the_controller(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], ext: str, controller: str
 ) -> None:
     out = tmp_path / f"job{ext}"
-    assert main(["post", str(JOB), "-m", "monoblock", "-o", str(out), "-q"]) == 0
+    assert (
+        main(["post", "--strategy", "recursive", str(JOB), "-m", "monoblock", "-o", str(out), "-q"])
+        == 0
+    )
     assert out.read_text() == (GOLDEN / f"monoblock_{controller}_tcp{ext}").read_text()
     assert f"({controller}, TCP, mm)" in capsys.readouterr().out
 
 
 def test_controller_option_wins_over_the_extension(tmp_path: Path) -> None:
     out = tmp_path / "job.nc"
-    assert main(["post", str(JOB), "-m", "monoblock", "-o", str(out), "-c", "siemens", "-q"]) == 0
+    assert (
+        main(
+            [
+                "post",
+                "--strategy",
+                "recursive",
+                str(JOB),
+                "-m",
+                "monoblock",
+                "-o",
+                str(out),
+                "-c",
+                "siemens",
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert out.read_text() == (GOLDEN / "monoblock_siemens_tcp.mpf").read_text()
 
 
@@ -217,7 +279,20 @@ def _domain_error(
     cl = write(tmp_path, "part.apt", cl_text)
     out = tmp_path / "part.nc"
     report = tmp_path / "part.json"
-    rc = main(["post", str(cl), "-o", str(out), "--report", str(report), "-q", *args])
+    rc = main(
+        [
+            "post",
+            "--strategy",
+            "recursive",
+            str(cl),
+            "-o",
+            str(out),
+            "--report",
+            str(report),
+            "-q",
+            *args,
+        ]
+    )
     captured = capsys.readouterr()
     assert rc == 1
     assert captured.out == ""
@@ -263,7 +338,19 @@ def test_tolerance_failure_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 def test_unknown_extension_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cl = write(tmp_path, "part.apt", TINY)
-    rc = main(["post", str(cl), "-m", "dmu50", "-o", str(tmp_path / "part.txt"), "-q"])
+    rc = main(
+        [
+            "post",
+            "--strategy",
+            "recursive",
+            str(cl),
+            "-m",
+            "dmu50",
+            "-o",
+            str(tmp_path / "part.txt"),
+            "-q",
+        ]
+    )
     assert rc == 1
     err = capsys.readouterr().err
     assert err.startswith("urdfpost: ") and "'.txt'" in err
@@ -271,7 +358,18 @@ def test_unknown_extension_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 
 def test_missing_cl_file_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    rc = main(["post", str(tmp_path / "none.apt"), "-m", "dmu50", "-o", str(tmp_path / "x.h")])
+    rc = main(
+        [
+            "post",
+            "--strategy",
+            "recursive",
+            str(tmp_path / "none.apt"),
+            "-m",
+            "dmu50",
+            "-o",
+            str(tmp_path / "x.h"),
+        ]
+    )
     assert rc == 1
     err = capsys.readouterr().err
     assert err.startswith(f"urdfpost: {tmp_path / 'none.apt'}") and "cannot read" in err
@@ -297,7 +395,23 @@ def test_unknown_cl_record_warns_and_becomes_a_comment(
     cl = write(tmp_path, "part.apt", text)
     out = tmp_path / "part.ngc"
     report = tmp_path / "part.json"
-    assert main(["post", str(cl), "-m", "dmu50", "-o", str(out), "--report", str(report)]) == 0
+    assert (
+        main(
+            [
+                "post",
+                "--strategy",
+                "recursive",
+                str(cl),
+                "-m",
+                "dmu50",
+                "-o",
+                str(out),
+                "--report",
+                str(report),
+            ]
+        )
+        == 0
+    )
     err = capsys.readouterr().err
     assert re.search(rf"urdfpost: warning: {re.escape(str(cl))}:5: .*FROBNICATE/1,2", err)
     assert "(FROBNICATE/1,2)" in out.read_text().splitlines()
@@ -338,7 +452,23 @@ def test_nx_ballmill_through_the_command_line(
     cl = shared_cl("nx_variable_axis_ballmill_inch.cls")
     out = tmp_path / "ballmill.nc"
     report = tmp_path / "ballmill.json"
-    assert main(["post", str(cl), "-m", "umc750", "-o", str(out), "--report", str(report)]) == 0
+    assert (
+        main(
+            [
+                "post",
+                "--strategy",
+                "recursive",
+                str(cl),
+                "-m",
+                "umc750",
+                "-o",
+                str(out),
+                "--report",
+                str(report),
+            ]
+        )
+        == 0
+    )
     captured = capsys.readouterr()
     assert "(fanuc, TCP, inch) for machine umc750" in captured.out
     assert "348/348 CL points reached" in captured.out
@@ -450,7 +580,10 @@ def test_verify_accepts_what_post_wrote_with_arcs(
 ) -> None:
     cl = write(tmp_path, "arc.apt", ARC_INCH)
     out = tmp_path / "arc.nc"
-    assert main(["post", str(cl), "-m", "umc750", "-o", str(out), "-q"]) == 0
+    assert (
+        main(["post", "--strategy", "recursive", str(cl), "-m", "umc750", "-o", str(out), "-q"])
+        == 0
+    )
     assert main(["verify", str(out), "-m", "umc750", "--cl", str(cl)]) == 0
     capsys.readouterr()
 
@@ -476,7 +609,23 @@ def test_tolerance_option_applies_to_arcs(
 ) -> None:
     cl = write(tmp_path, "arc.apt", ARC_INCH.replace("0.1700", "1.0000"))
     out = tmp_path / "arc.nc"
-    assert main(["post", str(cl), "-m", "umc750", "-o", str(out), "--tolerance", "0.0001"]) == 0
+    assert (
+        main(
+            [
+                "post",
+                "--strategy",
+                "recursive",
+                str(cl),
+                "-m",
+                "umc750",
+                "-o",
+                str(out),
+                "--tolerance",
+                "0.0001",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     sagitta = _arc_chord_errors(out.read_text(), 1.0)
     assert len(sagitta) > 10
@@ -487,6 +636,17 @@ def test_unwritable_output_is_a_domain_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     cl = write(tmp_path, "part.apt", TINY)
-    rc = main(["post", str(cl), "-m", "dmu50", "-o", str(tmp_path / "missing" / "part.h")])
+    rc = main(
+        [
+            "post",
+            "--strategy",
+            "recursive",
+            str(cl),
+            "-m",
+            "dmu50",
+            "-o",
+            str(tmp_path / "missing" / "part.h"),
+        ]
+    )
     assert rc == 1
     assert capsys.readouterr().err.startswith("urdfpost: ")

@@ -152,7 +152,11 @@ def job() -> Toolpath:
 
 @functools.cache
 def posted(machine_name: str, controller: str, tcp: bool) -> PostResult:
-    return post(job(), machine(machine_name), PostOptions(controller=controller, tcp=tcp))
+    return post(
+        job(),
+        machine(machine_name),
+        PostOptions(strategy="recursive", controller=controller, tcp=tcp),
+    )
 
 
 def golden_path(machine_name: str, controller: str, mode: str) -> Path:
@@ -389,7 +393,7 @@ def test_every_feed_move_has_a_feed() -> None:
 def _post_real(name: str, tcp: bool) -> tuple[Toolpath, PostResult]:
     m = machine("umc750")
     tp = read_cl(shared_cl(name), units=m.settings.units, chord_tolerance=INCH_TOL_MM)
-    return tp, post(tp, m, PostOptions(tcp=tcp))
+    return tp, post(tp, m, PostOptions(strategy="recursive", tcp=tcp))
 
 
 def _check_real(tp: Toolpath, result: PostResult, tcp: bool) -> None:
@@ -476,7 +480,9 @@ FINI
 def test_inch_cl_gives_inch_program_and_report(controller: str, tcp: bool) -> None:
     tp = read_cl_text(INCH_JOB, source="inch.apt")
     assert tp.units == "inch"
-    result = post(tp, machine("dmu50"), PostOptions(controller=controller, tcp=tcp))
+    result = post(
+        tp, machine("dmu50"), PostOptions(strategy="recursive", controller=controller, tcp=tcp)
+    )
     lines = result.text.splitlines()
     assert has_line(lines, UNITS_LINE[controller]["inch"])
     assert not has_line(lines, UNITS_LINE[controller]["mm"])
@@ -499,7 +505,9 @@ def test_inch_cl_gives_inch_program_and_report(controller: str, tcp: bool) -> No
 
 
 def test_units_option_writes_a_mm_job_in_inch() -> None:
-    result = post(job(), machine("dmu50"), PostOptions(controller="fanuc", units="inch"))
+    result = post(
+        job(), machine("dmu50"), PostOptions(strategy="recursive", controller="fanuc", units="inch")
+    )
     assert has_line(result.text.splitlines(), r"^G20$")
     assert result.report["units"] == "inch"
     assert result.report["tip_tolerance"] == pytest.approx(0.0004)
@@ -525,7 +533,9 @@ FINI
 @pytest.mark.parametrize("machine_name", MACHINES)
 def test_pole_crossing_between_cl_points_tcp(machine_name: str) -> None:
     tp = read_cl_text(POLE_CROSSING, source="pole.apt")
-    result = post(tp, machine(machine_name), PostOptions(controller="fanuc", tcp=True))
+    result = post(
+        tp, machine(machine_name), PostOptions(strategy="recursive", controller="fanuc", tcp=True)
+    )
     assert result.verification.ok
     assert result.verification.max_orientation_deviation_deg <= 0.5
 
@@ -534,7 +544,9 @@ def test_pole_crossing_between_cl_points_tcp(machine_name: str) -> None:
 def test_pole_crossing_between_cl_points_machine_coordinates(machine_name: str) -> None:
     tp = read_cl_text(POLE_CROSSING, source="pole.apt")
     # (failed with ToleranceError, 1.96 mm on dmu50, before the crossing point was inserted)
-    result = post(tp, machine(machine_name), PostOptions(controller="fanuc", tcp=False))
+    result = post(
+        tp, machine(machine_name), PostOptions(strategy="recursive", controller="fanuc", tcp=False)
+    )
     v = result.verification
     assert v.ok
     assert v.reached == v.cl_points == 2

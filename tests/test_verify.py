@@ -60,7 +60,9 @@ def dome() -> Toolpath:
 
 @functools.cache
 def dome_post(controller: str, tcp: bool) -> PostResult:
-    return post(dome(), machine("dmu50"), PostOptions(controller=controller, tcp=tcp))
+    return post(
+        dome(), machine("dmu50"), PostOptions(strategy="recursive", controller=controller, tcp=tcp)
+    )
 
 
 def check(text: str, controller: str, result: PostResult) -> Verification:
@@ -212,7 +214,7 @@ def test_cli_verify_machine_coordinates_needs_the_tool_length(
 
 def test_machine_coordinates_are_subdivided_until_within_tolerance() -> None:
     m, tp = machine("dmu50"), dome()
-    options = PostOptions(controller="heidenhain", tcp=False)
+    options = PostOptions(strategy="recursive", controller="heidenhain", tcp=False)
     default = Tolerances.for_units("mm")
     coarse, coarse_fig = build_program(tp, m, options, Tolerances.for_units("mm", 1000.0))
     fine, fine_fig = build_program(tp, m, options, default)

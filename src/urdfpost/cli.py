@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import os
 import sys
 import tempfile
@@ -204,6 +205,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="tool length in program units (machine-coordinate programs)",
     )
     ve.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
+    ve.add_argument(
+        "--angle-tolerance",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="tool-axis bending the program's strategy was allowed, degrees (default 0: the "
+        "program must follow the CL tool axis); when given, a ball-end tool is measured at "
+        "its ball centre, as the post checks it",
+    )
     ve.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
     ve.add_argument("--report", help="write a JSON report here")
 
@@ -346,7 +356,19 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     tool_length = (
         machine.settings.tool_length if args.tool_length is None else args.tool_length * scale
     )
-    check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol)
+    pivot = 0.0
+    if args.angle_tolerance > 0:
+        from dataclasses import replace
+
+        from urdfpost.pipeline import ball_radius
+
+        pivot = ball_radius(toolpath)
+        tol = replace(
+            tol,
+            orientation=tol.orientation + math.radians(args.angle_tolerance),
+            tip=tol.tip + pivot * tol.orientation,
+        )
+    check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
     _show_warnings(toolpath.warnings)
     if args.report:
         report = make_report(toolpath, machine, program, check, dialect.name)

@@ -755,13 +755,31 @@ def strategy_cone(problem: Problem) -> Plan:
     )
 
 
+def _reachable(
+    lo: np.ndarray, hi: np.ndarray, step: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Forward pass: the interval reachable at each point within the band and step limits."""
+    n = len(lo)
+    r_lo, r_hi = lo.copy(), hi.copy()
+    ok = True
+    for i in range(1, n):
+        a = max(lo[i], r_lo[i - 1] - step[i - 1])
+        b = min(hi[i], r_hi[i - 1] + step[i - 1])
+        if a > b:
+            ok = False
+            a = b = float(np.clip(0.5 * (r_lo[i - 1] + r_hi[i - 1]), lo[i], hi[i]))
+        r_lo[i], r_hi[i] = a, b
+    return r_lo, r_hi, ok
+
+
 def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
     """A rate-limited sequence within ``exact +- half``, as close to ``exact`` as it can be.
 
     Forward pass: the interval of values reachable at each point from the start within the
     band and the step limits; backward pass: the value nearest the exact one that still reaches
-    the next chosen value. Where the band leaves no feasible step, the band wins (the rate
-    limit is then exceeded there, and the metrics show it).
+    the next chosen value. Where the band leaves no room for the step limits, they are raised
+    by the smallest common factor that makes the band feasible (found by bisection), so the
+    peak rate is as low as the band allows.
 
     Parameters
     ----------
@@ -773,15 +791,24 @@ def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (n,)
     """
-    n = len(exact)
     lo, hi = exact - half, exact + half
-    r_lo, r_hi = lo.copy(), hi.copy()
-    for i in range(1, n):
-        a = max(lo[i], r_lo[i - 1] - step[i - 1])
-        b = min(hi[i], r_hi[i - 1] + step[i - 1])
-        if a > b:  # infeasible: keep the band, nearest to what was reachable
-            a = b = float(np.clip(0.5 * (r_lo[i - 1] + r_hi[i - 1]), lo[i], hi[i]))
-        r_lo[i], r_hi[i] = a, b
+    r_lo, r_hi, ok = _reachable(lo, hi, step)
+    if not ok:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            need = np.abs(np.diff(exact)) / step
+        k_lo, k_hi = 1.0, float(np.nanmax(np.where(np.isfinite(need), need, 1.0), initial=1.0))
+        k_hi = max(k_hi, 1.0) * (1 + 1e-9)
+        for _ in range(40):
+            k = np.sqrt(k_lo * k_hi)
+            if _reachable(lo, hi, step * k)[2]:
+                k_hi = k
+            else:
+                k_lo = k
+            if k_hi / k_lo < 1.001:
+                break
+        step = step * k_hi
+        r_lo, r_hi, _ = _reachable(lo, hi, step)
+    n = len(exact)
     out = np.empty(n)
     out[-1] = np.clip(exact[-1], r_lo[-1], r_hi[-1])
     for i in range(n - 2, -1, -1):
@@ -802,7 +829,7 @@ STRATEGIES: dict[str, Strategy] = {
     "cone": strategy_cone,
 }
 
-DEFAULT_STRATEGY = "recursive"
+DEFAULT_STRATEGY = "cone"
 
 
 def realise(problem: Problem, plan: Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1,0 +1,258 @@
+"""Strategy metrics: the block-duration rule, finite differences within feed runs, units, the
+hemisphere's closed-form C rate, JSON output and the comparison plot."""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from urdfpost.dialects import dialect_for
+from urdfpost.kinematics.forward import tip_and_axis
+from urdfpost.machine import Machine, load_machine
+from urdfpost.pipeline import PostOptions, PostResult, post
+from urdfpost.program import Move, Program, Tcp
+from urdfpost.singularity.detector import Span
+from urdfpost.singularity.metrics import (
+    Metrics,
+    block_times,
+    cl_path_position,
+    measure,
+)
+from urdfpost.singularity.plot import plot_comparison
+from urdfpost.testpaths import great_circle_sweep, hemisphere_raster
+from urdfpost.toolpath import Motion, Toolpath
+from urdfpost.verify import program_joints
+
+
+@functools.cache
+def machine(name: str) -> Machine:
+    return load_machine(name)
+
+
+def tcp_program(m: Machine, rows: list[tuple[bool, float | None, dict[str, float]]]) -> Program:
+    """A TCP program from (rapid, feed mm/min, {axis: value}) rows (other axes 0)."""
+    moves = tuple(
+        Move(rapid=rapid, position=tuple(pos.get(a, 0.0) for a in m.axis_names), feed=feed)
+        for rapid, feed, pos in rows
+    )
+    return Program(
+        name="T",
+        axes=m.axis_names,
+        rotary=frozenset(a.name for a in m.rotary),
+        units="mm",
+        tcp=True,
+        blocks=(Tcp(on=True), *moves, Tcp(on=False)),
+        tool_length=100.0,
+    )
+
+
+def cl_of(m: Machine, program: Program) -> Toolpath:
+    """The CL data a TCP program reaches exactly (its tips and tool axes)."""
+    values, rapid = program_joints(m, program)
+    _, axis = tip_and_axis(m, values)
+    tp = Toolpath.from_points(values[:, list(m.linear_columns)], axis, feed=1000.0)
+    tp.motion[rapid] = Motion.RAPID
+    tp.feed[rapid] = np.nan
+    return tp
+
+
+# -- the duration rule --------------------------------------------------------------------------
+
+
+def test_block_time_is_the_feed_or_the_axis_limit_whichever_is_longer() -> None:
+    m = machine("dmu50")
+    c_limit = math.degrees(m.axis("C").velocity)  # 179.9 deg/s
+    program = tcp_program(
+        m,
+        [
+            (True, None, {"X": 0.0, "B": 30.0, "C": 0.0}),
+            (False, 600.0, {"X": 10.0, "B": 30.0, "C": 1.0}),  # L/F = 1 s, C 1 deg: feed
+            (False, 600.0, {"X": 11.0, "B": 30.0, "C": 91.0}),  # L/F = 0.1 s, C 90 deg: limit
+            (False, 600.0, {"X": 16.0, "B": 30.0, "C": 91.0}),  # linear only: 0.5 s
+        ],
+    )
+    metrics = measure(program, m, cl_of(m, program))
+    expected = np.array([1.0, 90.0 / c_limit, 0.5])
+    np.testing.assert_allclose(np.diff(metrics.profile.t), expected, rtol=1e-12)
+    assert metrics.velocity_limited_blocks == 1
+    assert metrics.time_s == pytest.approx(expected.sum())
+    assert metrics.nominal_time_s == pytest.approx(1.6)
+    assert metrics.slowdown == pytest.approx(expected.sum() / 1.6)
+    assert metrics.peak_velocity["C"] == pytest.approx(c_limit)
+    assert metrics.peak_demand_velocity["C"] == pytest.approx(900.0)  # 90 deg in 0.1 s
+    assert metrics.max_step_deg == pytest.approx({"B": 0.0, "C": 90.0})
+    assert metrics.mean_step_deg["C"] == pytest.approx(91.0 / 3)
+    assert metrics.blocks == 4 and metrics.cl_points == 4 and metrics.added_blocks == 0
+    # the 90 degree C block turns the tool axis off the CL slerp: only the tip is exact here
+    assert metrics.cl_points_reached == 4 and metrics.max_tip_deviation < 1e-9
+
+
+def test_block_times_of_rapids_come_from_the_axis_limits() -> None:
+    dq = np.array([[10.0, 0.0], [0.0, 2.0], [0.0, 0.0]])
+    time, limited = block_times(
+        dq,
+        length=np.array([10.0, 0.0, 5.0]),
+        feed=np.array([np.inf, np.inf, 10.0]),
+        limit=np.array([100.0, np.inf]),
+    )
+    np.testing.assert_allclose(time, [0.1, 0.0, 0.5])
+    np.testing.assert_array_equal(limited, [True, False, False])
+
+
+# -- finite differences -------------------------------------------------------------------------
+
+
+def test_constant_rotary_speed_has_no_acceleration_even_across_a_rapid() -> None:
+    m = machine("dmu50")
+    rows: list[tuple[bool, float | None, dict[str, float]]] = [(True, None, {"B": 30.0, "C": 0.0})]
+    rows += [(False, 600.0, {"X": float(k), "B": 30.0, "C": float(k)}) for k in range(1, 21)]
+    # a rapid, then a second run at twice the C speed: no difference across the rapid
+    rows += [(True, None, {"X": 20.0, "Y": 5.0, "B": 30.0, "C": 100.0})]
+    rows += [
+        (False, 600.0, {"X": 20.0 - k, "Y": 5.0, "B": 30.0, "C": 100.0 + 2.0 * k})
+        for k in range(1, 21)
+    ]
+    program = tcp_program(m, rows)
+    metrics = measure(program, m, cl_of(m, program))
+    # 1 mm at 10 mm/s: 0.1 s per block, C at 10 then 20 deg/s
+    assert metrics.peak_velocity["C"] == pytest.approx(20.0)
+    assert metrics.p95_velocity["C"] == pytest.approx(20.0)
+    assert metrics.peak_demand_velocity["C"] == pytest.approx(20.0)
+    assert metrics.peak_acceleration["C"] == pytest.approx(0.0, abs=1e-8)
+    assert metrics.peak_jerk["C"] == pytest.approx(0.0, abs=1e-6)
+    assert metrics.peak_velocity["B"] == 0.0 and metrics.peak_acceleration["B"] == 0.0
+    assert metrics.velocity_limited_blocks == 0 and metrics.slowdown == pytest.approx(1.0)
+    assert metrics.travel_deg["C"] == pytest.approx(60.0)  # feed blocks only
+    prof = metrics.profile
+    assert prof.rapid.sum() == 2 and np.all(np.diff(prof.s) >= 0)
+    assert metrics.rapid_time_s > 0
+
+
+def test_profile_and_cl_positions_measure_the_same_path() -> None:
+    tp = great_circle_sweep(5.0)
+    m = machine("gantry-ca")
+    result = post(tp, m, PostOptions(tcp=True, strategy="none"))
+    metrics = measure(result.program, m, tp)
+    prof = metrics.profile
+    assert metrics.blocks == len(tp)
+    np.testing.assert_allclose(prof.s, cl_path_position(tp), atol=1e-9)
+    c = prof.column("C")
+    assert prof.q.shape == prof.velocity.shape == prof.demand.shape == (len(tp), 5)
+    assert np.all(np.isnan(prof.demand[prof.rapid, c]))
+
+
+# -- units ------------------------------------------------------------------------------------
+
+
+def readback(result: PostResult, m: Machine) -> Program:
+    return dialect_for(m.settings.controller).read(result.text)
+
+
+def test_inch_program_gives_the_same_figures_as_mm() -> None:
+    tp = hemisphere_raster(offsets=(5.0,), step=0.5, max_tilt_deg=20.0)
+    m = machine("umc750")
+    figures = {}
+    for units in ("mm", "inch"):
+        result = post(tp, m, PostOptions(tcp=True, units=units, strategy="none"))
+        program = readback(result, m)
+        assert program.units == units
+        figures[units] = measure(program, m, tp, tool_length=result.program.tool_length)
+    mm, inch = figures["mm"], figures["inch"]
+    assert inch.verified and mm.verified
+    assert inch.nominal_time_s == pytest.approx(mm.nominal_time_s, rel=1e-3)
+    assert inch.time_s == pytest.approx(mm.time_s, rel=1e-3)
+    assert inch.peak_demand_velocity["C"] == pytest.approx(mm.peak_demand_velocity["C"], rel=5e-3)
+    # 2000 mm/min over a path of known length
+    assert mm.nominal_time_s == pytest.approx(cl_path_position(tp)[-2] / (2000 / 60), rel=0.02)
+
+
+# -- the closed form --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("tcp", [True, False], ids=["tcp", "machine"])
+@pytest.mark.parametrize("y0", [2.0, 5.0])
+def test_hemisphere_c_demand_peaks_at_feed_over_offset(y0: float, tcp: bool) -> None:
+    feed = 2000.0
+    tp = hemisphere_raster(offsets=(y0,), feed=feed, step=0.1, max_tilt_deg=20.0)
+    m = machine("dmu50")
+    result = post(tp, m, PostOptions(tcp=tcp, strategy="none"))
+    metrics = measure(readback(result, m), m, tp, tool_length=result.program.tool_length)
+    closed_form = math.degrees(feed / 60.0 / y0)  # deg/s
+    assert metrics.peak_demand_velocity["C"] == pytest.approx(closed_form, rel=0.01)
+    assert metrics.min_sigma == pytest.approx(y0 / 50.0, rel=0.01)  # sin(arcsin(y0 / R))
+    # the C limit (179.9 deg/s) is below F / y0 here: the axis limit sets the pace
+    c_limit = math.degrees(m.axis("C").velocity)
+    assert metrics.peak_velocity["C"] == pytest.approx(c_limit)
+    assert metrics.velocity_limited_blocks > 0 and metrics.slowdown > 1.05
+    assert metrics.verified and metrics.cl_points_reached == len(tp)
+
+
+# -- reports ------------------------------------------------------------------------------------
+
+
+def test_as_dict_is_json_ready_and_a_pole_turn_is_counted() -> None:
+    m = machine("dmu50")
+    # down to the pole (B = 0), half a turn of C in place there, and away on the other side
+    rows: list[tuple[bool, float | None, dict[str, float]]] = [(True, None, {"B": 10.0})]
+    rows += [(False, 600.0, {"X": float(k), "B": 10.0 - 2.0 * k}) for k in range(1, 6)]
+    rows += [(False, 600.0, {"X": 5.0, "B": 0.0, "C": 180.0})]
+    rows += [(False, 600.0, {"X": 5.0 + k, "B": 2.0 * k, "C": 180.0}) for k in range(1, 6)]
+    program = tcp_program(m, rows)
+    metrics = measure(program, m, cl_of(m, program), lifts=2)
+    assert metrics.turns_in_place == 1 and metrics.min_sigma == pytest.approx(0.0, abs=1e-12)
+    assert metrics.max_step_deg["C"] == pytest.approx(180.0)
+    assert metrics.peak_demand_velocity["C"] == 0.0  # the turn moves no tip: not a demand
+    assert np.isinf(metrics.profile.demand[6, metrics.profile.column("C")])
+    c_limit = math.degrees(m.axis("C").velocity)
+    assert np.diff(metrics.profile.t)[5] == pytest.approx(180.0 / c_limit)
+    assert metrics.verified
+    data = metrics.as_dict()
+    text = json.dumps(data, allow_nan=False)
+    assert "profile" not in data and data["lifts"] == 2
+    assert data["max_kappa"] is None  # infinite on the pole
+    for key in (
+        "blocks",
+        "cl_points",
+        "added_blocks",
+        "max_step_deg",
+        "mean_step_deg",
+        "peak_velocity",
+        "p95_velocity",
+        "peak_acceleration",
+        "peak_jerk",
+        "peak_demand_velocity",
+        "time_s",
+        "rapid_time_s",
+        "nominal_time_s",
+        "slowdown",
+        "max_tip_deviation",
+        "max_orientation_deviation_deg",
+        "cl_points_reached",
+        "min_sigma",
+        "max_kappa",
+        "velocity_limited_blocks",
+        "lifts",
+    ):
+        assert key in data, key
+    assert json.loads(text)["blocks"] == metrics.blocks
+
+
+def test_plot_comparison_writes_a_png(tmp_path: Path) -> None:
+    tp = great_circle_sweep(1.0)
+    m = machine("dmu50")
+    results: list[tuple[str, Metrics]] = []
+    for tcp in (True, False):
+        program = post(tp, m, PostOptions(tcp=tcp, strategy="none")).program
+        results.append(("tcp" if tcp else "machine", measure(program, m, tp)))
+    span = Span(15, 27, 25, 37, "pole", 0.017, 60.0, 150.0, 26.6)
+    target = tmp_path / "compare.png"
+    plot_comparison(results, [span], cl_path_position(tp), target, title="sweep 1 deg")
+    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["compare.png"]  # no temporary left
+    with pytest.raises(ValueError, match="at least one result"):
+        plot_comparison([], [], cl_path_position(tp), tmp_path / "none.png")
