@@ -659,16 +659,25 @@ def _slope(theta: np.ndarray, s_all: np.ndarray, i: int, side: int, a: int, b: i
 
 
 def _refine(p: np.ndarray, f: Callable[[np.ndarray], np.ndarray], step: float) -> np.ndarray:
-    """Split parameter intervals until ``f`` changes by at most ``step`` between rows."""
+    """Bisect parameter intervals until ``f`` changes by at most ``step`` between rows.
+
+    Each interval is first split evenly by the motion sampled along it, then any piece still
+    turning more than ``step`` is halved (at most 20 rounds).
+    """
     out = [p[:1]]
     v = f(p)
     for k in range(len(p) - 1):
-        pieces = max(1, int(np.ceil(abs(v[k + 1] - v[k]) / step)))
-        # the curve may overshoot between rows: sample it to count
         fine = f(np.linspace(p[k], p[k + 1], 9))
-        pieces = max(pieces, int(np.ceil(np.abs(np.diff(fine)).sum() / step)))
+        total = max(abs(v[k + 1] - v[k]), float(np.abs(np.diff(fine)).sum()))
+        pieces = max(1, int(np.ceil(total / step)))
         out.append(np.linspace(p[k], p[k + 1], pieces + 1)[1:])
-    return np.concatenate(out)
+    rows = np.concatenate(out)
+    for _ in range(20):
+        big = np.flatnonzero(np.abs(np.diff(f(rows))) > step)
+        if not big.size:
+            break
+        rows = np.insert(rows, big + 1, 0.5 * (rows[big] + rows[big + 1]))
+    return rows
 
 
 def strategy_linear(problem: Problem) -> Plan:
