@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import urdfpost.readers.apt as apt_module
 from urdfpost.errors import CLDataError
 from urdfpost.readers import READERS, detect_format, read_cl, read_cl_text
 from urdfpost.readers._geometry import max_arc_step
@@ -842,3 +843,140 @@ def test_continuation_split_at_any_comma(point, cuts, newline, indent):
     np.testing.assert_array_equal(split.axis, single.axis)
     np.testing.assert_array_equal(split.motion, single.motion)
     assert split.line[0] == 2
+
+
+# -- bulk reading of GOTO runs: the same toolpath as record by record -------------------------
+
+
+def read_both(text, monkeypatch, **kwargs):
+    """The toolpath (or error) of ``text`` read with and without the bulk GOTO reader."""
+    out = []
+    for least in (1, 10**9):  # every run in bulk; none
+        monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", least)
+        try:
+            out.append(apt(text, **kwargs))
+        except CLDataError as exc:
+            out.append((type(exc), str(exc), exc.line))
+    return out
+
+
+def assert_same_toolpath(bulk, single):
+    if isinstance(single, tuple) or isinstance(bulk, tuple):
+        assert bulk == single
+        return
+    for name in ("tip", "axis", "feed", "motion", "line"):
+        a, b = getattr(bulk, name), getattr(single, name)
+        assert a.dtype == b.dtype and a.shape == b.shape, name
+        # bit for bit, signs of zeros and NaNs included
+        assert a.tobytes() == b.tobytes(), name
+    assert bulk.events == single.events
+    assert bulk.warnings == single.warnings
+    assert (bulk.units, bulk.multiaxis) == (single.units, single.multiaxis)
+
+
+def test_bulk_reader_reads_runs_in_bulk(monkeypatch):
+    lines = [f"GOTO/{k}.5,-{k}.25,{k % 7},0,0.6,0.8" for k in range(100)]
+    text = "UNITS/INCHES\nMSYS/1,2,3,0,1,0,-1,0,0\nFEDRAT/IPM,10\n" + "\n".join(lines) + "\n"
+    scan = apt_module.scan_text(text, "src.apt")
+    runs = [r for r in scan.records if isinstance(r, apt_module.GotoRun)]
+    assert [(r.line, len(r)) for r in runs] == [(4, 100)]
+    assert runs[0].records()[99].text == lines[99]
+    bulk, single = read_both(text, monkeypatch)
+    assert_same_toolpath(bulk, single)
+    assert len(bulk) == 100 and list(bulk.line) == list(range(4, 104))
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        # a run after RAPID, after CIRCLE (the first GOTO ends the arc), and continuing a record
+        "FEDRAT/100\nRAPID\n{run}",
+        "GOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\n{run}",
+        "GOTO/1,2,$\n{run}",
+        "FEDRAT/$\n{run}",
+        # values that need a message: the run is read record by record, messages unchanged
+        "{run}GOTO/1,2,3,0,0,2\n{run}",
+        "{run}GOTO/1,2,3,0,0,0\n{run}",
+        "{run}GOTO/1e999,2,3,0,0,1\n{run}",
+        "{run}GOTO/1,2,3,nan,0,1\n{run}",
+        "{run}GOTO/1,2,3,1.2.3,0,1\n{run}",
+        "{run}GOTO/1_0,2,3,0,0,1\n{run}",
+        "{run}GOTO/١,2,3,0,0,1\n{run}",
+        "{run}GOTO/1,2,3,0,0,1,GOTO/1\n{run}",
+        "{run}GOTO/1,2,3 # 4\n{run}",
+        # mixed value counts, trailing comments, continuations inside a block of GOTO lines
+        "{run}{short}{run}",
+        "{run}GOTO/1,2,3 $$ 4,5,6\n{run}GOTO/1,2,$\n3\n{run}",
+        "{run}GOTO/1,2,3$ $$ x\nGOTO/4,5,6\n{run}",
+        # FINI inside, before and after runs
+        "{run}FINI\n{run}",
+        "{run}GOTO/1,2,3\nFINI\n\n$$ x\n{run}",
+        "FINI\n{run}",
+        # other line ends and no final newline
+        "RAPID\r\n{run_crlf}GOTO/4,5,$\r\n6\r\nFINI",
+        "{run}".rstrip("\n"),
+        # a file that is only a run, a run between events, MSYS and units changes
+        "{run}",
+        "PARTNO X\nLOADTL/1\n{run}COOLNT/ON\n{short}{run}MSYS/1,0,0,0,1,0,-1,0,0\n{run}"
+        "UNITS/INCHES\n{run}END\n",
+        # an arc starting at the end of a run, and an arc whose end starts a run
+        "FEDRAT/50\n{run}CIRCLE/0,0,0,0,0,1,5\n{run}",
+    ],
+)
+def test_bulk_reader_equals_record_by_record(text, monkeypatch):
+    run = "".join(f"GOTO/{k * 0.1:.4f},{-k:.3f},{k % 3},0.6,0,0.8\n" for k in range(1, 40))
+    short = "".join(f"GOTO/{k},{k},{k}\n" for k in range(40))
+    text = text.format(run=run, short=short, run_crlf=run.replace("\n", "\r\n"))
+    bulk, single = read_both(text, monkeypatch, chord_tolerance=0.01)
+    assert_same_toolpath(bulk, single)
+
+
+_number_text = st.one_of(
+    st.floats(-1e5, 1e5, allow_nan=False).map(lambda v: f"{v:.4f}"),
+    st.floats(-1.0, 1.0).map(lambda v: f"{v:.7f}"),
+    st.floats(allow_nan=False, allow_infinity=False).map(repr),
+    st.integers(-1000, 1000).map(str),
+    st.sampled_from(["-0", "+.5", "5.", "1e3", "-0.0", " 2 ", "0", "1E-2", "nan", "1e999", ""]),
+)
+_goto_line = st.one_of(
+    st.lists(_number_text, min_size=3, max_size=3).map(lambda v: "GOTO/" + ",".join(v)),
+    st.tuples(
+        st.lists(_number_text, min_size=3, max_size=3),
+        st.sampled_from([(0.6, 0.0, 0.8), (0.0, 0.0, 1.0), (-0.0, -0.0, -1.0), (1.0, 0.0, 0.0)]),
+    ).map(lambda v: "GOTO/" + ",".join([*v[0], *(f"{c:.6f}" for c in v[1])])),
+    st.sampled_from(["GOTO/1,2,3 $$ c", "GOTO/1,2,$", "3", "GOTO/1,2,3,0,0,0", "GOTO/1,2"]),
+)
+_other_line = st.sampled_from(
+    [
+        "RAPID",
+        "FEDRAT/200",
+        "FEDRAT/IPM,5",
+        "$$ comment",
+        "",
+        "UNITS/INCHES",
+        "MSYS/1,2,3,0,1,0,-1,0,0",
+        "MULTAX/ON",
+        "PAINT/COLOR,3",
+        "CIRCLE/0,0,0,0,0,1,10",
+        "FINI",
+        "goto/1,2,3",
+        " GOTO/1,2,3",
+    ]
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(
+        st.one_of(st.lists(_goto_line, min_size=1, max_size=6), _other_line.map(lambda x: [x])),
+        max_size=12,
+    ),
+    st.sampled_from(["\n", "\r\n", "\r"]),
+    st.booleans(),
+)
+def test_bulk_reader_equals_record_by_record_random(groups, newline, final_newline):
+    lines = [line for group in groups for line in group]
+    text = newline.join(lines) + (newline if final_newline else "")
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        bulk, single = read_both(text, monkeypatch, chord_tolerance=0.05)
+    assert_same_toolpath(bulk, single)

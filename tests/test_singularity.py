@@ -21,9 +21,9 @@ from urdfpost.singularity.strategies import (
     exact_selection,
     split_at_pole_crossings,
 )
+from urdfpost.testpaths import great_circle_sweep, hemisphere_raster, nutating_edge
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.testpaths import great_circle_sweep, hemisphere_raster, nutating_edge
 
 MACHINES = ["dmu50", "gantry-ca", "monoblock", "dmu50-nutating", "xyzac-trt", "vf2-4axis"]
 FAMILIES = {"dmu50": "table-table", "gantry-ca": "head-head", "monoblock": "head-table"}
@@ -181,7 +181,7 @@ def test_linear_runs_the_first_axis_linearly_across_the_span() -> None:
     m = load_machine("gantry-ca")
     tp = flat(great_circle_sweep(1.0))
     options = PostOptions(strategy="linear")
-    program, fig = build_program(tp, m, options, Tolerances())
+    _, fig = build_program(tp, m, options, Tolerances())
     plan = fig["plan"]
     span = plan.spans[0]
     inside = (plan.param >= span.first) & (plan.param <= span.last)
@@ -194,7 +194,7 @@ def test_linear_runs_the_first_axis_linearly_across_the_span() -> None:
 def test_spline_has_no_rate_step_at_the_span_ends() -> None:
     m = load_machine("gantry-ca")
     tp = flat(great_circle_sweep(1.0))
-    program, fig = build_program(tp, m, PostOptions(strategy="spline"), Tolerances())
+    _, fig = build_program(tp, m, PostOptions(strategy="spline"), Tolerances())
     plan = fig["plan"]
     span = plan.spans[0]
     s = plan.param
@@ -270,7 +270,7 @@ def test_machine_file_names_the_default_strategy(tmp_path) -> None:
     result = post(great_circle_sweep(0.1), m, PostOptions())
     assert result.report["strategy"]["name"] == "branch-flip"
     bad = text.replace("<urdfpost ", '<urdfpost strategy="zigzag" ', 1)
-    with pytest.raises(MachineDefinitionError, match="strategy='zigzag'.*expected one of"):
+    with pytest.raises(MachineDefinitionError, match=r"strategy=.zigzag.*expected one of"):
         machine_from_urdf(bad, source="gantry.urdf", name="g")
 
 

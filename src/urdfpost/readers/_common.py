@@ -1,7 +1,8 @@
 """Helpers shared by the CL readers: number parsing, units, and the toolpath builder.
 
-The builder collects motion points as plain Python lists (cheap to append one at a time) and
-turns them into the arrays of a :class:`~urdfpost.toolpath.Toolpath` once, at the end.
+The builder collects motion points as plain Python lists (cheap to append one at a time) or as
+arrays (runs of records read in bulk) and turns them into the arrays of a
+:class:`~urdfpost.toolpath.Toolpath` once, at the end.
 """
 
 from __future__ import annotations
@@ -93,6 +94,10 @@ def format_values(values: Sequence[float]) -> str:
 class ToolpathBuilder:
     """Accumulates the points, events and warnings of one file.
 
+    Points come one at a time (:meth:`add_point`, kept in Python lists, cheap to append) or as
+    whole arrays (:meth:`add_arrays`, for runs of records read in bulk); both end up in order
+    in the arrays of :meth:`build`.
+
     Parameters
     ----------
     source : str
@@ -101,37 +106,75 @@ class ToolpathBuilder:
 
     def __init__(self, source: str) -> None:
         self.source = source
+        # points added one at a time since the last chunk
         self._tip: list[float] = []
         self._axis: list[float] = []
         self._feed: list[float] = []
         self._motion: list[int] = []
         self._line: list[int] = []
+        # earlier points as arrays: (tip, axis, feed, motion, line) per chunk
+        self._chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._chunked = 0
         self.events: list[Event] = []
         self.warnings: list[str] = []
 
     def __len__(self) -> int:
-        return len(self._motion)
+        return self._chunked + len(self._motion)
+
+    def _flush(self) -> None:
+        """Move the points added one at a time into a chunk of arrays."""
+        k = len(self._motion)
+        if not k:
+            return
+        self._chunks.append(
+            (
+                np.asarray(self._tip, dtype=float).reshape(k, 3),
+                np.asarray(self._axis, dtype=float).reshape(k, 3),
+                np.asarray(self._feed, dtype=float).reshape(k),
+                np.asarray(self._motion, dtype=np.int8).reshape(k),
+                np.asarray(self._line, dtype=np.int64).reshape(k),
+            )
+        )
+        self._chunked += k
+        self._tip, self._axis, self._feed, self._motion, self._line = [], [], [], [], []
 
     @property
     def last_tip(self) -> tuple[float, float, float] | None:
         """Tip of the last motion point (mm, workpiece frame), or None before the first."""
-        if not self._motion:
+        if self._motion:
+            x, y, z = self._tip[-3:]
+        elif self._chunks:
+            x, y, z = self._chunks[-1][0][-1].tolist()
+        else:
             return None
-        x, y, z = self._tip[-3:]
         return (x, y, z)
 
     def last_tips(self, count: int) -> np.ndarray:
         """Tips of the last ``count`` points, shape (<=count, 3), mm."""
-        k = min(count, len(self))
-        return np.asarray(self._tip[len(self._tip) - 3 * k :], dtype=float).reshape(k, 3)
+        self._flush()
+        parts: list[np.ndarray] = []
+        need = min(count, len(self))
+        for tip, *_ in reversed(self._chunks):
+            if need <= 0:
+                break
+            take = min(need, tip.shape[0])
+            parts.append(tip[tip.shape[0] - take :])
+            need -= take
+        if not parts:
+            return np.empty((0, 3))
+        return np.concatenate(parts[::-1]).astype(float, copy=True)
 
     def last_motion(self) -> int | None:
         """Motion kind of the last point, or None before the first."""
-        return self._motion[-1] if self._motion else None
+        if self._motion:
+            return self._motion[-1]
+        return int(self._chunks[-1][3][-1]) if self._chunks else None
 
     def last_line(self) -> int | None:
         """Source line of the last point, or None before the first."""
-        return self._line[-1] if self._line else None
+        if self._line:
+            return self._line[-1]
+        return int(self._chunks[-1][4][-1]) if self._chunks else None
 
     def add_point(
         self,
@@ -166,9 +209,49 @@ class ToolpathBuilder:
         self._motion.extend([int(motion)] * k)
         self._line.extend([line] * k)
 
+    def add_arrays(
+        self,
+        tip: np.ndarray,
+        axis: np.ndarray,
+        feed: np.ndarray,
+        motion: np.ndarray,
+        line: np.ndarray,
+    ) -> None:
+        """Append points given as arrays (the builder keeps them: do not change them after).
+
+        Parameters
+        ----------
+        tip : ndarray, shape (k, 3), mm
+        axis : ndarray, shape (k, 3)
+            Unit tool axes.
+        feed : ndarray, shape (k,), mm/min
+            NaN for rapids or an unknown feed.
+        motion : ndarray, shape (k,)
+            :class:`Motion` values.
+        line : ndarray, shape (k,)
+            Source lines.
+        """
+        k = tip.shape[0]
+        if not k:
+            return
+        self._flush()
+        self._chunks.append(
+            (
+                np.asarray(tip, dtype=float).reshape(k, 3),
+                np.asarray(axis, dtype=float).reshape(k, 3),
+                np.asarray(feed, dtype=float).reshape(k),
+                np.asarray(motion, dtype=np.int8).reshape(k),
+                np.asarray(line, dtype=np.int64).reshape(k),
+            )
+        )
+        self._chunked += k
+
     def set_last_axis(self, axis: Sequence[float]) -> None:
         """Replace the tool axis of the last point."""
-        self._axis[-3:] = list(axis)
+        if self._motion:
+            self._axis[-3:] = list(axis)
+        else:
+            self._chunks[-1][1][-1] = axis
 
     def add_event(self, kind: str, line: int, **data: Any) -> None:
         """Append an event that comes before the next motion point."""
@@ -198,13 +281,23 @@ class ToolpathBuilder:
 
     def build(self, *, units: str, multiaxis: bool) -> Toolpath:
         """Return the :class:`Toolpath` of everything added so far."""
-        n = len(self)
+        self._flush()
+        chunks = self._chunks
+        if len(chunks) == 1:
+            tip, axis, feed, motion, line = chunks[0]
+        elif chunks:
+            parts = zip(*chunks, strict=True)
+            tip, axis, feed, motion, line = (np.concatenate(part) for part in parts)
+        else:
+            tip, axis = np.empty((0, 3)), np.empty((0, 3))
+            feed, motion = np.empty(0), np.empty(0, dtype=np.int8)
+            line = np.empty(0, dtype=np.int64)
         return Toolpath(
-            tip=np.asarray(self._tip, dtype=float).reshape(n, 3),
-            axis=np.asarray(self._axis, dtype=float).reshape(n, 3),
-            feed=np.asarray(self._feed, dtype=float).reshape(n),
-            motion=np.asarray(self._motion, dtype=np.int8).reshape(n),
-            line=np.asarray(self._line, dtype=np.int64).reshape(n),
+            tip=tip,
+            axis=axis,
+            feed=feed,
+            motion=motion,
+            line=line,
             events=tuple(self.events),
             units=units,
             source=self.source,

@@ -10,6 +10,14 @@ A file is read in three steps:
 3. :class:`_AptInterpreter` walks the records with the modal state (tool axis, feed, spindle,
    coordinate frame, pending ``RAPID``/``CIRCLE``) and fills a toolpath builder.
 
+Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records. Step 1 finds such runs
+(:func:`scan_text`) and reads their numbers in bulk with numpy into a :class:`GotoRun`; step 3
+applies the modal state to the whole run at once, with the same arithmetic in the same order as
+for one record, so the points are bit-identical. A run whose values would need a message (a
+non-finite number, a tool axis of zero or non-unit length) or that follows a ``RAPID`` or
+``CIRCLE`` is read record by record for those records, exactly as any other line; so is
+everything that is not a plain GOTO line.
+
 Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
 
 - ``"partno"``: ``text``
@@ -36,10 +44,12 @@ helical ramps come out at exactly the 3.00 degree ramp angle only with it.
 
 from __future__ import annotations
 
+import io
+import itertools
 import logging
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,6 +59,8 @@ from urdfpost.tolerances import MM_PER_INCH
 from urdfpost.toolpath import Motion, Toolpath
 
 from ._common import (
+    AXIS_LENGTH_SLACK,
+    ZERO_AXIS,
     ToolpathBuilder,
     format_values,
     normalise_units,
@@ -65,7 +77,7 @@ RADIUS_MISMATCH_WARN = 0.005
 """mm. Arc end points further than this from the CIRCLE radius get a warning: files printed with
 four decimals in inch round by up to 0.0013 mm per coordinate, so less is only rounding."""
 
-__all__ = ["Record", "detect_apt", "read_apt_text", "scan_records"]
+__all__ = ["GotoRun", "Record", "detect_apt", "read_apt_text", "scan_records", "scan_text"]
 
 #: NX "Information listing" header and "Tool Path Listing" trailer lines.
 _LISTING_LINE = re.compile(
@@ -87,6 +99,14 @@ APT_LINE = re.compile(
 )
 _KEYWORD = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 _NOT_KEYWORDS = frozenset({"NAN", "INF", "INFINITY"})
+
+#: Fewest consecutive one-line GOTO records read in bulk; shorter runs are read record by
+#: record (numpy's set-up cost would exceed the saving).
+BULK_MIN_RECORDS = 32
+#: Characters of text read in one piece by the bulk reader (bounds its temporary copies).
+_BULK_PIECE = 1 << 22
+#: A line break not followed by a GOTO record at the start of the next line.
+_NOT_GOTO_NEXT = re.compile(r"\n(?!GOTO/)")
 
 _NX_WORDS = frozenset({"TOOL PATH", "TLDATA", "MSYS", "PAINT", "END-OF-PATH"})
 _UNITS_WORDS = {"INCHES": "inch", "INCH": "inch", "MM": "mm"}
@@ -132,11 +152,51 @@ class Record:
     rest: str = ""
 
 
+@dataclass(frozen=True)
+class GotoRun:
+    """Consecutive one-line ``GOTO`` records whose numbers were read in bulk.
+
+    Attributes
+    ----------
+    line : int
+        1-based line of the first record; record ``i`` is on line ``line + i``.
+    values : ndarray, shape (k, 3) or (k, 6)
+        The numbers as written (file units, frame of the file).
+    text : str
+        Text the records are part of (``\\n`` line breaks).
+    start : int
+        Offset in ``text`` of the first record; the ``k`` records are the ``k`` lines from
+        there.
+    """
+
+    line: int
+    values: np.ndarray
+    text: str = field(repr=False)
+    start: int
+    word: str = "GOTO"
+    args: None = None
+
+    def __len__(self) -> int:
+        return int(self.values.shape[0])
+
+    def records(self) -> list[Record]:
+        """Every record of the run, as :func:`scan_records` makes them."""
+        records = []
+        pos = self.start
+        for i in range(len(self)):
+            end = self.text.find("\n", pos)
+            end = len(self.text) if end < 0 else end
+            code = self.text[pos:end].strip().partition("$$")[0].rstrip()
+            records.append(parse_record(code, self.line + i))
+            pos = end + 1
+        return records
+
+
 @dataclass
 class _Scan:
-    """Result of :func:`scan_records`."""
+    """Result of :func:`scan_records` and :func:`scan_text`."""
 
-    records: list[Record] = field(default_factory=list)
+    records: list[Record | GotoRun] = field(default_factory=list)
     listing_lines: int = 0
     trailing_comments: int = 0
     after_fini: list[int] = field(default_factory=list)
@@ -161,6 +221,88 @@ def parse_record(code: str, line: int) -> Record:
     return Record(line, word, args, code)
 
 
+class _Scanner:
+    """Turns lines into records, keeping the state of a continued record between calls."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.scan = _Scan()
+        self.pending: str | None = None
+        self.start = 0
+        self.fini = 0  # line of FINI once read
+
+    def feed(self, lines: Iterable[str], first: int) -> int:
+        """Scan ``lines``, numbered from ``first``.
+
+        Returns
+        -------
+        int
+            How many lines were scanned: all of them, or up to and including FINI.
+        """
+        scan = self.scan
+        count = 0
+        for number, raw in enumerate(lines, start=first):
+            count += 1
+            stripped = raw.strip()
+            if not stripped:
+                continue
+            if self.pending is None and _LISTING_LINE.match(stripped):
+                scan.listing_lines += 1
+                continue
+            if stripped.startswith("$$"):
+                scan.records.append(Record(number, "$$", None, stripped, stripped[2:].strip()))
+                continue
+            code, sep, _ = stripped.partition("$$")
+            scan.trailing_comments += bool(sep)
+            code = code.rstrip()
+            continued = code.endswith("$")
+            if continued:
+                code = code[:-1]
+            if self.pending is None:
+                self.pending, self.start = code, number
+            else:
+                self.pending += code
+            if continued:
+                continue
+            record = parse_record(self.pending, self.start)
+            self.pending = None
+            scan.records.append(record)
+            if record.word == "FINI":
+                self.fini = number
+                break
+        return count
+
+    def add_run(self, run: GotoRun) -> None:
+        """Append a run of GOTO records (the previous record must be complete)."""
+        assert self.pending is None
+        self.scan.records.append(run)
+
+    def after_fini(self, lines: Iterable[str]) -> None:
+        """Note the non-blank lines after FINI; ``lines`` start on the line after it."""
+        self.scan.after_fini = [
+            self.fini + 1 + k
+            for k, rest in enumerate(lines)
+            if rest.strip() and not _LISTING_LINE.match(rest.strip())
+        ]
+
+    def finish(self) -> _Scan:
+        """The records.
+
+        Raises
+        ------
+        CLDataError
+            When the file ends inside a continued record.
+        """
+        if self.pending is not None:
+            raise CLDataError(
+                self.source,
+                self.start,
+                "expected the continuation of this record (its last line ends with '$'), "
+                "got the end of the file",
+            )
+        return self.scan
+
+
 def scan_records(lines: Sequence[str], source: str) -> _Scan:
     """Turn lines into logical records.
 
@@ -174,49 +316,164 @@ def scan_records(lines: Sequence[str], source: str) -> _Scan:
     CLDataError
         When the file ends inside a continued record.
     """
-    scan = _Scan()
-    pending: str | None = None
-    start = 0
-    for number, raw in enumerate(lines, start=1):
-        stripped = raw.strip()
-        if not stripped:
-            continue
-        if pending is None and _LISTING_LINE.match(stripped):
-            scan.listing_lines += 1
-            continue
-        if stripped.startswith("$$"):
-            scan.records.append(Record(number, "$$", None, stripped, stripped[2:].strip()))
-            continue
-        code, sep, _ = stripped.partition("$$")
-        scan.trailing_comments += bool(sep)
-        code = code.rstrip()
-        continued = code.endswith("$")
-        if continued:
-            code = code[:-1]
-        if pending is None:
-            pending, start = code, number
-        else:
-            pending += code
-        if continued:
-            continue
-        record = parse_record(pending, start)
-        pending = None
-        scan.records.append(record)
-        if record.word == "FINI":
-            scan.after_fini = [
-                number + 1 + k
-                for k, rest in enumerate(lines[number:])
-                if rest.strip() and not _LISTING_LINE.match(rest.strip())
-            ]
-            break
-    if pending is not None:
-        raise CLDataError(
-            source,
-            start,
-            "expected the continuation of this record (its last line ends with '$'), "
-            "got the end of the file",
+    scanner = _Scanner(source)
+    scanned = scanner.feed(lines, 1)
+    if scanner.fini:
+        scanner.after_fini(lines[scanned:])
+    return scanner.finish()
+
+
+def _goto_blocks(text: str) -> Iterator[tuple[int, int]]:
+    """Offsets ``(start, end)`` of the blocks of consecutive lines that start with ``GOTO/``.
+
+    ``text`` has ``\\n`` line breaks only. ``start`` is the start of the block's first line,
+    ``end`` the position after its last line break (or the end of the text).
+    """
+    others = (m.end() for m in _NOT_GOTO_NEXT.finditer(text))  # starts of the other lines
+    if not text.startswith("GOTO/"):
+        others = itertools.chain([0], others)
+    block = 0
+    for other in others:
+        if other > block:
+            yield block, other
+        end = text.find("\n", other)
+        if end < 0:
+            return
+        block = end + 1
+    if block < len(text):
+        yield block, len(text)
+
+
+def _goto_values(lines: str, count: int) -> np.ndarray | None:
+    """The numbers of ``count`` GOTO lines ``GOTO/x,y,z[,i,j,k]``, or None.
+
+    Every line of ``lines`` starts with ``GOTO/``. None unless every line is ``GOTO/`` and
+    the same number of values (3 or 6) that :func:`parse_number` accepts (blanks around them
+    allowed), and nothing else: no ``$`` continuation or comment, no other characters.
+
+    Returns
+    -------
+    ndarray, shape (count, 3) or (count, 6), or None
+    """
+    if not lines.isascii() or "_" in lines:  # float() reads 1_000; parse_number does not
+        return None
+    numbers = lines.replace("GOTO/", "")
+    if len(lines) - len(numbers) != 5 * count:  # a GOTO/ elsewhere than at a line start
+        return None
+    try:
+        # loadtxt parses like float() on the stripped field, and insists on one column count
+        values = np.loadtxt(
+            io.StringIO(numbers),
+            delimiter=",",
+            comments=None,
+            ndmin=2,
+            dtype=float,
         )
-    return scan
+    except ValueError:
+        return None
+    if values.shape not in ((count, 3), (count, 6)):
+        return None
+    return values
+
+
+def _bulk_runs(text: str) -> Iterator[tuple[int, int, np.ndarray, int]]:
+    """Runs of one-line GOTO records in ``text`` with their numbers read in bulk.
+
+    Long blocks are read in pieces of about :data:`_BULK_PIECE` characters, which bounds the
+    memory of the intermediate copies.
+
+    Yields
+    ------
+    start, end : int
+        Offsets of the run's first line and after its last line break (or the text's end).
+    values : ndarray, shape (k, 3) or (k, 6)
+    comments : int
+        Lines of the run with a trailing ``$$`` comment.
+    """
+    for start, end in _goto_blocks(text):
+        while start < end:
+            cut = end
+            if end - start > 2 * _BULK_PIECE:
+                cut = text.find("\n", start + _BULK_PIECE, end) + 1 or end
+            piece = text[start:cut]
+            count = piece.count("\n") + (not piece.endswith("\n"))
+            if count >= BULK_MIN_RECORDS:
+                values = _goto_values(piece, count)
+                if values is not None:
+                    yield start, cut, values, 0
+                else:  # mixed value counts, trailing $$ comments, ...: group the plain lines
+                    yield from _bulk_runs_by_line(piece, start)
+            start = cut
+
+
+def _bulk_runs_by_line(block: str, offset: int) -> Iterator[tuple[int, int, np.ndarray, int]]:
+    """:func:`_bulk_runs` within a piece of a block of GOTO lines not read in one go."""
+    lines = block.split("\n")
+    if block.endswith("\n"):
+        lines.pop()
+    parts = [raw.partition("$$") for raw in lines]
+    codes = [code.strip() for code, _, _ in parts]
+    kinds = []  # values per line when plain (3 or 6), else 0
+    for code in codes:
+        commas = code.count(",")
+        kinds.append(commas + 1 if commas in (2, 5) and not code.endswith("$") else 0)
+    position = offset  # of line k
+    k = 0
+    for kind, group in itertools.groupby(kinds):
+        size = sum(1 for _ in group)
+        length = sum(len(raw) + 1 for raw in lines[k : k + size])
+        if kind and size >= BULK_MIN_RECORDS:
+            values = _goto_values("\n".join(codes[k : k + size]), size)
+            if values is not None:
+                comments = sum(bool(sep) for _, sep, _ in parts[k : k + size])
+                yield position, min(position + length, offset + len(block)), values, comments
+        position += length
+        k += size
+
+
+def scan_text(text: str, source: str) -> _Scan:
+    """:func:`scan_records` of a whole text, with runs of plain GOTO records read in bulk.
+
+    The records are those of ``scan_records(split_lines(text), source)``, except that runs of
+    at least :data:`BULK_MIN_RECORDS` consecutive one-line ``GOTO`` records with plain numbers
+    come as one :class:`GotoRun` each.
+
+    Raises
+    ------
+    CLDataError
+        When the file ends inside a continued record.
+    """
+    if "\r" in text:  # one \n per line break, so that line numbers stay those of split_lines
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    scanner = _Scanner(source)
+    pos, line = 0, 1  # start of the next line to scan, and its number
+    for start, end, values, comments in _bulk_runs(text):
+        if start > pos:
+            lines = text[pos : start - 1].split("\n")
+            scanned = scanner.feed(lines, line)
+            if scanner.fini:
+                scanner.after_fini(itertools.chain(lines[scanned:], text[start:].split("\n")))
+                return scanner.finish()
+            line += len(lines)
+        if scanner.pending is not None:  # the first GOTO line continues a record
+            first_end = text.find("\n", start, end)
+            first_end = end if first_end < 0 else first_end + 1
+            scanner.feed([text[start:first_end].rstrip("\n")], line)
+            if scanner.fini:
+                scanner.after_fini(text[first_end:].split("\n"))
+                return scanner.finish()
+            comments -= "$$" in text[start:first_end]  # counted by the scanner
+            start, values, line = first_end, values[1:], line + 1
+        scanner.scan.trailing_comments += comments
+        if len(values):
+            scanner.add_run(GotoRun(line, values, text, start))
+            line += len(values)
+        pos = end
+    lines = text[pos:].split("\n")
+    scanned = scanner.feed(lines, line)
+    if scanner.fini:
+        scanner.after_fini(lines[scanned:])
+    return scanner.finish()
 
 
 def detect_apt(text: str) -> bool:
@@ -341,9 +598,12 @@ class _AptInterpreter:
 
     # -- driving --------------------------------------------------------------------------
 
-    def run(self, records: Sequence[Record]) -> None:
+    def run(self, records: Sequence[Record | GotoRun]) -> None:
         """Interpret ``records`` in order."""
         for record in records:
+            if isinstance(record, GotoRun):
+                self._goto_run(record)
+                continue
             if self.circle is not None and record.word not in ("GOTO", "PAINT", "$$"):
                 raise CLDataError(
                     self.source,
@@ -427,6 +687,79 @@ class _AptInterpreter:
         else:
             self.builder.add_point(tip, self.axis, self._current_feed(), Motion.FEED, record.line)
         self.last_point_on_arc = False
+
+    def _goto_run(self, run: GotoRun) -> None:
+        """A run of plain GOTO records: as :meth:`_goto` on each, in bulk where it can be.
+
+        The first record goes alone when it ends an arc or follows RAPID. The others are
+        computed with the arithmetic of :meth:`_point` and :meth:`Frame.point` in the same
+        order (so bit for bit the same points); when a value would need a message (not finite,
+        a tool axis of zero or non-unit length), the records are read one by one instead.
+        """
+        first = 0
+        if self.circle is not None or self.rapid_next:
+            self._goto(_first_record(run))
+            first = 1
+        values = run.values[first:]
+        k = values.shape[0]
+        if not k:
+            return
+        points = self._bulk_points(values)
+        if points is None:
+            for record in run.records()[first:]:
+                self._goto(record)
+            return
+        tip, axis = points
+        self.builder.add_arrays(
+            tip,
+            axis,
+            np.full(k, self._current_feed()),
+            np.full(k, Motion.FEED, dtype=np.int8),
+            np.arange(run.line + first, run.line + first + k, dtype=np.int64),
+        )
+        self.last_point_on_arc = False
+
+    def _bulk_points(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Tips (mm, workpiece frame) and axes of GOTO values, shape (k, 3) each.
+
+        Updates the modal tool axis as the last record would. None (and no change) when a
+        value would get an error or a warning from :meth:`_point`.
+
+        Parameters
+        ----------
+        values : ndarray, shape (k, 3) or (k, 6)
+            Numbers as written.
+        """
+        if not np.isfinite(values[:, :3]).all():
+            return None
+        (a, b, c), (d, e, f), (g, h, i) = self.frame.rotation
+        ox, oy, oz = self.frame.origin
+        x = values[:, 0] * self.scale
+        y = values[:, 1] * self.scale
+        z = values[:, 2] * self.scale
+        tip = np.empty((values.shape[0], 3))
+        tip[:, 0] = ox + a * x + b * y + c * z  # Frame.point, term by term
+        tip[:, 1] = oy + d * x + e * y + f * z
+        tip[:, 2] = oz + g * x + h * y + i * z
+        if values.shape[1] == 3:
+            return tip, np.tile(np.asarray(self.axis, dtype=float), (values.shape[0], 1))
+        u, v, w = values[:, 3], values[:, 4], values[:, 5]
+        length = np.sqrt(u * u + v * v + w * w)  # unit_vector, term by term
+        if not (
+            np.isfinite(length).all()
+            and (length >= ZERO_AXIS).all()
+            and (np.abs(length - 1.0) <= AXIS_LENGTH_SLACK).all()
+        ):
+            return None
+        u, v, w = u / length, v / length, w / length
+        axis = np.empty_like(tip)
+        axis[:, 0] = a * u + b * v + c * w  # Frame.vector, term by term
+        axis[:, 1] = d * u + e * v + f * w
+        axis[:, 2] = g * u + h * v + i * w
+        self.axis_local = (float(u[-1]), float(v[-1]), float(w[-1]))
+        self.axis = self.frame.vector(self.axis_local)
+        self.multiaxis = True
+        return tip, axis
 
     def _from(self, record: Record) -> None:
         tip, _ = self._point(record)
@@ -774,6 +1107,14 @@ class _AptInterpreter:
         return handler
 
 
+def _first_record(run: GotoRun) -> Record:
+    """The first record of a run, as :func:`scan_records` makes it."""
+    end = run.text.find("\n", run.start)
+    end = len(run.text) if end < 0 else end
+    code = run.text[run.start : end].strip().partition("$$")[0].rstrip()
+    return parse_record(code, run.line)
+
+
 def _is_value(token: str) -> bool:
     """Whether a token is meant as a number (not a keyword)."""
     return not (_KEYWORD.fullmatch(token) and token.upper() not in _NOT_KEYWORDS)
@@ -812,14 +1153,17 @@ def read_apt_text(
     fallback = normalise_units(units)
     if not (math.isfinite(chord_tolerance) and chord_tolerance > 0.0):
         raise ValueError(f"chord_tolerance: expected a positive length, got {chord_tolerance!r}")
-    scan = scan_records(split_lines(text), source)
+    scan = scan_text(text, source)
     file_units = _file_units(scan.records) or fallback
     nx = scan.listing_lines > 0 or any(r.word in _NX_WORDS for r in scan.records)
+    runs = [r for r in scan.records if isinstance(r, GotoRun)]
     logger.debug(
-        "%s: %d records, units %s, dialect %s, %d listing lines skipped, "
-        "%d trailing $$ comments ignored",
+        "%s: %d records (%d GOTO in %d runs read in bulk), units %s, dialect %s, "
+        "%d listing lines skipped, %d trailing $$ comments ignored",
         source,
-        len(scan.records),
+        len(scan.records) - len(runs) + sum(len(r) for r in runs),
+        sum(len(r) for r in runs),
+        len(runs),
         file_units,
         "NX CLSF" if nx else "APT",
         scan.listing_lines,
