@@ -980,3 +980,13 @@ def test_bulk_reader_equals_record_by_record_random(groups, newline, final_newli
     with pytest.MonkeyPatch.context() as monkeypatch:
         bulk, single = read_both(text, monkeypatch, chord_tolerance=0.05)
     assert_same_toolpath(bulk, single)
+
+
+def test_arc_too_large_to_interpolate_is_a_clear_error() -> None:
+    """An arc whose radius needs more points than any machine could cut names its line."""
+    from urdfpost.errors import CLDataError
+    from urdfpost.readers import read_cl_text
+
+    text = "GOTO/0,0,0\nGOTO/0,1,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,1.3e154,0\n"
+    with pytest.raises(CLDataError, match=r":3: expected an arc a machine can cut"):
+        read_cl_text(text, source="huge.apt")

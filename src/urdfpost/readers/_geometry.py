@@ -106,7 +106,16 @@ def max_arc_step(radius: float, chord_tolerance: float) -> float:
     """
     if chord_tolerance >= radius:
         return math.pi / 2
-    return min(2.0 * math.acos(1.0 - chord_tolerance / radius), math.pi / 2)
+    # 1 - cos(d / 2) = 2 sin(d / 4)^2: stable when the tolerance is tiny against the radius
+    return min(4.0 * math.asin(math.sqrt(0.5 * chord_tolerance / radius)), math.pi / 2)
+
+
+class ArcTooFineError(ValueError):
+    """An arc would need more than :data:`MAX_ARC_POINTS` points."""
+
+
+#: Most points one arc may be interpolated into; more means a radius no machine can cut.
+MAX_ARC_POINTS = 10_000_000
 
 
 def interpolate_arc(
@@ -173,7 +182,14 @@ def interpolate_arc(
             partial = 2.0 * math.pi
     sweep = partial + 2.0 * math.pi * (turns - 1)
     step = max_arc_step(max(radius, r_s, r_e), chord_tolerance)
-    count = max(1, math.ceil(sweep / step - 1e-12))
+    pieces = sweep / step if step > 0 else math.inf
+    if not pieces <= MAX_ARC_POINTS:
+        raise ArcTooFineError(
+            f"expected an arc a machine can cut, got radius {max(radius, r_s, r_e):.6g} mm, "
+            f"which needs more than {MAX_ARC_POINTS} points at chord tolerance "
+            f"{chord_tolerance:g} mm"
+        )
+    count = max(1, math.ceil(pieces - 1e-12))
     t = np.arange(1, count + 1, dtype=float) / count
     theta = sweep * t
     rho = r_s + (r_e - r_s) * t

@@ -69,7 +69,7 @@ from ._common import (
     scale_of,
     unit_vector,
 )
-from ._geometry import IDENTITY, Frame, interpolate_arc
+from ._geometry import IDENTITY, ArcTooFineError, Frame, interpolate_arc
 
 logger = logging.getLogger(__name__)
 
@@ -855,6 +855,8 @@ class _AptInterpreter:
                 turns=circle.turns,
                 chord_tolerance=self.chord_tolerance,
             )
+        except ArcTooFineError as e:
+            raise CLDataError(self.source, circle.line, str(e)) from None
         except ValueError:
             raise CLDataError(
                 self.source,
