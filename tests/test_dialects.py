@@ -8,12 +8,16 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import urdfpost.dialects.reader as reader_module
+import urdfpost.dialects.writer as writer_module
 from urdfpost.dialects import DIALECTS, Dialect, dialect_for
 from urdfpost.errors import DialectError, ProgramParseError
 from urdfpost.program import (
@@ -648,3 +652,323 @@ def test_write_rejects_bad_programs() -> None:
 def test_nan_axes_are_not_written() -> None:
     program = Program("P", ("X", "Y"), frozenset(), "mm", False, (Move(True, (1.0, math.nan)),))
     assert "G0 X1.000\n" in DIALECTS["linuxcnc"].write(program)
+
+
+# -- many blocks at once: the same text and the same program as block by block ----------------
+
+
+def _outcome(call):
+    try:
+        return call()
+    except DialectError as exc:
+        return (type(exc), str(exc))
+
+
+def write_both(monkeypatch, dialect: Dialect, program: Program, **kwargs):
+    """``dialect.write`` with runs of moves formatted at once, and block by block."""
+    out = []
+    for least in (2, 10**9):
+        monkeypatch.setattr(writer_module, "BULK_MIN_MOVES", least)
+        out.append(_outcome(lambda: dialect.write(program, **kwargs)))
+    return out
+
+
+def read_both(monkeypatch, dialect: Dialect, text: str, **kwargs):
+    """``dialect.read`` with runs of plain motion blocks read at once, and line by line."""
+    out = []
+    for least in (1, 10**9):
+        monkeypatch.setattr(reader_module, "BULK_MIN_LINES", least)
+        # repr tells apart every float (and -0.0 from 0.0, NaN from numbers)
+        out.append(_outcome(lambda: repr(dialect.read(text, **kwargs))))
+    return out
+
+
+#: Coordinates that exercise the formatting: exact repeats (modal axes), signed zeros, values
+#: a hair from a rounding tie, long decimals, big numbers.
+BULK_LINEAR = st.one_of(
+    st.sampled_from([0.0, -0.0, 1.0, -0.0004, 0.0005, -0.0005, 2.5e-4, 12.3455, 0.1 + 0.2]),
+    st.floats(-2000, 2000, allow_nan=False),
+    st.integers(-99999, 99999).map(lambda k: k / 1000),
+    st.integers(-99999, 99999).map(lambda k: k / 1000 + 0.0005),
+)
+BULK_ROTARY = st.one_of(BULK_LINEAR, st.floats(-720, 720))
+
+
+@st.composite
+def bulk_programs(draw: st.DrawFn) -> Program:
+    """Programs with long runs of moves, repeated values and the odd special value."""
+    axes = draw(st.sampled_from(AXIS_SETS))
+    rotary = frozenset(a for a in axes if a in "ABC")
+    values = st.tuples(*(BULK_ROTARY if a in rotary else BULK_LINEAR for a in axes))
+    feed = st.one_of(st.none(), st.sampled_from([500.0, 500.04, 1250.5, 0.01, 3.0]), FEED)
+    special = st.sampled_from(
+        [
+            Move(False, tuple(math.nan for _ in axes), 100.0),
+            Move(False, (math.nan,) + (1.0,) * (len(axes) - 1), 100.0),
+            Move(False, (1.0,) * len(axes), 0.0),
+            Move(False, (1.0,) * len(axes), math.inf),
+            Move(False, (math.inf,) * len(axes), 1.0),
+            Move(False, (1.0,) * (len(axes) + 1), 1.0),
+            Move(1, (1.0,) * len(axes), 1.0),  # type: ignore[arg-type]
+            Move(False, (1e300,) * len(axes), 1.0),
+        ]
+    )
+
+    def run(items: list) -> list[Move]:
+        moves = []
+        position = list(draw(values))
+        for rapid, change, feed_value, new in items:
+            position[change % len(axes)] = new[change % len(axes)]
+            moves.append(Move(rapid, tuple(position), None if rapid else feed_value))
+        return moves
+
+    step = st.tuples(st.booleans(), st.integers(0, 5), feed, values)
+    body: list[Block] = [ToolChange(draw(st.integers(1, 99)))]
+    for _ in range(draw(st.integers(1, 4))):
+        body += run(draw(st.lists(step, min_size=0, max_size=40)))
+        if draw(st.integers(0, 9)) == 0:
+            body.append(draw(special))
+        body.append(
+            draw(
+                st.sampled_from(
+                    [Tcp(True), Tcp(False), Comment("c"), Home(), Coolant("mist"), Stop(True)]
+                )
+            )
+        )
+    return Program(
+        name="P1",
+        axes=axes,
+        rotary=rotary,
+        units=draw(st.sampled_from(["mm", "inch"])),
+        tcp=False,
+        blocks=tuple(body),
+        continuous=draw(st.sampled_from([frozenset(), rotary])),
+    )
+
+
+@pytest.mark.parametrize("name", NAMES)
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(program=bulk_programs(), block_numbers=st.sampled_from([None, True]))
+def test_bulk_write_and_read_equal_block_by_block(name, program, block_numbers) -> None:
+    dialect = DIALECTS[name]
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        bulk, single = write_both(monkeypatch, dialect, program, block_numbers=block_numbers)
+        assert bulk == single
+        if isinstance(bulk, str):
+            back_bulk, back_single = read_both(monkeypatch, dialect, bulk)
+            assert back_bulk == back_single
+
+
+def _long_program(count: int) -> Program:
+    moves = tuple(
+        Move(k % 50 == 0, (k * 0.001, -(k % 977) * 0.01, 5.0, (k % 90) * 0.5, k * 0.1), 800.0)
+        for k in range(count)
+    )
+    return Program(
+        "LONG", ("X", "Y", "Z", "B", "C"), frozenset("BC"), "mm", False, (ToolChange(3), *moves)
+    )
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_bulk_block_numbers_wrap(name, monkeypatch) -> None:
+    """Fanuc and LinuxCNC numbers wrap after N99990; more rows than one chunk of the writer."""
+    program = _long_program(12_000)
+    numbers = None if name == "heidenhain" else True
+    monkeypatch.setattr(reader_module, "_BULK_PIECE", 20_000)  # the text in many pieces
+    bulk, single = write_both(monkeypatch, DIALECTS[name], program, block_numbers=numbers)
+    assert bulk == single
+    if name in ("fanuc", "linuxcnc"):
+        assert "\nN99990 " in bulk and "\nN10 " in bulk.split("N99990", 1)[1]
+    back_bulk, back_single = read_both(monkeypatch, DIALECTS[name], bulk)
+    assert back_bulk == back_single
+
+
+#: Lines that the bulk reader must leave to the line-by-line reader, or read the same way.
+EDITS = {
+    "gcode": [
+        "G1 X1. Y2.",
+        "G0 X1.5",
+        "X1.5 Y-2.5 F300.",
+        "N5 G1 X1.",
+        "G01 X1.",
+        "G-0 X1.",
+        "G1.0 X1.",
+        "G91 G1 X1.",
+        "G90",
+        "G20",
+        "G21",
+        "G1 X1. X2.",
+        "G1 F0. X1.",
+        "G1 Y1. X1.",
+        "g1 x1.",
+        "G1  X1.",
+        " G1 X1.",
+        "G1 X1. ",
+        "G1 X1",
+        "G1 X1.2.3",
+        "G1 X+-1.",
+        "G1 X1. (note)",
+        "G1 X1. ; note",
+        "F500.",
+        "G28 G91 Z0.",
+        "M30",
+        "",
+        "%",
+        "G1 X=AC(1)",
+        "G1 X1. M8",
+        "G2 X1. Y1.",
+        "T5 M6",
+        "/G1 X1.",
+        "G1 X1e3",
+        "G1 Xnan",
+        "G1 X١.",
+    ],
+    "heidenhain": [
+        "L X+1.000 Y+2.000",
+        "L X+1.5 FMAX",
+        "L X+1.5 F300",
+        "L X+1.5 F0",
+        "L X+1.5 FMAX F300",
+        "L X+1.5 F300 FMAX",
+        "L IX+1.5",
+        "L X+1.5 R0",
+        "L X+1.5 M91",
+        "L Y+1 X+1",
+        "L X+1 X+2",
+        "L  X+1",
+        "l x+1",
+        "L X1.2.3",
+        "L",
+        "X+1",
+        "; note",
+        "L X+1 ; note",
+        "M30",
+        "TOOL CALL 4 Z S1000",
+        "FUNCTION RESET TCPM",
+    ],
+}
+
+
+@pytest.mark.parametrize("name", NAMES)
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_bulk_read_of_edited_programs_equals_line_by_line(name, data) -> None:
+    dialect = DIALECTS[name]
+    program = _long_program(60)
+    lines = dialect.write(program, block_numbers=True if name == "heidenhain" else None)
+    lines = lines.splitlines()
+    edits = EDITS["heidenhain" if name == "heidenhain" else "gcode"]
+    for _ in range(data.draw(st.integers(0, 6))):
+        at = data.draw(st.integers(0, len(lines)))
+        edit = data.draw(st.sampled_from(edits))
+        if name == "heidenhain":
+            edit = f"{at} {edit}" if data.draw(st.booleans()) else edit
+        lines.insert(at, edit)
+    newline = data.draw(st.sampled_from(["\n", "\r\n", "\r"]))
+    text = newline.join(lines) + data.draw(st.sampled_from(["", newline]))
+    verbatim = data.draw(st.sampled_from([[], ["G1 X1."], ["L X+1.5 FMAX"], ["M30"]]))
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        bulk, single = read_both(monkeypatch, dialect, text, verbatim=verbatim)
+    assert bulk == single
+
+
+def _formats() -> list:
+    from urdfpost.dialects import NumberFormat
+
+    specs = [d.spec for d in DIALECTS.values()]
+    found = {
+        fmt
+        for spec in specs
+        for fmt in (spec.linear_mm, spec.linear_inch, spec.rotary, spec.feed_mm, spec.feed_inch)
+    }
+    return sorted(
+        found | {NumberFormat(0, point=True), NumberFormat(0, trim=True), NumberFormat(2)},
+        key=repr,
+    )
+
+
+@pytest.mark.parametrize("fmt", _formats(), ids=repr)
+def test_numbers_formatted_at_once_equal_number_format(fmt) -> None:
+    from urdfpost.dialects import _bulk
+
+    rng = np.random.default_rng(7)
+    d = fmt.decimals
+    ties = (np.arange(-2000, 2000) + 0.5) / 10**d  # exact and inexact rounding ties
+    values = np.concatenate(
+        [
+            ties,
+            np.nextafter(ties, np.inf),
+            np.nextafter(ties, -np.inf),
+            rng.uniform(-1e4, 1e4, 3000),
+            rng.uniform(-1, 1, 3000),
+            np.round(rng.uniform(-1e3, 1e3, 1000), d),
+            [0.0, -0.0, 5e-324, -5e-324, 0.0004, -0.0004, 0.0005, -0.0005, 1e9, -1e9, 0.1 + 0.2],
+        ]
+    )
+    scaled = _bulk.scaled_integers(values, d)
+    assert scaled is not None
+    text = _bulk.text_of_rows(
+        np.hstack(
+            [
+                _bulk.number_slots(scaled, values < 0, fmt),
+                np.full((values.size, 1), ord("\n"), dtype=np.uint8),
+            ]
+        )
+    )
+    assert text.splitlines() == [fmt.format(float(v)) for v in values]
+    assert _bulk.scaled_integers(np.array([1e300]), d) is None
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize(
+    "special",
+    [
+        Move(False, (math.nan, 1.0, 2.0, 3.0, 4.0), 100.0),
+        Move(False, (math.nan,) * 5, 100.0),
+        Move(False, (1.0, 2.0, 3.0, 4.0, 5.0), 0.0),
+        Move(False, (1.0, 2.0, 3.0, 4.0, 5.0), 0.04),
+        Move(False, (1.0, 2.0, 3.0, 4.0, 5.0), -5.0),
+        Move(False, (1.0, 2.0, 3.0, 4.0, 5.0), math.inf),
+        Move(False, (1.0, 2.0, 3.0, 4.0, 5.0), math.nan),
+        Move(False, (math.inf, 2.0, 3.0, 4.0, 5.0), 1.0),
+        Move(False, (1.0, 2.0, 3.0), 1.0),
+        Move(False, (1.0, 2.0, 3.0, 4.0, 5.0, 6.0), 1.0),
+        Move(1, (1.0, 2.0, 3.0, 4.0, 5.0), 1.0),  # type: ignore[arg-type]
+        Move(False, (1e300, 2.0, 3.0, 4.0, 5.0), 1.0),
+        Move(False, (1e15, 2.0, 3.0, 4.0, 5.0), 1.0),
+    ],
+    ids=repr,
+)
+def test_bulk_write_of_special_moves_equals_block_by_block(name, special, monkeypatch) -> None:
+    moves = list(_long_program(80).blocks)
+    for at in (1, 2, 40):  # the first move of a run, the first of a chunk, inside a chunk
+        program = replace(_long_program(80), blocks=(*moves[:at], special, *moves[at:]))
+        bulk, single = write_both(monkeypatch, DIALECTS[name], program)
+        assert bulk == single
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_bulk_write_without_modal_axes_and_odd_block_format(name, monkeypatch) -> None:
+    program = _long_program(200)
+    spec = DIALECTS[name].spec
+    for changed in (
+        replace(spec, modal_axes=False),
+        replace(spec, block_format="N{n:05d}"),
+        replace(spec, block_format="#{n}:"),
+        replace(spec, motion_layout=None),
+    ):
+        dialect = Dialect(changed)
+        bulk, single = write_both(monkeypatch, dialect, program, block_numbers=True)
+        assert bulk == single
+        if isinstance(bulk, str):
+            back_bulk, back_single = read_both(monkeypatch, dialect, bulk)
+            assert back_bulk == back_single
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_bulk_read_with_other_line_breaks(name, monkeypatch) -> None:
+    text = DIALECTS[name].write(_long_program(40))
+    for other in ("\x0c", "\x85", "\u2028"):
+        edited = text.replace("\n", other, 3)
+        bulk, single = read_both(monkeypatch, DIALECTS[name], edited)
+        assert bulk == single

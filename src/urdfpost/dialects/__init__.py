@@ -18,10 +18,10 @@ from pathlib import PurePath
 
 from urdfpost.dialects import fanuc, heidenhain, linuxcnc, siemens
 from urdfpost.dialects.dialect import Dialect
-from urdfpost.dialects.spec import DialectSpec, NumberFormat
+from urdfpost.dialects.spec import DialectSpec, MotionLayout, NumberFormat
 from urdfpost.errors import DialectError
 
-__all__ = ["DIALECTS", "Dialect", "DialectSpec", "NumberFormat", "dialect_for"]
+__all__ = ["DIALECTS", "Dialect", "DialectSpec", "MotionLayout", "NumberFormat", "dialect_for"]
 
 DIALECTS: dict[str, Dialect] = {
     spec.name: Dialect(spec) for spec in (heidenhain.SPEC, siemens.SPEC, fanuc.SPEC, linuxcnc.SPEC)

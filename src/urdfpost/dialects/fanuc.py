@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from types import MappingProxyType
 
-from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, NumberFormat
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout, NumberFormat
 
 
 def _program_name(name: str) -> str:
@@ -85,4 +85,5 @@ SPEC = DialectSpec(
     feed_inch=NumberFormat(2, trim=True, point=True),
     require_point=True,
     block_max=99999,
+    motion_layout=MotionLayout(),
 )

@@ -33,7 +33,13 @@ import re
 from types import MappingProxyType
 
 from urdfpost.dialects.reader import BEFORE_MOTION_M, ProgramBuilder, apply_m_action
-from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionWords, NumberFormat
+from urdfpost.dialects.spec import (
+    STANDARD_M_CODES,
+    DialectSpec,
+    MotionLayout,
+    MotionWords,
+    NumberFormat,
+)
 
 _LINE = re.compile(r"\s*(\d+)(?:\s+(.*))?\Z")
 _BEGIN = re.compile(r"BEGIN PGM (\S+) (MM|INCH)\Z")
@@ -263,5 +269,6 @@ SPEC = DialectSpec(
     number_comments=True,
     rapid_modal=False,
     format_motion=format_motion,
+    motion_layout=MotionLayout(lead="L", rapid_word="FMAX"),
     parse_line=parse_line,
 )

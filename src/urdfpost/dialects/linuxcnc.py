@@ -34,7 +34,7 @@ from __future__ import annotations
 import re
 from types import MappingProxyType
 
-from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout
 
 _ACTIVE_COMMENT = re.compile(
     r"^(\s*(?:MSG|DEBUG|PRINT|LOG|LOGOPEN|LOGAPPEND|LOGCLOSE|PROBEOPEN|PROBECLOSE|ABORT))\s*,",
@@ -94,4 +94,5 @@ SPEC = DialectSpec(
     tcp_off=("M429", "G49"),
     home=("G28 G91 Z0", "G28 X0 Y0", "G90"),
     block_max=99999,
+    motion_layout=MotionLayout(),
 )

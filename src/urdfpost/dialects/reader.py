@@ -29,12 +29,16 @@ Reading rules:
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import PurePath
 
+import numpy as np
+
+from urdfpost.dialects import _bulk
 from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec
 from urdfpost.errors import ProgramParseError
 from urdfpost.program import (
@@ -75,6 +79,31 @@ class _ReadMove:
     feed: float | None
 
 
+class _ReadMoves:
+    """Consecutive moves read at once.
+
+    Attributes
+    ----------
+    position : ndarray, shape (k, 6)
+        Positions in mm and degrees, columns in AXIS_ORDER; NaN where unknown.
+    rapid : ndarray, shape (k,), bool
+    feed : ndarray, shape (k,)
+        mm/min; NaN for rapids and before any feed.
+    """
+
+    def __init__(self, position: np.ndarray, rapid: np.ndarray, feed: np.ndarray) -> None:
+        self.position = position
+        self.rapid = rapid
+        self.feed = feed
+
+    def moves(self, axes: tuple[str, ...]) -> list[Move]:
+        """The moves, with the positions of ``axes``."""
+        columns = [self.position[:, AXIS_ORDER.index(a)].tolist() for a in axes]
+        positions = zip(*columns, strict=True)  # one tuple per move
+        feeds = [None if f != f else f for f in self.feed.tolist()]  # NaN: no feed
+        return list(map(Move, self.rapid.tolist(), positions, feeds))
+
+
 class ProgramBuilder:
     """Modal state of a control while a program is read, and the blocks read so far.
 
@@ -110,7 +139,7 @@ class ProgramBuilder:
         self.work_offset: str | None = None
         self.ended = False
         self.code_seen = False
-        self.items: list[Block | _ReadMove] = []
+        self.items: list[Block | _ReadMove | _ReadMoves] = []
 
     # -- helpers -----------------------------------------------------------------------------
 
@@ -128,7 +157,7 @@ class ProgramBuilder:
         """File units -> mm (linear axes) or degrees (rotary)."""
         return value if address in ROTARY_ADDRESSES else value * self.linear_scale
 
-    def _add(self, item: Block | _ReadMove) -> None:
+    def _add(self, item: Block | _ReadMove | _ReadMoves) -> None:
         if self.ended and not isinstance(item, Comment):
             raise self.error("code after the program end; expected nothing but comments")
         self.items.append(item)
@@ -199,6 +228,61 @@ class ProgramBuilder:
         if not rapid and self.tcp_at_first_feed is None:
             self.tcp_at_first_feed = self.tcp
         self._add(_ReadMove(rapid, position, None if rapid else self.feed))
+
+    def moves(self, lines: _bulk.MotionLines, rows: slice, first_line: int) -> bool:
+        """Plain motion blocks, read at once: as :meth:`move` (and the feed and motion code of
+        each block) on each, in order.
+
+        Parameters
+        ----------
+        lines : MotionLines
+            Words of the blocks; ``rows`` selects consecutive plain ones.
+        first_line : int
+            Line number of the first block.
+
+        Returns
+        -------
+        bool
+            False, with nothing done, when the blocks need the block-by-block reader (the
+            program has ended, incremental mode, no motion mode yet).
+        """
+        if self.ended or not self.absolute:
+            return False
+        k = rows.stop - rows.start
+        code = lines.code[rows]
+        if self.spec.motion_layout is not None and self.spec.motion_layout.rapid_word:
+            rapid = lines.rapid_word[rows].copy()
+        else:
+            start = math.nan if self.motion is None else float(self.motion)
+            mode = _fill_forward(np.where(code >= 0, code, np.nan), start)
+            if np.isnan(mode).any():
+                return False
+            rapid = mode == 1.0
+        written = lines.axes[rows]
+        scale = np.array([1.0 if a in ROTARY_ADDRESSES else self.linear_scale for a in AXIS_ORDER])
+        position = np.empty((k, len(AXIS_ORDER)))
+        for j, address in enumerate(AXIS_ORDER):
+            start = self.position.get(address, math.nan)
+            position[:, j] = _fill_forward(written[:, j] * scale[j], start)
+        feed_words = lines.feed[rows] * self.feed_scale
+        start_feed = math.nan if self.feed is None else self.feed
+        feed = _fill_forward(feed_words, start_feed)
+        self.code_seen = True
+        self.line = first_line + k - 1
+        if self.tcp_at_first_feed is None and not rapid.all():
+            self.tcp_at_first_feed = self.tcp
+        seen = [a for j, a in enumerate(AXIS_ORDER) if not np.isnan(written[:, j]).all()]
+        self.axes_seen.update(seen)
+        self.position = {
+            **self.position,
+            **{a: float(position[-1, AXIS_ORDER.index(a)]) for a in seen},
+        }
+        if (code >= 0).any():
+            self.motion = bool(code[code >= 0][-1] == 1)
+        if not np.isnan(feed_words).all():
+            self.feed = float(feed[-1])
+        self._add(_ReadMoves(position, rapid, np.where(rapid, math.nan, feed)))
+        return True
 
     def home(self, axes: list[str]) -> None:
         """Reference return or machine-coordinate block: the axes' positions become unknown."""
@@ -277,6 +361,8 @@ class ProgramBuilder:
             if isinstance(item, _ReadMove):
                 position = tuple(item.position.get(a, math.nan) for a in axes)
                 blocks.append(Move(item.rapid, position, item.feed))
+            elif isinstance(item, _ReadMoves):
+                blocks.extend(item.moves(axes))
             else:
                 blocks.append(item)
         rotary = frozenset(axes) & ROTARY_ADDRESSES
@@ -636,10 +722,63 @@ def apply_m_action(builder: ProgramBuilder, action: str) -> None:
             raise builder.error(f"M-code action {action!r} is not allowed here")
 
 
+#: Line breaks of ``str.splitlines`` other than ``\\n`` and ``\\r``; a text with any of them is
+#: read line by line only.
+_OTHER_BREAKS = re.compile("[\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029]")
+#: Fewest consecutive plain motion blocks read at once.
+BULK_MIN_LINES = 8
+#: Characters of text split into words at once (bounds the temporary arrays, ~40 bytes each).
+_BULK_PIECE = 1 << 20
+
+
+def _has_other_breaks(text: str) -> bool:
+    """Whether ``text`` has a line break of ``str.splitlines`` other than LF and CR."""
+    if text.isascii():  # str.find is much faster than a regular expression
+        return any(char in text for char in "\x0b\x0c\x1c\x1d\x1e")
+    return _OTHER_BREAKS.search(text) is not None
+
+
+def _fill_forward(values: np.ndarray, start: float) -> np.ndarray:
+    """``values``, shape (k,), with each NaN replaced by the last number before it (``start``
+    before the first)."""
+    have = ~np.isnan(values)
+    index = np.where(have, np.arange(values.shape[0]), -1)
+    np.maximum.accumulate(index, out=index)
+    return np.where(index >= 0, values[np.maximum(index, 0)], start)
+
+
+def _grammar(spec: DialectSpec) -> _bulk.MotionGrammar | None:
+    """The plain motion blocks of a control's programs, when its spec has a motion layout."""
+    layout = spec.motion_layout
+    if layout is None:
+        return None
+    prefix, placeholder, suffix = spec.block_format.partition("{n}")
+    if not placeholder or suffix or len(prefix) > 1 or (prefix and not prefix.isupper()):
+        return None
+    codes: dict[float, bool] = {}
+    if layout.rapid_word is None:
+        for key, action in spec.g_codes.items():
+            if action in ("rapid", "linear"):
+                codes[float(key)] = action == "rapid"
+        if sorted(codes.values()) != [False, True]:
+            return None
+    return _bulk.MotionGrammar(
+        number_letter=prefix,
+        number_required=spec.block_numbers_mandatory,
+        lead=layout.lead,
+        codes=codes,
+        rapid_word=layout.rapid_word,
+        require_point=spec.require_point,
+    )
+
+
 def read_program(
     spec: DialectSpec, text: str, path: str = "<string>", verbatim: Iterable[str] = ()
 ) -> Program:
     """Read NC text of the control described by ``spec``.
+
+    Runs of plain motion blocks (see :class:`~urdfpost.dialects._bulk.MotionGrammar`) are read
+    many at a time when the spec has a motion layout, with the same result as line by line.
 
     Parameters
     ----------
@@ -668,7 +807,8 @@ def read_program(
     builder = ProgramBuilder(spec, path)
     parse_line = spec.parse_line or parse_gcode_line
     trusted = {line.strip() for insert in verbatim for line in insert.splitlines()} - {""}
-    for number, line in enumerate(text.splitlines(), start=1):
+
+    def read_line(number: int, line: str) -> None:
         builder.line = number
         content = line.strip()
         if spec.block_numbers_mandatory:
@@ -677,4 +817,46 @@ def read_program(
             builder.insert(content)
         elif content:
             parse_line(spec, builder, line)
+
+    grammar = _grammar(spec)
+    if grammar is None or _has_other_breaks(text):
+        for number, line in enumerate(text.splitlines(), start=1):
+            read_line(number, line)
+        return builder.build()
+    if "\r" in text:  # one \n per line break: the line numbers of splitlines
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    number = 1  # of the first line of the piece
+    start = 0
+    while start < len(text):
+        end = text.find("\n", start + _BULK_PIECE) + 1 or len(text)
+        piece = text[start:end]
+        lines = _bulk.motion_lines(piece, grammar)
+        plain = lines.plain.copy()
+        if trusted:
+            plain &= ~_trusted_lines(piece, lines, trusted, spec.block_numbers_mandatory)
+        edges = [0, *(np.flatnonzero(np.diff(plain)) + 1).tolist(), plain.shape[0]]
+        for row, stop in itertools.pairwise(edges):
+            bulk = bool(plain[row]) and stop - row >= BULK_MIN_LINES
+            if not (bulk and builder.moves(lines, slice(row, stop), number + row)):
+                for r in range(row, stop):
+                    read_line(number + r, piece[lines.starts[r] : lines.ends[r]])
+        number += plain.shape[0]
+        start = end
     return builder.build()
+
+
+def _trusted_lines(
+    piece: str, lines: _bulk.MotionLines, trusted: set[str], numbered: bool
+) -> np.ndarray:
+    """Which lines of ``piece`` are verbatim inserts, shape (L,), bool."""
+    out = np.zeros(lines.starts.shape[0], dtype=bool)
+    for text in trusted:
+        at = piece.find(text)
+        while at >= 0:
+            row = int(np.searchsorted(lines.starts, at, side="right")) - 1
+            content = piece[lines.starts[row] : lines.ends[row]].strip()
+            if numbered:
+                content = re.sub(r"^\d+\s+", "", content)
+            out[row] |= content in trusted
+            at = piece.find(text, at + 1)
+    return out

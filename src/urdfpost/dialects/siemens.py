@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from types import MappingProxyType
 
-from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout
 
 G_CODES = MappingProxyType(
     {
@@ -74,4 +74,5 @@ SPEC = DialectSpec(
     tcp_on=("TRAORI",),
     tcp_off=("TRAFOOF",),
     home=("G75 FP=1 Z1=0", "G75 FP=1 X1=0 Y1=0"),
+    motion_layout=MotionLayout(),
 )

@@ -158,6 +158,26 @@ class MotionWords:
     feed: str | None
 
 
+@dataclass(frozen=True)
+class MotionLayout:
+    """The words of a motion block in order, for writing many blocks at once.
+
+    A block is, joined by single blanks: ``lead`` (when set), the motion code (when written),
+    the axis words, ``rapid_word`` on rapid blocks (when set), and ``F<feed>`` (when written).
+    It must give what :attr:`DialectSpec.format_motion` gives for the same words.
+
+    Attributes
+    ----------
+    lead : str or None
+        First word of every motion block (Heidenhain ``L``).
+    rapid_word : str or None
+        Word that makes a block rapid (Heidenhain ``FMAX``); None when the motion code does.
+    """
+
+    lead: str | None = None
+    rapid_word: str | None = None
+
+
 def format_gcode_motion(words: MotionWords) -> str:
     """Word-address motion block: ``G1 X1.000 Y2.000 F500``.
 
@@ -266,6 +286,9 @@ class DialectSpec:
         The rapid code is modal (G0). False for Heidenhain ``FMAX`` (one block only).
     format_motion : callable
         Motion block formatter.
+    motion_layout : MotionLayout or None
+        The same as data, which lets the writer format long runs of motion blocks at once;
+        None writes every block through ``format_motion``.
     parse_line : callable or None
         Reader hook for non-G-code syntax; None uses the shared word-address parser.
     """
@@ -322,6 +345,7 @@ class DialectSpec:
     modal_axes: bool = True
     rapid_modal: bool = True
     format_motion: Callable[[MotionWords], str] = format_gcode_motion
+    motion_layout: MotionLayout | None = None
     parse_line: Callable[[DialectSpec, ProgramBuilder, str], None] | None = None
 
     def g_code_for(self, action: str) -> str:

@@ -4,15 +4,31 @@ The writer keeps the modal state a control keeps: the last written value of ever
 text, so a value that rounds to the same text is not repeated), the motion code, the feed, the
 tool and the spindle speed. The first motion block after the start, a tool change, a TCP
 switch, a home return or an inserted text writes every axis, the motion code and the feed.
+
+Long runs of motion blocks are written many at a time when the control's spec has a
+:class:`~urdfpost.dialects.spec.MotionLayout`: the same modal rules and number formats applied
+to arrays (:mod:`urdfpost.dialects._bulk`), giving the same text as block by block.
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
+import operator
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec, MotionWords
+import numpy as np
+
+from urdfpost.dialects import _bulk
+from urdfpost.dialects.spec import (
+    AXIS_ORDER,
+    ROTARY_ADDRESSES,
+    DialectSpec,
+    MotionWords,
+    NumberFormat,
+)
 from urdfpost.errors import DialectError
 from urdfpost.program import (
     Block,
@@ -30,6 +46,13 @@ from urdfpost.program import (
 from urdfpost.tolerances import MM_PER_INCH
 
 logger = logging.getLogger(__name__)
+
+#: Fewest consecutive motion blocks written at once (shorter runs go block by block).
+BULK_MIN_MOVES = 16
+#: Motion blocks formatted together (bounds the memory of the byte matrix, ~100 bytes a block).
+_BULK_ROWS = 1 << 15
+
+_RAPID, _POSITION, _FEED = (operator.attrgetter(name) for name in ("rapid", "position", "feed"))
 
 _SPINDLE_ACTIONS = {"cw": "spindle_cw", "ccw": "spindle_ccw", "off": "spindle_off"}
 _COOLANT_ACTIONS = {"flood": "coolant_flood", "mist": "coolant_mist", "off": "coolant_off"}
@@ -95,6 +118,9 @@ class ProgramWriter:
         self.feed_scale = spec.feed_inch_unit if program.units == "inch" else 1.0
         self.linear = spec.linear_inch if program.units == "inch" else spec.linear_mm
         self.feed_format = spec.feed_inch if program.units == "inch" else spec.feed_mm
+        prefix, n, suffix = spec.block_format.partition("{n}")
+        plain = n and "{" not in prefix + suffix and "}" not in prefix + suffix
+        self._number_affixes = (prefix, suffix) if plain else None
 
     # -- output primitives -------------------------------------------------------------------
 
@@ -132,8 +158,17 @@ class ProgramWriter:
         if spec.shortest_path and rotary_continuous & self.program.rotary:
             self.emit(spec.shortest_path)
         self._plan_spindle_merges()
-        for index, block in enumerate(self.program.blocks):
-            self.write_block(index, block)
+        blocks = self.program.blocks
+        is_move = np.fromiter(map(isinstance, blocks, itertools.repeat(Move)), bool, len(blocks))
+        edges = np.flatnonzero(np.diff(is_move)) + 1
+        for start, end in zip([0, *edges.tolist()], [*edges.tolist(), len(blocks)], strict=True):
+            if start == end:
+                continue
+            if is_move[start]:
+                self.write_moves(blocks[start:end])  # type: ignore[arg-type]
+            else:
+                for index in range(start, end):
+                    self.write_block(index, blocks[index])
         self.emit_templates(spec.finish)
         self.emit_templates(spec.program_close, spec.number_frame)
         return "\n".join(self.lines) + "\n"
@@ -237,6 +272,176 @@ class ProgramWriter:
         words = MotionWords(move.rapid, code, tuple(changed), feed)
         self.emit(self.spec.format_motion(words))
 
+    def write_moves(self, moves: Sequence[Move]) -> None:
+        """Write consecutive motion blocks: as :meth:`write_move` on each, many at a time.
+
+        The first block goes through :meth:`write_move` (it may follow a forced state); the
+        others are formatted in chunks when the spec has a motion layout. A chunk whose values
+        the block-by-block path would refuse or treat specially (NaN, a wrong number of values,
+        a feed written as zero) is written block by block from there on, errors included.
+        """
+        if self.spec.motion_layout is None or len(moves) < BULK_MIN_MOVES:
+            for move in moves:
+                self.write_move(move)
+            return
+        self.write_move(moves[0])
+        for start in range(1, len(moves), _BULK_ROWS):
+            if not self._write_move_chunk(moves[start : start + _BULK_ROWS]):
+                for move in moves[start:]:
+                    self.write_move(move)
+                return
+
+    def _write_move_chunk(self, moves: Sequence[Move]) -> bool:
+        """Write motion blocks that follow a motion block, all at once.
+
+        Returns
+        -------
+        bool
+            False, with nothing written, when the blocks are not all plain (finite values for
+            every axis, bool rapid flags, feeds written as positive numbers), the modal state
+            is not known in full, or the block numbers are not a plain ``prefix{n}suffix``.
+        """
+        spec, modal, layout = self.spec, self.modal, self.spec.motion_layout
+        axes = self.program.axes
+        k = len(moves)
+        if (
+            layout is None
+            or modal.force
+            or not (modal.motion is True or modal.motion is False)
+            or any(a not in modal.axes for a in axes)
+            or (self.numbered and self._number_affixes is None)
+            or (self.numbered and 0 < spec.block_max < spec.block_step)
+        ):
+            return False
+        rapid_list = list(map(_RAPID, moves))
+        positions = list(map(_POSITION, moves))
+        feed_list = list(map(_FEED, moves))
+        if set(map(type, rapid_list)) != {bool} or set(map(len, positions)) != {len(axes)}:
+            return False
+        try:
+            values = itertools.chain.from_iterable(positions)
+            pos = np.fromiter(values, dtype=float, count=k * len(axes)).reshape(k, len(axes))
+            feed = np.array(feed_list, dtype=float)  # None -> NaN
+        except (TypeError, ValueError):
+            return False
+        if not np.isfinite(pos).all():
+            return False
+        rapid = np.array(rapid_list, dtype=bool)
+        has_feed = np.fromiter(map(operator.is_not, feed_list, itertools.repeat(None)), bool, k)
+        # -- axis values: scaled integers stand for their texts ---------------------------
+        formats: list[NumberFormat] = []
+        scaled = np.empty((k, len(axes)), dtype=np.int64)
+        previous = np.empty(len(axes), dtype=np.int64)
+        for j, address in enumerate(axes):
+            rotary = address in ROTARY_ADDRESSES
+            fmt = spec.rotary if rotary else self.linear
+            column = pos[:, j] if rotary else pos[:, j] / self.scale
+            ints = _bulk.scaled_integers(column, fmt.decimals)
+            if ints is None:
+                return False
+            last = _scaled_from_text(modal.axes[address], fmt.decimals)
+            if last is None:
+                return False
+            formats.append(fmt)
+            scaled[:, j] = ints
+            previous[j] = last
+        before = np.vstack([previous, scaled[:-1]])
+        changed = scaled != before
+        if spec.modal_axes:
+            written = changed | ~changed.any(axis=1, keepdims=True)
+        else:
+            written = np.ones_like(changed)
+        # -- feed: written when it changes among the feed moves --------------------------
+        feed_rows = np.flatnonzero(~rapid & has_feed)
+        feed_scaled = np.zeros(0, dtype=np.int64)
+        if feed_rows.size:
+            values = feed[feed_rows] / self.feed_scale
+            if not np.isfinite(values).all():
+                return False
+            feed_scaled = _bulk.scaled_integers(values, self.feed_format.decimals)
+            if feed_scaled is None or (feed_scaled <= 0).any():
+                return False
+        last_feed = None
+        if modal.feed is not None:
+            last_feed = _scaled_from_text(modal.feed, self.feed_format.decimals)
+            if last_feed is None:
+                return False
+        feed_written = np.ones(feed_rows.size, dtype=bool)
+        if feed_rows.size:
+            feed_written[1:] = feed_scaled[1:] != feed_scaled[:-1]
+            feed_written[0] = last_feed is None or feed_scaled[0] != last_feed
+        # -- the lines --------------------------------------------------------------------
+        words = []
+        if layout.lead:
+            words.append(_bulk.word_slots(" " + layout.lead, k))
+        if spec.rapid_modal:
+            code_rows = rapid != np.concatenate([[modal.motion], rapid[:-1]])
+            rapid_code = " " + spec.g_code_for("rapid")
+            linear_code = " " + spec.g_code_for("linear")
+            width = max(len(rapid_code), len(linear_code))
+            code = np.where(
+                rapid[:, None],
+                _bulk.word_slots(rapid_code.ljust(width, "\0"), 1),
+                _bulk.word_slots(linear_code.ljust(width, "\0"), 1),
+            )
+            code[~code_rows] = 0
+            words.append(code)
+        for j, address in enumerate(axes):
+            slots = _bulk.number_slots(scaled[:, j], pos[:, j] < 0, formats[j])
+            word = np.hstack([_bulk.word_slots(" " + address, k), slots])
+            word[~written[:, j]] = 0
+            words.append(word)
+        if layout.rapid_word:
+            word = _bulk.word_slots(" " + layout.rapid_word, k)
+            word[~rapid] = 0
+            words.append(word)
+        if feed_rows.size:
+            positive = np.zeros(feed_rows.size, dtype=bool)
+            slots = _bulk.number_slots(feed_scaled, positive, self.feed_format)
+            word = np.zeros((k, 2 + slots.shape[1]), dtype=np.uint8)
+            word[feed_rows] = np.hstack([_bulk.word_slots(" F", feed_rows.size), slots])
+            word[feed_rows[~feed_written]] = 0
+            words.append(word)
+        body = np.hstack(words)
+        first = (body != 0).argmax(axis=1)  # every word starts with a blank; not the first
+        body[np.arange(k), first] = 0
+        parts = [body, np.full((k, 1), ord("\n"), dtype=np.uint8)]
+        if self.numbered:
+            parts.insert(0, self._block_number_slots(k))
+        self.lines.append(_bulk.text_of_rows(np.hstack(parts))[:-1])
+        # -- the modal state after the last block -----------------------------------------
+        last = moves[-1]
+        modal.axes.update(
+            (a, self.format_axis(a, v)) for a, v in zip(axes, last.position, strict=True)
+        )
+        modal.motion = last.rapid
+        if feed_rows.size:
+            modal.feed = self.feed_format.format(float(feed[feed_rows[-1]]) / self.feed_scale)
+        return True
+
+    def _block_number_slots(self, k: int) -> np.ndarray:
+        """Block numbers of the next ``k`` lines with their blank, shape (k, width)."""
+        spec = self.spec
+        step, top = spec.block_step, spec.block_max
+        numbers = self._next_number + step * np.arange(k, dtype=np.int64)
+        if top:
+            wrapped = numbers > top
+            if wrapped.any():
+                w = int(np.argmax(wrapped))
+                period = top // step
+                numbers[w:] = step + step * (np.arange(k - w, dtype=np.int64) % period)
+        following = int(numbers[-1]) + step
+        self._next_number = step if top and following > top else following
+        assert self._number_affixes is not None
+        prefix, suffix = self._number_affixes
+        return np.hstack(
+            [
+                _bulk.word_slots(prefix, k),
+                _bulk.integer_slots(numbers),
+                _bulk.word_slots(suffix + " ", k),
+            ]
+        )
+
     def format_axis(self, address: str, value: float) -> str:
         """Axis value text in program units."""
         if address in ROTARY_ADDRESSES:
@@ -302,6 +507,16 @@ class ProgramWriter:
             )
         self.emit_templates(templates, tool=self.modal.tool)
         self.modal.invalidate()
+
+
+def _scaled_from_text(text: str, decimals: int) -> int | None:
+    """A number written with ``decimals`` decimals as the integer of its digits (``"-1.5"``
+    and 2 decimals: -150); None beyond what :func:`_bulk.scaled_integers` gives."""
+    sign = -1 if text.startswith("-") else 1
+    whole, _, fraction = text.lstrip("+-").partition(".")
+    fraction = (fraction + "0" * decimals)[:decimals]
+    value = sign * (int(whole or "0") * 10**decimals + int(fraction or "0"))
+    return value if abs(value) < _bulk.MAX_SCALED else None
 
 
 def _number(spec: DialectSpec, program: Program) -> int:
