@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import urdfpost.readers.apt as apt_module
@@ -965,7 +965,7 @@ _other_line = st.sampled_from(
 )
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     st.lists(
         st.one_of(st.lists(_goto_line, min_size=1, max_size=6), _other_line.map(lambda x: [x])),
@@ -990,3 +990,23 @@ def test_arc_too_large_to_interpolate_is_a_clear_error() -> None:
     text = "GOTO/0,0,0\nGOTO/0,1,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,1.3e154,0\n"
     with pytest.raises(CLDataError, match=r":3: expected an arc a machine can cut"):
         read_cl_text(text, source="huge.apt")
+
+
+def test_bulk_reader_long_blocks_in_pieces(monkeypatch):
+    """Blocks longer than a piece are read in several runs, the same points."""
+    monkeypatch.setattr(apt_module, "_BULK_PIECE", 200)
+    monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 4)
+    lines = [f"GOTO/{k}.25,{-k}.5,{k % 5},0,0.6,0.8" for k in range(500)]
+    text = "FEDRAT/100\n" + "\n".join(lines) + "\nGOTO/1,2,3 $$ x\n" + "\n".join(lines)
+    scan = apt_module.scan_text(text, "src.apt")
+    runs = [r for r in scan.records if isinstance(r, apt_module.GotoRun)]
+    assert len(runs) > 4
+    assert sum(len(r) for r in runs) > 900
+    bulk, single = read_both(text, monkeypatch)
+    assert_same_toolpath(bulk, single)
+
+
+def test_scan_records_stops_at_fini():
+    scan = apt_module.scan_records(["GOTO/1,2,3", "FINI", "", "GOTO/4,5,6", "$$ x"], "src.apt")
+    assert [r.word for r in scan.records] == ["GOTO", "FINI"]
+    assert scan.after_fini == [4, 5]

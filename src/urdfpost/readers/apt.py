@@ -734,28 +734,30 @@ class _AptInterpreter:
             return None
         (a, b, c), (d, e, f), (g, h, i) = self.frame.rotation
         ox, oy, oz = self.frame.origin
-        x = values[:, 0] * self.scale
-        y = values[:, 1] * self.scale
-        z = values[:, 2] * self.scale
-        tip = np.empty((values.shape[0], 3))
-        tip[:, 0] = ox + a * x + b * y + c * z  # Frame.point, term by term
-        tip[:, 1] = oy + d * x + e * y + f * z
-        tip[:, 2] = oz + g * x + h * y + i * z
-        if values.shape[1] == 3:
-            return tip, np.tile(np.asarray(self.axis, dtype=float), (values.shape[0], 1))
-        u, v, w = values[:, 3], values[:, 4], values[:, 5]
-        length = np.sqrt(u * u + v * v + w * w)  # unit_vector, term by term
-        if not (
-            np.isfinite(length).all()
-            and (length >= ZERO_AXIS).all()
-            and (np.abs(length - 1.0) <= AXIS_LENGTH_SLACK).all()
-        ):
-            return None
-        u, v, w = u / length, v / length, w / length
-        axis = np.empty_like(tip)
-        axis[:, 0] = a * u + b * v + c * w  # Frame.vector, term by term
-        axis[:, 1] = d * u + e * v + f * w
-        axis[:, 2] = g * u + h * v + i * w
+        k = values.shape[0]
+        with np.errstate(over="ignore", invalid="ignore"):  # as with Python floats: inf, quietly
+            x = values[:, 0] * self.scale
+            y = values[:, 1] * self.scale
+            z = values[:, 2] * self.scale
+            tip = np.empty((k, 3))
+            tip[:, 0] = ox + a * x + b * y + c * z  # Frame.point, term by term
+            tip[:, 1] = oy + d * x + e * y + f * z
+            tip[:, 2] = oz + g * x + h * y + i * z
+            if values.shape[1] == 3:
+                return tip, np.tile(np.asarray(self.axis, dtype=float), (k, 1))
+            u, v, w = values[:, 3], values[:, 4], values[:, 5]
+            length = np.sqrt(u * u + v * v + w * w)  # unit_vector, term by term
+            if not (
+                np.isfinite(length).all()
+                and (length >= ZERO_AXIS).all()
+                and (np.abs(length - 1.0) <= AXIS_LENGTH_SLACK).all()
+            ):
+                return None
+            u, v, w = u / length, v / length, w / length
+            axis = np.empty_like(tip)
+            axis[:, 0] = a * u + b * v + c * w  # Frame.vector, term by term
+            axis[:, 1] = d * u + e * v + f * w
+            axis[:, 2] = g * u + h * v + i * w
         self.axis_local = (float(u[-1]), float(v[-1]), float(w[-1]))
         self.axis = self.frame.vector(self.axis_local)
         self.multiaxis = True
