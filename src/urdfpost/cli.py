@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 import os
 import sys
 import tempfile
@@ -358,16 +357,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     )
     pivot = 0.0
     if args.angle_tolerance > 0:
-        from dataclasses import replace
-
-        from urdfpost.pipeline import ball_radius
+        from urdfpost.pipeline import ball_radius, bent_tolerances
 
         pivot = ball_radius(toolpath)
-        tol = replace(
-            tol,
-            orientation=tol.orientation + math.radians(args.angle_tolerance),
-            tip=tol.tip + pivot * tol.orientation,
-        )
+        tol = bent_tolerances(tol, args.angle_tolerance, pivot)
     check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
     _show_warnings(toolpath.warnings)
     if args.report:

@@ -256,6 +256,36 @@ class Linearized:
     error: BlockError
 
 
+def nearest_solution(
+    machine: Machine, axis: np.ndarray, guess: np.ndarray, tol: Tolerances
+) -> np.ndarray:
+    """Exact rotary angles for tool axes on the branch and turn nearest a guess.
+
+    Parameters
+    ----------
+    machine : Machine
+    axis : ndarray, shape (k, 3)
+    guess : ndarray, shape (k, r), rad
+        Rotary angles (chain order) to be near; an undetermined first angle (a pole) takes
+        the guess's, and so does an unreachable axis (which a reachable path cannot give).
+
+    Returns
+    -------
+    ndarray, shape (k, r), rad
+    """
+    sols = solve_rotary(machine, axis, tol)
+    ang = sols.angles.copy()  # (k, 2, r)
+    ang[:, :, 0] = np.where(np.isnan(ang[:, :, 0]), guess[:, None, 0], ang[:, :, 0])
+    ang = ang + 2 * np.pi * np.round((guess[:, None, :] - ang) / (2 * np.pi))
+    dist = np.abs(ang - guess[:, None, :]).sum(axis=2)
+    dist = np.where(sols.valid, dist, np.inf)
+    br = np.argmin(dist, axis=1)
+    rot = ang[np.arange(len(br)), br]
+    bad = ~np.isfinite(dist[np.arange(len(br)), br])
+    rot[bad] = guess[bad]
+    return rot
+
+
 def _midpoints(
     machine: Machine,
     qa: np.ndarray,
@@ -270,20 +300,8 @@ def _midpoints(
     """CL midpoints of blocks, solved on the branch nearest the neighbours' interpolation."""
     tip = 0.5 * (pa + pb)
     ax = slerp(va, vb, np.full(len(pa), 0.5))
-    guess = 0.5 * (qa + qb)
     cols = list(machine.rotary_columns)
-    g_rot = guess[:, cols]
-    sols = solve_rotary(machine, ax, tol)
-    ang = sols.angles.copy()  # (n, 2, r)
-    ang[:, :, 0] = np.where(np.isnan(ang[:, :, 0]), g_rot[:, None, 0], ang[:, :, 0])
-    # nearest 360-degree multiple to the guess, per branch
-    ang = ang + 2 * np.pi * np.round((g_rot[:, None, :] - ang) / (2 * np.pi))
-    dist = np.abs(ang - g_rot[:, None, :]).sum(axis=2)
-    dist = np.where(sols.valid, dist, np.inf)
-    br = np.argmin(dist, axis=1)
-    rot = ang[np.arange(len(br)), br]
-    bad = ~np.isfinite(dist[np.arange(len(br)), br])
-    rot[bad] = g_rot[bad]  # unreachable midpoint (cannot happen on a reachable path): keep guess
+    rot = nearest_solution(machine, ax, 0.5 * (qa[:, cols] + qb[:, cols]), tol)
     lin = solve_linear(machine, rot, tip, tool_length)
     return assemble(machine, rot, lin), tip, ax
 

@@ -34,6 +34,7 @@ from urdfpost.program import (
     Tcp,
     ToolChange,
 )
+from urdfpost.singularity.detector import joined_runs
 from urdfpost.singularity.strategies import (
     DEFAULT_STRATEGY,
     STRATEGIES,
@@ -182,26 +183,6 @@ def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]
     return out
 
 
-def _feed_runs(joined: np.ndarray) -> list[tuple[int, int]]:
-    """Maximal runs [s, e] of points joined by feed moves (e > s).
-
-    ``joined[i]`` says point i is reached from point i - 1 by a feed move of the same cut.
-    """
-    runs = []
-    n = len(joined)
-    i = 0
-    while i < n - 1:
-        if joined[i + 1]:
-            j = i + 1
-            while j + 1 < n and joined[j + 1]:
-                j += 1
-            runs.append((i, j))
-            i = j
-        else:
-            i += 1
-    return runs
-
-
 def _reference(
     toolpath: Toolpath,
     tip: np.ndarray,
@@ -344,7 +325,7 @@ def build_program(
         solve_at = midpoint_solver(problem, plan)
         parts_q, parts_tip, parts_src, parts_axis = [], [], [], []
         done = 0
-        for s, e in _feed_runs(joined):
+        for s, e in joined_runs(joined):
             lin = subdivide(
                 machine,
                 q[s : e + 1],
@@ -512,6 +493,20 @@ def post(
     return PostResult(program=program, text=text, verification=check, report=report)
 
 
+def bent_tolerances(tol: Tolerances, angle_tolerance_deg: float, pivot: float) -> Tolerances:
+    """Tolerances against the CL data for a program whose strategy bent the tool axis.
+
+    The orientation may deviate by the angle tolerance on top of its own; the cutting point,
+    ``pivot`` mm up the tool axis (a ball centre), by the tip tolerance plus ``pivot`` times the
+    orientation tolerance: what that point moves when tip and axis are each within theirs.
+    """
+    return replace(
+        tol,
+        orientation=tol.orientation + float(np.radians(angle_tolerance_deg)),
+        tip=tol.tip + pivot * tol.orientation,
+    )
+
+
 def check_program(
     program: Program,
     machine: Machine,
@@ -555,11 +550,7 @@ def check_program(
         return verify(program, machine, toolpath, tool_length=tool_length, tol=tol), None
     intended = verify(program, machine, reference, tool_length=tool_length, tol=tol)
     pivot = figures["strategy"]["pivot_mm"]
-    loose = replace(
-        tol,
-        orientation=tol.orientation + np.radians(figures["strategy"]["angle_tolerance_deg"]),
-        tip=tol.tip + pivot * tol.orientation,
-    )
+    loose = bent_tolerances(tol, figures["strategy"]["angle_tolerance_deg"], pivot)
     cl = verify(program, machine, toolpath, tool_length=tool_length, tol=loose, pivot=pivot)
     if plan.lifts:
         cl = replace(

@@ -17,7 +17,7 @@ import numpy as np
 
 from urdfpost.errors import UrdfpostError
 from urdfpost.machine import Machine
-from urdfpost.pipeline import PostOptions, build_program, check_program
+from urdfpost.pipeline import PostOptions, bent_tolerances, build_program, check_program
 from urdfpost.program import Insert
 from urdfpost.singularity.detector import Span
 from urdfpost.singularity.metrics import Metrics, cl_path_position, measure
@@ -167,11 +167,7 @@ def compare(
         strat = figures["strategy"]
         measure_tol = tol
         if plan.bent:
-            measure_tol = replace(
-                tol,
-                orientation=tol.orientation + np.radians(strat["angle_tolerance_deg"]),
-                tip=tol.tip + strat["pivot_mm"] * tol.orientation,
-            )
+            measure_tol = bent_tolerances(tol, strat["angle_tolerance_deg"], strat["pivot_mm"])
         metrics = measure(
             readback,
             machine,

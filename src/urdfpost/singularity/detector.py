@@ -124,17 +124,12 @@ class Span:
         return asdict(self)
 
 
-def feed_runs(toolpath: Toolpath) -> list[tuple[int, int]]:
-    """Maximal runs [s, e] of CL points joined by feed moves of one cut (e > s).
+def joined_runs(joined: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs [s, e] (e > s) of points each joined to the one before it.
 
-    Point i belongs to the run of point i - 1 when it is reached by a feed move and no tool
-    change happens at it.
+    ``joined[i]`` says point i continues the run of point i - 1.
     """
-    n = len(toolpath)
-    joined = toolpath.motion == Motion.FEED
-    for e in toolpath.events:
-        if e.kind == "tool" and e.index < n:
-            joined[e.index] = False
+    n = len(joined)
     runs = []
     i = 0
     while i < n - 1:
@@ -147,6 +142,20 @@ def feed_runs(toolpath: Toolpath) -> list[tuple[int, int]]:
         else:
             i += 1
     return runs
+
+
+def feed_runs(toolpath: Toolpath) -> list[tuple[int, int]]:
+    """Maximal runs [s, e] of CL points joined by feed moves of one cut (e > s).
+
+    Point i belongs to the run of point i - 1 when it is reached by a feed move and no tool
+    change happens at it.
+    """
+    n = len(toolpath)
+    joined = toolpath.motion == Motion.FEED
+    for e in toolpath.events:
+        if e.kind == "tool" and e.index < n:
+            joined[e.index] = False
+    return joined_runs(joined)
 
 
 def detect(

@@ -59,9 +59,8 @@ from urdfpost.kinematics.inverse import (
     IKStatus,
     assemble,
     solve_linear,
-    solve_rotary,
 )
-from urdfpost.linearize import angle_between, slerp
+from urdfpost.linearize import angle_between, nearest_solution, slerp
 from urdfpost.machine import Machine
 from urdfpost.singularity.detector import Span, detect, feed_runs
 from urdfpost.tolerances import Tolerances
@@ -905,27 +904,10 @@ def midpoint_solver(
         exact = np.isnan(rot).any(axis=1)
         if exact.any():
             _, ax = at_param(plan.toolpath, param[exact], 0.0)
-            rot[exact] = _nearest_solution(machine, ax, guess[exact], tol)
+            rot[exact] = nearest_solution(machine, ax, guess[exact], tol)
         lift = (
             np.interp(param, lift_param, lift_value) if lift_value.any() else np.zeros(len(param))
         )
         return solve_rows(problem, plan.toolpath, param, rot, lift, bent=~exact)
 
     return solve
-
-
-def _nearest_solution(
-    machine: Machine, axis: np.ndarray, guess: np.ndarray, tol: Tolerances
-) -> np.ndarray:
-    """Exact rotary angles for ``axis`` on the branch and turn nearest ``guess`` (k, r)."""
-    sols = solve_rotary(machine, axis, tol)
-    ang = sols.angles.copy()  # (k, 2, r)
-    ang[:, :, 0] = np.where(np.isnan(ang[:, :, 0]), guess[:, None, 0], ang[:, :, 0])
-    ang = ang + TWO_PI * np.round((guess[:, None, :] - ang) / TWO_PI)
-    dist = np.abs(ang - guess[:, None, :]).sum(axis=2)
-    dist = np.where(sols.valid, dist, np.inf)
-    br = np.argmin(dist, axis=1)
-    rot = ang[np.arange(len(br)), br]
-    bad = ~np.isfinite(dist[np.arange(len(br)), br])
-    rot[bad] = guess[bad]
-    return rot
