@@ -21,11 +21,12 @@ The rules of Source A (``docs`` of the project: seeds.md), applied to the whole 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.errors import UnreachableError
+from urdfpost.errors import CollisionError, UnreachableError
 from urdfpost.kinematics.inverse import (
     IKStatus,
     assemble,
@@ -35,10 +36,16 @@ from urdfpost.kinematics.inverse import (
 from urdfpost.machine import Machine
 from urdfpost.tolerances import Tolerances
 
+if TYPE_CHECKING:
+    from urdfpost.collision import CollisionWorld
+
 log = logging.getLogger(__name__)
 
 TWO_PI = 2.0 * np.pi
 _SLACK = 1e-9  # rad or mm beyond travel still accepted (rounding of limits written in degrees)
+
+DEFAULT_RETRACT = 50.0
+"""Lift along the tool axis for a rewind, mm."""
 
 
 @dataclass(frozen=True)
@@ -80,16 +87,32 @@ class Selection:
     Attributes
     ----------
     q : ndarray, shape (n, m), mm / rad
-        Joint vectors; rotary angles unwrapped along the path.
+        Joint vectors the path leaves each point with; rotary angles unwrapped along the path.
     branch : ndarray, shape (n,), int
         IK branch taken (0 or 1).
     status : ndarray, shape (n,), int8
         :class:`IKStatus` of each point.
+    arrive : ndarray, shape (n, m), mm / rad
+        Joint vectors the path arrives at each point with: ``q`` except at rewinds.
+    rewind : ndarray, shape (n,), bool
+        Points where the path stops, lifts off, turns from ``arrive`` to ``q`` (the other
+        branch, or the same orientation a turn back) and returns: no continuous solution
+        within travel (or clear of collisions) goes on from there.
+    notes : list of str
+        Why candidates were passed over (collisions), for the report.
     """
 
     q: np.ndarray
     branch: np.ndarray
     status: np.ndarray
+    arrive: np.ndarray
+    rewind: np.ndarray
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def rewinds(self) -> np.ndarray:
+        """Indices of the rewind points, shape (k,)."""
+        return np.flatnonzero(self.rewind)
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -195,6 +218,68 @@ def _linear_message(
     )
 
 
+REWIND_COST = 1e6
+"""Cost of one rewind, in the planner's units (radians of rotary travel): far above any motion
+along a path, so a rewind is taken only where no continuous solution exists (or none is clear
+of collisions), and the fewest of them."""
+
+LIMIT_MARGIN = np.radians(5.0)
+"""Within this of a travel limit (rad), a limited rotary axis is penalised."""
+
+LIMIT_WEIGHT = 0.05
+"""Penalty (radians of travel equivalent) per point for a limited axis at its limit, falling
+linearly to 0 at ``LIMIT_MARGIN`` from it: enough to break ties away from the limits, never
+enough to buy real travel."""
+
+TIME_WEIGHT = 0.5
+"""Weight of the time a step takes (its slowest axis: angle over that axis' velocity, times the
+slowest rotary axis' velocity so the unit is radians) against the plain rotary travel."""
+
+JUMP = 0.5 * np.pi
+"""A branch switch between regular points whose rotary axes move more than this in total (rad)
+is a jump: on a cutting move it needs a rewind. Smaller switches pass close to a pole."""
+
+_MAX_COLLISION_ROUNDS = 50  # re-plans after colliding moves were found on the chosen path
+
+
+@dataclass
+class _Exclusions:
+    """What the collision checks ruled out, indexed by point and candidate."""
+
+    state: np.ndarray  # (n, K) bool: candidate collides at the point
+    why: dict[tuple[int, int], tuple[str, str]] = field(default_factory=dict)
+    moves: dict[int, set[tuple[int, int]]] = field(default_factory=dict)  # i -> (k_prev, k)
+    rewinds: dict[int, set[tuple[int, int]]] = field(default_factory=dict)  # i -> (k_in, k_out)
+    move_why: dict[tuple[int, int, int], tuple[str, str]] = field(default_factory=dict)
+
+
+def _limit_penalty(machine: Machine, values: np.ndarray) -> np.ndarray:
+    """Penalty for running close to travel limits, shape (n, K) (``values`` (n, K, r))."""
+    pen = np.zeros(values.shape[:2])
+    for j, a in enumerate(machine.rotary):
+        if a.continuous or not (np.isfinite(a.lower) and np.isfinite(a.upper)):
+            continue
+        room = np.minimum(values[:, :, j] - a.lower, a.upper - values[:, :, j])
+        close = np.clip(1.0 - room / LIMIT_MARGIN, 0.0, 1.0)
+        pen += LIMIT_WEIGHT * np.nan_to_num(close, nan=0.0)
+    return pen
+
+
+def _step_weights(machine: Machine) -> np.ndarray:
+    """Time weight per rotary axis: slowest rotary velocity over the axis' own, shape (r,)."""
+    vel = np.array([a.velocity for a in machine.rotary], dtype=float)
+    vel = np.where(np.isfinite(vel) & (vel > 0), vel, np.nan)
+    if np.isnan(vel).all():
+        return np.zeros(len(vel))
+    return TIME_WEIGHT * np.nan_to_num(np.nanmin(vel) / vel, nan=0.0)
+
+
+def _label(machine: Machine, rot: np.ndarray) -> str:
+    return " ".join(
+        f"{a.name}{np.degrees(v):.3f}" for a, v in zip(machine.rotary, rot, strict=True)
+    )
+
+
 def select(
     machine: Machine,
     tip: np.ndarray,
@@ -208,6 +293,9 @@ def select(
     source: str = "<toolpath>",
     tol: Tolerances | None = None,
     planner: str = "global",
+    cutting: np.ndarray | None = None,
+    collision: CollisionWorld | None = None,
+    retract: float = DEFAULT_RETRACT,
 ) -> Selection:
     """Choose one solution per point (see the module docstring for the rules).
 
@@ -233,6 +321,16 @@ def select(
         "global" (dynamic programming over the whole path, the default) or "local" (each
         point takes the candidate nearest the previous one, the preference only at entries:
         what a naive post does; kept as the baseline to compare against).
+    cutting : ndarray, shape (n,), bool, optional
+        Whether the move into each point cuts (a feed move): there the rotary axes must move
+        continuously, and a jump (a branch switch between regular points, a limited axis
+        turning more than half a turn) needs a rewind. Default: every move but those into
+        entry points.
+    collision : CollisionWorld, optional
+        Candidates that collide at a point, and moves of the chosen path that collide, are
+        excluded; None: no collision checks.
+    retract : float, mm
+        Lift along the tool axis for a rewind.
 
     Returns
     -------
@@ -241,7 +339,10 @@ def select(
     Raises
     ------
     UnreachableError
-        Naming the CL line of the first point no branch reaches within travel.
+        Naming the CL line of the first point no branch reaches within travel, or from which
+        no continuous solution goes on and no rewind is possible.
+    CollisionError
+        Naming the CL line and the two bodies where every candidate collides.
     """
     tol = tol or Tolerances()
     tip = np.asarray(tip, dtype=float).reshape(-1, 3)
@@ -251,8 +352,8 @@ def select(
     if prefer is None and machine.settings.prefer is not None:
         prefer = Preference(*machine.settings.prefer)
     start = machine.home if start is None else np.asarray(start, dtype=float)
-    rot_cols = list(machine.rotary_columns)
-    start_rot = start[rot_cols]
+    if planner not in ("global", "local"):
+        raise ValueError(f"unknown planner {planner!r}; expected 'global' or 'local'")
 
     ik = inverse(machine, tip, axis, tool_length, tol, pole_angle=0.0)
     values, ok, branch = _candidates(machine, ik.rotary.angles, ik.rotary.valid)
@@ -272,6 +373,7 @@ def select(
 
     entry = np.zeros(n, dtype=bool) if entry is None else np.asarray(entry, dtype=bool).copy()
     entry[0] = True
+    cutting = ~entry if cutting is None else np.asarray(cutting, dtype=bool) & ~entry
     pref_cost = np.zeros(values.shape[:2])
     if prefer is not None and prefer.axis in [a.name for a in machine.rotary]:
         j = [a.name for a in machine.rotary].index(prefer.axis)
@@ -281,87 +383,394 @@ def select(
         pref_cost = np.where(wrong, 1.0, 0.0) * np.where(entry, np.pi, 1e-6)[:, None]
     # a tiny pull toward small angles makes ties (e.g. +-180 degrees) deterministic
     pref_cost = pref_cost + 1e-9 * np.abs(np.nan_to_num(values)).sum(axis=2)
+    if planner == "global":
+        pref_cost = pref_cost + _limit_penalty(machine, values)
 
-    cont = np.array([a.continuous for a in machine.rotary])
-    singular = (ik.status == IKStatus.POLE) | (ik.status == IKStatus.EDGE)
-    n_cand = values.shape[1]
-    cost = np.where(ok[0], pref_cost[0], np.inf)
-    state = values[0].copy()  # (K, r) actual values of each candidate state
-    state[:, 0] = np.where(np.isnan(state[:, 0]), start_rot[0], state[:, 0])
-    state[:, cont] = state[:, cont] + TWO_PI * np.round((start_rot[cont] - state[:, cont]) / TWO_PI)
-    if planner == "local":
-        return _select_local(machine, values, ok, branch, cost, state, cont, tip, tool_length, ik)
-    if planner != "global":
-        raise ValueError(f"unknown planner {planner!r}; expected 'global' or 'local'")
-    back = np.zeros((n, n_cand), dtype=np.int32)
-    history = np.empty((n, n_cand, values.shape[2]))
-    history[0] = state
-    for i in range(1, n):
-        cand = values[i]  # (K, r)
-        # step from every previous state (rows) to every candidate (columns)
+    problem = _Plan(
+        machine=machine,
+        values=values,
+        ok=ok,
+        branch=branch,
+        pref_cost=pref_cost,
+        start=start[list(machine.rotary_columns)],
+        singular=(ik.status == IKStatus.POLE) | (ik.status == IKStatus.EDGE),
+        cutting=cutting,
+        weights=_step_weights(machine),
+        switch_cost=np.pi if planner == "global" else 0.0,
+        lines=lines,
+        source=source,
+        exclude=_Exclusions(state=np.zeros(values.shape[:2], dtype=bool)),
+    )
+    if collision is not None:
+        _exclude_colliding_states(problem, collision, ik.q, pole)
+    for _ in range(_MAX_COLLISION_ROUNDS):
+        chosen, arrive_k, rot_leave, rot_arrive = (
+            _viterbi(problem) if planner == "global" else _greedy(problem)
+        )
+        lin = solve_linear(machine, rot_leave, tip, tool_length)
+        q = assemble(machine, rot_leave, lin)
+        rewind = chosen != arrive_k
+        q_arrive = q.copy()
+        if rewind.any():
+            lin_a = solve_linear(machine, rot_arrive[rewind], tip[rewind], tool_length)
+            q_arrive[rewind] = assemble(machine, rot_arrive[rewind], lin_a)
+        if collision is None or not _exclude_colliding_moves(
+            problem, collision, q, q_arrive, chosen, arrive_k, tip, axis, tool_length, retract
+        ):
+            break
+    else:  # pragma: no cover - a path this tangled is a modelling problem
+        raise CollisionError(
+            f"{source}: no collision-free choice found after {_MAX_COLLISION_ROUNDS} re-plans"
+        )
+    _check_linear(machine, q, pole, lines, source)
+    if rewind.any():
+        _check_linear(machine, q_arrive, pole, lines, source)
+    notes = _exclusion_notes(problem, chosen, arrive_k)
+    log.debug(
+        "selected %d points, branch switches: %d, rewinds: %d",
+        n,
+        int(np.sum(np.diff(branch[chosen]) != 0)),
+        int(rewind.sum()),
+    )
+    return Selection(
+        q=q,
+        branch=branch[chosen],
+        status=ik.status.copy(),
+        arrive=q_arrive,
+        rewind=rewind,
+        notes=notes,
+    )
+
+
+@dataclass
+class _Plan:
+    """The planning problem over the candidates of every point."""
+
+    machine: Machine
+    values: np.ndarray  # (n, K, r) candidate rotary angles, NaN where undetermined
+    ok: np.ndarray  # (n, K) within travel
+    branch: np.ndarray  # (K,)
+    pref_cost: np.ndarray  # (n, K)
+    start: np.ndarray  # (r,)
+    singular: np.ndarray  # (n,)
+    cutting: np.ndarray  # (n,)
+    weights: np.ndarray  # (r,) time weight per axis
+    switch_cost: float  # added for a branch switch between regular points, rad
+    lines: np.ndarray
+    source: str
+    exclude: _Exclusions
+
+    @property
+    def cont(self) -> np.ndarray:
+        return np.array([a.continuous for a in self.machine.rotary], dtype=bool)
+
+    def usable(self) -> np.ndarray:
+        return self.ok & ~self.exclude.state
+
+    def first_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Cost and actual angles of each candidate at the first point."""
+        state = self.values[0].copy()
+        state[:, 0] = np.where(np.isnan(state[:, 0]), self.start[0], state[:, 0])
+        cont = self.cont
+        state[:, cont] += TWO_PI * np.round((self.start[cont] - state[:, cont]) / TWO_PI)
+        cost = np.where(self.usable()[0], self.pref_cost[0], np.inf)
+        return cost, state
+
+    def steps(self, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Moves from every state (rows) to every candidate at point ``i`` (columns).
+
+        Returns
+        -------
+        diff : ndarray, shape (K, K, r), rad
+            Limited axes land on the candidate, continuous ones take the shortest rotation to
+            it, an undetermined angle holds.
+        cost : ndarray, shape (K, K)
+            Inf for a move that would need a jump on a cutting move, or that collides.
+        """
+        cand = self.values[i]
         diff = cand[None, :, :] - state[:, None, :]
+        cont = self.cont
         diff[:, :, cont] = _wrap(diff[:, :, cont])
-        diff = np.nan_to_num(diff, nan=0.0)  # undetermined angle: held, no motion
-        step = np.abs(diff).sum(axis=2)
+        diff = np.nan_to_num(diff, nan=0.0)
+        size = np.abs(diff)
+        cost = size.sum(axis=2) + (size * self.weights).max(axis=2, initial=0.0)
         # the branches meet only at singular points; a switch between two regular points
-        # needs a jump of the first axis somewhere in the block, which no subdivision removes
-        if not (singular[i] or singular[i - 1]):
-            step = step + np.pi * (branch[:, None] != branch[None, :])
+        # turns the first axis by about half a turn within one block unless the tilt is small
+        # (the path passes close to the pole there)
+        regular = not (self.singular[i] or self.singular[i - 1])
+        if regular:
+            switch = self.branch[:, None] != self.branch[None, :]
+            cost = cost + self.switch_cost * switch
+            if self.cutting[i]:
+                # a jump no subdivision can follow while cutting: a switch that swings the
+                # axes, or a limited axis turning the long way round
+                jump = switch & (size.sum(axis=2) > JUMP) | (size[:, :, ~cont] > np.pi).any(axis=2)
+                cost = np.where(jump, np.inf, cost)
+        for kp, k in self.exclude.moves.get(i, ()):
+            cost[kp, k] = np.inf
+        return diff, cost
+
+    def rewind_steps(self, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rewinds at point ``i`` from each arrival state (rows) to each candidate (columns)."""
+        cand = self.values[i]
+        diff = cand[None, :, :] - state[:, None, :]
+        cont = self.cont
+        diff[:, :, cont] = _wrap(diff[:, :, cont])
+        diff = np.nan_to_num(diff, nan=0.0)
+        cost = REWIND_COST + np.abs(diff).sum(axis=2)
+        np.fill_diagonal(cost, np.inf)
+        for ki, k in self.exclude.rewinds.get(i, ()):
+            cost[ki, k] = np.inf
+        return diff, cost
+
+
+def _viterbi(p: _Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Least-cost candidates over the whole path, with rewinds where needed.
+
+    Returns
+    -------
+    chosen : ndarray, shape (n,), int
+        Candidate the path leaves each point with.
+    arrive : ndarray, shape (n,), int
+        Candidate it arrives with (differs at rewinds).
+    rot_leave, rot_arrive : ndarray, shape (n, r), rad
+        The actual (unwrapped) angles.
+    """
+    n, n_cand, r = p.values.shape
+    usable = p.usable()
+    cost, state = p.first_state()
+    back = np.zeros((n, n_cand), dtype=np.int32)
+    rback = np.full((n, n_cand), -1, dtype=np.int32)
+    leave_hist = np.empty((n, n_cand, r))
+    arrive_hist = np.empty((n, n_cand, r))
+    leave_hist[0] = arrive_hist[0] = state
+    cols = np.arange(n_cand)
+    for i in range(1, n):
+        diff, step = p.steps(i, state)
         total = cost[:, None] + step
         best = np.argmin(total, axis=0)
-        cost = np.where(ok[i], total[best, np.arange(n_cand)] + pref_cost[i], np.inf)
+        arrive_cost = np.where(usable[i], total[best, cols] + p.pref_cost[i], np.inf)
+        arrive_state = state[best] + diff[best, cols]
         back[i] = best
-        # limited axes land on the candidate, continuous ones on the shortest rotation to it,
-        # an undetermined angle holds
-        state = state[best] + diff[best, np.arange(n_cand)]
-        history[i] = state
-        if not np.isfinite(cost).any():  # pragma: no cover - excluded by the dead check
-            raise UnreachableError(f"{source}:{int(lines[i])}: no continuous solution")
+        arrive_hist[i] = arrive_state
+        cost, state = arrive_cost, arrive_state
+        if i + 1 < n and p.cutting[i + 1] and np.isfinite(arrive_cost).any():
+            rdiff, rstep = p.rewind_steps(i, arrive_state)
+            rtotal = arrive_cost[:, None] + rstep
+            rbest = np.argmin(rtotal, axis=0)
+            rcost = np.where(usable[i], rtotal[rbest, cols], np.inf)
+            take = rcost < arrive_cost
+            if take.any():
+                rback[i] = np.where(take, rbest, -1)
+                cost = np.where(take, rcost, arrive_cost)
+                state = np.where(take[:, None], arrive_state[rbest] + rdiff[rbest, cols], state)
+        leave_hist[i] = state
+        if not np.isfinite(cost).any():
+            _raise_dead_end(p, i)
     k = int(np.argmin(cost))
     chosen = np.empty(n, dtype=np.int64)
+    arrive = np.empty(n, dtype=np.int64)
     for i in range(n - 1, -1, -1):
         chosen[i] = k
-        k = back[i, k]
-    rot = history[np.arange(n), chosen]
-    lin = solve_linear(machine, rot, tip, tool_length)
-    q = assemble(machine, rot, lin)
-    _check_linear(machine, q, pole, lines, source)
-    log.debug(
-        "selected %d points, branch switches: %d", n, int(np.sum(np.diff(branch[chosen]) != 0))
-    )
-    return Selection(q=q, branch=branch[chosen], status=ik.status.copy())
+        if rback[i, k] >= 0:
+            k = int(rback[i, k])
+        arrive[i] = k
+        k = int(back[i, k])
+    idx = np.arange(n)
+    return chosen, arrive, leave_hist[idx, chosen], arrive_hist[idx, arrive]
 
 
-def _select_local(
-    machine: Machine,
-    values: np.ndarray,
-    ok: np.ndarray,
-    branch: np.ndarray,
-    cost0: np.ndarray,
-    state0: np.ndarray,
-    cont: np.ndarray,
-    tip: np.ndarray,
-    tool_length: float,
-    ik: object,
-) -> Selection:
-    """Greedy choice: each point takes the candidate nearest the previous point's angles."""
-    n = values.shape[0]
+def _greedy(p: _Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each point takes the candidate nearest the previous point's angles; where no candidate
+    goes on continuously, a rewind at the previous point to the candidate that does."""
+    n, _, r = p.values.shape
+    usable = p.usable()
+    cost0, state0 = p.first_state()
     k = int(np.argmin(cost0))
     cur = state0[k].copy()
-    rot = np.empty((n, values.shape[2]))
+    leave = np.empty((n, r))
+    arrive_rot = np.empty((n, r))
     chosen = np.empty(n, dtype=np.int64)
-    rot[0], chosen[0] = cur, k
+    arrive = np.empty(n, dtype=np.int64)
+    leave[0] = arrive_rot[0] = cur
+    chosen[0] = arrive[0] = k
     for i in range(1, n):
-        diff = values[i] - cur[None, :]
-        diff[:, cont] = _wrap(diff[:, cont])
-        diff = np.nan_to_num(diff, nan=0.0)
-        step = np.where(ok[i], np.abs(diff).sum(axis=1) + 1e-9 * branch, np.inf)
+        diff, step = p.steps(i, cur[None, :])
+        step = np.where(usable[i], step[0] + 1e-9 * p.branch, np.inf)
+        if not np.isfinite(step).any():
+            # rewind at the previous point onto a candidate that goes on from there
+            rdiff, rcost = p.rewind_steps(i - 1, cur[None, :])
+            rcost = np.where(usable[i - 1], rcost[0], np.inf)
+            for kk in np.argsort(rcost):
+                if not np.isfinite(rcost[kk]):
+                    break
+                turned = cur + rdiff[0, kk]
+                d2, s2 = p.steps(i, turned[None, :])
+                s2 = np.where(usable[i], s2[0], np.inf)
+                if np.isfinite(s2).any():
+                    chosen[i - 1] = kk
+                    leave[i - 1] = cur = turned
+                    diff, step = d2, s2
+                    break
+            else:
+                _raise_dead_end(p, i)
         k = int(np.argmin(step))
-        cur = cur + diff[k]
-        rot[i], chosen[i] = cur, k
-    lin = solve_linear(machine, rot, tip, tool_length)
-    q = assemble(machine, rot, lin)
-    return Selection(q=q, branch=branch[chosen], status=ik.status.copy())  # type: ignore[attr-defined]
+        cur = cur + diff[0, k]
+        leave[i] = arrive_rot[i] = cur
+        chosen[i] = arrive[i] = k
+    return chosen, arrive, leave, arrive_rot
+
+
+def _raise_dead_end(p: _Plan, i: int) -> None:
+    """Error for a point no candidate reaches (collisions or no continuous way on)."""
+    line = f"{p.source}:{int(p.lines[i])}"
+    why = [
+        f"{_label(p.machine, p.values[i, k])}: {a} collides with {b}"
+        for k in np.flatnonzero(p.ok[i])
+        for a, b in [p.exclude.why.get((i, int(k)), (None, None))]
+        if a is not None
+    ]
+    moves = [
+        f"the move there collides: {a} with {b}"
+        for (j, _kp, _k), (a, b) in p.exclude.move_why.items()
+        if j == i
+    ]
+    if why and len(why) == int(p.ok[i].sum()):
+        raise CollisionError(f"{line}: every branch collides: {'; '.join(why)}")
+    if why or moves:
+        raise CollisionError(f"{line}: no collision-free way on: {'; '.join(why + moves[:2])}")
+    raise UnreachableError(
+        f"{line}: no continuous solution reaches this point within the travel of machine "
+        f"{p.machine.name}, and no rewind is possible before it"
+    )
+
+
+def _exclude_colliding_states(
+    p: _Plan, world: CollisionWorld, q: np.ndarray, pole: np.ndarray
+) -> None:
+    """Mark the candidates that collide at their point (every 360-degree multiple of a branch
+    is the same pose). At poles the held angle is not known yet: the chosen path's check
+    covers them."""
+    for b in range(q.shape[1]):
+        rows = np.flatnonzero(~np.isnan(q[:, b]).any(axis=1) & ~pole)
+        if not len(rows):
+            continue
+        res = world.check(q[rows, b])
+        for i, pair in zip(
+            rows[res.hit], [res.pairs[k] for k in np.flatnonzero(res.hit)], strict=True
+        ):
+            for k in np.flatnonzero(p.branch == b):
+                if p.ok[i, k]:
+                    p.exclude.state[i, k] = True
+                    p.exclude.why[(int(i), int(k))] = pair  # type: ignore[assignment]
+
+
+def rewind_rows(
+    machine: Machine,
+    q_from: np.ndarray,
+    q_to: np.ndarray,
+    tip: np.ndarray,
+    axis: np.ndarray,
+    tool_length: float,
+    retract: float,
+) -> np.ndarray:
+    """Joint vectors of a rewind at one point: lift, turn, return.
+
+    Parameters
+    ----------
+    q_from, q_to : ndarray, shape (m,)
+        The configuration the path arrives with and the one it leaves with (same tool pose).
+    tip, axis : ndarray, shape (3,)
+        The point, mm, and its tool axis.
+    tool_length, retract : float, mm
+
+    Returns
+    -------
+    ndarray, shape (4, m)
+        ``q_from`` lifted by ``retract`` along the tool axis, ``q_to`` lifted, ``q_to``; the
+        path goes from ``q_from`` through these.
+    """
+    cols = list(machine.rotary_columns)
+    rot = np.stack([q_from[cols], q_to[cols]])
+    up = np.repeat((tip + retract * axis)[None, :], 2, axis=0)
+    lifted = assemble(machine, rot, solve_linear(machine, rot, up, tool_length))
+    return np.vstack([lifted, q_to[None, :]])
+
+
+def _exclude_colliding_moves(
+    p: _Plan,
+    world: CollisionWorld,
+    q: np.ndarray,
+    q_arrive: np.ndarray,
+    chosen: np.ndarray,
+    arrive_k: np.ndarray,
+    tip: np.ndarray,
+    axis: np.ndarray,
+    tool_length: float,
+    retract: float,
+) -> bool:
+    """Check the chosen path's configurations and moves; exclude what collides.
+
+    Returns
+    -------
+    bool
+        Whether anything was excluded (the path must be planned again).
+    """
+    n = len(q)
+    found = False
+    # the path: arrive at each point, then (at rewinds) lift, turn, return
+    rows = [q_arrive[:1]]
+    into: list[tuple[str, int]] = []  # what each move of the path is
+    for i in range(n):
+        if i:
+            rows.append(q_arrive[i : i + 1])
+            into.append(("move", i))
+        if chosen[i] != arrive_k[i]:
+            rows.append(
+                rewind_rows(p.machine, q_arrive[i], q[i], tip[i], axis[i], tool_length, retract)
+            )
+            into += [("rewind", i)] * 3
+    path = np.vstack(rows)
+    lo, hi = p.machine.lower - _SLACK, p.machine.upper + _SLACK
+    res = world.check_moves(path)
+    bad = np.flatnonzero(res.hit)
+    outside = np.flatnonzero(((path[1:] < lo) | (path[1:] > hi)).any(axis=1))
+    for m in np.concatenate([bad, outside]):
+        kind, i = into[int(m)]
+        pair = res.pairs[int(m)] or ("lifted tool", "travel limit")
+        if kind == "move":
+            key = (int(chosen[i - 1]), int(arrive_k[i]))
+            p.exclude.moves.setdefault(i, set()).add(key)
+            p.exclude.move_why[(i, *key)] = pair
+        else:
+            key = (int(arrive_k[i]), int(chosen[i]))
+            p.exclude.rewinds.setdefault(i, set()).add(key)
+            p.exclude.move_why[(i, *key)] = pair
+        found = True
+    return found
+
+
+def _exclusion_notes(p: _Plan, chosen: np.ndarray, arrive_k: np.ndarray) -> list[str]:
+    """One note per run of points where a collision decided the branch."""
+    notes: list[str] = []
+    excluded = p.exclude.state.any(axis=1)
+    runs = np.flatnonzero(excluded & ~np.r_[False, excluded[:-1]])
+    for i in runs:
+        k_bad = int(np.flatnonzero(p.exclude.state[i])[0])
+        a, b = p.exclude.why[(int(i), k_bad)]
+        end = i
+        while end + 1 < len(excluded) and excluded[end + 1]:
+            end += 1
+        notes.append(
+            f"{p.source}:{int(p.lines[i])}: branch {_label(p.machine, p.values[i, k_bad])} "
+            f"collides ({a} with {b}) through line {int(p.lines[end])}; took "
+            f"{_label(p.machine, p.values[i, int(chosen[i])])}"
+        )
+    for (i, _kp, _k), (a, b) in p.exclude.move_why.items():
+        notes.append(
+            f"{p.source}:{int(p.lines[i])}: a move there collides ({a} with {b}); re-planned"
+        )
+    return notes
 
 
 def _check_linear(
