@@ -1,8 +1,9 @@
-"""Write ``examples/dome.apt``: a five-axis finishing job on a dome, tool normal to the surface.
+"""Write ``examples/dome.apt`` (a five-axis finishing job on a dome, tool normal to the surface)
+and ``examples/dome.stl`` (the part: the dome on a 4 mm base, for ``--stock``).
 
 The passes run across a 30 mm radius dome at offsets y0 from its top, so the tool axis passes
 through vertical (y0 = 0, an exact pole crossing) and near it (a near miss of arcsin(y0 / R)).
-Run it again to regenerate the file: ``python examples/make_dome_apt.py``.
+Run it again to regenerate both files: ``python examples/make_dome_apt.py``.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
 RADIUS = 30.0  # mm
 OFFSETS = (-12.0, -6.0, -2.0, 0.0, 2.0, 6.0, 12.0)  # mm, pass offsets from the top
@@ -53,7 +55,22 @@ def dome_records() -> list[str]:
     return out
 
 
+def dome_mesh(sections: int = 96, rings: int = 48) -> trimesh.Trimesh:
+    """The part as a closed mesh in the workpiece frame, mm: the dome (its vertices on the
+    sphere, so the facets lie inside it by at most the chord sag) on a base 4 mm deep, a little
+    wider than the dome."""
+    phi = np.linspace(0.0, 0.5 * np.pi, rings + 1)
+    arc = np.stack([RADIUS * np.sin(phi), RADIUS * np.cos(phi)], axis=1)  # (r, z), top first
+    base = [[RADIUS + 5.0, 0.0], [RADIUS + 5.0, -4.0], [0.0, -4.0]]
+    profile = np.vstack([arc, base])[::-1]  # counterclockwise in (r, z): outward normals
+    return trimesh.creation.revolve(profile, sections=sections)
+
+
 if __name__ == "__main__":
     target = Path(__file__).with_name("dome.apt")
     target.write_text("\n".join(dome_records()) + "\n", encoding="utf-8")
     print(f"wrote {target}")
+    mesh = dome_mesh()
+    assert mesh.is_watertight and mesh.volume > 0
+    mesh.export(Path(__file__).with_name("dome.stl"))
+    print(f"wrote {target.with_suffix('.stl')} ({len(mesh.faces)} triangles)")

@@ -132,6 +132,33 @@ def _strategy_arguments(p: argparse.ArgumentParser, single: bool) -> None:
     )
 
 
+def _planning_arguments(p: argparse.ArgumentParser) -> None:
+    """Collision and rewind options of ``post``."""
+    p.add_argument(
+        "--stock",
+        metavar="MESH",
+        help="stock or part mesh (STL, OBJ, ...) in the workpiece frame, program units; "
+        "turns collision checks on",
+    )
+    p.add_argument(
+        "--check-collisions",
+        action="store_true",
+        help="check tool, holder and machine for collisions with FCL (on with --stock)",
+    )
+    p.add_argument("--holder-diameter", type=_positive, help="tool holder diameter (default 40 mm)")
+    p.add_argument("--holder-length", type=_positive, help="tool holder length (default 60 mm)")
+    p.add_argument(
+        "--retract",
+        type=_positive,
+        help="lift along the tool axis for a rewind, program units (default 50 mm)",
+    )
+    p.add_argument(
+        "--rewind-feed",
+        type=_positive,
+        help="feed of a rewind's lift and turn, program units/min (default: rapid)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for documentation and tests)."""
     from urdfpost.dialects import DIALECTS
@@ -183,6 +210,7 @@ def build_parser() -> argparse.ArgumentParser:
     po.add_argument("--block-numbers", action="store_true", help="number the blocks")
     po.add_argument("--name", help="program name (default: PARTNO or URDFPOST)")
     po.add_argument("--report", help="write a JSON report here")
+    _planning_arguments(po)
     po.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
     ve = sub.add_parser("verify", help="check an NC program against its CL data")
@@ -303,6 +331,12 @@ def _cmd_post(args: argparse.Namespace) -> int:
         angle_tolerance=args.angle_tolerance,
         planner=args.planner,
         lift=args.lift,
+        retract=args.retract,
+        rewind_feed=args.rewind_feed,
+        collisions=args.check_collisions,
+        stock=args.stock,
+        holder_diameter=args.holder_diameter,
+        holder_length=args.holder_length,
     )
     with tqdm(
         total=len(toolpath),
@@ -331,6 +365,15 @@ def _cmd_post(args: argparse.Namespace) -> int:
         f"strategy {strat['name']}: {len(strat['spans'])} singular spans"
         + (f" ({kinds}{more})" if kinds else "")
     )
+    for r in result.report.get("rewinds", []):
+        print(f"rewind at CL line {r['cl_line']}: {r['comment'].split(': ', 1)[1]}")
+    hits = result.report["collisions"]
+    if hits["checked"]:
+        print(
+            f"collisions: none in {hits['moves']} moves ({hits['samples']} samples, "
+            f"{hits['pairs_checked']} body pairs); clearance {hits['min_clearance']:.3f} {units} "
+            f"({' and '.join(hits['nearest'] or [])}) at CL line {hits['at_cl_line']}"
+        )
     print(result.verification.summary(units))
     return 0
 

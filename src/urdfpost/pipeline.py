@@ -13,15 +13,17 @@ import logging
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from urdfpost.branches import Preference
-from urdfpost.errors import ToleranceError, UrdfpostError
-from urdfpost.linearize import subdivide
+from urdfpost.branches import DEFAULT_RETRACT, Preference, rewind_rows
+from urdfpost.errors import CollisionError, ToleranceError, UrdfpostError
+from urdfpost.linearize import angle_between, subdivide
 from urdfpost.machine import Machine
 from urdfpost.program import (
+    REWIND_BEGIN,
+    REWIND_END,
     Block,
     Comment,
     Coolant,
@@ -43,10 +45,14 @@ from urdfpost.singularity.strategies import (
     entry_mask,
     midpoint_solver,
     realise,
+    tool_axis_of,
 )
 from urdfpost.tolerances import MM_PER_INCH, Tolerances
 from urdfpost.toolpath import Event, Motion, Toolpath
 from urdfpost.verify import Verification, verify
+
+if TYPE_CHECKING:
+    from urdfpost.collision import CollisionWorld
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +90,18 @@ class PostOptions:
     lift : float
         Lift along the tool axis inside singular spans (``spline`` strategy), program units;
         0 = off.
+    retract : float or None
+        Lift along the tool axis for a rewind, program units; default 50 mm (2 in).
+    rewind_feed : float or None
+        Feed of a rewind's lift and turn, program units per minute; None: rapid. The return
+        to the part is at the feed of the cut.
+    collisions : bool
+        Check every branch candidate and the program's moves for collisions with FCL (always
+        on when a stock is given).
+    stock : str or None
+        Stock or part mesh (STL, OBJ, ...) in the workpiece frame, program units.
+    holder_diameter, holder_length : float or None
+        Tool holder size, program units; default 40 x 60 mm.
     """
 
     controller: str | None = None
@@ -98,6 +116,12 @@ class PostOptions:
     angle_tolerance: float = 2.0
     planner: str = "global"
     lift: float = 0.0
+    retract: float | None = None
+    rewind_feed: float | None = None
+    collisions: bool = False
+    stock: str | None = None
+    holder_diameter: float | None = None
+    holder_length: float | None = None
 
 
 @dataclass(frozen=True)
@@ -215,6 +239,97 @@ def _reference(
     )
 
 
+_CUT, _LIFT, _TURN, _RETURN = 0, 1, 2, 3  # kinds of program rows: a rewind lifts, turns, returns
+
+
+def _with_rewinds(
+    problem: Problem, plan: Plan, q: np.ndarray, tip: np.ndarray, axis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Insert the lift and the turn of every rewind of a plan.
+
+    A rewind is a row at the same position as the row before it whose joint-space turn from
+    that row would swing the tool axis (a turn in place at a pole does not): the path arrives
+    with one solution and leaves with another of the same pose. Between them the tool lifts
+    along its axis by the retract distance, turns there, and comes back.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, m)
+    tip, axis : ndarray, shape (N, 3)
+        The plan's rows as :func:`realise` gives them.
+
+    Returns
+    -------
+    q, tip, axis, param : ndarray
+        With the rows inserted.
+    kind : ndarray, shape (N',), int
+        ``_CUT``, or ``_LIFT`` / ``_TURN`` / ``_RETURN`` for the rows of a rewind.
+    """
+    machine, param = problem.machine, plan.param
+    kind = np.zeros(len(param), dtype=int)
+    same = np.flatnonzero(param[1:] == param[:-1]) + 1
+    if not same.size:
+        return q, tip, axis, param, kind
+    rot = plan.rotary
+    a, b = rot[same - 1], rot[same]
+    end = tool_axis_of(machine, b)
+    swing = np.max(
+        [angle_between(tool_axis_of(machine, a + t * (b - a)), end) for t in (0.25, 0.5, 0.75)],
+        axis=0,
+    )
+    ks = same[swing > problem.tol.orientation]
+    if not ks.size:
+        return q, tip, axis, param, kind
+    lifted = np.vstack(
+        [
+            rewind_rows(
+                machine, q[k - 1], q[k], tip[k], axis[k], problem.tool_length, problem.retract
+            )[:2]
+            for k in ks
+        ]
+    )
+    at = np.repeat(ks, 2)
+    up = np.repeat(tip[ks] + problem.retract * axis[ks], 2, axis=0)
+    kind[ks] = _RETURN
+    return (
+        np.insert(q, at, lifted, axis=0),
+        np.insert(tip, at, up, axis=0),
+        np.insert(axis, at, np.repeat(axis[ks], 2, axis=0), axis=0),
+        np.insert(param, at, param[at]),
+        np.insert(kind, at, np.tile([_LIFT, _TURN], len(ks))),
+    )
+
+
+def _rewind_figures(
+    machine: Machine,
+    toolpath: Toolpath,
+    q: np.ndarray,
+    owner: np.ndarray,
+    kind: np.ndarray,
+    retract: float,
+) -> list[dict[str, Any]]:
+    """One entry per rewind: CL line, rotary angles before and after (deg), retract (mm)."""
+    out = []
+    for k in np.flatnonzero(kind == _LIFT):
+        line = int(toolpath.line[owner[k]])
+        turn = {
+            a.name: [float(np.degrees(q[k - 1, c])), float(np.degrees(q[k + 2, c]))]
+            for a, c in zip(machine.rotary, machine.rotary_columns, strict=True)
+        }
+        moved = ", ".join(
+            f"{n} {f:.3f} -> {t:.3f}" for n, (f, t) in turn.items() if abs(t - f) > 1e-9
+        )
+        out.append(
+            {
+                "cl_line": line,
+                "rotary_deg": turn,
+                "retract_mm": retract,
+                "comment": f"{REWIND_BEGIN} CL line {line}: {moved} deg, lift {retract:.3f} mm",
+            }
+        )
+    return out
+
+
 def strategy_name(machine: Machine, options: PostOptions) -> str:
     """The strategy a post uses: the options', the machine file's, or the default."""
     name = options.strategy or machine.settings.strategy or DEFAULT_STRATEGY
@@ -256,7 +371,47 @@ def make_problem(
         prefer=options.prefer,
         planner=options.planner,
         lift=options.lift * scale,
+        collision=collision_world(toolpath, machine, options, tool_length),
+        retract=DEFAULT_RETRACT if options.retract is None else options.retract * scale,
     )
+
+
+def collision_world(
+    toolpath: Toolpath, machine: Machine, options: PostOptions, tool_length: float
+) -> CollisionWorld | None:
+    """The FCL world a post checks against, or None when collisions are not checked.
+
+    The tool is the first cutter of the CL data (diameter, corner radius, length) in the
+    holder of the options; the stock mesh is read in program units and placed in the
+    workpiece frame.
+    """
+    if not (options.collisions or options.stock):
+        return None
+    from urdfpost.collision import CollisionWorld, ToolBody, load_mesh
+
+    units = options.units or toolpath.units
+    scale = MM_PER_INCH if units == "inch" else 1.0
+    cutters = [
+        e.data for e in toolpath.events if e.kind in ("cutter", "tool") and e.data.get("diameter")
+    ]
+    if len({(c.get("diameter"), c.get("corner_radius")) for c in cutters}) > 1:
+        log.warning(
+            "%s: several cutters; collisions are checked with the first one", toolpath.source
+        )
+    tool = ToolBody.from_cutter(
+        cutters[0] if cutters else {},
+        tool_length,
+        holder_diameter=None
+        if options.holder_diameter is None
+        else options.holder_diameter * scale,
+        holder_length=None if options.holder_length is None else options.holder_length * scale,
+    )
+    stock = None
+    if options.stock:
+        stock = load_mesh(options.stock)
+        if scale != 1.0:
+            stock.apply_scale(scale)
+    return CollisionWorld.build(machine, tool, tool_length, stock)
 
 
 def build_program(
@@ -306,22 +461,24 @@ def build_program(
     reference = toolpath
     if n:
         q, tip, axis = realise(problem, plan)
-        param = plan.param
+        q, tip, axis, param, kind = _with_rewinds(problem, plan, q, tip, axis)
         whole = param == np.round(param)
         owner = np.where(whole, np.round(param), np.ceil(param)).astype(int)
         first = whole.copy()
         first[1:] &= owner[1:] != owner[:-1]  # the row arriving at its CL point
-        rot = plan.rotary
+        rot = q[:, list(machine.rotary_columns)]
         figures["branch_switches"] = int(
             np.sum(np.abs(np.diff(rot[:, -1])) > np.pi / 2) if len(rot) > 1 else 0
         )
+        figures["rewinds"] = _rewind_figures(machine, toolpath, q, owner, kind, problem.retract)
         figures["pole_points"] = int(
             np.sum(np.abs(toolpath.axis @ machine.rotary[0].direction) > 1 - 0.5 * tol.pole**2)
             if machine.rotary
             else 0
         )
-        figures["pole_turns"] = int(np.sum(whole & ~first))
+        figures["pole_turns"] = int(np.sum(whole & ~first & (kind == _CUT)))
         joined = ((toolpath.motion[owner] == Motion.FEED) & ~entry[owner]) | ~first
+        joined &= kind == _CUT  # a rewind is no cut: its moves are not subdivided
         solve_at = midpoint_solver(problem, plan)
         parts_q, parts_tip, parts_src, parts_axis = [], [], [], []
         done = 0
@@ -356,13 +513,17 @@ def build_program(
         nxt = np.minimum.accumulate(nxt[::-1])[::-1]
         group = owner[np.minimum(nxt, len(q) - 1)]
         is_cl = (src >= 0) & first[np.maximum(src, 0)]
+        out_kind = np.where(src >= 0, kind[np.maximum(src, 0)], _CUT)
         rows = [
-            (out_q[k], out_tip[k], int(group[k]) if is_cl[k] else -1 - int(group[k]))
+            (out_q[k], out_tip[k], int(group[k]) if is_cl[k] else -1 - int(group[k]), out_kind[k])
             for k in range(len(out_q))
         ]
+        figures["joints"] = out_q
+        figures["joint_lines"] = toolpath.line[group]
         if plan.bent or plan.lift.any():
             out_axis = np.concatenate(parts_axis)
             turn = (src >= 0) & whole[np.maximum(src, 0)] & ~first[np.maximum(src, 0)]
+            turn |= out_kind != _CUT
             reference = _reference(toolpath, out_tip, out_axis, group, is_cl, turn)
     figures["strategy"] = {
         "name": strategy_name(machine, options),
@@ -374,6 +535,7 @@ def build_program(
     }
     figures["plan"] = plan
     figures["reference"] = reference
+    figures["world"] = problem.collision
 
     axes = machine.axis_names
     rotary = frozenset(a.name for a in machine.rotary)
@@ -388,11 +550,16 @@ def build_program(
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
     ev = 0
     arrived = -1  # last CL point reached
-    for q, tip, code in rows:
+    rewinds = iter(figures.get("rewinds", []))
+    scale = MM_PER_INCH if units == "inch" else 1.0
+    rewind_feed = None if options.rewind_feed is None else options.rewind_feed * scale
+    for q, tip, code, kind in rows:
         g = code if code >= 0 else -1 - code  # the CL point this row reaches or stands on
         while ev < len(events) and events[ev].index <= g:
             blocks.extend(_event_blocks(events[ev], tcp_state, options.tcp))
             ev += 1
+        if kind == _LIFT:
+            blocks.append(Comment(next(rewinds)["comment"]))
         position = np.where([a in rotary for a in axes], np.degrees(q), q)
         if options.tcp:
             position[lin_cols] = tip
@@ -404,6 +571,8 @@ def build_program(
         turning = g == arrived
         rapid = bool(toolpath.motion[g] == Motion.RAPID) and not turning
         f = next_feed[g] if turning else toolpath.feed[g]
+        if kind in (_LIFT, _TURN):  # off the part: rapid, or the rewind feed when one is set
+            rapid, f = rewind_feed is None, np.nan if rewind_feed is None else rewind_feed
         feed = float(f) if np.isfinite(f) else None
         blocks.append(
             Move(
@@ -413,6 +582,8 @@ def build_program(
                 cl_line=int(toolpath.line[g]) if code >= 0 else None,
             )
         )
+        if kind == _RETURN:
+            blocks.append(Comment(REWIND_END))
         if code >= 0:
             arrived = g
     for e in events[ev:]:
@@ -468,6 +639,7 @@ def post(
     tol = Tolerances.for_units(units, options.tolerance)
     dialect = dialect_for(options.controller or machine.settings.controller)
     program, figures = build_program(toolpath, machine, options, tol, progress)
+    collisions = check_collisions(figures, toolpath, units)
     header = None
     if not options.tcp:
         header = (
@@ -479,6 +651,7 @@ def post(
     readback = dialect.read(text, path=f"<{dialect.name} program>", verbatim=inserts)
     check, intent = check_program(readback, machine, toolpath, figures, tol, program.tool_length)
     report = make_report(toolpath, machine, program, check, dialect.name, figures)
+    report["collisions"] = collisions
     if intent is not None:
         report["strategy"]["intended_path_check"] = intent.as_dict()
     failed = [c for c in (intent, check) if c is not None and not c.ok]
@@ -491,6 +664,63 @@ def post(
             + (f"; worst near CL line {c.worst_cl_line}" if c.worst_cl_line else "")
         )
     return PostResult(program=program, text=text, verification=check, report=report)
+
+
+def check_collisions(figures: dict[str, Any], toolpath: Toolpath, units: str) -> dict[str, Any]:
+    """Check the program's joint moves for collisions and measure the clearance.
+
+    Every move of the program, rewinds included, is sampled as
+    :meth:`CollisionWorld.check_moves` does; the clearance of the job's bodies (tool, holder,
+    stock) from everything else is measured at the CL points.
+
+    Parameters
+    ----------
+    figures : dict
+        From :func:`build_program` (its ``world``, ``joints`` and ``joint_lines``).
+    toolpath : Toolpath
+        For messages.
+    units : str
+        Program units of the clearance in the result.
+
+    Returns
+    -------
+    dict
+        ``checked`` False when no collision world was built; else the bodies and pairs
+        checked, the moves and samples, the smallest clearance, where and between what.
+
+    Raises
+    ------
+    CollisionError
+        A move of the program collides: names the CL line it leads to and the two bodies.
+    """
+    world = figures.get("world")
+    if world is None or "joints" not in figures:
+        return {"checked": False}
+    from urdfpost.collision import JOB_BODIES
+
+    q, lines = figures["joints"], figures["joint_lines"]
+    moves = world.check_moves(q)
+    if moves.hit.any():
+        k = int(np.argmax(moves.hit))
+        a, b = moves.pairs[k]
+        raise CollisionError(
+            f"{toolpath.source}:{int(lines[k + 1])}: the move to this CL point collides: {a} "
+            f"with {b} (at {moves.at[k]:.0%} of the move); nothing written"
+        )
+    cl_rows = np.flatnonzero(np.r_[True, lines[1:] != lines[:-1]])
+    near = world.check(q[cl_rows], clearance=True, clearance_of=JOB_BODIES)
+    scale = MM_PER_INCH if units == "inch" else 1.0
+    k = int(np.nanargmin(near.clearance)) if len(cl_rows) else 0
+    return {
+        "checked": True,
+        "bodies": len(world.bodies),
+        "pairs_checked": len(world.checked_pairs()),
+        "moves": len(moves.hit),
+        "samples": int(moves.samples.sum()),
+        "min_clearance": float(near.clearance[k]) / scale if len(cl_rows) else None,
+        "nearest": list(near.nearest[k]) if len(cl_rows) and near.nearest[k] else None,
+        "at_cl_line": int(lines[cl_rows[k]]) if len(cl_rows) else None,
+    }
 
 
 def bent_tolerances(tol: Tolerances, angle_tolerance_deg: float, pivot: float) -> Tolerances:
@@ -564,6 +794,10 @@ def check_program(
     return cl, intended
 
 
+# figures that stay out of reports
+_INTERNAL = ("plan", "reference", "joints", "joint_lines", "world")
+
+
 def make_report(
     toolpath: Toolpath,
     machine: Machine,
@@ -592,6 +826,6 @@ def make_report(
         "worst_cl_line": check.worst_cl_line,
         "tool_length_mm": program.tool_length,
         "verified": check.ok,
-        **{k: v for k, v in (figures or {}).items() if k not in ("plan", "reference")},
+        **{k: v for k, v in (figures or {}).items() if k not in _INTERNAL},
         "warnings": list(toolpath.warnings) + list((figures or {}).get("warnings", [])),
     }

@@ -9,6 +9,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
+REWIND_BEGIN = "urdfpost rewind at"
+"""Start of the comment before a rewind's moves (lift, turn, return)."""
+
+REWIND_END = "urdfpost rewind end"
+"""The comment after them."""
+
 
 @dataclass(frozen=True)
 class Move:
@@ -132,3 +140,29 @@ class Program:
     def moves(self) -> list[Move]:
         """The motion blocks, in order."""
         return [b for b in self.blocks if isinstance(b, Move)]
+
+
+def rewind_moves(program: Program) -> np.ndarray:
+    """Which moves belong to a rewind: those between the rewind comments.
+
+    The comments survive writing and reading back (in any case), so a program read from text
+    still tells its rewinds: their moves leave the CL path on purpose and are not compared
+    with it.
+
+    Returns
+    -------
+    ndarray, shape (N,), bool
+        One entry per move of :meth:`Program.moves`.
+    """
+    out: list[bool] = []
+    inside = False
+    for b in program.blocks:
+        if isinstance(b, Comment):
+            text = b.text.strip().lower()
+            if text.startswith(REWIND_BEGIN):
+                inside = True
+            elif text == REWIND_END:
+                inside = False
+        elif isinstance(b, Move):
+            out.append(inside)
+    return np.array(out, dtype=bool)

@@ -50,10 +50,11 @@ import itertools
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.branches import Preference, Selection, select
+from urdfpost.branches import DEFAULT_RETRACT, Preference, Selection, select
 from urdfpost.kinematics.forward import rotate
 from urdfpost.kinematics.inverse import (
     IKStatus,
@@ -65,6 +66,9 @@ from urdfpost.machine import Machine
 from urdfpost.singularity.detector import Span, detect, feed_runs
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
+
+if TYPE_CHECKING:
+    from urdfpost.collision import CollisionWorld
 
 log = logging.getLogger(__name__)
 
@@ -92,6 +96,10 @@ class Problem:
         "global" or "local" branch choice for the exact solutions.
     lift : float, mm
         Lift along the tool axis inside a span (``spline`` only; 0 = off).
+    collision : CollisionWorld or None
+        Branch candidates and moves that collide are excluded (None: not checked).
+    retract : float, mm
+        Lift along the tool axis for a rewind.
     """
 
     machine: Machine
@@ -103,6 +111,8 @@ class Problem:
     prefer: Preference | None = None
     planner: str = "global"
     lift: float = 0.0
+    collision: CollisionWorld | None = None
+    retract: float = DEFAULT_RETRACT
 
 
 @dataclass(frozen=True)
@@ -175,6 +185,9 @@ def exact_selection(problem: Problem, toolpath: Toolpath, planner: str | None = 
         source=toolpath.source,
         tol=problem.tol,
         planner=planner or problem.planner,
+        cutting=toolpath.motion == Motion.FEED,
+        collision=problem.collision,
+        retract=problem.retract,
     )
 
 
@@ -267,11 +280,15 @@ def arc_length(toolpath: Toolpath) -> np.ndarray:
 def _turn_at_poles(
     machine: Machine, sel: Selection, toolpath: Toolpath
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Rows turning the first rotary axis in place where the path leaves a pole.
+    """Rows turning the first rotary axis in place where the path leaves a pole, and the rows
+    of rewinds.
 
     At a pole the first rotary axis lies along the tool axis, so turning it there does not
     change the orientation: the angle the next point needs is reached while the tool stands
-    on the pole point, instead of during the move away from it.
+    on the pole point, instead of during the move away from it. At a rewind point
+    (:attr:`Selection.rewind`) the path arrives with one solution and leaves with another of
+    the same pose: two rows at the same position, which the pipeline turns into lift, turn and
+    return.
 
     Returns
     -------
@@ -287,7 +304,19 @@ def _turn_at_poles(
     out = rot[owner].copy()
     rows = turn + 1 + np.arange(len(turn))
     out[rows, 0] = rot[turn + 1, 0]
-    return owner.astype(float), out
+    return _with_arrivals(machine, sel, owner.astype(float), out)
+
+
+def _with_arrivals(
+    machine: Machine, sel: Selection, param: np.ndarray, rotary: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Insert, before the first row of each rewind point, the row the path arrives with."""
+    at = sel.rewinds
+    if not at.size:
+        return param, rotary
+    first = np.searchsorted(param, at, side="left")
+    arrive = sel.arrive[at][:, list(machine.rotary_columns)]
+    return np.insert(param, first, at.astype(float)), np.insert(rotary, first, arrive, axis=0)
 
 
 def split_at_pole_crossings(
@@ -385,7 +414,12 @@ def split_at_pole_crossings(
 def _plain(problem: Problem, toolpath: Toolpath, sel: Selection, spans: list[Span]) -> Plan:
     param, rotary = _turn_at_poles(problem.machine, sel, toolpath)
     return Plan(
-        toolpath=toolpath, param=param, rotary=rotary, lift=np.zeros(len(param)), spans=spans
+        toolpath=toolpath,
+        param=param,
+        rotary=rotary,
+        lift=np.zeros(len(param)),
+        spans=spans,
+        notes=list(sel.notes),
     )
 
 
@@ -398,12 +432,14 @@ def strategy_none(problem: Problem) -> Plan:
     tp = problem.toolpath
     sel = exact_selection(problem, tp, planner="local")
     rotary = sel.q[:, list(problem.machine.rotary_columns)]
+    param, rotary = _with_arrivals(problem.machine, sel, np.arange(len(tp), dtype=float), rotary)
     return Plan(
         toolpath=tp,
-        param=np.arange(len(tp), dtype=float),
+        param=param,
         rotary=rotary,
-        lift=np.zeros(len(tp)),
+        lift=np.zeros(len(param)),
         spans=_spans(problem, tp, sel),
+        notes=list(sel.notes),
     )
 
 
@@ -444,7 +480,7 @@ def strategy_branch_flip(problem: Problem) -> Plan:
             "solution is kept"
         )
         log.info(note)
-        return replace(exact, notes=[note])
+        return replace(exact, notes=[*exact.notes, note])
     return replace(plan, bent=True)
 
 
@@ -575,6 +611,7 @@ def _interpolated(problem: Problem, shape: str) -> Plan:
         curve=curve,
         spans=spans,
         bent=True,
+        notes=list(sel.notes),
     )
 
 
@@ -711,7 +748,7 @@ def strategy_cone(problem: Problem) -> Plan:
     changed = False
     for s, e in feed_runs(tp):
         exact = rot[s : e + 1, 0].copy()
-        if np.all(np.abs(np.diff(exact)) <= step_max[s:e] + 1e-12):
+        if np.all(np.abs(np.diff(exact)) <= step_max[s:e] + 1e-12) or sel.rewind[s : e + 1].any():
             continue
         scale = np.ones(e - s + 1)
         for _ in range(4):
@@ -760,6 +797,7 @@ def strategy_cone(problem: Problem) -> Plan:
         curve=curve,
         spans=spans,
         bent=True,
+        notes=list(sel.notes),
     )
 
 
