@@ -403,6 +403,9 @@ def select(
     )
     if collision is not None:
         _exclude_colliding_states(problem, collision, ik.q, pole)
+        blocked = ~problem.usable().any(axis=1)
+        if blocked.any():
+            _raise_dead_end(problem, int(np.argmax(blocked)))
     for _ in range(_MAX_COLLISION_ROUNDS):
         chosen, arrive_k, rot_leave, rot_arrive = (
             _viterbi(problem) if planner == "global" else _greedy(problem)
@@ -624,10 +627,17 @@ def _greedy(p: _Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 def _raise_dead_end(p: _Plan, i: int) -> None:
     """Error for a point no candidate reaches (collisions or no continuous way on)."""
     line = f"{p.source}:{int(p.lines[i])}"
+    # one candidate per branch (their 360-degree multiples are the same pose)
+    size = np.abs(np.nan_to_num(p.values[i])).sum(axis=1)
+    per_branch = {int(p.branch[k]): int(k) for k in np.flatnonzero(p.ok[i])[::-1]}
+    for k in np.flatnonzero(p.ok[i]):
+        b = int(p.branch[k])
+        if size[k] < size[per_branch[b]]:
+            per_branch[b] = int(k)
     why = [
-        f"{_label(p.machine, p.values[i, k])}: {a} collides with {b}"
-        for k in np.flatnonzero(p.ok[i])
-        for a, b in [p.exclude.why.get((i, int(k)), (None, None))]
+        f"branch {_label(p.machine, p.values[i, k])}: {a} collides with {b}"
+        for k in sorted(per_branch.values())
+        for a, b in [p.exclude.why.get((i, k), (None, None))]
         if a is not None
     ]
     moves = [
@@ -635,7 +645,7 @@ def _raise_dead_end(p: _Plan, i: int) -> None:
         for (j, _kp, _k), (a, b) in p.exclude.move_why.items()
         if j == i
     ]
-    if why and len(why) == int(p.ok[i].sum()):
+    if why and len(why) == len(per_branch):
         raise CollisionError(f"{line}: every branch collides: {'; '.join(why)}")
     if why or moves:
         raise CollisionError(f"{line}: no collision-free way on: {'; '.join(why + moves[:2])}")

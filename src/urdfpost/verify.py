@@ -20,7 +20,7 @@ from urdfpost.errors import DialectError
 from urdfpost.kinematics.forward import tip_and_axis, tip_and_axis_pin
 from urdfpost.linearize import angle_between, point_segment_distance, refine_max, slerp
 from urdfpost.machine import Machine
-from urdfpost.program import Program
+from urdfpost.program import Program, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 
@@ -258,6 +258,12 @@ def verify(
     tool_length = program.tool_length if tool_length is None else tool_length
     values, rapid = program_joints(machine, program)
     notes: list[str] = []
+    # a rewind leaves the CL path on purpose (lift, turn, return): checked like a rapid, by
+    # its end points only
+    rewind = rewind_moves(program)
+    if rewind.any():
+        rapid = rapid | rewind
+        notes.append(f"{int(rewind.sum())} rewind moves are not compared with the CL path")
     n_cl = len(toolpath)
     if len(values) == 0 or n_cl == 0:
         return Verification(
