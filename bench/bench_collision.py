@@ -4,6 +4,9 @@ A five-axis zig-zag finishing path of 10,000 points over a closed heightfield pa
 100,000 triangles, on the shipped machines ``dmu50`` (table-table) and ``monoblock``
 (head-table). Target: ``check`` and ``check_moves`` of the whole path under 10 s on 2 cores.
 
+The same path is then posted whole (TCP, Heidenhain) without and with the collision checks
+(``--stock``): their cost is the difference.
+
 Run: ``python bench/bench_collision.py``
 """
 
@@ -20,6 +23,8 @@ import trimesh
 from urdfpost.collision import JOB_BODIES, CollisionWorld, ToolBody
 from urdfpost.kinematics import inverse
 from urdfpost.machine import load_machine
+from urdfpost.pipeline import PostOptions, post
+from urdfpost.toolpath import Event, Motion, Toolpath
 
 TOOL_LENGTH = 100.0  # mm
 SIZE = 120.0  # part side, mm
@@ -133,6 +138,37 @@ def bench(machine_name: str, stock: Path, tips: np.ndarray, axes: np.ndarray) ->
     )
 
 
+def bench_post(machine_name: str, stock: Path, tips: np.ndarray, axes: np.ndarray) -> None:
+    """The whole post (TCP, heidenhain, exact strategy) without and with the collision checks:
+    every branch candidate at every point, the program's moves, the clearance at the CL points."""
+    machine = load_machine(machine_name)
+    n = len(tips)
+    motion = np.full(n, Motion.FEED, dtype=np.int8)
+    motion[0] = Motion.RAPID
+    tp = Toolpath(
+        tip=tips,
+        axis=axes,
+        feed=np.full(n, 2000.0),
+        motion=motion,
+        line=np.arange(1, n + 1),
+        events=(Event(0, "cutter", 0, {"diameter": 10.0, "corner_radius": 0.0}),),
+        source="bench",
+    )
+    times = []
+    for options in (
+        PostOptions(tool_length=TOOL_LENGTH, strategy="recursive"),
+        PostOptions(tool_length=TOOL_LENGTH, strategy="recursive", stock=str(stock)),
+    ):
+        t0 = time.perf_counter()
+        result = post(tp, machine, options)
+        times.append(time.perf_counter() - t0)
+    hits = result.report["collisions"]
+    print(
+        f"{machine_name:10s} {n:6d} {times[0]:8.2f} {times[1]:8.2f} {times[1] - times[0]:8.2f} "
+        f"{hits['samples']:8d} {hits['min_clearance']:7.2f} ({hits['clearance_points']} points)"
+    )
+
+
 def main() -> None:
     cells = 224  # 2 * 224**2 = 100,352 top triangles
     part = heightfield_part(cells)
@@ -148,10 +184,14 @@ def main() -> None:
         part.export(stock)
         for name in ("dmu50", "monoblock"):
             bench(name, stock, tips, axes)
-    print(
-        "* clearance of the tool and the stock at every point, extrapolated from the first "
-        "1,000 points; min clr over those"
-    )
+        print(
+            "* clearance of the tool and the stock at every point, extrapolated from the first "
+            "1,000 points; min clr over those"
+        )
+        print("\nfull post without and with collision checks (--stock)")
+        print("machine    points  plain s  stock s  checks s  samples min clr mm")
+        for name in ("dmu50", "monoblock"):
+            bench_post(name, stock, tips, axes)
 
 
 if __name__ == "__main__":
