@@ -25,6 +25,7 @@ from urdfpost.kinematics import (
     tool_in_work,
     tool_in_work_pin,
 )
+from urdfpost.kinematics.inverse import BLOCK
 from urdfpost.machine import Machine, machine_from_urdf
 
 POSE_TOL_MM = 1e-9
@@ -336,6 +337,27 @@ def head_table() -> Machine:
     )
 
 
+def slide_between_rotaries() -> Machine:
+    """Table-table with the Y slide between the rotary axes: B (y) carries Y, Y carries C (z).
+
+    X and Z relative to the workpiece turn with B, Y does not: the linear solve cannot undo one
+    rotation for all three.
+    """
+    return machine_from_urdf(
+        simple_urdf(
+            table=[
+                J("B", "revolute", "0 1 0", xyz="0.01 0 0.2", lower=-2, upper=2),
+                J("Y", "prismatic", "0 1 0", xyz="0 0.02 0.05"),
+                J("C", "continuous", "0 0 1", xyz="0.02 0.01 0.1"),
+            ],
+            head=[J("X", "prismatic", "1 0 0"), J("Z", "prismatic", "0 0 1")],
+            tool_xyz="0 0 0.5",
+            work_xyz="0 0 0.04",
+        ),
+        name="slide_between",
+    )
+
+
 def directions_at_polar(polar: float, n: int = 12) -> np.ndarray:
     """Unit vectors at polar angle ``polar`` from z, spread around z."""
     phi = np.linspace(-np.pi, np.pi, n, endpoint=False)
@@ -345,7 +367,9 @@ def directions_at_polar(polar: float, n: int = 12) -> np.ndarray:
     )
 
 
-@pytest.mark.parametrize("factory", [nutating_table, bc_table, four_axis_a, head_table])
+@pytest.mark.parametrize(
+    "factory", [nutating_table, bc_table, four_axis_a, head_table, slide_between_rotaries]
+)
 def test_ik_round_trip_hand_built(factory):
     m = factory()
     expected = {
@@ -353,6 +377,7 @@ def test_ik_round_trip_hand_built(factory):
         "bc": "table-table",
         "four": "4-axis",
         "head_table": "head-table",
+        "slide_between": "table-table",
     }
     assert m.family == expected[m.name]
     q = random_q(m, np.random.default_rng(1), 200)
@@ -557,11 +582,13 @@ def test_jacobian_matches_finite_differences(gen, seed, tool_length):
 # -- 7. vectorisation ------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("factory", [nutating_table, head_table, four_axis_a])
+@pytest.mark.parametrize(
+    "factory", [nutating_table, head_table, four_axis_a, slide_between_rotaries]
+)
 def test_inverse_vectorised_equals_pointwise(factory):
     m = factory()
     rng = np.random.default_rng(7)
-    n = 10_000
+    n = 2 * BLOCK + 1000  # three blocks
     q = random_q(m, rng, n)
     tip, axis = tip_and_axis(m, q, 60.0)
     # mix in unreachable and random (mostly unreachable on 4-axis) axes, poles, edges
@@ -574,9 +601,10 @@ def test_inverse_vectorised_equals_pointwise(factory):
     assert IKStatus.OK in statuses
     if len(m.rotary) == 2:
         assert IKStatus.POLE in statuses
-    if m.name != "head_table":  # that one reaches every orientation
+    if m.name not in ("head_table", "slide_between"):  # those reach every orientation
         assert IKStatus.UNREACHABLE in statuses
-    idx = np.unique(np.concatenate([rng.choice(n, 150, replace=False), np.arange(0, 50)]))
+    seams = (np.arange(1, 3)[:, None] * BLOCK + np.arange(-3, 3)).ravel()
+    idx = np.unique(np.concatenate([rng.choice(n, 150, replace=False), np.arange(0, 50), seams]))
     for i in idx:
         one = inverse(m, tip[i], axis[i], 60.0)
         assert one.status[0] == res.status[i]
@@ -672,3 +700,41 @@ def test_regression_edge_merge_rotated_frame():
     sols = solve_rotary(m, axis)
     assert sols.status[0] == IKStatus.EDGE, (sols.status, sols.angles)
     assert sols.branch_count[0] == 1
+
+
+def test_regression_edge_on_pole():
+    """First rotary axis 6e-8 rad off perpendicular to the second one and to the tool axis.
+
+    The edge of the reachable band is then 1e-15 away from the pole (in k1 . v), and at
+    A = B = +/-90 degrees the tool axis is on both. Was: the tilt came from arccos(k1 . v), and
+    the branch-merge snap moved it onto the edge (by 6e-8 rad), which turns the tool axis by
+    first order there: 2.5e-8 rad off (1e-9 required).
+    """
+    off = 6e-8
+    m = machine_from_urdf(
+        simple_urdf(
+            table=[
+                J("X", "prismatic", "1 0 0"),
+                J("B", "continuous", f"{off!r} 1 0", xyz="0.02 0.03 0.1"),
+                J("A", "continuous", "1 0 0", xyz="0.01 0.02 0.1"),
+            ],
+            head=[J("Y", "prismatic", "0 1 0"), J("Z", "prismatic", "0 0 1")],
+            tool_xyz="0 0 0.5",
+            tool_rpy=f"0 {off!r} 0",
+        )
+    )
+    k1, k2, v0 = m.rotary[0].direction, m.rotary[1].direction, m.home_tool_axis
+    assert [a.name for a in m.rotary] == ["A", "B"]
+    assert abs(k1 @ k2) == pytest.approx(off, rel=1e-6)
+    assert abs(k1 @ v0) == pytest.approx(off, rel=1e-6)
+    q = random_q(m, np.random.default_rng(3), 40)
+    a, b = m.axis_names.index("A"), m.axis_names.index("B")
+    for i, (sa, sb) in enumerate([(1, 1), (1, -1), (-1, 1), (-1, -1)]):
+        q[i, [a, b]] = sa * np.pi / 2, sb * np.pi / 2
+    tip, axis = tip_and_axis_pin(m, q[:4], 50.0)
+    assert np.all(np.abs(axis @ k1) > 1 - 1e-13)  # on the pole to 6e-8 rad ...
+    res = inverse(m, tip, axis, 50.0)
+    assert np.all(res.status == IKStatus.EDGE)  # ... and on the edge
+    _, axis_b = tip_and_axis_pin(m, res.q[:, 0], 50.0)
+    assert axis_angle_error(axis_b, axis).max() <= POSE_TOL_RAD
+    check_round_trip(m, q, 50.0)
