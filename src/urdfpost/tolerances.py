@@ -37,9 +37,8 @@ class Tolerances:
         the machine can reach (clipped onto the edge instead of rejected). 1e-9.
     branch_merge : float
         Two tilt solutions closer than this (rad) are one branch (the edge of the reachable
-        set), and the tilt is snapped onto the edge. 2e-6 rad: the arccos near 1 turns rounding
-        of k * 1e-16 into sqrt(2k) * 1e-8 rad, while snapping moves the orientation by only
-        half^2 / 2 < 1e-12 rad.
+        set): the point is reported as an edge point with one branch. The tilt itself comes
+        from a half-angle formula that does not cancel near the edge, so it is not moved.
     pole_crossing : float
         A feed block whose tool axis passes a pole closer than this (rad) crosses it: the
         crossing point is inserted with the axis on the pole, so the first rotary axis can turn
