@@ -13,7 +13,7 @@ import logging
 import os
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -282,14 +282,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _setup_logging(verbose: int) -> None:
+def _setup_logging(verbose: int) -> Callable[[], None]:
+    """Send the library's log to stderr; returns what restores the logger as it was (so a
+    caller running :func:`main` in-process keeps its own logging)."""
     level = logging.WARNING if verbose == 0 else logging.INFO if verbose == 1 else logging.DEBUG
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("urdfpost: %(levelname)s: %(message)s"))
     root = logging.getLogger("urdfpost")
+    saved = (root.handlers[:], root.level, root.propagate)
+
+    def restore() -> None:
+        root.handlers[:], root.propagate = saved[0], saved[2]
+        root.setLevel(saved[1])
+
     root.handlers[:] = [handler]
     root.setLevel(level)
     root.propagate = False
+    return restore
 
 
 def _show_warnings(warnings: Sequence[str]) -> None:
@@ -596,7 +605,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    _setup_logging(args.verbose)
+    restore = _setup_logging(args.verbose)
     try:
         return COMMANDS[args.command](args)
     except UrdfpostError as e:
@@ -605,6 +614,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("urdfpost: interrupted", file=sys.stderr)
         return 130
+    finally:
+        restore()
 
 
 if __name__ == "__main__":  # pragma: no cover
