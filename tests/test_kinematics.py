@@ -738,3 +738,140 @@ def test_regression_edge_on_pole():
     _, axis_b = tip_and_axis_pin(m, res.q[:, 0], 50.0)
     assert axis_angle_error(axis_b, axis).max() <= POSE_TOL_RAD
     check_round_trip(m, q, 50.0)
+
+
+# =============================================================================================
+# Forward kinematics on vectors (tip_and_axis, tool_in_work, tip_and_axis_along, reach and
+# swing, interpolation bounds): the fast paths linearize and verify use, held to Pinocchio on
+# every shipped machine and on generated ones. (Separate from the IK tests above.)
+# =============================================================================================
+
+from urdfpost import load_machine  # noqa: E402 (imports of this block kept with it)
+from urdfpost.kinematics.forward import (  # noqa: E402
+    interpolation_bounds,
+    linear_directions,
+    tip_and_axis_along,
+    tip_axis_and_reach,
+)
+from urdfpost.machine import list_machines  # noqa: E402
+
+SHIPPED = sorted(list_machines())
+
+
+def moves_q(m: Machine, rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end joint vectors of n moves, from tiny to several radians per rotary axis."""
+    q0 = random_q(m, rng, n)
+    size = rng.choice([1e-4, 1e-2, 0.3, 3.0], size=(n, 1))
+    step = np.column_stack([rng.uniform(-1, 1, n) * (1.0 if a.rotary else 100.0) for a in m.axes])
+    return q0, q0 + size * step
+
+
+def check_fast_fk(m: Machine, seed: int, tool_length: float) -> None:
+    """Every vectorised forward kinematics against Pinocchio, and against each other."""
+    rng = np.random.default_rng(seed)
+    q = random_q(m, rng, 30)
+    ref = tool_in_work_pin(m, q)
+    rot, gauge = tool_in_work(m, q)
+    np.testing.assert_allclose(gauge, ref[:, :3, 3], rtol=0, atol=POSE_TOL_MM)
+    np.testing.assert_allclose(rot, ref[:, :3, :3], rtol=0, atol=1e-12)
+    tip_p, axis_p = tip_and_axis_pin(m, q, tool_length)
+    tip, axis = tip_and_axis(m, q, tool_length)
+    np.testing.assert_allclose(tip, tip_p, rtol=0, atol=POSE_TOL_MM)
+    np.testing.assert_allclose(axis, axis_p, rtol=0, atol=1e-12)
+    tip_r, axis_r, _, _ = tip_axis_and_reach(m, q, tool_length)
+    np.testing.assert_array_equal(tip_r, tip)
+    np.testing.assert_array_equal(axis_r, axis)
+    # linear axes move the tip (relative to the workpiece) along these directions
+    jac = jacobian_pin(m, q, tool_length)
+    lin = list(m.linear_columns)
+    np.testing.assert_allclose(linear_directions(m, q), jac[:, :3, lin], rtol=0, atol=1e-9)
+    # along moves: on a shared, evenly spaced grid (angle addition) and per move
+    q0, q1 = moves_q(m, rng, 12)
+    for t in (np.linspace(0.0, 1.0, 18), rng.uniform(0.0, 1.0, (5, 12))):
+        along_tip, along_axis = tip_and_axis_along(m, q0, q1, t, tool_length)
+        tt = t[:, None] if t.ndim == 1 else t
+        q = (q0[None] + tt[..., None] * (q1 - q0)[None]).reshape(-1, len(m.axes))
+        tip_p, axis_p = tip_and_axis_pin(m, q, tool_length)
+        got_tip = along_tip.reshape(3, -1).T
+        got_axis = along_axis.reshape(3, -1).T
+        np.testing.assert_allclose(got_tip, tip_p, rtol=0, atol=POSE_TOL_MM)
+        np.testing.assert_allclose(got_axis, axis_p, rtol=0, atol=1e-12)
+        none, axis_only = tip_and_axis_along(m, q0, q1, t, tool_length, with_tip=False)
+        assert none is None
+        np.testing.assert_array_equal(axis_only, along_axis)
+    observe("fast fk tip error mm", np.abs(got_tip - tip_p).max())
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_fast_fk_matches_pinocchio_shipped(name: str) -> None:
+    m = load_machine(name)
+    for seed, tool_length in ((0, 0.0), (1, m.settings.tool_length or 100.0), (2, 250.0)):
+        check_fast_fk(m, seed, tool_length)
+
+
+@settings(max_examples=40 * SCALE, deadline=None)
+@given(gen=machines(), seed=seeds, tool_length=tool_lengths)
+def test_fast_fk_matches_pinocchio_generated(gen, seed, tool_length):
+    check_fast_fk(build(gen), seed, tool_length)
+
+
+def check_reach_and_swing(m: Machine, seed: int, tool_length: float) -> None:
+    """What each rotary axis sees: with it and the joints before it (from the workpiece) at
+    zero, the tip's distance from its line and the sine of its angle to the tool axis."""
+    q = random_q(m, np.random.default_rng(seed), 20)
+    _, _, reach, swing = tip_axis_and_reach(m, q, tool_length)
+    for i, a in enumerate(m.rotary):
+        seen = q.copy()
+        for b in m.axes:
+            if b.chain_index <= a.chain_index:
+                seen[:, m.axis_names.index(b.name)] = 0.0
+        tip, axis = tip_and_axis_pin(m, seen, tool_length)
+        rel = tip - a.pivot
+        dist = np.linalg.norm(rel - np.outer(rel @ a.direction, a.direction), axis=1)
+        np.testing.assert_allclose(reach[:, i], dist, rtol=0, atol=1e-9)
+        sine = np.linalg.norm(np.cross(a.direction, axis), axis=1)
+        np.testing.assert_allclose(swing[:, i], sine, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_reach_and_swing_shipped(name: str) -> None:
+    check_reach_and_swing(load_machine(name), 3, 100.0)
+
+
+@settings(max_examples=30 * SCALE, deadline=None)
+@given(gen=machines(), seed=seeds, tool_length=tool_lengths)
+def test_reach_and_swing_generated(gen, seed, tool_length):
+    check_reach_and_swing(build(gen), seed, tool_length)
+
+
+def check_interpolation_bounds(m: Machine, seed: int, tool_length: float) -> None:
+    """Speed and acceleration of the tip and the tool axis along moves, by finite differences
+    of dense samples, stay within the bounds."""
+    rng = np.random.default_rng(seed)
+    q0, q1 = moves_q(m, rng, 40)
+    t = np.linspace(0.0, 1.0, 201)
+    h = t[1] - t[0]
+    tip, axis = tip_and_axis_along(m, q0, q1, t[:, None].repeat(len(q0), 1), tool_length)
+    ends = [tip_axis_and_reach(m, q, tool_length) for q in (q0, q1)]
+    bounds = interpolation_bounds(m, q0, q1, ends[0][2], ends[1][2], ends[0][3], ends[1][3])
+    for curve, speed, curvature in ((tip, *bounds[:2]), (axis, *bounds[2:])):
+        v = np.linalg.norm(np.diff(curve, axis=1), axis=0) / h
+        acc = np.linalg.norm(curve[:, 2:] - 2 * curve[:, 1:-1] + curve[:, :-2], axis=0) / h**2
+        # finite differences are off by O(h^2) relative, and by the rounding of the
+        # coordinates (a few ulp of the largest) over h and h^2
+        noise = 32 * EPS * (1.0 + np.abs(curve).max(axis=(0, 1)))
+        assert np.all(v.max(axis=0) <= speed * (1 + 1e-3) + 2 * noise / h)
+        assert np.all(acc.max(axis=0) <= curvature * (1 + 1e-3) + 4 * noise / h**2)
+        observe("bound use speed", np.max(v.max(axis=0) / np.maximum(speed, 1e-300)))
+        observe("bound use curvature", np.max(acc.max(axis=0) / np.maximum(curvature, 1e-300)))
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_interpolation_bounds_shipped(name: str) -> None:
+    check_interpolation_bounds(load_machine(name), 4, 100.0)
+
+
+@settings(max_examples=30 * SCALE, deadline=None)
+@given(gen=machines(), seed=seeds, tool_length=tool_lengths)
+def test_interpolation_bounds_generated(gen, seed, tool_length):
+    check_interpolation_bounds(build(gen), seed, tool_length)

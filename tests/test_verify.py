@@ -10,18 +10,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+import urdfpost.linearize as linearize_module
+import urdfpost.verify as verify_module
 from urdfpost import load_machine
 from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
-from urdfpost.kinematics.forward import tip_and_axis
+from urdfpost.kinematics.forward import tip_and_axis, tip_and_axis_along
+from urdfpost.linearize import Arcs, RowPoses, Segments, _error_bounds, angle_between
 from urdfpost.machine import Machine
 from urdfpost.pipeline import PostOptions, PostResult, build_program, post
 from urdfpost.program import Move, Program, Tcp, ToolChange
 from urdfpost.readers import read_cl
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verify import Verification, verify
+from urdfpost.verify import Verification, _Blocks, _match, _row_poses, verify
 
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"
@@ -353,3 +358,238 @@ def test_cl_points_closer_than_the_tolerance() -> None:
     assert v.ok
     assert v.reached == 5
     assert v.max_tip_deviation < 1e-9
+
+
+# --------------------------------------------------------------------------------------------
+# matching CL points to program points: the vectorised search is the sequential definition
+
+
+def _match_sequential(
+    cl_tip: np.ndarray, cl_axis: np.ndarray, tip: np.ndarray, axis: np.ndarray, tol: Tolerances
+) -> np.ndarray:
+    """The definition, one CL point after the other (verify's loop before it was vectorised)."""
+    n_cl, n = len(cl_tip), len(tip)
+    out = np.full(n_cl, -1)
+    ptr = 0
+    for j in range(n_cl):
+        start, width = ptr, 64
+        while start < n:
+            stop = min(n, start + width)
+            d = np.linalg.norm(tip[start:stop] - cl_tip[j], axis=1)
+            a = angle_between(axis[start:stop], cl_axis[j])
+            hit = np.flatnonzero((d <= tol.tip) & (a <= tol.orientation))
+            if hit.size:
+                k = start + int(hit[0])
+                # (row-wise norms, as the search: the loop took the 1-D norm, a BLAS dot whose
+                # last bit may differ, which only matters for rows exactly as near as the next)
+                dist = float(np.linalg.norm(tip[k] - cl_tip[j], axis=-1))
+                while k + 1 < n:
+                    nxt = float(np.linalg.norm(tip[k + 1] - cl_tip[j], axis=-1))
+                    if nxt >= dist:
+                        break
+                    k, dist = k + 1, nxt
+                out[j] = k
+                ptr = k
+                break
+            if width >= 4096:
+                break
+            start, width = stop, width * 4
+    return out
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _cl_and_program(
+    rng: np.random.Generator, n_cl: int, p: dict[str, float]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A CL path and the points of a program for it, with what real programs have: leading
+    moves elsewhere, points inserted on the segments (a few, or runs longer than the first
+    search window, or longer than the whole search), points turning in place, CL points
+    closer together than the tolerance or repeated, points moved off (missed) or left out."""
+    step = rng.choice(
+        [0.0, 0.004, 0.3], size=n_cl, p=[p["repeat"], p["dense"], 1 - p["repeat"] - p["dense"]]
+    )
+    cl_tip = np.cumsum(_unit(rng.normal(size=(n_cl, 3))) * step[:, None], axis=0)
+    cl_axis = _unit(np.array([0.0, 0.0, 1.0]) + np.cumsum(rng.normal(0, 0.003, (n_cl, 3)), axis=0))
+    tips, axes = [rng.normal(0, 50, (3, 3))], [np.tile([0.0, 0.0, 1.0], (3, 1))]
+    for j in range(n_cl):
+        if j:
+            extra = rng.choice(
+                [0, 1, 3, 40, 6000],
+                p=[
+                    1 - p["insert"] - 0.002,
+                    p["insert"] * 0.7,
+                    p["insert"] * 0.25,
+                    p["insert"] * 0.05,
+                    0.002,
+                ],
+            )
+            f = np.linspace(0, 1, extra + 2)[1:-1, None]
+            tips.append(cl_tip[j - 1] + f * (cl_tip[j] - cl_tip[j - 1]))
+            axes.append(_unit(cl_axis[j - 1] + f * (cl_axis[j] - cl_axis[j - 1])))
+        r = rng.random()
+        if r < p["drop"]:
+            continue
+        here = cl_tip[j] + rng.normal(0, 0.001, 3)
+        if r < p["drop"] + p["off"]:
+            here = here + 0.05
+        tips.append(here[None])
+        axes.append(cl_axis[j][None])
+        if rng.random() < p["turn"]:
+            tips.append(np.repeat(here[None], 2, axis=0))
+            axes.append(_unit(cl_axis[j] + rng.normal(0, 0.05, (2, 3))))
+    return cl_tip, cl_axis, np.vstack(tips), np.vstack(axes)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n_cl=st.integers(1, 400),
+    repeat=st.sampled_from([0.0, 0.05]),
+    dense=st.sampled_from([0.0, 0.1, 0.5]),
+    insert=st.sampled_from([0.0, 0.1, 0.6]),
+    drop=st.sampled_from([0.0, 0.02, 0.3]),
+    off=st.sampled_from([0.0, 0.02]),
+    turn=st.sampled_from([0.0, 0.05]),
+)
+def test_matching_is_the_sequential_search(
+    seed: int,
+    n_cl: int,
+    repeat: float,
+    dense: float,
+    insert: float,
+    drop: float,
+    off: float,
+    turn: float,
+) -> None:
+    p = {"repeat": repeat, "dense": dense, "insert": insert, "drop": drop, "off": off, "turn": turn}
+    cl_tip, cl_axis, tip, axis = _cl_and_program(np.random.default_rng(seed), n_cl, p)
+    tol = Tolerances()
+    got = _match(cl_tip, cl_axis, tip, axis, tol)
+    np.testing.assert_array_equal(got, _match_sequential(cl_tip, cl_axis, tip, axis, tol))
+
+
+def test_matching_a_program_that_reaches_nothing() -> None:
+    rng = np.random.default_rng(5)
+    cl_tip = np.cumsum(rng.normal(0, 0.3, (3000, 3)), axis=0)
+    cl_axis = np.tile([0.0, 0.0, 1.0], (3000, 1))
+    tip = cl_tip + 1.0  # every point off by more than the tolerance
+    got = _match(cl_tip, cl_axis, tip, cl_axis, Tolerances())
+    assert (got == -1).all()
+
+
+# --------------------------------------------------------------------------------------------
+# the maximum inside every block: refined wherever the refinement could change a result
+
+
+def _random_moves(
+    m: Machine, rng: np.random.Generator, n: int, scale: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A random walk of n joint vectors (steps up to ``scale`` rad and 20 * scale mm) and CL
+    tool axes near the ones it gives."""
+    step = np.column_stack(
+        [rng.uniform(-scale, scale, n) * (1.0 if a.rotary else 20.0) for a in m.axes]
+    )
+    q = np.cumsum(step, axis=0) + np.array([0.0 if a.rotary else 10.0 for a in m.axes])
+    _, axis = tip_and_axis(m, q, 0.0)
+    cl_axis = axis + rng.normal(0.0, 0.2 * scale, axis.shape)
+    return q, cl_axis / np.linalg.norm(cl_axis, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("name", ["dmu50", "dmu50-nutating", "gantry-ca", "vf2-4axis"])
+@pytest.mark.parametrize("tcp", [False, True])
+@pytest.mark.parametrize("pivot", [0.0, 3.0])
+def test_verify_block_bounds_hold(name: str, tcp: bool, pivot: float) -> None:
+    """The bounds that decide which blocks verification refines are above the deviation
+    anywhere in the block (dense samples)."""
+    m = machine(name)
+    rng = np.random.default_rng(11)
+    for scale in (0.002, 0.05, 0.5):
+        q, cl_axis = _random_moves(m, rng, 60, scale)
+        tip, axis = tip_and_axis(m, q, 100.0)
+        cl_tip = tip + rng.normal(0.0, 0.01, tip.shape) + pivot * axis
+        values = q.copy()
+        if tcp:
+            values[:, list(m.linear_columns)] = tip
+        feed = _Blocks(
+            machine=m,
+            values=values,
+            rows=_row_poses(m, values, tcp, 100.0, pivot),
+            start=np.arange(len(q) - 1),
+            ja=np.arange(len(q) - 1),
+            jb=np.arange(1, len(q)),
+            cl_tip=cl_tip,
+            cl_axis=cl_axis,
+            tcp=tcp,
+            tool_length=100.0,
+            pivot=pivot,
+        )
+        blocks = np.arange(len(q) - 1)
+        t = np.linspace(0.0, 1.0, 18)
+        tip_bound, chord_bound = feed.bounds(blocks, *feed.errors(blocks, t), t[1] - t[0])
+        dist2, chord2 = feed.errors(blocks, np.linspace(0.0, 1.0, 2001))
+        assert np.all(np.sqrt(dist2.max(axis=0)) <= tip_bound + 1e-12)
+        assert np.all(np.sqrt(chord2.max(axis=0)) <= chord_bound + 1e-12)
+
+
+def _largest_errors(
+    m: Machine, q: np.ndarray, seg: Segments, arc: Arcs, t: np.ndarray, tcp: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Largest squared tip distance and axis chord at t in the blocks joining rows of q."""
+    p, v = tip_and_axis_along(m, q[:-1], q[1:], t, 100.0)
+    angle = t[:, None] * arc.omega
+    chord2 = arc.chord2((v[0], v[1], v[2]), np.cos(angle), np.sin(angle))
+    dist2 = np.zeros_like(chord2) if tcp else seg.distance2((p[0], p[1], p[2]))[0]
+    return dist2.max(axis=0), chord2.max(axis=0)
+
+
+@pytest.mark.parametrize("name", ["dmu50", "dmu50-nutating", "gantry-ca", "vf2-4axis"])
+@pytest.mark.parametrize("tcp", [False, True])
+def test_subdivision_block_bounds_hold(name: str, tcp: bool) -> None:
+    """Likewise for the bounds that decide which blocks the subdivision refines."""
+    m = machine(name)
+    rng = np.random.default_rng(12)
+    samples = Tolerances().samples_per_block
+    for scale in (0.002, 0.05, 0.5):
+        q, cl_axis = _random_moves(m, rng, 60, scale)
+        tip, _ = tip_and_axis(m, q, 100.0)
+        cl_tip = tip + rng.normal(0.0, 0.01, tip.shape)
+        seg = Segments.between(cl_tip[:-1], cl_tip[1:])
+        arc = Arcs.between(cl_axis[:-1], cl_axis[1:])
+        poses = RowPoses.of(m, q, 100.0)
+        ends = (poses.take(slice(0, -1)), poses.take(slice(1, None)))
+
+        t = np.arange(1, samples + 1) / (samples + 1)
+        sampled = _largest_errors(m, q, seg, arc, t, tcp)
+        bound = _error_bounds(m, q[:-1], q[1:], seg, arc, ends, *sampled, t[0], tcp)
+        dense = _largest_errors(m, q, seg, arc, np.linspace(0.0, 1.0, 2001), tcp)
+        assert np.all(np.sqrt(dense[0]) <= bound[0] + 1e-12)
+        assert np.all(np.sqrt(dense[1]) <= bound[1] + 1e-12)
+
+
+def _refine_everywhere(monkeypatch: pytest.MonkeyPatch) -> None:
+    def always(bound: np.ndarray, level: float | np.ndarray) -> np.ndarray:
+        return np.ones(np.shape(bound), dtype=bool)
+
+    monkeypatch.setattr(linearize_module, "may_reach", always)
+    monkeypatch.setattr(verify_module, "may_reach", always)
+
+
+@pytest.mark.parametrize("tcp", [False, True])
+@pytest.mark.parametrize("strategy", ["recursive", "cone"])
+def test_refining_where_it_matters_is_refining_everywhere(
+    monkeypatch: pytest.MonkeyPatch, tcp: bool, strategy: str
+) -> None:
+    """Skipping the golden-section search where the bounds rule out a change gives the same
+    program and the same verification as searching every block."""
+    m, tp = machine("dmu50"), dome()
+    options = PostOptions(strategy=strategy, controller="heidenhain", tcp=tcp)
+    tol = Tolerances.for_units("mm")
+    program, _ = build_program(tp, m, options, tol)
+    checks = [verify(program, m, tp, tol=tol, pivot=pivot) for pivot in (0.0, 3.0)]
+    _refine_everywhere(monkeypatch)
+    program_all, _ = build_program(tp, m, options, tol)
+    assert program_all == program
+    assert [verify(program, m, tp, tol=tol, pivot=pivot) for pivot in (0.0, 3.0)] == checks

@@ -17,7 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from urdfpost.kinematics.forward import tip_and_axis
+from urdfpost.kinematics.forward import (
+    Vec,
+    cos_sin_along,
+    interpolation_bounds,
+    tip_and_axis_along,
+    tip_axis_and_reach,
+)
 from urdfpost.kinematics.inverse import assemble, solve_linear, solve_rotary
 from urdfpost.machine import Machine
 from urdfpost.tolerances import Tolerances
@@ -57,72 +63,189 @@ def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return 2.0 * np.arctan2(np.linalg.norm(u - v, axis=-1), np.linalg.norm(u + v, axis=-1))
 
 
-def point_segment_distance(
-    p: np.ndarray, a: np.ndarray, b: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Distance from points to segments and the parameter of the closest point.
+CHUNK = 16384
+"""Blocks measured at a time: the sampled arrays of a chunk (a few dozen of shape (samples,
+CHUNK)) stay in the CPU cache, and a path of a million blocks needs no more memory than one of
+CHUNK blocks."""
 
-    Parameters
-    ----------
-    p : ndarray, shape (..., 3)
-    a, b : ndarray, shape (..., 3)
-        Segment ends, broadcast against ``p``.
 
-    Returns
-    -------
-    distance : ndarray, shape (...)
-    s : ndarray, shape (...)
-        In [0, 1].
-    """
-    d = b - a
-    dd = np.sum(d * d, axis=-1)
-    s = np.where(dd > 0, np.sum((p - a) * d, axis=-1) / np.where(dd > 0, dd, 1.0), 0.0)
-    s = np.clip(s, 0.0, 1.0)
-    return np.linalg.norm(p - (a + s[..., None] * d), axis=-1), s
+def chunks(n: int, size: int = CHUNK) -> list[slice]:
+    """Consecutive slices of at most ``size`` covering ``range(n)``."""
+    return [slice(i, min(i + size, n)) for i in range(0, n, size)]
+
+
+# -- errors on vectors kept as coordinate triples --------------------------------------------
+
+
+def coords(a: np.ndarray) -> Vec:
+    """Rows of an (n, 3) array as three contiguous coordinate arrays of shape (n,)."""
+    x, y, z = np.ascontiguousarray(np.asarray(a, dtype=float).T)
+    return x, y, z
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Straight segments from ``a`` to ``a + d``, one per block (coordinate arrays (n,), mm)."""
+
+    a: Vec
+    d: Vec
+    inv_dd: np.ndarray  # 1 / |d|^2, 0 for a segment of zero length
+
+    @classmethod
+    def between(cls, p0: np.ndarray, p1: np.ndarray) -> Segments:
+        """Segments from the rows of ``p0`` to those of ``p1``, shape (n, 3)."""
+        d = p1 - p0
+        dd = np.einsum("ij,ij->i", d, d)
+        return cls(coords(p0), coords(d), np.divide(1.0, dd, out=np.zeros_like(dd), where=dd > 0))
+
+    def take(self, index: np.ndarray) -> Segments:
+        return Segments(
+            tuple(c[index] for c in self.a),  # type: ignore[arg-type]
+            tuple(c[index] for c in self.d),  # type: ignore[arg-type]
+            self.inv_dd[index],
+        )
+
+    def distance2(self, p: Vec) -> tuple[np.ndarray, np.ndarray]:
+        """Squared distance of points from the segments, and the parameter of the closest point.
+
+        Parameters
+        ----------
+        p : Vec
+            Coordinate arrays of shape (..., n): points of each block.
+
+        Returns
+        -------
+        dist2 : ndarray, shape (..., n), mm^2
+        s : ndarray, shape (..., n)
+            In [0, 1].
+        """
+        a, d = self.a, self.d
+        w = (p[0] - a[0], p[1] - a[1], p[2] - a[2])
+        s = w[0] * d[0]
+        s += w[1] * d[1]
+        s += w[2] * d[2]
+        s *= self.inv_dd
+        np.clip(s, 0.0, 1.0, out=s)
+        dist2 = np.zeros_like(s)
+        for i in range(3):
+            r = w[i] - s * d[i]
+            r *= r
+            dist2 += r
+        return dist2, s
+
+
+@dataclass(frozen=True)
+class Arcs:
+    """Great-circle arcs of unit vectors from ``v0`` towards ``v1``, one per block: the slerp
+    ``cos(t omega) v0 + sin(t omega) normal``."""
+
+    v0: Vec
+    normal: Vec  # unit, normal to v0 in the plane of v0 and v1 (zero when they are parallel)
+    omega: np.ndarray  # angle from v0 to v1, rad
+
+    @classmethod
+    def between(cls, v0: np.ndarray, v1: np.ndarray) -> Arcs:
+        """Arcs from the rows of ``v0`` to those of ``v1``, shape (n, 3), unit vectors."""
+        dot = np.einsum("ij,ij->i", v0, v1)
+        across = v1 - dot[:, None] * v0
+        sin = np.sqrt(np.einsum("ij,ij->i", across, across))
+        normal = np.divide(across, sin[:, None], out=np.zeros_like(across), where=sin[:, None] > 0)
+        return cls(coords(v0), coords(normal), np.arctan2(sin, dot))
+
+    def take(self, index: np.ndarray) -> Arcs:
+        return Arcs(
+            tuple(c[index] for c in self.v0),  # type: ignore[arg-type]
+            tuple(c[index] for c in self.normal),  # type: ignore[arg-type]
+            self.omega[index],
+        )
+
+    def chord2(self, v: Vec, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
+        """Squared chord from unit vectors ``v`` to the arcs' points of the given angles.
+
+        Parameters
+        ----------
+        v : Vec
+            Coordinate arrays of shape (..., n).
+        cos, sin : ndarray, shape (..., n)
+            Of ``t * omega`` at each of them.
+
+        Returns
+        -------
+        ndarray, shape (..., n)
+            ``|v - slerp|^2``; the angle is :func:`angle_from_chord2` of it.
+        """
+        out = np.zeros(np.broadcast_shapes(np.shape(v[0]), np.shape(cos)))
+        for i in range(3):
+            r = v[i] - cos * self.v0[i]
+            r -= sin * self.normal[i]
+            r *= r
+            out += r
+        return out
+
+
+def angle_from_chord2(chord2: np.ndarray) -> np.ndarray:
+    """Angle between unit vectors from their squared chord, rad (as :func:`angle_between`)."""
+    chord2 = np.asarray(chord2, dtype=float)
+    return 2.0 * np.arctan2(np.sqrt(chord2), np.sqrt(np.maximum(4.0 - chord2, 0.0)))
 
 
 def refine_max(
-    f: Callable[[np.ndarray], np.ndarray],
+    errors: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
     t: np.ndarray,
-    values: np.ndarray,
+    worst: tuple[np.ndarray, np.ndarray],
+    best: tuple[np.ndarray, np.ndarray],
+    wanted: tuple[np.ndarray, np.ndarray],
     iterations: int = 12,
-) -> np.ndarray:
-    """Maximum of a per-block function of the block parameter, refined around the worst sample.
+) -> tuple[np.ndarray, np.ndarray]:
+    """Maxima of two per-block functions of the block parameter, refined around the worst samples.
 
-    Golden-section search on the bracket of one sample spacing either side of each block's
-    worst sample (the maximum is not always at a sample, nor at the midpoint).
+    Golden-section search on the bracket of one sample spacing either side of a block's worst
+    sample of each function (the maximum is not always at a sample, nor at the midpoint). The
+    two searches go through the kinematics together, one call per iteration for both, and only
+    in the blocks that want them; each takes its maximum from its own evaluations, so a block
+    gets the same value whether or not the other function is refined too.
 
     Parameters
     ----------
-    f : callable
-        ``f(t)`` with ``t`` of shape (n,) (one parameter per block) returns shape (n,).
-    t : ndarray, shape (n, s)
-        Sample parameters in [0, 1], evenly spaced.
-    values : ndarray, shape (n, s)
-        ``f`` at the samples.
+    errors : callable
+        ``errors(blocks, tt)`` with block indices and parameters of shape (k,) returns both
+        functions there, two arrays of shape (k,).
+    t : ndarray, shape (s,)
+        Sample parameters in [0, 1], evenly spaced, the same for every block.
+    worst : tuple of two ndarray, shape (n,), int
+        Index into ``t`` of each block's worst sample of each function.
+    best : tuple of two ndarray, shape (n,)
+        Largest values sampled.
+    wanted : tuple of two ndarray, shape (n,), bool
+        Blocks whose maximum of that function is to be refined.
     iterations : int
 
     Returns
     -------
-    ndarray, shape (n,)
-        The largest value seen per block.
+    tuple of two ndarray, shape (n,)
+        The largest value seen of each function per block.
     """
-    n = t.shape[0]
-    rows = np.arange(n)
-    h = t[0, 1] - t[0, 0] if t.shape[1] > 1 else 0.5
-    k = np.argmax(values, axis=1)
-    lo = np.clip(t[rows, k] - h, 0.0, 1.0)
-    hi = np.clip(t[rows, k] + h, 0.0, 1.0)
-    best = values[rows, k]
+    h = t[1] - t[0] if len(t) > 1 else 0.5
+    out = [best[0].copy(), best[1].copy()]
+    rows = [np.flatnonzero(w) for w in wanted]
+    if not (rows[0].size or rows[1].size):
+        return out[0], out[1]
+    lo = [np.clip(t[worst[i][rows[i]]] - h, 0.0, 1.0) for i in range(2)]
+    hi = [np.clip(t[worst[i][rows[i]]] + h, 0.0, 1.0) for i in range(2)]
+    blocks = np.concatenate([rows[0], rows[0], rows[1], rows[1]])
+    n0, n1 = len(rows[0]), len(rows[1])
+    parts = [slice(0, n0), slice(n0, 2 * n0), slice(2 * n0, 2 * n0 + n1), slice(2 * n0 + n1, None)]
     for _ in range(iterations):
-        a = hi - _GOLDEN * (hi - lo)
-        b = lo + _GOLDEN * (hi - lo)
-        fa, fb = f(a), f(b)
-        best = np.maximum(best, np.maximum(fa, fb))
-        left = fa > fb
-        hi = np.where(left, b, hi)
-        lo = np.where(left, lo, a)
-    return best
+        a = [hi[i] - _GOLDEN * (hi[i] - lo[i]) for i in range(2)]
+        b = [lo[i] + _GOLDEN * (hi[i] - lo[i]) for i in range(2)]
+        values = errors(blocks, np.concatenate([a[0], b[0], a[1], b[1]]))
+        for i in range(2):
+            fa, fb = values[i][parts[2 * i]], values[i][parts[2 * i + 1]]
+            out[i][rows[i]] = np.maximum(out[i][rows[i]], np.maximum(fa, fb))
+            left = fa > fb
+            hi[i] = np.where(left, b[i], hi[i])
+            lo[i] = np.where(left, lo[i], a[i])
+    return out[0], out[1]
 
 
 @dataclass(frozen=True)
@@ -141,67 +264,53 @@ class BlockError:
     orientation: np.ndarray
 
 
-def _errors_at(
-    machine: Machine,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    p0: np.ndarray,
-    p1: np.ndarray,
-    v0: np.ndarray,
-    v1: np.ndarray,
-    t: np.ndarray,
-    tool_length: float,
-    tcp: bool,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Tip and orientation errors at parameters ``t`` (n, s) of each block."""
-    n, s = t.shape
-    q = q0[:, None, :] + t[..., None] * (q1 - q0)[:, None, :]
-    tip, ax = tip_and_axis(machine, q.reshape(n * s, -1), tool_length)
-    tip, ax = tip.reshape(n, s, 3), ax.reshape(n, s, 3)
-    if tcp:
-        tip = p0[:, None, :] + t[..., None] * (p1 - p0)[:, None, :]
-    dist, _ = point_segment_distance(tip, p0[:, None, :], p1[:, None, :])
-    ori = angle_between(ax, slerp(v0, v1, t))
-    return dist, ori
+@dataclass(frozen=True)
+class RowPoses:
+    """Forward kinematics at the rows of a path, what bounding its blocks' errors needs.
 
-
-def block_errors(
-    machine: Machine,
-    q: np.ndarray,
-    tip: np.ndarray,
-    axis: np.ndarray,
-    *,
-    tool_length: float = 0.0,
-    tcp: bool = False,
-    tol: Tolerances | None = None,
-) -> BlockError:
-    """Maximum deviation between consecutive points when the control interpolates the axes.
-
-    Parameters
+    Attributes
     ----------
-    machine : Machine
-    q : ndarray, shape (n, m)
-        Joint vectors at the block ends, mm / rad.
-    tip : ndarray, shape (n, 3), mm
-        CL points the blocks should join with straight segments.
-    axis : ndarray, shape (n, 3)
-        CL tool axes.
-    tool_length : float, mm
-    tcp : bool
-        The control keeps the tip on the segment (only the orientation can deviate).
-    tol : Tolerances, optional
-
-    Returns
-    -------
-    BlockError
-        Arrays of shape (n - 1,).
+    tip, axis : ndarray, shape (n, 3)
+        Tool tip (mm) and axis in the workpiece frame.
+    reach, swing : ndarray, shape (n, r)
+        See :func:`urdfpost.kinematics.forward.tip_axis_and_reach`.
     """
-    tol = tol or Tolerances()
-    if q.shape[0] <= 1:
-        return BlockError(np.zeros(0), np.zeros(0))
-    return _block_errors(
-        machine, q[:-1], q[1:], tip[:-1], tip[1:], axis[:-1], axis[1:], tool_length, tcp, tol
-    )
+
+    tip: np.ndarray
+    axis: np.ndarray
+    reach: np.ndarray
+    swing: np.ndarray
+
+    @classmethod
+    def of(cls, machine: Machine, q: np.ndarray, tool_length: float) -> RowPoses:
+        """The poses at joint values ``q`` (n, m), mm / rad."""
+        return cls(*tip_axis_and_reach(machine, q, tool_length))
+
+    def take(self, index: np.ndarray | slice) -> RowPoses:
+        return RowPoses(self.tip[index], self.axis[index], self.reach[index], self.swing[index])
+
+    def insert(self, index: np.ndarray, rows: RowPoses) -> RowPoses:
+        """With ``rows`` inserted before ``index`` (as :func:`numpy.insert`)."""
+        return RowPoses(
+            *(
+                np.insert(mine, index, theirs, axis=0)
+                for mine, theirs in zip(
+                    (self.tip, self.axis, self.reach, self.swing),
+                    (rows.tip, rows.axis, rows.reach, rows.swing),
+                    strict=True,
+                )
+            )
+        )
+
+
+#: Relative and absolute slack on the bounds that decide which blocks to refine: the sampled
+#: errors carry a few ulp of the lever arms (about 1e-12 mm), far below any tolerance.
+_BOUND_SLACK = (1e-9, 1e-12)
+
+
+def may_reach(bound: np.ndarray, level: float | np.ndarray) -> np.ndarray:
+    """Where a bound on a block's maximum does not rule out reaching ``level``."""
+    return bound * (1.0 + _BOUND_SLACK[0]) + _BOUND_SLACK[1] >= level
 
 
 def _block_errors(
@@ -212,26 +321,148 @@ def _block_errors(
     p1: np.ndarray,
     v0: np.ndarray,
     v1: np.ndarray,
+    ends: tuple[RowPoses, RowPoses],
     tool_length: float,
     tcp: bool,
     tol: Tolerances,
+    targets: tuple[float, float] | None,
 ) -> BlockError:
-    """Worst deviation of blocks from (q0, p0, v0) to (q1, p1, v1), each of length n."""
+    """Worst deviation of blocks from (q0, p0, v0) to (q1, p1, v1), each of length n.
+
+    Every block is sampled at ``tol.samples_per_block`` evenly spaced parameters. The maximum
+    is refined (:func:`refine_max`) where it matters: everywhere when ``targets`` is None,
+    otherwise only in blocks where the refinement could take it past a target (tip mm,
+    orientation rad). Elsewhere the largest sample is kept, which is then within the
+    refinement's reach of the true maximum and below the target either way (see
+    :func:`_sampled_errors`).
+    """
     n = q0.shape[0]
-    if n == 0:
-        return BlockError(np.zeros(0), np.zeros(0))
-    s = tol.samples_per_block
-    t = np.broadcast_to(np.arange(1, s + 1) / (s + 1), (n, s))
-    d, o = _errors_at(machine, q0, q1, p0, p1, v0, v1, t, tool_length, tcp)
-    out = []
-    for values, pick in ((d, 0), (o, 1)):
+    tip_err, ori_err = np.empty(n), np.empty(n)
+    for part in chunks(n):
+        tip_err[part], ori_err[part] = _sampled_errors(
+            machine,
+            q0[part],
+            q1[part],
+            Segments.between(p0[part], p1[part]),
+            Arcs.between(v0[part], v1[part]),
+            (ends[0].take(part), ends[1].take(part)),
+            tool_length,
+            tcp,
+            tol.samples_per_block,
+            targets,
+        )
+    return BlockError(tip=tip_err, orientation=ori_err)
 
-        def measure(tt: np.ndarray, pick: int = pick) -> np.ndarray:
-            e = _errors_at(machine, q0, q1, p0, p1, v0, v1, tt[:, None], tool_length, tcp)
-            return e[pick][:, 0]
 
-        out.append(refine_max(measure, t, values))
-    return BlockError(tip=out[0], orientation=out[1])
+def _error_bounds(
+    machine: Machine,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    seg: Segments,
+    arc: Arcs,
+    ends: tuple[RowPoses, RowPoses],
+    dist2: np.ndarray,
+    chord2: np.ndarray,
+    h: float,
+    tcp: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Upper bounds on the tip error (mm) and on the chord of the orientation error over whole
+    blocks, from evenly spaced samples.
+
+    With the block ends (the rows) as the outer samples, h apart, on each interval between
+    two samples:
+
+    - the tip error is the distance of the tip p(t) from a segment, a convex and 1-Lipschitz
+      function of p; p stays within ``M h^2 / 8`` of the chord between the two samples when
+      ``|p''| <= M``, and on that chord the distance is at most the larger of the two sampled
+      ones; so the tip error is at most the largest sample plus ``M h^2 / 8``;
+    - likewise the chord ``|a(t) - e(t)|`` between the tool axis a and the slerp e: a convex
+      function of ``a - e``, whose second derivative is at most ``|a''| + omega^2`` (e runs at
+      the constant speed omega on its great circle). The angle increases with the chord.
+
+    M and ``|a''|`` come from :func:`urdfpost.kinematics.forward.interpolation_bounds`.
+
+    Parameters
+    ----------
+    dist2, chord2 : ndarray, shape (n,)
+        Largest squared tip distance and squared chord sampled inside each block.
+    h : float
+        Sample spacing (the first sample is h from the block start).
+    tcp : bool
+        The tip is on the segment (its bound is 0).
+
+    Returns
+    -------
+    tip, chord : ndarray, shape (n,)
+    """
+    _, tip_curv, _, axis_curv = interpolation_bounds(
+        machine, q0, q1, ends[0].reach, ends[1].reach, ends[0].swing, ends[1].swing
+    )
+    at_ends = [
+        arc.chord2(coords(e.axis), c, s)
+        for e, c, s in ((ends[0], 1.0, 0.0), (ends[1], np.cos(arc.omega), np.sin(arc.omega)))
+    ]
+    room = h * h / 8.0
+    chord = np.sqrt(np.maximum(chord2, np.maximum(*at_ends))) + (axis_curv + arc.omega**2) * room
+    if tcp:
+        return np.zeros_like(chord), chord
+    at_ends = [seg.distance2(coords(e.tip))[0] for e in ends]
+    return np.sqrt(np.maximum(dist2, np.maximum(*at_ends))) + tip_curv * room, chord
+
+
+def _sampled_errors(
+    machine: Machine,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    seg: Segments,
+    arc: Arcs,
+    ends: tuple[RowPoses, RowPoses],
+    tool_length: float,
+    tcp: bool,
+    samples: int,
+    targets: tuple[float, float] | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Tip (mm) and orientation (rad) errors of one chunk of blocks; see :func:`_block_errors`.
+
+    A block is refined where :func:`_error_bounds` does not keep it below the target. The
+    golden-section search only ever reports values of the function, at most its maximum, so
+    it cannot take a block past a target that the bound keeps it below: skipping it there
+    changes no decision.
+    """
+    n = q0.shape[0]
+    t = np.arange(1, samples + 1) / (samples + 1)
+    tip, axis = tip_and_axis_along(machine, q0, q1, t, tool_length, with_tip=not tcp)
+    cos, sin = cos_sin_along(np.zeros(n), arc.omega, t)
+    chord2 = arc.chord2((axis[0], axis[1], axis[2]), cos, sin)
+    if tcp:  # the control keeps the tip on the segment
+        dist2 = np.zeros((samples, n))
+    else:
+        assert tip is not None
+        dist2, _ = seg.distance2((tip[0], tip[1], tip[2]))
+    cols = np.arange(n)
+    worst = (np.argmax(dist2, axis=0), np.argmax(chord2, axis=0))
+    best = (dist2[worst[0], cols], chord2[worst[1], cols])
+    if targets is None:
+        wanted = (np.full(n, not tcp), np.ones(n, dtype=bool))
+    else:
+        h = 1.0 / (samples + 1)
+        bound = _error_bounds(machine, q0, q1, seg, arc, ends, best[0], best[1], h, tcp)
+        want_tip = np.zeros(n, dtype=bool) if tcp else may_reach(bound[0], targets[0])
+        wanted = (want_tip, may_reach(bound[1], 2.0 * np.sin(targets[1] / 2.0)))
+
+    def errors(blocks: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p, v = tip_and_axis_along(
+            machine, q0[blocks], q1[blocks], tt[None, :], tool_length, with_tip=not tcp
+        )
+        angle = tt * arc.omega[blocks]
+        sub = arc.take(blocks)
+        c2 = sub.chord2((v[0, 0], v[1, 0], v[2, 0]), np.cos(angle), np.sin(angle))
+        if p is None:
+            return np.zeros(len(blocks)), c2
+        return seg.take(blocks).distance2((p[0, 0], p[1, 0], p[2, 0]))[0], c2
+
+    best = refine_max(errors, t, worst, best, wanted)
+    return np.sqrt(best[0]), angle_from_chord2(best[1])
 
 
 @dataclass(frozen=True)
@@ -311,17 +542,72 @@ def _measure(
     q: np.ndarray,
     tip: np.ndarray,
     axis: np.ndarray,
+    poses: RowPoses,
     blocks: np.ndarray | None,
     tool_length: float,
     tcp: bool,
     tol: Tolerances,
+    targets: tuple[float, float] | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Errors of the given blocks (all when None): block k joins rows k and k + 1."""
     if blocks is None:
         blocks = np.arange(len(q) - 1)
     a, b = blocks, blocks + 1
-    e = _block_errors(machine, q[a], q[b], tip[a], tip[b], axis[a], axis[b], tool_length, tcp, tol)
+    e = _block_errors(
+        machine,
+        q[a],
+        q[b],
+        tip[a],
+        tip[b],
+        axis[a],
+        axis[b],
+        (poses.take(a), poses.take(b)),
+        tool_length,
+        tcp,
+        tol,
+        targets,
+    )
     return e.tip, e.orientation
+
+
+def block_errors(
+    machine: Machine,
+    q: np.ndarray,
+    tip: np.ndarray,
+    axis: np.ndarray,
+    *,
+    tool_length: float = 0.0,
+    tcp: bool = False,
+    tol: Tolerances | None = None,
+) -> BlockError:
+    """Maximum deviation between consecutive points when the control interpolates the axes.
+
+    Parameters
+    ----------
+    machine : Machine
+    q : ndarray, shape (n, m)
+        Joint vectors at the block ends, mm / rad.
+    tip : ndarray, shape (n, 3), mm
+        CL points the blocks should join with straight segments.
+    axis : ndarray, shape (n, 3)
+        CL tool axes.
+    tool_length : float, mm
+    tcp : bool
+        The control keeps the tip on the segment (only the orientation can deviate; the tip
+        error is 0).
+    tol : Tolerances, optional
+
+    Returns
+    -------
+    BlockError
+        Arrays of shape (n - 1,).
+    """
+    tol = tol or Tolerances()
+    if q.shape[0] <= 1:
+        return BlockError(np.zeros(0), np.zeros(0))
+    poses = RowPoses.of(machine, q, tool_length)
+    err = _measure(machine, q, tip, axis, poses, None, tool_length, tcp, tol, None)
+    return BlockError(tip=err[0], orientation=err[1])
 
 
 def subdivide(
@@ -371,7 +657,9 @@ def subdivide(
     source = np.arange(len(q))
     target_tip = tol.tip * tol.interpolation_share
     target_ori = tol.orientation * tol.interpolation_share
-    err_tip, err_ori = _measure(machine, q, tip, axis, None, tool_length, tcp, tol)
+    targets = (target_tip, target_ori)
+    poses = RowPoses.of(machine, q, tool_length)
+    err_tip, err_ori = _measure(machine, q, tip, axis, poses, None, tool_length, tcp, tol, targets)
     for depth in range(tol.max_subdivision_depth):
         bad = (err_tip > target_tip) | (err_ori > target_ori)
         if not bad.any():
@@ -398,13 +686,14 @@ def subdivide(
         tip = np.insert(tip, idx + 1, pm, axis=0)
         axis = np.insert(axis, idx + 1, vm, axis=0)
         source = np.insert(source, idx + 1, -1)
+        poses = poses.insert(idx + 1, RowPoses.of(machine, qm, tool_length))
         err_tip = np.insert(err_tip, idx + 1, 0.0)
         err_ori = np.insert(err_ori, idx + 1, 0.0)
         # only the two halves of each bisected block need measuring again
         first = idx + np.arange(len(idx))
         changed = np.concatenate([first, first + 1])
         err_tip[changed], err_ori[changed] = _measure(
-            machine, q, tip, axis, changed, tool_length, tcp, tol
+            machine, q, tip, axis, poses, changed, tool_length, tcp, tol, targets
         )
     err = BlockError(tip=err_tip, orientation=err_ori)
     return Linearized(q=q, tip=tip, axis=axis, source=source, error=err)

@@ -12,13 +12,24 @@ program reaches, in order.
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from urdfpost.errors import DialectError
-from urdfpost.kinematics.forward import tip_and_axis, tip_and_axis_pin
-from urdfpost.linearize import angle_between, point_segment_distance, refine_max, slerp
+from urdfpost.kinematics.forward import Vec, interpolation_bounds, tip_and_axis_along
+from urdfpost.linearize import (
+    CHUNK,
+    Arcs,
+    RowPoses,
+    Segments,
+    angle_between,
+    angle_from_chord2,
+    chunks,
+    coords,
+    may_reach,
+    refine_max,
+)
 from urdfpost.machine import Machine
 from urdfpost.program import Program, rewind_moves
 from urdfpost.tolerances import Tolerances
@@ -127,17 +138,123 @@ def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.n
     return values, rapid
 
 
-def _pose(
-    machine: Machine, values: np.ndarray, tcp: bool, tool_length: float, pin: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """Tool tip and axis for program values (rows), through Pinocchio when ``pin``."""
-    fk = tip_and_axis_pin if pin else tip_and_axis
+def _row_poses(
+    machine: Machine, values: np.ndarray, tcp: bool, tool_length: float, pivot: float
+) -> RowPoses:
+    """The measured point (``pivot`` up the tool axis from the tip) and axis of program rows.
+
+    In TCP programs the linear values are the tip: only the rotary axes go through the
+    kinematics (with the linear ones at 0, which do not turn the tool axis).
+    """
     if not tcp:
-        return fk(machine, values, tool_length)
+        return RowPoses.of(machine, values, tool_length - pivot)
     q = values.copy()
-    q[:, list(machine.linear_columns)] = 0.0
-    _, axis = fk(machine, q, 0.0)
-    return values[:, list(machine.linear_columns)].copy(), axis
+    lin = list(machine.linear_columns)
+    q[:, lin] = 0.0
+    poses = RowPoses.of(machine, q, 0.0)
+    return replace(poses, tip=values[:, lin] + pivot * poses.axis)
+
+
+_REACH = 64 + 256 + 1024 + 4096
+"""Rows after the previous match that the search for a CL point looks at."""
+
+_WINDOWS = (2, 14, 48, 256, 1024, 4096)
+"""Successive pieces of those rows searched (most CL points are reached within the first)."""
+
+_NEAR = 2
+"""Pieces of :data:`_WINDOWS` searched from a guessed start (the first 16 rows)."""
+
+_RUN = 8192
+"""Most CL points :func:`_match` takes at once (every round looks at the rest of the run)."""
+
+_ROUNDS = 16
+"""Rounds of :func:`_match` before a run of CL points is cut at its exact prefix."""
+
+_SEQUENTIAL = 256
+"""CL points taken one at a time, at most, per round of :func:`_match`."""
+
+_PAIRS = 1 << 20
+"""Largest (CL point, row) distance matrix built at once."""
+
+_UNKNOWN = -2
+
+
+def _first_reaching(
+    cl_tip: np.ndarray,
+    cl_axis: np.ndarray,
+    tip: np.ndarray,
+    axis: np.ndarray,
+    tol: Tolerances,
+    js: np.ndarray,
+    start: np.ndarray,
+    windows: tuple[int, ...] = _WINDOWS,
+) -> np.ndarray:
+    """For CL points ``js``, the first row at or after ``start`` that reaches each (tip within
+    tolerance, axis within the orientation tolerance), searching the rows ``windows`` cover.
+
+    Returns
+    -------
+    ndarray, shape of ``js``, int
+        The row; -1 when none does and ``windows`` cover :data:`_REACH` rows or the rest of
+        the program, ``_UNKNOWN`` when they cover fewer.
+    """
+    n = len(tip)
+    out = np.full(len(js), -1)
+    todo = np.flatnonzero(start < n)
+    lo = 0
+    for width in windows:
+        off = np.arange(lo, lo + width)
+        step = max(1, _PAIRS // width)
+        left = []
+        for part in range(0, len(todo), step):
+            sub = todo[part : part + step]
+            rows = start[sub, None] + off
+            safe = np.minimum(rows, n - 1)
+            j = js[sub, None]
+            d = np.linalg.norm(tip[safe] - cl_tip[j], axis=2)
+            a = angle_between(axis[safe], cl_axis[j])
+            hit = (rows < n) & (d <= tol.tip) & (a <= tol.orientation)
+            found = hit.any(axis=1)
+            out[sub[found]] = rows[found, np.argmax(hit[found], axis=1)]
+            left.append(sub[~found & (start[sub] + lo + width < n)])
+        todo = np.concatenate(left) if left else todo
+        lo += width
+        if not todo.size:
+            break
+    out[todo] = _UNKNOWN if lo < _REACH else -1
+    return out
+
+
+def _walk(cl_tip: np.ndarray, tip: np.ndarray, js: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Rows ``k`` moved on while the next row is strictly nearer to CL points ``js`` (distances
+    computed as the search computes them)."""
+    n = len(tip)
+    k = k.copy()
+    dist = np.linalg.norm(tip[k] - cl_tip[js], axis=1)
+    active = np.flatnonzero(k + 1 < n)
+    while active.size:
+        nxt = np.linalg.norm(tip[k[active] + 1] - cl_tip[js[active]], axis=1)
+        nearer = nxt < dist[active]
+        active = active[nearer]
+        k[active] += 1
+        dist[active] = nxt[nearer]
+        active = active[k[active] + 1 < n]
+    return k
+
+
+def _starts(m: np.ndarray, ptr: int) -> np.ndarray:
+    """Where the search for each point of a run starts, given the results known so far.
+
+    The last match before a point, ``ptr`` before the first; a point whose result is not known
+    yet counts as a match one row on (one row per CL point, what a program usually has).
+    """
+    index = np.arange(len(m))
+    known = np.maximum.accumulate(np.where(m >= 0, index, -1))  # last match at or before
+    base = np.where(known >= 0, m[np.maximum(known, 0)], ptr)
+    unknown = np.cumsum(m == _UNKNOWN)
+    since = unknown - np.where(known >= 0, unknown[np.maximum(known, 0)], 0)
+    after = base + since  # the start for the point after each
+    return np.concatenate([[ptr], after[:-1]])
 
 
 def _match(
@@ -151,77 +268,314 @@ def _match(
     within tolerance, axis within orientation tolerance; the nearest of a run of such points),
     or -1.
 
+    The definition is sequential: with ``ptr = 0``, for each CL point j in turn, ``m_j`` is the
+    first row in ``[ptr, ptr + _REACH)`` that reaches it, walked on while the next row is
+    strictly nearer (CL points closer together than the tolerance); ``ptr = m_j`` when there
+    is one, else ``ptr`` stays. So ``m_j = F_j(ptr_j)``, a function of the start alone, and
+    ``ptr_{j+1}`` is the last match up to j.
+
+    It is computed for runs of CL points at once as a fixed point. Guess every start (one row
+    per CL point after the last match known), evaluate ``F_j`` there over the first rows only
+    (most points are reached within them; the others are unknown), set the guesses from the
+    results (:func:`_starts`), and repeat, evaluating again only where a guess changed. The
+    first point whose guess differs from its recomputed start, or whose result is unknown, has
+    an exact start (every point before it is consistent, and the run starts at the exact
+    ``ptr``): it is searched from there, and so is every point after it, one at a time, until
+    one is reached within the first rows of its search (after missed CL points, or long runs
+    of inserted rows); the guesses after that follow from it again. When every result is known
+    and every guess equals its start, the recurrence holds at every point, and its solution
+    from the exact first start is unique: it is the sequential answer. A run that needs many
+    rounds is cut at its exact prefix and the runs get shorter.
+
     Returns
     -------
     ndarray, shape (n_cl,), int
     """
-    n_cl, n = len(cl_tip), len(tip)
+    n_cl = len(cl_tip)
     out = np.full(n_cl, -1)
-    ptr = 0
-    for j in range(n_cl):
-        start, width = ptr, 64
-        while start < n:
-            stop = min(n, start + width)
-            d = np.linalg.norm(tip[start:stop] - cl_tip[j], axis=1)
-            a = angle_between(axis[start:stop], cl_axis[j])
-            hit = np.flatnonzero((d <= tol.tip) & (a <= tol.orientation))
-            if hit.size:
-                # CL points closer together than the tolerance: walk on to the nearest one
-                k = start + int(hit[0])
-                dist = float(np.linalg.norm(tip[k] - cl_tip[j]))
-                while k + 1 < n:
-                    nxt = float(np.linalg.norm(tip[k + 1] - cl_tip[j]))
-                    if nxt >= dist:
-                        break
-                    k, dist = k + 1, nxt
-                out[j] = k
-                ptr = k
+    ptr, j0, size = 0, 0, 1024
+
+    def evaluate(i: np.ndarray, start: np.ndarray, windows: tuple[int, ...]) -> None:
+        """Results of points i from the given starts: first row reaching, and walked on."""
+        hit = _first_reaching(cl_tip, cl_axis, tip, axis, tol, js[i], start, windows)
+        first[i], done_for[i] = hit, start
+        ok = hit >= 0
+        hit[ok] = _walk(cl_tip, tip, js[i][ok], hit[ok])
+        m[i] = hit
+
+    while j0 < n_cl:
+        js = np.arange(j0, min(j0 + size, n_cl))
+        k = len(js)
+        guess = ptr + np.arange(k)
+        m = np.full(k, _UNKNOWN)  # results
+        first = np.full(k, _UNKNOWN)  # first rows reaching (before the walk)
+        done_for = np.full(k, -1)  # the start each result was computed for
+        exact, rounds = 0, 0  # the points before exact are final
+        while rounds < _ROUNDS:
+            rounds += 1
+            stale = np.flatnonzero(done_for != guess)
+            # a start moved on, but not past the first row reaching: the same result
+            same = (guess[stale] > done_for[stale]) & (first[stale] >= guess[stale])
+            done_for[stale[same]] = guess[stale[same]]
+            stale = stale[~same]
+            evaluate(stale, guess[stale], _WINDOWS[:_NEAR])
+            start = _starts(m, ptr)
+            off = np.flatnonzero((start != guess) | (m == _UNKNOWN))
+            if not off.size:
+                exact = k
                 break
-            # a missed CL point must not make the search run away through the whole program
-            if width >= 4096:
-                break
-            start, width = stop, width * 4
+            e, s = int(off[0]), int(start[off[0]])
+            for _ in range(_SEQUENTIAL):  # e's start s is exact
+                one = np.array([e])
+                if done_for[e] != s:
+                    evaluate(one, np.array([s]), _WINDOWS[:_NEAR])
+                near = m[e] != _UNKNOWN
+                if not near:
+                    evaluate(one, np.array([s]), (_REACH,))
+                guess[e] = s
+                e += 1
+                if near and m[e - 1] >= 0:  # reached near its start: so are the next, likely
+                    break
+                s = int(m[e - 1]) if m[e - 1] >= 0 else s
+                if e == k or (guess[e] == s and done_for[e] == s and m[e] != _UNKNOWN):
+                    break
+            exact = e
+            guess[e:] = _starts(m, ptr)[e:]
+        out[js[:exact]] = m[:exact]
+        if exact == k:
+            ptr, j0 = int(_starts(np.append(m, _UNKNOWN), ptr)[-1]), int(js[-1]) + 1
+            size = min(2 * size, _RUN) if rounds <= 3 else max(16, size // 2)
+        else:  # too many rounds: start again from the exact prefix
+            ptr, j0 = int(guess[exact]), int(js[exact])
+            size = max(16, size // 4)
     return out
 
 
+def _sampled_once(rows: np.ndarray) -> Vec:
+    """Rows of an (n, 3) array as coordinate arrays of shape (1, n): one sample of n blocks."""
+    x, y, z = coords(rows)
+    return x[None], y[None], z[None]
+
+
 def _span_deviation(
-    pts: np.ndarray,
-    axes: np.ndarray,
+    points: Vec,
+    axes: Vec,
     cl_tip: np.ndarray,
     cl_axis: np.ndarray,
     ja: np.ndarray,
     jb: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Distance of sample points to the CL polyline between CL indices ``ja`` and ``jb``.
+    """Distance of sample points from the CL polyline between CL indices ``ja`` and ``jb``, and
+    of their tool axes from the CL axis interpolated (slerp) at the nearest place.
 
     Parameters
     ----------
-    pts, axes : ndarray, shape (n, s, 3)
-        Samples of n blocks.
+    points, axes : Vec
+        Coordinate arrays of shape (s, n): s samples of n blocks.
     ja, jb : ndarray, shape (n,), int
         CL span of each block (``jb >= ja``).
 
     Returns
     -------
-    dist : ndarray, shape (n, s), mm
-    ang : ndarray, shape (n, s), rad
+    dist2 : ndarray, shape (s, n), mm^2
+        Squared distance from the nearest segment of the span (the first of equals).
+    chord2 : ndarray, shape (s, n)
+        Squared chord between the tool axis and the CL axis there (see
+        :func:`urdfpost.linearize.angle_from_chord2`).
     """
-    n, s, _ = pts.shape
-    dist = np.full((n, s), np.inf)
-    ang = np.zeros((n, s))
     span = np.maximum(jb - ja, 1)
     last = len(cl_tip) - 1
-    for off in range(int(span.max())):
-        active = off < span
-        a = np.minimum(ja + off, last)
+    dist2 = chord2 = np.zeros(0)
+    for off in range(int(span.max(initial=1))):
+        cols = np.flatnonzero(span > off) if off else slice(None)
+        a = np.minimum(ja[cols] + off, last)
         b = np.minimum(a + 1, last)
-        d, t = point_segment_distance(pts, cl_tip[a][:, None, :], cl_tip[b][:, None, :])
-        expected = slerp(cl_axis[a], cl_axis[b], t)
-        o = angle_between(axes, expected)
-        better = active[:, None] & (d < dist)
-        dist = np.where(better, d, dist)
-        ang = np.where(better, o, ang)
-    return dist, ang
+        pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
+        axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
+        d2, u = Segments.between(cl_tip[a], cl_tip[b]).distance2(pts)
+        arc = Arcs.between(cl_axis[a], cl_axis[b])
+        angle = u * arc.omega
+        c2 = arc.chord2(axs, np.cos(angle), np.sin(angle))
+        if off == 0:
+            dist2, chord2 = d2, c2
+            continue
+        better = d2 < dist2[:, cols]
+        dist2[:, cols] = np.where(better, d2, dist2[:, cols])
+        chord2[:, cols] = np.where(better, c2, chord2[:, cols])
+    return dist2, chord2
+
+
+@dataclass(frozen=True)
+class _Blocks:
+    """The feed blocks of a program, and how to evaluate them anywhere.
+
+    Block i moves from program row ``start[i]`` to ``start[i] + 1`` and is compared with the CL
+    span ``ja[i] .. jb[i]``.
+    """
+
+    machine: Machine
+    values: np.ndarray
+    rows: RowPoses
+    start: np.ndarray
+    ja: np.ndarray
+    jb: np.ndarray
+    cl_tip: np.ndarray
+    cl_axis: np.ndarray
+    tcp: bool
+    tool_length: float
+    pivot: float
+
+    def errors(self, blocks: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Squared distance and chord (:func:`_span_deviation`) of blocks at parameters t.
+
+        Parameters
+        ----------
+        blocks : ndarray, shape (k,), int
+        t : ndarray, shape (s,) (the same for every block) or (s, k)
+
+        Returns
+        -------
+        dist2, chord2 : ndarray, shape (s, k)
+        """
+        q0, q1 = self.values[self.start[blocks]], self.values[self.start[blocks] + 1]
+        length = self.tool_length - self.pivot
+        p, v = tip_and_axis_along(self.machine, q0, q1, t, length, with_tip=not self.tcp)
+        axis = (v[0], v[1], v[2])
+        if p is None:  # TCP: the control moves the tip on the straight line
+            lin = list(self.machine.linear_columns)
+            p0, dp = q0[:, lin], q1[:, lin] - q0[:, lin]
+            tt = t[:, None] if t.ndim == 1 else t
+            point = tuple(p0[:, i] + tt * dp[:, i] + self.pivot * axis[i] for i in range(3))
+        else:
+            point = (p[0], p[1], p[2])
+        return _span_deviation(
+            point,  # type: ignore[arg-type]
+            axis,
+            self.cl_tip,
+            self.cl_axis,
+            self.ja[blocks],
+            self.jb[blocks],
+        )
+
+    def bounds(
+        self, blocks: np.ndarray, dist2: np.ndarray, chord2: np.ndarray, h: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Upper bounds on the tip deviation (mm) and on the chord of the axis deviation over
+        each whole block, from its samples (evenly spaced h apart, both ends included).
+
+        Where a block is compared with one CL segment:
+
+        - the tip deviation is the distance of the point p(t) from the segment, a convex and
+          1-Lipschitz function of p; with ``|p''| <= M`` (:func:`interpolation_bounds`; in TCP
+          programs p is the straight line plus the pivot times the tool axis) it is at most
+          the larger of two neighbouring samples plus ``M h^2 / 8`` between them;
+        - the chord ``|a(t) - e(t)|`` between the tool axis a and the CL axis e (the slerp at
+          the clipped projection parameter s of p on the segment: a kink where the clip
+          starts, so no curvature bound) changes at most at the speed ``|a'| + omega |s'|``,
+          with ``|s'| <= |p'| / |segment|``: between two samples it is at most their mean plus
+          that speed times h / 2.
+
+        A block compared with more than one CL segment gets no bound (infinite).
+
+        Returns
+        -------
+        tip, chord : ndarray, shape (k,)
+        """
+        r = self.rows
+        a, b = self.start[blocks], self.start[blocks] + 1
+        q0, q1 = self.values[a], self.values[b]
+        tip_speed, tip_curv, axis_speed, axis_curv = interpolation_bounds(
+            self.machine, q0, q1, r.reach[a], r.reach[b], r.swing[a], r.swing[b]
+        )
+        if self.tcp:
+            lin = list(self.machine.linear_columns)
+            chord = np.linalg.norm(q1[:, lin] - q0[:, lin], axis=1)
+            tip_speed = chord + abs(self.pivot) * axis_speed
+            tip_curv = abs(self.pivot) * axis_curv
+        ja = self.ja[blocks]
+        jn = np.minimum(ja + 1, len(self.cl_tip) - 1)
+        length = np.linalg.norm(self.cl_tip[jn] - self.cl_tip[ja], axis=1)
+        omega = angle_between(self.cl_axis[ja], self.cl_axis[jn])
+        spin = np.divide(omega * tip_speed, length, out=np.zeros_like(length), where=length > 0)
+        g = np.sqrt(chord2)
+        tip_bound = np.sqrt(dist2.max(axis=0)) + tip_curv * (h * h / 8.0)
+        chord_bound = 0.5 * (g[1:] + g[:-1]).max(axis=0) + (axis_speed + spin) * (h / 2.0)
+        one = self.jb[blocks] - ja <= 1
+        return np.where(one, tip_bound, np.inf), np.where(one, chord_bound, np.inf)
+
+
+def _block_deviation(
+    feed: _Blocks, tip_level: float, chord2_level: float
+) -> tuple[np.ndarray, float, int, float]:
+    """Deviation of every feed block, sampled and refined where it can matter.
+
+    Every block is sampled at ``_SAMPLES + 2`` evenly spaced parameters, its ends included. The
+    worst samples are refined by golden-section search (:func:`refine_max`) in the blocks where
+    that could change what verification reports: where the bound of :meth:`_Blocks.bounds`
+    reaches the largest deviation sampled in any block or at any block end (``tip_level``,
+    ``chord2_level``). Elsewhere the refined value would stay below that level, so the reported
+    maxima (and the block they are in) are those of refining every block.
+
+    Parameters
+    ----------
+    feed : _Blocks
+    tip_level : float, mm
+        Largest tip deviation at the program points.
+    chord2_level : float
+        Largest squared axis chord at the program points.
+
+    Returns
+    -------
+    tip : ndarray, shape (n,), mm
+        Largest tip deviation seen per block.
+    total : float, mm
+        Sum of the sampled tip deviations.
+    count : int
+        Number of samples.
+    chord2 : float
+        Largest squared axis chord seen in any block.
+    """
+    n = len(feed.start)
+    t = np.linspace(0.0, 1.0, _SAMPLES + 2)
+    h = float(t[1] - t[0])
+    best = (np.zeros(n), np.zeros(n))
+    worst = (np.zeros(n, dtype=int), np.zeros(n, dtype=int))
+    bound = (np.zeros(n), np.zeros(n))
+    total = 0.0
+    for part in chunks(n, CHUNK // 2):
+        blocks = np.arange(part.start, part.stop)
+        dist2, chord2 = feed.errors(blocks, t)
+        total += float(np.sqrt(dist2).sum())
+        cols = np.arange(len(blocks))
+        for i, e in enumerate((dist2, chord2)):
+            worst[i][part] = np.argmax(e, axis=0)
+            best[i][part] = e[worst[i][part], cols]
+        bound[0][part], bound[1][part] = feed.bounds(blocks, dist2, chord2, h)
+    levels = (
+        max(float(np.sqrt(best[0].max(initial=0.0))), tip_level),
+        float(np.sqrt(max(best[1].max(initial=0.0), chord2_level))),
+    )
+    wanted = (may_reach(bound[0], levels[0]), may_reach(bound[1], levels[1]))
+    todo = np.flatnonzero(wanted[0] | wanted[1])
+    log.debug("verify: %d of %d blocks refined", len(todo), n)
+    for part in chunks(len(todo), CHUNK // 2):
+        sub = todo[part]
+
+        def errors(
+            idx: np.ndarray, tt: np.ndarray, sub: np.ndarray = sub
+        ) -> tuple[np.ndarray, np.ndarray]:
+            dist2, chord2 = feed.errors(sub[idx], tt[None, :])
+            return dist2[0], chord2[0]
+
+        refined = refine_max(
+            errors,
+            t,
+            (worst[0][sub], worst[1][sub]),
+            (best[0][sub], best[1][sub]),
+            (wanted[0][sub], wanted[1][sub]),
+        )
+        best[0][sub], best[1][sub] = refined
+    return np.sqrt(best[0]), total, n * len(t), float(best[1].max(initial=0.0))
 
 
 def verify(
@@ -282,8 +636,8 @@ def verify(
             tcp=program.tcp,
             notes=["program has no motion"] if len(values) == 0 else ["CL data has no motion"],
         )
-    tip, axis = _pose(machine, values, program.tcp, tool_length, pin=True)
-    tip = tip + pivot * axis
+    rows = _row_poses(machine, values, program.tcp, tool_length, pivot)
+    tip, axis = rows.tip, rows.axis
     cl_tip = toolpath.tip + pivot * toolpath.axis
     match = _match(cl_tip, toolpath.axis, tip, axis, tol)
     reached = match >= 0
@@ -296,48 +650,35 @@ def verify(
     after_src = np.where(owner >= 0, owner, n_cl)
     after = np.minimum.accumulate(after_src[::-1])[::-1]
 
-    blocks = np.flatnonzero(~rapid[1:]) + 1  # feed block k joins program points k-1 and k
-    blocks = blocks[(before[blocks - 1] >= 0) & (after[blocks] < n_cl)]
-    dmax = np.zeros(len(blocks))
-    dsum = 0.0
-    count = 0
-    omax = 0.0
-    if len(blocks):
-        q0, q1 = values[blocks - 1], values[blocks]
-        ja = before[blocks - 1]
-        jb = np.maximum(after[blocks], ja)
-        t = np.linspace(0.0, 1.0, _SAMPLES + 2)[None, :].repeat(len(blocks), 0)
-
-        def measure(tt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            n, s = tt.shape
-            q = q0[:, None, :] + tt[..., None] * (q1 - q0)[:, None, :]
-            p, v = _pose(machine, q.reshape(n * s, -1), program.tcp, tool_length, pin=False)
-            if program.tcp:
-                p0, p1 = tip[blocks - 1], tip[blocks]
-                p0, p1 = p0 - pivot * axis[blocks - 1], p1 - pivot * axis[blocks]
-                p = (p0[:, None, :] + tt[..., None] * (p1 - p0)[:, None, :]).reshape(n * s, 3)
-            p = p + pivot * v
-            return _span_deviation(
-                p.reshape(n, s, 3), v.reshape(n, s, 3), cl_tip, toolpath.axis, ja, jb
-            )
-
-        d, o = measure(t)
-        dsum, count = float(d.sum()), d.size
-        dmax = d.max(axis=1)
-        omax = float(o.max())
-        # refine the worst sample of each block (the maximum is not always at a sample)
-        dmax = refine_max(lambda tt: measure(tt[:, None])[0][:, 0], t, d)
-        omax = max(omax, float(refine_max(lambda tt: measure(tt[:, None])[1][:, 0], t, o).max()))
     # the block ends themselves (rapids included) against their CL span
     ja_pt = np.maximum(before, 0)
     jb_pt = np.where(after < n_cl, after, n_cl - 1)
     jb_pt = np.maximum(jb_pt, ja_pt)
-    dp, op = _span_deviation(tip[:, None, :], axis[:, None, :], cl_tip, toolpath.axis, ja_pt, jb_pt)
+    at_rows = (_sampled_once(tip), _sampled_once(axis))
+    dp2, op2 = _span_deviation(*at_rows, cl_tip, toolpath.axis, ja_pt, jb_pt)
     feed_pts = ~rapid | (owner >= 0)
-    dp, op = dp[feed_pts, 0], op[feed_pts, 0]
+    dp, op2 = np.sqrt(dp2[0, feed_pts]), op2[0, feed_pts]
+
+    blocks = np.flatnonzero(~rapid[1:]) + 1  # feed block k joins program points k-1 and k
+    blocks = blocks[(before[blocks - 1] >= 0) & (after[blocks] < n_cl)]
+    ja = before[blocks - 1]
+    feed = _Blocks(
+        machine=machine,
+        values=values,
+        rows=rows,
+        start=blocks - 1,
+        ja=ja,
+        jb=np.maximum(after[blocks], ja),
+        cl_tip=cl_tip,
+        cl_axis=toolpath.axis,
+        tcp=program.tcp,
+        tool_length=tool_length,
+        pivot=pivot,
+    )
+    dmax, dsum, count, omax = _block_deviation(feed, dp.max(initial=0.0), op2.max(initial=0.0))
     max_tip = float(max(dmax.max(initial=0.0), dp.max(initial=0.0)))
     mean_tip = (dsum + float(dp.sum())) / max(count + dp.size, 1)
-    max_ori = max(omax, float(op.max(initial=0.0)))
+    max_ori = float(angle_from_chord2(max(omax, float(op2.max(initial=0.0)))))
     worst_line = None
     if len(blocks) and dmax.max() >= dp.max(initial=0.0):
         worst_line = int(toolpath.line[before[blocks[int(np.argmax(dmax))] - 1]])
