@@ -792,13 +792,13 @@ def check_fast_fk(m: Machine, seed: int, tool_length: float) -> None:
         tt = t[:, None] if t.ndim == 1 else t
         q = (q0[None] + tt[..., None] * (q1 - q0)[None]).reshape(-1, len(m.axes))
         tip_p, axis_p = tip_and_axis_pin(m, q, tool_length)
-        got_tip = along_tip.reshape(3, -1).T
-        got_axis = along_axis.reshape(3, -1).T
+        got_tip = np.stack(along_tip).reshape(3, -1).T
+        got_axis = np.stack(along_axis).reshape(3, -1).T
         np.testing.assert_allclose(got_tip, tip_p, rtol=0, atol=POSE_TOL_MM)
         np.testing.assert_allclose(got_axis, axis_p, rtol=0, atol=1e-12)
         none, axis_only = tip_and_axis_along(m, q0, q1, t, tool_length, with_tip=False)
         assert none is None
-        np.testing.assert_array_equal(axis_only, along_axis)
+        np.testing.assert_array_equal(np.stack(axis_only), np.stack(along_axis))
     observe("fast fk tip error mm", np.abs(got_tip - tip_p).max())
 
 
@@ -851,7 +851,8 @@ def check_interpolation_bounds(m: Machine, seed: int, tool_length: float) -> Non
     q0, q1 = moves_q(m, rng, 40)
     t = np.linspace(0.0, 1.0, 201)
     h = t[1] - t[0]
-    tip, axis = tip_and_axis_along(m, q0, q1, t[:, None].repeat(len(q0), 1), tool_length)
+    along = tip_and_axis_along(m, q0, q1, t[:, None].repeat(len(q0), 1), tool_length)
+    tip, axis = np.stack(along[0]), np.stack(along[1])
     ends = [tip_axis_and_reach(m, q, tool_length) for q in (q0, q1)]
     bounds = interpolation_bounds(m, q0, q1, ends[0][2], ends[1][2], ends[0][3], ends[1][3])
     for curve, speed, curvature in ((tip, *bounds[:2]), (axis, *bounds[2:])):

@@ -19,14 +19,21 @@ from urdfpost import load_machine
 from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
 from urdfpost.kinematics.forward import tip_and_axis, tip_and_axis_along
-from urdfpost.linearize import Arcs, RowPoses, Segments, _error_bounds, angle_between
+from urdfpost.linearize import (
+    Arcs,
+    RowPoses,
+    Segments,
+    _error_bounds,
+    angle_between,
+    cos_sin,
+)
 from urdfpost.machine import Machine
 from urdfpost.pipeline import PostOptions, PostResult, build_program, post
 from urdfpost.program import Move, Program, Tcp, ToolChange
 from urdfpost.readers import read_cl
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verify import Verification, _Blocks, _match, _row_poses, verify
+from urdfpost.verify import Verification, _Blocks, _match, _Polyline, _row_poses, verify
 
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"
@@ -520,8 +527,7 @@ def test_verify_block_bounds_hold(name: str, tcp: bool, pivot: float) -> None:
             start=np.arange(len(q) - 1),
             ja=np.arange(len(q) - 1),
             jb=np.arange(1, len(q)),
-            cl_tip=cl_tip,
-            cl_axis=cl_axis,
+            polyline=_Polyline.of(cl_tip, cl_axis),
             tcp=tcp,
             tool_length=100.0,
             pivot=pivot,
@@ -540,8 +546,8 @@ def _largest_errors(
     """Largest squared tip distance and axis chord at t in the blocks joining rows of q."""
     p, v = tip_and_axis_along(m, q[:-1], q[1:], t, 100.0)
     angle = t[:, None] * arc.omega
-    chord2 = arc.chord2((v[0], v[1], v[2]), np.cos(angle), np.sin(angle))
-    dist2 = np.zeros_like(chord2) if tcp else seg.distance2((p[0], p[1], p[2]))[0]
+    chord2 = arc.chord2(v, np.cos(angle), np.sin(angle))
+    dist2 = np.zeros_like(chord2) if tcp else seg.distance2(p)[0]
     return dist2.max(axis=0), chord2.max(axis=0)
 
 
@@ -583,7 +589,8 @@ def test_refining_where_it_matters_is_refining_everywhere(
     monkeypatch: pytest.MonkeyPatch, tcp: bool, strategy: str
 ) -> None:
     """Skipping the golden-section search where the bounds rule out a change gives the same
-    program and the same verification as searching every block."""
+    program and the same verification as searching every block (up to deviations below a
+    billionth of the tolerance, which verification does not refine)."""
     m, tp = machine("dmu50"), dome()
     options = PostOptions(strategy=strategy, controller="heidenhain", tcp=tcp)
     tol = Tolerances.for_units("mm")
@@ -592,4 +599,23 @@ def test_refining_where_it_matters_is_refining_everywhere(
     _refine_everywhere(monkeypatch)
     program_all, _ = build_program(tp, m, options, tol)
     assert program_all == program
-    assert [verify(program, m, tp, tol=tol, pivot=pivot) for pivot in (0.0, 3.0)] == checks
+    for pivot, check in zip((0.0, 3.0), checks, strict=True):
+        everywhere = verify(program, m, tp, tol=tol, pivot=pivot)
+        tip = check.max_tip_deviation
+        assert everywhere.max_tip_deviation == pytest.approx(tip, rel=0, abs=1e-9 * tol.tip)
+        assert everywhere.max_orientation_deviation_deg == pytest.approx(
+            check.max_orientation_deviation_deg, rel=0, abs=1e-9 * check.orientation_tolerance_deg
+        )
+        if tip > 1e-6 * tol.tip:  # (below, the worst is any of many blocks on the CL path)
+            assert everywhere.worst_cl_line == check.worst_cl_line
+        fields = ("ok", "reached", "missed_lines", "blocks", "mean_tip_deviation", "notes")
+        assert [getattr(everywhere, f) for f in fields] == [getattr(check, f) for f in fields]
+
+
+@pytest.mark.parametrize("largest", [0.0, 1e-6, 1e-3, 0.03, 0.1, 0.5, 4.0])
+def test_cos_sin_of_small_angles(largest: float) -> None:
+    """The Taylor polynomials for the small angles between CL axes are as good as numpy."""
+    angle = np.linspace(-largest, largest, 10001)
+    cos, sin = cos_sin(angle)
+    np.testing.assert_allclose(cos, np.cos(angle), rtol=0, atol=2.3e-16)
+    np.testing.assert_allclose(sin, np.sin(angle), rtol=0, atol=2.3e-16)

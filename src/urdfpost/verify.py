@@ -1,17 +1,22 @@
 """Verification: a program's motion, run through the machine, compared with the CL data.
 
-The program is taken as the control executes it: every block end goes through Pinocchio's
-forward kinematics (tool tip and axis in the workpiece frame); between feed blocks the axes are
-interpolated linearly as the control does (in TCP programs the tip moves on the straight line and
-the rotary axes interpolate linearly), sampled densely with a golden-section refinement of the
-worst sample. The result is compared with the CL path: tool-tip distance to the CL polyline,
-tool-axis angle to the CL axis interpolated (slerp) at the same place, and which CL points the
-program reaches, in order.
+The program is taken as the control executes it: every block end goes through the forward
+kinematics (tool tip and axis in the workpiece frame; the vectorised product of exponentials,
+which the tests hold to Pinocchio on every shipped machine and on generated ones); between
+feed blocks the axes are interpolated linearly as the control does (in TCP programs the tip
+moves on the straight line and the rotary axes interpolate linearly), sampled densely, and the
+worst sample refined by golden-section search in every block where that could change the
+result (elsewhere a bound on the deviation between samples rules it out). The result is
+compared with the CL path: tool-tip distance to the CL polyline, tool-axis angle to the CL axis
+interpolated (slerp) at the same place, and which CL points the program reaches, in order.
+Everything runs on arrays, in chunks of blocks.
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
+import operator
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -19,7 +24,6 @@ import numpy as np
 from urdfpost.errors import DialectError
 from urdfpost.kinematics.forward import Vec, interpolation_bounds, tip_and_axis_along
 from urdfpost.linearize import (
-    CHUNK,
     Arcs,
     RowPoses,
     Segments,
@@ -27,6 +31,7 @@ from urdfpost.linearize import (
     angle_from_chord2,
     chunks,
     coords,
+    cos_sin,
     may_reach,
     refine_max,
 )
@@ -38,6 +43,9 @@ from urdfpost.toolpath import Toolpath
 log = logging.getLogger(__name__)
 
 _SAMPLES = 16
+
+_NEGLIGIBLE = 1e-9
+"""Share of a tolerance below which a deviation is not refined (when nothing larger is seen)."""
 
 
 @dataclass(frozen=True)
@@ -122,7 +130,14 @@ def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.n
         )
     values = np.tile(machine.home, (len(moves), 1))
     if moves:
-        pos = np.array([m.position for m in moves], dtype=float)
+        positions = list(map(operator.attrgetter("position"), moves))
+        if set(map(len, positions)) == {len(program.axes)}:
+            # one flat pass (np.array of a list of tuples is several times slower)
+            flat = itertools.chain.from_iterable(positions)
+            pos = np.fromiter(flat, dtype=float, count=len(moves) * len(program.axes))
+            pos = pos.reshape(len(moves), len(program.axes))
+        else:  # says what is wrong
+            pos = np.array(positions, dtype=float)
         for j, name in enumerate(program.axes):
             col = machine.axis_names.index(name)
             column = pos[:, j]
@@ -134,7 +149,7 @@ def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.n
             idx = np.maximum.accumulate(idx)
             filled = np.where(idx >= 0, column[np.maximum(idx, 0)], values[:, col])
             values[:, col] = filled
-    rapid = np.array([m.rapid for m in moves], dtype=bool)
+    rapid = np.fromiter(map(operator.attrgetter("rapid"), moves), dtype=bool, count=len(moves))
     return values, rapid
 
 
@@ -211,9 +226,9 @@ def _first_reaching(
             rows = start[sub, None] + off
             safe = np.minimum(rows, n - 1)
             j = js[sub, None]
-            d = np.linalg.norm(tip[safe] - cl_tip[j], axis=2)
-            a = angle_between(axis[safe], cl_axis[j])
-            hit = (rows < n) & (d <= tol.tip) & (a <= tol.orientation)
+            hit = (np.linalg.norm(tip[safe] - cl_tip[j], axis=2) <= tol.tip) & (rows < n)
+            near = np.nonzero(hit)
+            hit[near] = angle_between(axis[safe[near]], cl_axis[j[near[0], 0]]) <= tol.orientation
             found = hit.any(axis=1)
             out[sub[found]] = rows[found, np.argmax(hit[found], axis=1)]
             left.append(sub[~found & (start[sub] + lo + width < n)])
@@ -227,18 +242,20 @@ def _first_reaching(
 
 def _walk(cl_tip: np.ndarray, tip: np.ndarray, js: np.ndarray, k: np.ndarray) -> np.ndarray:
     """Rows ``k`` moved on while the next row is strictly nearer to CL points ``js`` (distances
-    computed as the search computes them)."""
+    computed as the search computes them), a few rows at a time and then more."""
     n = len(tip)
     k = k.copy()
-    dist = np.linalg.norm(tip[k] - cl_tip[js], axis=1)
-    active = np.flatnonzero(k + 1 < n)
+    active = np.arange(len(k))
+    width = 4
     while active.size:
-        nxt = np.linalg.norm(tip[k[active] + 1] - cl_tip[js[active]], axis=1)
-        nearer = nxt < dist[active]
-        active = active[nearer]
-        k[active] += 1
-        dist[active] = nxt[nearer]
-        active = active[k[active] + 1 < n]
+        rows = k[active, None] + np.arange(width)
+        dist = np.linalg.norm(tip[np.minimum(rows, n - 1)] - cl_tip[js[active], None], axis=2)
+        dist[rows >= n] = np.inf  # past the end: not nearer
+        stop = ~(dist[:, 1:] < dist[:, :-1])
+        stops = stop.any(axis=1)
+        k[active] += np.where(stops, np.argmax(stop, axis=1), width - 1)
+        active = active[~stops]
+        width = min(8 * width, 4096)
     return k
 
 
@@ -303,6 +320,13 @@ def _match(
         hit[ok] = _walk(cl_tip, tip, js[i][ok], hit[ok])
         m[i] = hit
 
+    def holds(i: np.ndarray | int, start: np.ndarray | int) -> np.ndarray | bool:
+        """Whether the results of points i hold for these starts: computed for them, or for
+        an earlier start with the first row reaching at or after them (nothing in between)."""
+        return (done_for[i] == start) | (
+            (done_for[i] >= 0) & (start > done_for[i]) & (first[i] >= start)
+        )
+
     while j0 < n_cl:
         js = np.arange(j0, min(j0 + size, n_cl))
         k = len(js)
@@ -314,8 +338,7 @@ def _match(
         while rounds < _ROUNDS:
             rounds += 1
             stale = np.flatnonzero(done_for != guess)
-            # a start moved on, but not past the first row reaching: the same result
-            same = (guess[stale] > done_for[stale]) & (first[stale] >= guess[stale])
+            same = holds(stale, guess[stale])
             done_for[stale[same]] = guess[stale[same]]
             stale = stale[~same]
             evaluate(stale, guess[stale], _WINDOWS[:_NEAR])
@@ -326,19 +349,15 @@ def _match(
                 break
             e, s = int(off[0]), int(start[off[0]])
             for _ in range(_SEQUENTIAL):  # e's start s is exact
-                one = np.array([e])
-                if done_for[e] != s:
-                    evaluate(one, np.array([s]), _WINDOWS[:_NEAR])
-                near = m[e] != _UNKNOWN
-                if not near:
-                    evaluate(one, np.array([s]), (_REACH,))
-                guess[e] = s
+                if not holds(e, s):
+                    evaluate(np.array([e]), np.array([s]), _WINDOWS[:_NEAR])
+                if m[e] == _UNKNOWN:
+                    evaluate(np.array([e]), np.array([s]), (_REACH,))
+                done_for[e] = guess[e] = s
+                s = int(m[e]) if m[e] >= 0 else s
                 e += 1
-                if near and m[e - 1] >= 0:  # reached near its start: so are the next, likely
-                    break
-                s = int(m[e - 1]) if m[e - 1] >= 0 else s
-                if e == k or (guess[e] == s and done_for[e] == s and m[e] != _UNKNOWN):
-                    break
+                if e == k or (holds(e, s) and m[e] != _UNKNOWN):
+                    break  # the next result holds: back to the rounds
             exact = e
             guess[e:] = _starts(m, ptr)[e:]
         out[js[:exact]] = m[:exact]
@@ -357,13 +376,33 @@ def _sampled_once(rows: np.ndarray) -> Vec:
     return x[None], y[None], z[None]
 
 
+@dataclass(frozen=True)
+class _Polyline:
+    """The CL path as segments: segment j runs from CL point j to j + 1 (the last is a point).
+
+    Attributes
+    ----------
+    segments : Segments
+        Of the tips (mm).
+    arcs : Arcs
+        Of the tool axes (slerp).
+    """
+
+    segments: Segments
+    arcs: Arcs
+
+    @classmethod
+    def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
+        """The polyline of CL points ``tip`` and axes ``axis``, shape (n, 3)."""
+        nxt = np.minimum(np.arange(len(tip)) + 1, len(tip) - 1)
+        return cls(Segments.between(tip, tip[nxt]), Arcs.between(axis, axis[nxt]))
+
+    def __len__(self) -> int:
+        return len(self.arcs.omega)
+
+
 def _span_deviation(
-    points: Vec,
-    axes: Vec,
-    cl_tip: np.ndarray,
-    cl_axis: np.ndarray,
-    ja: np.ndarray,
-    jb: np.ndarray,
+    points: Vec, axes: Vec, polyline: _Polyline, ja: np.ndarray, jb: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Distance of sample points from the CL polyline between CL indices ``ja`` and ``jb``, and
     of their tool axes from the CL axis interpolated (slerp) at the nearest place.
@@ -372,6 +411,7 @@ def _span_deviation(
     ----------
     points, axes : Vec
         Coordinate arrays of shape (s, n): s samples of n blocks.
+    polyline : _Polyline
     ja, jb : ndarray, shape (n,), int
         CL span of each block (``jb >= ja``).
 
@@ -384,18 +424,16 @@ def _span_deviation(
         :func:`urdfpost.linearize.angle_from_chord2`).
     """
     span = np.maximum(jb - ja, 1)
-    last = len(cl_tip) - 1
+    last = len(polyline) - 1
     dist2 = chord2 = np.zeros(0)
     for off in range(int(span.max(initial=1))):
         cols = np.flatnonzero(span > off) if off else slice(None)
         a = np.minimum(ja[cols] + off, last)
-        b = np.minimum(a + 1, last)
         pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
         axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
-        d2, u = Segments.between(cl_tip[a], cl_tip[b]).distance2(pts)
-        arc = Arcs.between(cl_axis[a], cl_axis[b])
-        angle = u * arc.omega
-        c2 = arc.chord2(axs, np.cos(angle), np.sin(angle))
+        d2, u = polyline.segments.take(a).distance2(pts)
+        arc = polyline.arcs.take(a)
+        c2 = arc.chord2(axs, *cos_sin(u * arc.omega))
         if off == 0:
             dist2, chord2 = d2, c2
             continue
@@ -419,8 +457,7 @@ class _Blocks:
     start: np.ndarray
     ja: np.ndarray
     jb: np.ndarray
-    cl_tip: np.ndarray
-    cl_axis: np.ndarray
+    polyline: _Polyline
     tcp: bool
     tool_length: float
     pivot: float
@@ -439,20 +476,16 @@ class _Blocks:
         """
         q0, q1 = self.values[self.start[blocks]], self.values[self.start[blocks] + 1]
         length = self.tool_length - self.pivot
-        p, v = tip_and_axis_along(self.machine, q0, q1, t, length, with_tip=not self.tcp)
-        axis = (v[0], v[1], v[2])
+        p, axis = tip_and_axis_along(self.machine, q0, q1, t, length, with_tip=not self.tcp)
         if p is None:  # TCP: the control moves the tip on the straight line
             lin = list(self.machine.linear_columns)
             p0, dp = q0[:, lin], q1[:, lin] - q0[:, lin]
             tt = t[:, None] if t.ndim == 1 else t
-            point = tuple(p0[:, i] + tt * dp[:, i] + self.pivot * axis[i] for i in range(3))
-        else:
-            point = (p[0], p[1], p[2])
+            p = tuple(p0[:, i] + tt * dp[:, i] + self.pivot * axis[i] for i in range(3))
         return _span_deviation(
-            point,  # type: ignore[arg-type]
+            p,  # type: ignore[arg-type]
             axis,
-            self.cl_tip,
-            self.cl_axis,
+            self.polyline,
             self.ja[blocks],
             self.jb[blocks],
         )
@@ -493,10 +526,8 @@ class _Blocks:
             tip_speed = chord + abs(self.pivot) * axis_speed
             tip_curv = abs(self.pivot) * axis_curv
         ja = self.ja[blocks]
-        jn = np.minimum(ja + 1, len(self.cl_tip) - 1)
-        length = np.linalg.norm(self.cl_tip[jn] - self.cl_tip[ja], axis=1)
-        omega = angle_between(self.cl_axis[ja], self.cl_axis[jn])
-        spin = np.divide(omega * tip_speed, length, out=np.zeros_like(length), where=length > 0)
+        inv_length = np.sqrt(self.polyline.segments.inv_dd[ja])  # 0 for a point
+        spin = self.polyline.arcs.omega[ja] * tip_speed * inv_length
         g = np.sqrt(chord2)
         tip_bound = np.sqrt(dist2.max(axis=0)) + tip_curv * (h * h / 8.0)
         chord_bound = 0.5 * (g[1:] + g[:-1]).max(axis=0) + (axis_speed + spin) * (h / 2.0)
@@ -512,17 +543,17 @@ def _block_deviation(
     Every block is sampled at ``_SAMPLES + 2`` evenly spaced parameters, its ends included. The
     worst samples are refined by golden-section search (:func:`refine_max`) in the blocks where
     that could change what verification reports: where the bound of :meth:`_Blocks.bounds`
-    reaches the largest deviation sampled in any block or at any block end (``tip_level``,
-    ``chord2_level``). Elsewhere the refined value would stay below that level, so the reported
-    maxima (and the block they are in) are those of refining every block.
+    reaches the largest deviation sampled in any block, or the level given (the largest at the
+    program points). Elsewhere the refined value would stay below that, so the reported maxima
+    (and the block they are in) are those of refining every block.
 
     Parameters
     ----------
     feed : _Blocks
     tip_level : float, mm
-        Largest tip deviation at the program points.
+        No block needs refining below this tip deviation.
     chord2_level : float
-        Largest squared axis chord at the program points.
+        Likewise for the squared axis chord.
 
     Returns
     -------
@@ -542,7 +573,7 @@ def _block_deviation(
     worst = (np.zeros(n, dtype=int), np.zeros(n, dtype=int))
     bound = (np.zeros(n), np.zeros(n))
     total = 0.0
-    for part in chunks(n, CHUNK // 2):
+    for part in chunks(n, len(t)):
         blocks = np.arange(part.start, part.stop)
         dist2, chord2 = feed.errors(blocks, t)
         total += float(np.sqrt(dist2).sum())
@@ -557,8 +588,13 @@ def _block_deviation(
     )
     wanted = (may_reach(bound[0], levels[0]), may_reach(bound[1], levels[1]))
     todo = np.flatnonzero(wanted[0] | wanted[1])
-    log.debug("verify: %d of %d blocks refined", len(todo), n)
-    for part in chunks(len(todo), CHUNK // 2):
+    log.debug(
+        "verify: %d blocks, tip refined in %d, orientation in %d",
+        n,
+        wanted[0].sum(),
+        wanted[1].sum(),
+    )
+    for part in chunks(len(todo), 4):  # four evaluations per block at a time
         sub = todo[part]
 
         def errors(
@@ -655,7 +691,8 @@ def verify(
     jb_pt = np.where(after < n_cl, after, n_cl - 1)
     jb_pt = np.maximum(jb_pt, ja_pt)
     at_rows = (_sampled_once(tip), _sampled_once(axis))
-    dp2, op2 = _span_deviation(*at_rows, cl_tip, toolpath.axis, ja_pt, jb_pt)
+    polyline = _Polyline.of(cl_tip, toolpath.axis)
+    dp2, op2 = _span_deviation(*at_rows, polyline, ja_pt, jb_pt)
     feed_pts = ~rapid | (owner >= 0)
     dp, op2 = np.sqrt(dp2[0, feed_pts]), op2[0, feed_pts]
 
@@ -669,13 +706,16 @@ def verify(
         start=blocks - 1,
         ja=ja,
         jb=np.maximum(after[blocks], ja),
-        cl_tip=cl_tip,
-        cl_axis=toolpath.axis,
+        polyline=polyline,
         tcp=program.tcp,
         tool_length=tool_length,
         pivot=pivot,
     )
-    dmax, dsum, count, omax = _block_deviation(feed, dp.max(initial=0.0), op2.max(initial=0.0))
+    # what no block needs refining for: the largest deviation at a program point, or (when
+    # there is next to none) a billionth of the tolerance
+    tip_level = max(dp.max(initial=0.0), _NEGLIGIBLE * tol.tip)
+    chord2_level = max(op2.max(initial=0.0), (2.0 * np.sin(_NEGLIGIBLE * tol.orientation / 2)) ** 2)
+    dmax, dsum, count, omax = _block_deviation(feed, tip_level, chord2_level)
     max_tip = float(max(dmax.max(initial=0.0), dp.max(initial=0.0)))
     mean_tip = (dsum + float(dp.sum())) / max(count + dp.size, 1)
     max_ori = float(angle_from_chord2(max(omax, float(op2.max(initial=0.0)))))

@@ -2,10 +2,17 @@
 
 Two independent routes to the same numbers:
 
-- :func:`tool_in_work` evaluates the product of exponentials derived at load time, vectorised
-  over many joint vectors (used wherever the post needs speed: IK, subdivision, sampling);
-- :func:`tool_in_work_pin` and :func:`jacobian_pin` ask Pinocchio, one configuration at a time
-  (used to check every posted point and in tests).
+- the product of exponentials derived at load time (``T = E_1 ... E_k T_home``, chain order
+  from the workpiece), vectorised over many joint vectors: a tool point and tool vectors given
+  at home are carried through the joints from the tool back, each rotary joint turning them by
+  Rodrigues' formula with one cosine and sine per joint value (no rotation matrices).
+  :func:`tip_and_axis` carries the tip and the axis, :func:`tool_in_work` the whole frame,
+  :func:`tip_and_axis_along` samples straight joint-space moves (with angle addition for
+  evenly spaced samples), and :func:`interpolation_bounds` bounds how fast the tip and the
+  axis move and turn along such moves. Subdivision and verification use these;
+- :func:`tool_in_work_pin` and :func:`jacobian_pin` ask Pinocchio, one configuration at a time.
+  The tests hold every vectorised function to them, on every shipped machine and on generated
+  ones.
 
 Joint vectors ``q`` have shape (n, m): one column per machine axis in ``machine.axis_names``
 order, mm for linear axes and rad for rotary axes. Positions are mm in the workpiece frame.
@@ -115,14 +122,39 @@ def _norm(v: Vec) -> Coord:
     return np.sqrt(_sum(*(_times(c, c) for c in v)))
 
 
+def _plane(c: Coord, s: Coord, u: Coord, v: Coord) -> tuple[Coord, Coord]:
+    """``(c u - s v, s u + c v)``: the turn of (u, v) in its plane, with as few new arrays as
+    the zeros allow (numpy's element-wise work costs about twice as much into a new array)."""
+    if _zero(v):
+        return _times(c, u), _times(s, u)
+    if _zero(u):
+        return _times(s, -v), _times(c, v)
+    first, second = c * u, s * u
+    both = s * v
+    first -= both
+    np.multiply(c, v, out=both)
+    second += both
+    return first, second
+
+
 def _turn(w: tuple[float, float, float], cos: Coord, sin: Coord, x: Vec) -> tuple[Vec, Vec]:
     """``x`` turned about the unit direction ``w`` (Rodrigues), and the part of ``x`` across ``w``.
 
     ``x' = w (w . x) + cos (x - w (w . x)) + sin (w x x)``; the part across ``w`` has the length
-    of the distance of ``x`` from the line along ``w``.
+    of the distance of ``x`` from the line along ``w``. About a coordinate axis it is a turn in
+    the plane of the other two.
     """
+    for k in range(3):
+        if abs(w[k]) == 1.0:
+            a, b = (k + 1) % 3, (k + 2) % 3  # (a, b, k) right-handed
+            out: list[Coord] = [0.0, 0.0, 0.0]
+            out[a], out[b] = _plane(cos, _times(w[k], sin), x[a], x[b])
+            out[k] = x[k]
+            across: list[Coord] = [0.0, 0.0, 0.0]
+            across[a], across[b] = x[a], x[b]
+            return tuple(out), tuple(across)  # type: ignore[return-value]
     along = _sum(*(_times(w[i], x[i]) for i in range(3)))
-    across = tuple(0.0 if abs(w[i]) == 1.0 else _sum(x[i], _times(-w[i], along)) for i in range(3))
+    across = [_sum(x[i], _times(-w[i], along)) for i in range(3)]
     cross = (
         _sum(_times(w[1], x[2]), _times(-w[2], x[1])),
         _sum(_times(w[2], x[0]), _times(-w[0], x[2])),
@@ -131,7 +163,7 @@ def _turn(w: tuple[float, float, float], cos: Coord, sin: Coord, x: Vec) -> tupl
     turned = tuple(
         _sum(_times(w[i], along), _times(cos, across[i]), _times(sin, cross[i])) for i in range(3)
     )
-    return turned, across  # type: ignore[return-value]
+    return turned, tuple(across)  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
@@ -151,12 +183,14 @@ def _joints_from_tool(machine: Machine) -> tuple[_Joint, ...]:
     right)."""
     out = []
     for a in sorted(machine.axes, key=lambda a: a.chain_index, reverse=True):
+        w, v = _vec(a.screw[:3]), _vec(a.screw[3:])
+        pivot = (w[1] * v[2] - w[2] * v[1], w[2] * v[0] - w[0] * v[2], w[0] * v[1] - w[1] * v[0])
         out.append(
             _Joint(
                 column=machine.axis_names.index(a.name),
                 rotary=a.rotary,
-                direction=_vec(a.direction),
-                pivot=_vec(a.pivot) if a.rotary else (0.0, 0.0, 0.0),
+                direction=w if a.rotary else v,
+                pivot=pivot if a.rotary else (0.0, 0.0, 0.0),  # Axis.pivot, w x v
             )
         )
     return tuple(out)
@@ -360,9 +394,14 @@ def cos_sin_along(
     if s > 1:
         h = (t[-1] - t[0]) / (s - 1)
         cd, sd = np.cos(h * step), np.sin(h * step)
+        part = np.empty(len(theta0))
         for k in range(1, s):
-            cos[k] = cos[k - 1] * cd - sin[k - 1] * sd
-            sin[k] = sin[k - 1] * cd + cos[k - 1] * sd
+            np.multiply(cos[k - 1], cd, out=cos[k])
+            np.multiply(sin[k - 1], sd, out=part)
+            cos[k] -= part
+            np.multiply(sin[k - 1], cd, out=sin[k])
+            np.multiply(cos[k - 1], sd, out=part)
+            sin[k] += part
     return cos, sin
 
 
@@ -381,7 +420,7 @@ def tip_and_axis_along(
     tool_length: float = 0.0,
     *,
     with_tip: bool = True,
-) -> tuple[np.ndarray | None, np.ndarray]:
+) -> tuple[Vec | None, Vec]:
     """Tool tip and axis along straight joint-space moves ``q0 + t (q1 - q0)`` (vectorised).
 
     What a control without tool-centre-point control does between two blocks. With ``t`` one
@@ -401,9 +440,10 @@ def tip_and_axis_along(
 
     Returns
     -------
-    tip : ndarray, shape (3, s, n), mm, or None
-        Coordinates first: ``tip[0]`` are the x coordinates of every sample of every move.
-    axis : ndarray, shape (3, s, n)
+    tip : Vec, mm, or None
+        The x, y and z coordinates, each an array of shape (s, n): sample, move.
+    axis : Vec
+        Likewise.
     """
     q0, q1 = _as_q(machine, q0), _as_q(machine, q1)
     t = np.asarray(t, dtype=float)
@@ -413,7 +453,9 @@ def tip_and_axis_along(
     grid = t[:, None] if t.ndim == 1 else t
     linear = {}
     if with_tip:
-        linear = {c: q0[:, c] + grid * dq[:, c] for c in machine.linear_columns}
+        for c in machine.linear_columns:
+            linear[c] = grid * dq[:, c]
+            linear[c] += q0[:, c]
     if _evenly_spaced(t):
         trig = {c: cos_sin_along(q0[:, c], dq[:, c], t) for c in machine.rotary_columns}
     else:
@@ -426,13 +468,11 @@ def tip_and_axis_along(
         _joints_from_tool(machine), linear, trig, point, [_vec(machine.home_tool_axis)]
     )
 
-    def stack(v: Vec) -> np.ndarray:
-        out = np.empty((3, *shape))
-        for i in range(3):
-            out[i] = v[i]
-        return out
+    def full(v: Vec) -> Vec:  # coordinates no joint moved are still constants
+        x, y, z = (c if isinstance(c, np.ndarray) else np.full(shape, c) for c in v)
+        return x, y, z
 
-    return (stack(tip) if tip is not None else None), stack(axis)
+    return (full(tip) if tip is not None else None), full(axis)
 
 
 def tip_axis_and_reach(
