@@ -463,9 +463,16 @@ class _Plan:
     source: str
     exclude: _Exclusions
 
-    @property
-    def cont(self) -> np.ndarray:
-        return np.array([a.continuous for a in self.machine.rotary], dtype=bool)
+    def __post_init__(self) -> None:
+        self.cont = np.array([a.continuous for a in self.machine.rotary], dtype=bool)
+
+    def _diff(self, i: int, state: np.ndarray) -> np.ndarray:
+        """Rotary motion from every state (rows) to every candidate at point ``i`` (columns),
+        shape (K, K, r): limited axes land on the candidate, continuous ones take the shortest
+        rotation to it, an undetermined angle holds."""
+        diff = self.values[i][None, :, :] - state[:, None, :]
+        diff[:, :, self.cont] = _wrap(diff[:, :, self.cont])
+        return np.nan_to_num(diff, nan=0.0)
 
     def usable(self) -> np.ndarray:
         return self.ok & ~self.exclude.state
@@ -490,11 +497,8 @@ class _Plan:
         cost : ndarray, shape (K, K)
             Inf for a move that would need a jump on a cutting move, or that collides.
         """
-        cand = self.values[i]
-        diff = cand[None, :, :] - state[:, None, :]
+        diff = self._diff(i, state)
         cont = self.cont
-        diff[:, :, cont] = _wrap(diff[:, :, cont])
-        diff = np.nan_to_num(diff, nan=0.0)
         size = np.abs(diff)
         cost = size.sum(axis=2) + (size * self.weights).max(axis=2, initial=0.0)
         # the branches meet only at singular points; a switch between two regular points
@@ -515,11 +519,7 @@ class _Plan:
 
     def rewind_steps(self, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rewinds at point ``i`` from each arrival state (rows) to each candidate (columns)."""
-        cand = self.values[i]
-        diff = cand[None, :, :] - state[:, None, :]
-        cont = self.cont
-        diff[:, :, cont] = _wrap(diff[:, :, cont])
-        diff = np.nan_to_num(diff, nan=0.0)
+        diff = self._diff(i, state)
         cost = REWIND_COST + np.abs(diff).sum(axis=2)
         np.fill_diagonal(cost, np.inf)
         for ki, k in self.exclude.rewinds.get(i, ()):
