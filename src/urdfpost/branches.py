@@ -371,6 +371,10 @@ def select(
             _unreachable_message(machine, axis[i], int(ik.status[i]), int(lines[i]), source)
         )
 
+    # candidates (360-degree multiples) within travel nowhere on the path are never taken
+    keep = ok.any(axis=0)
+    values, ok, branch = values[:, keep], ok[:, keep], branch[keep]
+
     entry = np.zeros(n, dtype=bool) if entry is None else np.asarray(entry, dtype=bool).copy()
     entry[0] = True
     cutting = ~entry if cutting is None else np.asarray(cutting, dtype=bool) & ~entry
@@ -466,13 +470,49 @@ class _Plan:
     def __post_init__(self) -> None:
         self.cont = np.array([a.continuous for a in self.machine.rotary], dtype=bool)
 
-    def _diff(self, i: int, state: np.ndarray) -> np.ndarray:
-        """Rotary motion from every state (rows) to every candidate at point ``i`` (columns),
-        shape (K, K, r): limited axes land on the candidate, continuous ones take the shortest
-        rotation to it, an undetermined angle holds."""
-        diff = self.values[i][None, :, :] - state[:, None, :]
-        diff[:, :, self.cont] = _wrap(diff[:, :, self.cont])
+    def _diff(self, idx: np.ndarray, prev: np.ndarray) -> np.ndarray:
+        """Rotary motion from states to every candidate at points ``idx``.
+
+        Parameters
+        ----------
+        idx : ndarray, shape (j,), int
+        prev : ndarray, shape (j, S, r), rad
+            States (rows) the motion starts from, per point.
+
+        Returns
+        -------
+        ndarray, shape (j, S, K, r), rad
+            Limited axes land on the candidate, continuous ones take the shortest rotation to
+            it, an undetermined angle holds.
+        """
+        diff = self.values[idx][:, None, :, :] - prev[:, :, None, :]
+        diff[..., self.cont] = _wrap(diff[..., self.cont])
         return np.nan_to_num(diff, nan=0.0)
+
+    def _move_cost(self, idx: np.ndarray, diff: np.ndarray) -> np.ndarray:
+        """Cost of the moves ``diff`` (j, S, K, r) into points ``idx``, shape (j, S, K): inf
+        for a move that would need a jump on a cutting move (collisions not included)."""
+        size = np.abs(diff)
+        travel = size.sum(axis=3)
+        cost = travel + (size * self.weights).max(axis=3, initial=0.0)
+        # the branches meet only at singular points; a switch between two regular points
+        # turns the first axis by about half a turn within one block unless the tilt is small
+        # (the path passes close to the pole there)
+        regular = ~(self.singular[idx] | self.singular[idx - 1])
+        switch = self.branch[:, None] != self.branch[None, :]
+        cost = cost + np.where(regular[:, None, None] & switch, self.switch_cost, 0.0)
+        # a jump no subdivision can follow while cutting: a switch that swings the axes, or a
+        # limited axis turning the long way round
+        jump = switch & (travel > JUMP) | (size[..., ~self.cont] > np.pi).any(axis=3)
+        return np.where((regular & self.cutting[idx])[:, None, None] & jump, np.inf, cost)
+
+    def _rewind_cost(self, diff: np.ndarray) -> np.ndarray:
+        """Cost of rewinds ``diff`` (j, K, K, r) from each candidate to each other at a point,
+        shape (j, K, K) (inf on the diagonal; collisions not included)."""
+        cost = REWIND_COST + np.abs(diff).sum(axis=3)
+        k = np.arange(cost.shape[1])
+        cost[:, k, k] = np.inf
+        return cost
 
     def usable(self) -> np.ndarray:
         return self.ok & ~self.exclude.state
@@ -491,44 +531,62 @@ class _Plan:
 
         Returns
         -------
-        diff : ndarray, shape (K, K, r), rad
+        diff : ndarray, shape (S, K, r), rad
             Limited axes land on the candidate, continuous ones take the shortest rotation to
             it, an undetermined angle holds.
-        cost : ndarray, shape (K, K)
+        cost : ndarray, shape (S, K)
             Inf for a move that would need a jump on a cutting move, or that collides.
         """
-        diff = self._diff(i, state)
-        cont = self.cont
-        size = np.abs(diff)
-        cost = size.sum(axis=2) + (size * self.weights).max(axis=2, initial=0.0)
-        # the branches meet only at singular points; a switch between two regular points
-        # turns the first axis by about half a turn within one block unless the tilt is small
-        # (the path passes close to the pole there)
-        regular = not (self.singular[i] or self.singular[i - 1])
-        if regular:
-            switch = self.branch[:, None] != self.branch[None, :]
-            cost = cost + self.switch_cost * switch
-            if self.cutting[i]:
-                # a jump no subdivision can follow while cutting: a switch that swings the
-                # axes, or a limited axis turning the long way round
-                jump = switch & (size.sum(axis=2) > JUMP) | (size[:, :, ~cont] > np.pi).any(axis=2)
-                cost = np.where(jump, np.inf, cost)
+        idx = np.array([i])
+        diff = self._diff(idx, state[None])
+        cost = self._move_cost(idx, diff)[0]
         for kp, k in self.exclude.moves.get(i, ()):
             cost[kp, k] = np.inf
-        return diff, cost
+        return diff[0], cost
 
     def rewind_steps(self, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rewinds at point ``i`` from each arrival state (rows) to each candidate (columns)."""
-        diff = self._diff(i, state)
-        cost = REWIND_COST + np.abs(diff).sum(axis=2)
-        np.fill_diagonal(cost, np.inf)
+        diff = self._diff(np.array([i]), state[None])
+        cost = self._rewind_cost(diff)[0]
         for ki, k in self.exclude.rewinds.get(i, ()):
             cost[ki, k] = np.inf
-        return diff, cost
+        return diff[0], cost
+
+    def rewinds_at(self, idx: np.ndarray) -> np.ndarray:
+        """Whether a rewind may follow the arrival at points ``idx`` (the move on cuts)."""
+        nxt = np.minimum(idx + 1, len(self.cutting) - 1)
+        return (idx + 1 < len(self.cutting)) & self.cutting[nxt]
 
 
-def _viterbi(p: _Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+_MIN_PLUS_BLOCK = (8, 512)  # smallest and largest block of the blocked recursion, points
+
+
+def _min_plus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Min-plus products of stacks of matrices, (j, K, K) x (j, K, K) -> (j, K, K)."""
+    return (a[:, :, :, None] + b[:, None, :, :]).min(axis=2)
+
+
+def _viterbi(
+    p: _Plan, block: int | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Least-cost candidates over the whole path, with rewinds where needed.
+
+    The recursion over the points, ``cost_i[k] = min_s cost_{i-1}[s] + step_i[s, k]`` (then the
+    rewind layer at the point), is a chain of min-plus products of the step matrices. Where a
+    step's costs do not depend on the path (neither end holds an undetermined angle and no
+    collision excluded a move there), they are computed for many points at once, and the
+    chain is evaluated in blocks: the min-plus product of each block's steps (all blocks at
+    once, one point of each per array operation), then the costs at the block starts (one
+    small product per block, in order), then each block again from its start cost, recording
+    the best predecessors (all blocks at once). Blocks with path-dependent steps are run point
+    by point from their start state. The predecessors are followed back the same way (maps
+    composed per block), and the actual (unwrapped) angles are rebuilt along the chosen path.
+
+    Parameters
+    ----------
+    p : _Plan
+    block : int, optional
+        Points per block (default about the square root of the path length).
 
     Returns
     -------
@@ -539,25 +597,65 @@ def _viterbi(p: _Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     rot_leave, rot_arrive : ndarray, shape (n, r), rad
         The actual (unwrapped) angles.
     """
-    n, n_cand, r = p.values.shape
+    n, n_cand, _ = p.values.shape
     usable = p.usable()
-    cost, state = p.first_state()
+    cost0, state0 = p.first_state()
     back = np.zeros((n, n_cand), dtype=np.int32)
     rback = np.full((n, n_cand), -1, dtype=np.int32)
-    leave_hist = np.empty((n, n_cand, r))
-    arrive_hist = np.empty((n, n_cand, r))
-    leave_hist[0] = arrive_hist[0] = state
-    cols = np.arange(n_cand)
-    for i in range(1, n):
+    held = (np.isnan(p.values).any(axis=2) & usable).any(axis=1)
+    irregular = np.zeros(n, dtype=bool)  # steps into these points depend on the path
+    irregular[1:] = held[1:] | held[:-1]
+    irregular[list(p.exclude.moves) + list(p.exclude.rewinds)] = True
+    irregular[0] = False
+    if block is None:
+        block = int(np.clip(np.sqrt(n), *_MIN_PLUS_BLOCK))
+    first = np.arange(1, n, block)  # first step of each block
+    last = np.minimum(first + block, n)  # one past its last
+    seq = np.array([irregular[a:b].any() for a, b in zip(first, last, strict=True)], dtype=bool)
+    bulk = np.flatnonzero(~seq)
+    products = _block_products(p, usable, first[bulk], last[bulk])
+    # costs at the block starts, in order
+    starts = np.empty((len(first), n_cand))
+    cost, state = cost0, state0
+    for b, (a, e) in enumerate(zip(first, last, strict=True)):
+        starts[b] = cost
+        if not seq[b]:
+            new = (cost[:, None] + products[np.searchsorted(bulk, b)]).min(axis=0)
+            if np.isfinite(new).any():
+                cost, state = new, p.values[e - 1]
+                continue
+        # path-dependent steps, or a dead end to locate: point by point
+        cost, state = _sequential(p, usable, a, e, cost, state, back, rback)
+    ends = _block_steps(p, usable, first[bulk], last[bulk], starts[bulk], back, rback)
+    if len(first) and not seq[-1]:
+        cost = ends[-1]  # the recorded arithmetic, which the predecessors follow
+    chosen, arrive = _follow_back(int(np.argmin(cost)), back, rback, block)
+    rot_leave, rot_arrive = _angles_along(p, state0, chosen, arrive)
+    return chosen, arrive, rot_leave, rot_arrive
+
+
+def _sequential(
+    p: _Plan,
+    usable: np.ndarray,
+    lo: int,
+    hi: int,
+    cost: np.ndarray,
+    state: np.ndarray,
+    back: np.ndarray,
+    rback: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The recursion point by point over steps ``lo..hi-1`` from ``cost`` and the actual
+    angles ``state`` (K, r) at point ``lo - 1``; fills ``back`` and ``rback`` there."""
+    cols = np.arange(len(cost))
+    for i in range(lo, hi):
         diff, step = p.steps(i, state)
         total = cost[:, None] + step
         best = np.argmin(total, axis=0)
         arrive_cost = np.where(usable[i], total[best, cols] + p.pref_cost[i], np.inf)
         arrive_state = state[best] + diff[best, cols]
         back[i] = best
-        arrive_hist[i] = arrive_state
         cost, state = arrive_cost, arrive_state
-        if i + 1 < n and p.cutting[i + 1] and np.isfinite(arrive_cost).any():
+        if p.rewinds_at(np.array([i]))[0] and np.isfinite(arrive_cost).any():
             rdiff, rstep = p.rewind_steps(i, arrive_state)
             rtotal = arrive_cost[:, None] + rstep
             rbest = np.argmin(rtotal, axis=0)
@@ -567,20 +665,152 @@ def _viterbi(p: _Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
                 rback[i] = np.where(take, rbest, -1)
                 cost = np.where(take, rcost, arrive_cost)
                 state = np.where(take[:, None], arrive_state[rbest] + rdiff[rbest, cols], state)
-        leave_hist[i] = state
         if not np.isfinite(cost).any():
             _raise_dead_end(p, i)
-    k = int(np.argmin(cost))
+    return cost, state
+
+
+def _bulk_steps(
+    p: _Plan, usable: np.ndarray, idx: np.ndarray
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """Step matrices into points ``idx`` whose steps do not depend on the path.
+
+    Returns
+    -------
+    move : ndarray, shape (j, K, K)
+        Move costs (without the preference cost of the candidate).
+    rewind : ndarray, shape (j, K, K), or None
+        Rewind costs at the points (inf where no rewind may follow), None when none may.
+    may_rewind : ndarray, shape (j,), bool
+    """
+    prev = p.values[idx - 1]
+    move = p._move_cost(idx, p._diff(idx, prev))
+    may_rewind = p.rewinds_at(idx)
+    if not may_rewind.any():
+        return move, None, may_rewind
+    here = p.values[idx]
+    rewind = p._rewind_cost(p._diff(idx, here))
+    rewind[~may_rewind] = np.inf
+    return move, rewind, may_rewind
+
+
+def _block_products(
+    p: _Plan, usable: np.ndarray, first: np.ndarray, last: np.ndarray
+) -> np.ndarray:
+    """Min-plus product of the steps of each block (moves, preference costs, rewinds), all
+    blocks at once, shape (len(first), K, K)."""
+    n_cand = p.values.shape[1]
+    eye = np.eye(n_cand, dtype=bool)
+    out = np.where(eye, 0.0, np.inf)[None].repeat(len(first), axis=0)
+    for j in range(int((last - first).max(initial=0))):
+        on = np.flatnonzero(first + j < last)
+        idx = first[on] + j
+        move, rewind, _ = _bulk_steps(p, usable, idx)
+        move = np.where(usable[idx][:, None, :], move + p.pref_cost[idx][:, None, :], np.inf)
+        step = move
+        if rewind is not None:
+            layer = np.where(eye, 0.0, np.where(usable[idx][:, None, :], rewind, np.inf))
+            step = _min_plus(move, layer)
+        out[on] = _min_plus(out[on], step)
+    return out
+
+
+def _block_steps(
+    p: _Plan,
+    usable: np.ndarray,
+    first: np.ndarray,
+    last: np.ndarray,
+    starts: np.ndarray,
+    back: np.ndarray,
+    rback: np.ndarray,
+) -> np.ndarray:
+    """The recursion within each block from its start cost, all blocks at once; fills
+    ``back`` and ``rback`` (same arithmetic as :func:`_sequential`) and returns the costs at
+    the blocks' last points, shape (len(first), K)."""
+    cost = starts.copy()
+    for j in range(int((last - first).max(initial=0))):
+        on = np.flatnonzero(first + j < last)
+        idx = first[on] + j
+        move, rewind, may_rewind = _bulk_steps(p, usable, idx)
+        total = cost[on][:, :, None] + move
+        best = np.argmin(total, axis=1)
+        arrive = np.take_along_axis(total, best[:, None, :], axis=1)[:, 0, :]
+        arrive = np.where(usable[idx], arrive + p.pref_cost[idx], np.inf)
+        back[idx] = best
+        if rewind is not None:
+            rtotal = arrive[:, :, None] + rewind
+            rbest = np.argmin(rtotal, axis=1)
+            rcost = np.take_along_axis(rtotal, rbest[:, None, :], axis=1)[:, 0, :]
+            rcost = np.where(usable[idx], rcost, np.inf)
+            take = (rcost < arrive) & may_rewind[:, None]
+            rback[idx] = np.where(take, rbest, -1)
+            arrive = np.where(take, rcost, arrive)
+        cost[on] = arrive
+    return cost
+
+
+def _follow_back(
+    k_end: int, back: np.ndarray, rback: np.ndarray, block: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Candidates along the best path from the last point's ``k_end``, back to the first.
+
+    At each point ``i`` the path leaves with ``chosen[i]``, arrived with ``arrive[i]``
+    (``rback`` where a rewind was taken) and came from ``back[i, arrive[i]]``. The maps from
+    the candidate at a block's last point to that before its first are composed for all
+    blocks at once, followed block by block, then every block is walked at once.
+    """
+    n, n_cand = back.shape
+    arrive_of = np.where(rback >= 0, rback, np.arange(n_cand)[None, :])  # (n, K)
+    came = np.take_along_axis(back, arrive_of, axis=1)  # leave at i -> leave at i - 1
     chosen = np.empty(n, dtype=np.int64)
     arrive = np.empty(n, dtype=np.int64)
-    for i in range(n - 1, -1, -1):
-        chosen[i] = k
-        if rback[i, k] >= 0:
-            k = int(rback[i, k])
-        arrive[i] = k
-        k = int(back[i, k])
+    hi = np.arange(n, 0, -block)[::-1]  # one past each block's last point, blocks from 0
+    lo = np.maximum(hi - block, 0)
+    # composed maps: leave at a block's last point -> leave at the point before its first
+    comp = np.repeat(np.arange(n_cand)[None, :], len(hi), axis=0)
+    for j in range(block - 1, -1, -1):
+        on = np.flatnonzero(lo + j < hi)
+        idx = lo[on] + j
+        comp[on] = np.take_along_axis(came[idx], comp[on], axis=1)
+    ends = np.empty(len(hi), dtype=np.int64)
+    k = k_end
+    for b in range(len(hi) - 1, -1, -1):
+        ends[b] = k
+        k = int(comp[b, k])
+    cur = ends.copy()
+    for j in range(block - 1, -1, -1):
+        on = np.flatnonzero(lo + j < hi)
+        idx = lo[on] + j
+        chosen[idx] = cur[on]
+        arrive[idx] = arrive_of[idx, cur[on]]
+        cur[on] = came[idx, cur[on]]
+    return chosen, arrive
+
+
+def _angles_along(
+    p: _Plan, state0: np.ndarray, chosen: np.ndarray, arrive: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Actual rotary angles along the chosen path, shapes (n, r) each (leave, arrive).
+
+    The path arrives at each point and leaves it (after a rewind, on another candidate). Along
+    that sequence limited axes take the candidates' values, an undetermined angle holds the
+    last determined one, and continuous axes take the shortest rotation from the previous
+    value (the first point starts from ``state0``, the candidate's angles nearest the start).
+    """
+    n = len(chosen)
     idx = np.arange(n)
-    return chosen, arrive, leave_hist[idx, chosen], arrive_hist[idx, arrive]
+    seq = np.empty((2 * n, p.values.shape[2]))
+    seq[0::2] = p.values[idx, arrive]
+    seq[1::2] = p.values[idx, chosen]
+    seq[0] = seq[1] = state0[chosen[0]]
+    known = ~np.isnan(seq)
+    fill = np.maximum.accumulate(np.where(known, np.arange(2 * n)[:, None], 0), axis=0)
+    seq = np.take_along_axis(seq, fill, axis=0)
+    cont = p.cont
+    if cont.any():
+        step = _wrap(np.diff(seq[:, cont], axis=0))
+        seq[1:, cont] = seq[0, cont] + np.cumsum(step, axis=0)
+    return seq[1::2], seq[0::2]
 
 
 def _greedy(p: _Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -1,0 +1,270 @@
+"""The blocked Viterbi recursion of the branch planner against the plain point-by-point one.
+
+The reference below is the planner's recursion as it was first written (one point after the
+other, the actual angles carried along): the blocked version must choose the same candidates
+and give the same angles on every path, machine and block size, with poles (path-dependent
+held angles), rewinds, entries and collision exclusions.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from urdfpost import branches, load_machine
+from urdfpost.branches import JUMP, REWIND_COST, TWO_PI, _Plan, _raise_dead_end, _wrap, select
+from urdfpost.errors import UnreachableError
+from urdfpost.testpaths import PATHS
+
+ROOT = Path(__file__).resolve().parents[1]
+MACHINES = ("dmu50", "gantry-ca", "dmu50-nutating", "umc750", "monoblock", "xyzac-trt")
+
+
+# -- the reference: the recursion point by point -----------------------------------------------
+
+
+def _ref_diff(p: _Plan, i: int, state: np.ndarray) -> np.ndarray:
+    diff = p.values[i][None, :, :] - state[:, None, :]
+    diff[:, :, p.cont] = _wrap(diff[:, :, p.cont])
+    return np.nan_to_num(diff, nan=0.0)
+
+
+def _ref_steps(p: _Plan, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    diff = _ref_diff(p, i, state)
+    cont = p.cont
+    size = np.abs(diff)
+    cost = size.sum(axis=2) + (size * p.weights).max(axis=2, initial=0.0)
+    if not (p.singular[i] or p.singular[i - 1]):
+        switch = p.branch[:, None] != p.branch[None, :]
+        cost = cost + p.switch_cost * switch
+        if p.cutting[i]:
+            jump = switch & (size.sum(axis=2) > JUMP) | (size[:, :, ~cont] > np.pi).any(axis=2)
+            cost = np.where(jump, np.inf, cost)
+    for kp, k in p.exclude.moves.get(i, ()):
+        cost[kp, k] = np.inf
+    return diff, cost
+
+
+def _ref_rewind_steps(p: _Plan, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    diff = _ref_diff(p, i, state)
+    cost = REWIND_COST + np.abs(diff).sum(axis=2)
+    np.fill_diagonal(cost, np.inf)
+    for ki, k in p.exclude.rewinds.get(i, ()):
+        cost[ki, k] = np.inf
+    return diff, cost
+
+
+def reference(p: _Plan, block: int | None = None):
+    n, n_cand, r = p.values.shape
+    usable = p.usable()
+    state = p.values[0].copy()
+    state[:, 0] = np.where(np.isnan(state[:, 0]), p.start[0], state[:, 0])
+    cont = p.cont
+    state[:, cont] += TWO_PI * np.round((p.start[cont] - state[:, cont]) / TWO_PI)
+    cost = np.where(usable[0], p.pref_cost[0], np.inf)
+    back = np.zeros((n, n_cand), dtype=np.int32)
+    rback = np.full((n, n_cand), -1, dtype=np.int32)
+    leave_hist = np.empty((n, n_cand, r))
+    arrive_hist = np.empty((n, n_cand, r))
+    leave_hist[0] = arrive_hist[0] = state
+    cols = np.arange(n_cand)
+    for i in range(1, n):
+        diff, step = _ref_steps(p, i, state)
+        total = cost[:, None] + step
+        best = np.argmin(total, axis=0)
+        arrive_cost = np.where(usable[i], total[best, cols] + p.pref_cost[i], np.inf)
+        arrive_state = state[best] + diff[best, cols]
+        back[i] = best
+        arrive_hist[i] = arrive_state
+        cost, state = arrive_cost, arrive_state
+        if i + 1 < n and p.cutting[i + 1] and np.isfinite(arrive_cost).any():
+            rdiff, rstep = _ref_rewind_steps(p, i, arrive_state)
+            rtotal = arrive_cost[:, None] + rstep
+            rbest = np.argmin(rtotal, axis=0)
+            rcost = np.where(usable[i], rtotal[rbest, cols], np.inf)
+            take = rcost < arrive_cost
+            if take.any():
+                rback[i] = np.where(take, rbest, -1)
+                cost = np.where(take, rcost, arrive_cost)
+                state = np.where(take[:, None], arrive_state[rbest] + rdiff[rbest, cols], state)
+        leave_hist[i] = state
+        if not np.isfinite(cost).any():
+            _raise_dead_end(p, i)
+    k = int(np.argmin(cost))
+    chosen = np.empty(n, dtype=np.int64)
+    arrive = np.empty(n, dtype=np.int64)
+    for i in range(n - 1, -1, -1):
+        chosen[i] = k
+        if rback[i, k] >= 0:
+            k = int(rback[i, k])
+        arrive[i] = k
+        k = int(back[i, k])
+    idx = np.arange(n)
+    return chosen, arrive, leave_hist[idx, chosen], arrive_hist[idx, arrive]
+
+
+def walk(p: _Plan, chosen: np.ndarray, arrive: np.ndarray):
+    """Cost of a path of candidates by the reference's steps, and its actual angles (leave,
+    arrive), shapes (n, r)."""
+    n = len(chosen)
+    state = p.values[0].copy()
+    state[:, 0] = np.where(np.isnan(state[:, 0]), p.start[0], state[:, 0])
+    state[:, p.cont] += TWO_PI * np.round((p.start[p.cont] - state[:, p.cont]) / TWO_PI)
+    cur = state[chosen[0]]
+    cost = p.pref_cost[0, chosen[0]]
+    leave, into = np.empty((n, len(cur))), np.empty((n, len(cur)))
+    leave[0] = into[0] = cur
+    rows = len(p.branch)
+    for i in range(1, n):
+        # every row the same state: the row picks the candidate it stands for (branch switches)
+        diff, step = _ref_steps(p, i, np.repeat(cur[None], rows, axis=0))
+        cost += step[chosen[i - 1], arrive[i]] + p.pref_cost[i, arrive[i]]
+        cur = into[i] = cur + diff[0, arrive[i]]
+        if chosen[i] != arrive[i]:
+            diff, step = _ref_rewind_steps(p, i, np.repeat(cur[None], rows, axis=0))
+            cost += step[arrive[i], chosen[i]]
+            cur = cur + diff[0, chosen[i]]
+        leave[i] = cur
+    return cost, leave, into
+
+
+# -- comparing both on the planner's own problems ----------------------------------------------
+
+
+class Compared:
+    """Runs the reference and the blocked recursion (several block sizes) on every problem
+    :func:`select` plans, and counts the comparisons."""
+
+    def __init__(self, blocks: tuple[int | None, ...] = (None, 8, 5)) -> None:
+        self.blocks = blocks
+        self.calls = 0
+        self.rewinds = 0
+        self.held = 0
+        self.same = 0
+        self.original = branches._viterbi
+
+    def __call__(self, p: _Plan, block: int | None = None):
+        self.calls += 1
+        self.held += int(np.isnan(p.values).any(axis=2).any(axis=1).sum())
+        try:
+            want = reference(p)
+        except UnreachableError as err:
+            for b in self.blocks:
+                with pytest.raises(type(err)) as got:
+                    self.original(p, block=b)
+                assert str(got.value) == str(err)
+            raise
+        want_cost, _, _ = walk(p, want[0], want[1])
+        for b in self.blocks:
+            got = self.original(p, block=b)
+            cost, leave, arrive = walk(p, got[0], got[1])
+            # the same least cost (two paths of equal cost may be told apart by rounding
+            # alone, which a different order of the sums changes), the same rewinds, and the
+            # angles the chosen candidates give
+            assert cost == pytest.approx(want_cost, rel=1e-12, abs=1e-9), f"block {b}"
+            assert int((got[0] != got[1]).sum()) == int((want[0] != want[1]).sum())
+            np.testing.assert_allclose(got[2], leave, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(got[3], arrive, rtol=0, atol=1e-9)
+            if np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1]):
+                self.same += 1
+                np.testing.assert_allclose(got[2], want[2], rtol=0, atol=1e-9)
+        self.rewinds += int((want[0] != want[1]).sum())
+        return got
+
+
+@pytest.fixture
+def compared(monkeypatch: pytest.MonkeyPatch) -> Compared:
+    c = Compared()
+    monkeypatch.setattr(branches, "_viterbi", c)
+    return c
+
+
+def spiral_axis(turns: float, n: int, tilt_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    az = np.radians(np.linspace(0.0, 360.0 * turns, n))
+    t = np.radians(tilt_deg)
+    axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
+    tip = np.stack([40 * np.cos(az), 40 * np.sin(az), np.linspace(0, -6, n)], axis=1)
+    return tip, axis
+
+
+@pytest.mark.parametrize("name", MACHINES)
+@pytest.mark.parametrize("path", sorted(PATHS))
+def test_shipped_paths(compared: Compared, name: str, path: str) -> None:
+    m = load_machine(name)
+    tp = PATHS[path]()
+    try:
+        select(
+            m,
+            tp.tip,
+            tp.axis,
+            tool_length=m.settings.tool_length,
+            lines=tp.line,
+            source=tp.source,
+            cutting=np.ones(len(tp), dtype=bool),
+        )
+    except UnreachableError:
+        if not compared.calls:
+            pytest.skip(f"{path} is not reachable on {name}")
+    assert compared.calls == 1
+
+
+@pytest.mark.parametrize("turns", [1.5, 3.0, 4.2])
+def test_rewinds(compared: Compared, turns: float) -> None:
+    m = load_machine("gantry-ca")  # C limited to +-360 degrees: rewinds
+    tip, axis = spiral_axis(turns, 300, 30.0)
+    sel = select(m, tip, axis, tool_length=m.settings.tool_length)
+    assert compared.calls == 1
+    assert compared.rewinds == int(sel.rewind.sum())
+    if turns > 2:
+        assert sel.rewind.any()
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    name=st.sampled_from(MACHINES),
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(2, 120),
+    pole_every=st.integers(0, 9),
+    entries=st.integers(0, 3),
+)
+def test_random_walks(name: str, seed: int, n: int, pole_every: int, entries: int) -> None:
+    """Random walks of the tool axis about +Z, some points exactly on it (held angles), with
+    entries and rapids: both recursions agree, or both fail with the same message."""
+    rng = np.random.default_rng(seed)
+    m = load_machine(name)
+    polar = np.abs(np.cumsum(rng.normal(0.0, 0.08, n))) % 1.2
+    az = np.cumsum(rng.normal(0.0, 0.5, n))
+    if pole_every:
+        polar[::pole_every] = 0.0
+    axis = np.stack([np.sin(polar) * np.cos(az), np.sin(polar) * np.sin(az), np.cos(polar)], axis=1)
+    tip = np.cumsum(rng.normal(0.0, 2.0, (n, 3)), axis=0)
+    entry = np.zeros(n, dtype=bool)
+    entry[rng.integers(0, n, entries)] = True
+    cutting = rng.random(n) > 0.1
+    c = Compared(blocks=(None, 3, 7))
+    original, branches._viterbi = branches._viterbi, c
+    try:
+        select(m, tip, axis, tool_length=m.settings.tool_length, entry=entry, cutting=cutting)
+    except UnreachableError:
+        pass
+    finally:
+        branches._viterbi = original
+    assert c.calls <= 1  # none when a point is out of reach before planning
+
+
+def test_collision_exclusions(compared: Compared, tmp_path: Path) -> None:
+    """Excluded moves are planned point by point; the re-plans agree too."""
+    from test_planning import machine_with_fixtures, tilted_line
+
+    from urdfpost.pipeline import PostOptions, post
+
+    m = load_machine(machine_with_fixtures(tmp_path, (+1,)))
+    result = post(
+        tilted_line(), m, PostOptions(prefer=branches.Preference("A", +1), collisions=True)
+    )
+    assert result.verification.ok
+    assert compared.calls >= 1
