@@ -801,20 +801,66 @@ def strategy_cone(problem: Problem) -> Plan:
     )
 
 
+def _rounding(*values: np.ndarray) -> float:
+    """Rounding of running sums over ``values`` (bands and steps), rad: intervals closed by
+    no more than this are one value."""
+    scale = sum(float(np.abs(v).sum()) if v.ndim and len(v) else 0.0 for v in values[-1:])
+    scale += sum(float(np.abs(v).max(initial=0.0)) for v in values[:-1])
+    return 16.0 * float(np.spacing(scale))
+
+
 def _reachable(
-    lo: np.ndarray, hi: np.ndarray, step: np.ndarray
+    lo: np.ndarray, hi: np.ndarray, step: np.ndarray, stop: bool = False
 ) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Forward pass: the interval reachable at each point within the band and step limits."""
+    """Forward pass: the interval reachable at each point within the band and step limits.
+
+    ``r_lo[i] = max(lo[i], r_lo[i-1] - step[i-1])`` (and ``r_hi`` alike) is, unrolled,
+    ``max over j <= i of lo[j] - (steps from j to i)``: a running maximum of ``lo`` plus the
+    cumulative steps, less those. Where the interval closes (no value is reachable), it is
+    restarted from the middle of the previous one, clipped to the band, and ``ok`` is False;
+    intervals closed by no more than the rounding of the cumulative sums count as one value.
+
+    Parameters
+    ----------
+    lo, hi : ndarray, shape (n,), rad
+    step : ndarray, shape (n - 1,), rad
+    stop : bool
+        Return at the first closed interval (only ``ok`` is wanted); the intervals after it
+        are then not computed.
+
+    Returns
+    -------
+    r_lo, r_hi : ndarray, shape (n,)
+    ok : bool
+    """
     n = len(lo)
     r_lo, r_hi = lo.copy(), hi.copy()
     ok = True
-    for i in range(1, n):
-        a = max(lo[i], r_lo[i - 1] - step[i - 1])
-        b = min(hi[i], r_hi[i - 1] + step[i - 1])
-        if a > b:
-            ok = False
-            a = b = float(np.clip(0.5 * (r_lo[i - 1] + r_hi[i - 1]), lo[i], hi[i]))
-        r_lo[i], r_hi[i] = a, b
+    s = 0
+    while s < n - 1:
+        cum = np.concatenate([[0.0], np.cumsum(step[s:])])
+        own_lo = np.concatenate([[r_lo[s]], lo[s + 1 :]])
+        own_hi = np.concatenate([[r_hi[s]], hi[s + 1 :]])
+        a, b = own_lo + cum, own_hi - cum
+        run_lo, run_hi = np.maximum.accumulate(a), np.minimum.accumulate(b)
+        # where the band itself bounds the interval, its own value (no rounding of the sums)
+        a = np.where(run_lo == a, own_lo, run_lo - cum)
+        b = np.where(run_hi == b, own_hi, run_hi + cum)
+        eps = _rounding(lo[s:], hi[s:], step[s:])
+        closed = np.flatnonzero(a > b + eps)
+        f = int(closed[0]) if closed.size else len(a)
+        tight = np.flatnonzero(a[:f] > b[:f])
+        a[tight] = b[tight] = 0.5 * (a[tight] + b[tight])
+        r_lo[s + 1 : s + f], r_hi[s + 1 : s + f] = a[1:f], b[1:f]
+        if not closed.size:
+            break
+        ok = False
+        i = s + f
+        if stop:
+            break
+        mid = float(np.clip(0.5 * (r_lo[i - 1] + r_hi[i - 1]), lo[i], hi[i]))
+        r_lo[i] = r_hi[i] = mid
+        s = i
     return r_lo, r_hi, ok
 
 
@@ -827,6 +873,10 @@ def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
     by the smallest common factor that makes the band feasible (found by bisection), so the
     peak rate is as low as the band allows.
 
+    The backward pass is sequential only where it must be: from a point that takes its exact
+    value, the one before does too wherever its exact value is reachable and within a step of
+    the next exact value, so those stretches are filled at once.
+
     Parameters
     ----------
     exact, half : ndarray, shape (n,), rad
@@ -838,7 +888,7 @@ def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
     ndarray, shape (n,)
     """
     lo, hi = exact - half, exact + half
-    r_lo, r_hi, ok = _reachable(lo, hi, step)
+    r_lo, r_hi, ok = _reachable(lo, hi, step, stop=True)
     if not ok:
         with np.errstate(divide="ignore", invalid="ignore"):
             need = np.abs(np.diff(exact)) / step
@@ -846,7 +896,7 @@ def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
         k_hi = max(k_hi, 1.0) * (1 + 1e-9)
         for _ in range(40):
             k = np.sqrt(k_lo * k_hi)
-            if _reachable(lo, hi, step * k)[2]:
+            if _reachable(lo, hi, step * k, stop=True)[2]:
                 k_hi = k
             else:
                 k_lo = k
@@ -857,10 +907,33 @@ def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
     n = len(exact)
     out = np.empty(n)
     out[-1] = np.clip(exact[-1], r_lo[-1], r_hi[-1])
-    for i in range(n - 2, -1, -1):
-        a = max(r_lo[i], out[i + 1] - step[i])
-        b = min(r_hi[i], out[i + 1] + step[i])
-        out[i] = np.clip(exact[i], a, b) if a <= b else np.clip(exact[i], r_lo[i], r_hi[i])
+    if n == 1:
+        return out
+    # where the next point is exact, this one is exact too unless ``easy`` fails
+    e0, e1 = exact[:-1], exact[1:]
+    easy = (np.maximum(r_lo[:-1], e1 - step) <= e0) & (e0 <= np.minimum(r_hi[:-1], e1 + step))
+    hard = np.flatnonzero(~easy)
+    eps = _rounding(exact, half, step)
+    i = n - 2
+    while i >= 0:
+        nxt = float(out[i + 1])
+        if nxt == exact[i + 1] and easy[i]:
+            # exact back to the last point where that may fail
+            k = int(np.searchsorted(hard, i)) - 1
+            j = int(hard[k]) if k >= 0 else -1
+            out[j + 1 : i + 1] = exact[j + 1 : i + 1]
+            i = j
+            continue
+        a = max(float(r_lo[i]), nxt - float(step[i]))
+        b = min(float(r_hi[i]), nxt + float(step[i]))
+        e = float(exact[i])
+        if a <= b:
+            out[i] = min(max(e, a), b)
+        elif a <= b + eps:  # one value, closed by rounding
+            out[i] = 0.5 * (a + b)
+        else:
+            out[i] = min(max(e, float(r_lo[i])), float(r_hi[i]))
+        i -= 1
     return out
 
 
