@@ -268,3 +268,17 @@ def test_collision_exclusions(compared: Compared, tmp_path: Path) -> None:
     )
     assert result.verification.ok
     assert compared.calls >= 1
+
+
+@pytest.mark.parametrize("path", ["hemisphere", "sweep-0.1"])
+def test_without_the_step_cache(
+    compared: Compared, monkeypatch: pytest.MonkeyPatch, path: str
+) -> None:
+    """Step matrices computed per block step (what paths too long for the cache get)."""
+    monkeypatch.setattr(branches, "_CACHE_BYTES", 0)
+    m = load_machine("gantry-ca")
+    tp = PATHS[path]()
+    select(m, tp.tip, tp.axis, tool_length=m.settings.tool_length, lines=tp.line)
+    tip, axis = spiral_axis(3.0, 300, 30.0)
+    select(m, tip, axis, tool_length=m.settings.tool_length)
+    assert compared.calls == 2 and compared.rewinds > 0

@@ -138,13 +138,15 @@ def _candidates(
     """
     rot = machine.rotary
     shift_sets = []
-    for a in rot:
-        if a.continuous:
+    for j, a in enumerate(rot):
+        col = angles[:, :, j]
+        if a.continuous or not np.isfinite(col).any():
             shift_sets.append(np.array([0.0]))
-        else:
-            k_lo = int(np.floor((a.lower - np.pi) / TWO_PI))
-            k_hi = int(np.ceil((a.upper + np.pi) / TWO_PI))
-            shift_sets.append(TWO_PI * np.arange(k_lo, k_hi + 1))
+            continue
+        # the multiples that can put some angle of the path within travel
+        k_lo = int(np.floor((a.lower - np.nanmax(col)) / TWO_PI))
+        k_hi = int(np.ceil((a.upper - np.nanmin(col)) / TWO_PI))
+        shift_sets.append(TWO_PI * np.arange(k_lo, k_hi + 1))
     grids = np.meshgrid(*shift_sets, indexing="ij")
     shifts = np.stack([g.ravel() for g in grids], axis=1)  # (W, r)
     values = (angles[:, :, None, :] + shifts[None, None, :, :]).reshape(
@@ -613,7 +615,8 @@ def _viterbi(
     last = np.minimum(first + block, n)  # one past its last
     seq = np.array([irregular[a:b].any() for a, b in zip(first, last, strict=True)], dtype=bool)
     bulk = np.flatnonzero(~seq)
-    products = _block_products(p, usable, first[bulk], last[bulk])
+    steps = _Steps(p, first[bulk], last[bulk])
+    products = _block_products(p, steps, usable, first[bulk], last[bulk])
     # costs at the block starts, in order
     starts = np.empty((len(first), n_cand))
     cost, state = cost0, state0
@@ -626,7 +629,7 @@ def _viterbi(
                 continue
         # path-dependent steps, or a dead end to locate: point by point
         cost, state = _sequential(p, usable, a, e, cost, state, back, rback)
-    ends = _block_steps(p, usable, first[bulk], last[bulk], starts[bulk], back, rback)
+    ends = _block_steps(p, steps, usable, first[bulk], last[bulk], starts[bulk], back, rback)
     if len(first) and not seq[-1]:
         cost = ends[-1]  # the recorded arithmetic, which the predecessors follow
     chosen, arrive = _follow_back(int(np.argmin(cost)), back, rback, block)
@@ -670,9 +673,7 @@ def _sequential(
     return cost, state
 
 
-def _bulk_steps(
-    p: _Plan, usable: np.ndarray, idx: np.ndarray
-) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+def _bulk_steps(p: _Plan, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Step matrices into points ``idx`` whose steps do not depend on the path.
 
     Returns
@@ -694,8 +695,42 @@ def _bulk_steps(
     return move, rewind, may_rewind
 
 
+_CACHE_BYTES = 256e6  # step matrices kept between the passes when they fit in this
+_CACHE_CHUNK = 65536  # points per array operation when filling them
+
+
+class _Steps:
+    """Step matrices of the path-independent steps (:func:`_bulk_steps`), computed once for
+    all points of the blocks done in bulk when they fit in ``_CACHE_BYTES``, otherwise on
+    demand."""
+
+    def __init__(self, p: _Plan, first: np.ndarray, last: np.ndarray) -> None:
+        self.p = p
+        n, n_cand = p.values.shape[:2]
+        self.move: np.ndarray | None = None
+        if not len(first) or n * n_cand * n_cand * 16 > _CACHE_BYTES:
+            return
+        rows = np.concatenate([np.arange(a, e) for a, e in zip(first, last, strict=True)])
+        self.move = np.empty((n, n_cand, n_cand))
+        self.rewind = np.full((n, n_cand, n_cand), np.inf)
+        self.may = np.zeros(n, dtype=bool)
+        for lo in range(0, len(rows), _CACHE_CHUNK):
+            chunk = rows[lo : lo + _CACHE_CHUNK]
+            move, rewind, may = _bulk_steps(p, chunk)
+            self.move[chunk] = move
+            self.may[chunk] = may
+            if rewind is not None:
+                self.rewind[chunk] = rewind
+
+    def __call__(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        if self.move is None:
+            return _bulk_steps(self.p, idx)
+        may = self.may[idx]
+        return self.move[idx], self.rewind[idx] if may.any() else None, may
+
+
 def _block_products(
-    p: _Plan, usable: np.ndarray, first: np.ndarray, last: np.ndarray
+    p: _Plan, steps: _Steps, usable: np.ndarray, first: np.ndarray, last: np.ndarray
 ) -> np.ndarray:
     """Min-plus product of the steps of each block (moves, preference costs, rewinds), all
     blocks at once, shape (len(first), K, K)."""
@@ -705,7 +740,7 @@ def _block_products(
     for j in range(int((last - first).max(initial=0))):
         on = np.flatnonzero(first + j < last)
         idx = first[on] + j
-        move, rewind, _ = _bulk_steps(p, usable, idx)
+        move, rewind, _ = steps(idx)
         move = np.where(usable[idx][:, None, :], move + p.pref_cost[idx][:, None, :], np.inf)
         step = move
         if rewind is not None:
@@ -717,6 +752,7 @@ def _block_products(
 
 def _block_steps(
     p: _Plan,
+    steps: _Steps,
     usable: np.ndarray,
     first: np.ndarray,
     last: np.ndarray,
@@ -731,7 +767,7 @@ def _block_steps(
     for j in range(int((last - first).max(initial=0))):
         on = np.flatnonzero(first + j < last)
         idx = first[on] + j
-        move, rewind, may_rewind = _bulk_steps(p, usable, idx)
+        move, rewind, may_rewind = steps(idx)
         total = cost[on][:, :, None] + move
         best = np.argmin(total, axis=1)
         arrive = np.take_along_axis(total, best[:, None, :], axis=1)[:, 0, :]
