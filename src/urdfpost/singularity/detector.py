@@ -77,8 +77,17 @@ def conditioning(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
         sigma_max / sigma_min (``inf`` at a singular point).
     """
     j = orientation_jacobian(machine, q)
-    s = np.linalg.svd(j, compute_uv=False)  # (n, r), descending
-    smin, smax = s[:, -1], s[:, 0]
+    if j.shape[2] == 2:
+        # two columns: s1^2 + s2^2 is the sum of their squared lengths and s1 s2 the area of
+        # the parallelogram they span (which keeps its precision where s2 is tiny)
+        total = np.einsum("nij,nij->n", j, j)
+        area = np.linalg.norm(np.cross(j[:, :, 0], j[:, :, 1]), axis=1)
+        smax = np.sqrt(0.5 * (total + np.sqrt(np.maximum(total**2 - 4.0 * area**2, 0.0))))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            smin = np.where(smax > 0, area / np.where(smax > 0, smax, 1.0), 0.0)
+    else:
+        s = np.linalg.svd(j, compute_uv=False)  # (n, r), descending
+        smin, smax = s[:, -1], s[:, 0]
     with np.errstate(divide="ignore", invalid="ignore"):
         kappa = np.where(smin > 0, smax / np.where(smin > 0, smin, 1.0), np.inf)
     return smin, kappa
