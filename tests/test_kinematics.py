@@ -876,3 +876,14 @@ def test_interpolation_bounds_shipped(name: str) -> None:
 @given(gen=machines(), seed=seeds, tool_length=tool_lengths)
 def test_interpolation_bounds_generated(gen, seed, tool_length):
     check_interpolation_bounds(build(gen), seed, tool_length)
+
+
+def test_cross_is_numpy_cross() -> None:
+    """The cross product helper gives numpy's values exactly, broadcasting alike."""
+    from urdfpost.kinematics.forward import cross
+
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(500, 3)), rng.normal(size=(500, 3))
+    assert np.array_equal(cross(a, b), np.cross(a, b))
+    assert np.array_equal(cross(a[0], b), np.cross(a[0], b))
+    assert np.array_equal(cross(a[:, None, :], b[None, :4, :]), np.cross(a[:, None], b[None, :4]))

@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from urdfpost.kinematics.forward import rotation_about, tip_and_axis
+from urdfpost.kinematics.forward import cross, rotate, tip_and_axis
 from urdfpost.machine import Machine
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
@@ -45,14 +45,14 @@ def orientation_jacobian(machine: Machine, q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float).reshape(-1, len(machine.axes))
     n = q.shape[0]
     _, v = tip_and_axis(machine, q)
-    rot = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    chain = [a for a in sorted(machine.axes, key=lambda a: a.chain_index) if a.rotary]
     cols = []
-    for a in sorted(machine.axes, key=lambda a: a.chain_index):
-        if not a.rotary:
-            continue
-        w = rot @ a.screw[:3]
-        cols.append(np.cross(w, v))
-        rot = rot @ rotation_about(a.screw[:3], q[:, machine.axis_names.index(a.name)])
+    for j, a in enumerate(chain):
+        # the joint's direction turned by the joints before it in the chain
+        w = np.broadcast_to(a.screw[:3], (n, 3))
+        for b in chain[j - 1 :: -1] if j else ():
+            w = rotate(b.screw[:3], q[:, machine.axis_names.index(b.name)], w)
+        cols.append(cross(w, v))
     return np.stack(cols, axis=2)
 
 
@@ -81,7 +81,7 @@ def conditioning(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
         # two columns: s1^2 + s2^2 is the sum of their squared lengths and s1 s2 the area of
         # the parallelogram they span (which keeps its precision where s2 is tiny)
         total = np.einsum("nij,nij->n", j, j)
-        area = np.linalg.norm(np.cross(j[:, :, 0], j[:, :, 1]), axis=1)
+        area = np.linalg.norm(cross(j[:, :, 0], j[:, :, 1]), axis=1)
         smax = np.sqrt(0.5 * (total + np.sqrt(np.maximum(total**2 - 4.0 * area**2, 0.0))))
         with np.errstate(divide="ignore", invalid="ignore"):
             smin = np.where(smax > 0, area / np.where(smax > 0, smax, 1.0), 0.0)

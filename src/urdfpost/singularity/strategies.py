@@ -55,7 +55,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from urdfpost.branches import DEFAULT_RETRACT, Preference, Selection, select
-from urdfpost.kinematics.forward import rotate
+from urdfpost.kinematics.forward import cross, rotate
 from urdfpost.kinematics.inverse import (
     IKStatus,
     assemble,
@@ -347,31 +347,29 @@ def split_at_pole_crossings(
     if n < 2 or not machine.rotary:
         return toolpath
     va, vb = toolpath.axis[:-1], toolpath.axis[1:]
-    normal = np.cross(va, vb)
+    normal = cross(va, vb)
     size = np.linalg.norm(normal, axis=1)
-    span = np.arctan2(size, np.sum(va * vb, axis=1))
     feed = toolpath.motion[1:] == Motion.FEED
+    k1 = machine.rotary[0].direction
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # sine of the distance of the pole from each great circle (both poles alike)
+        off_plane = np.abs(normal @ k1) / size
+    near = np.flatnonzero(feed & (size > 1e-12) & (off_plane < np.sin(within)))
+    va, vb, normal, size = va[near], vb[near], normal[near], size[near]
+    span = np.arctan2(size, np.sum(va * vb, axis=1))
     inserts: list[tuple[int, float, np.ndarray]] = []
     new_axis = toolpath.axis
-    for pole in (machine.rotary[0].direction, -machine.rotary[0].direction):
+    for pole in (k1, -k1):
         with np.errstate(invalid="ignore", divide="ignore"):
             nrm = normal / size[:, None]
-            off_plane = np.abs(nrm @ pole)  # sine of the distance of the pole from the circle
             proj = pole - (nrm @ pole)[:, None] * nrm
             proj /= np.linalg.norm(proj, axis=1, keepdims=True)
-            sa = np.arctan2(np.linalg.norm(np.cross(va, proj), axis=1), np.sum(va * proj, axis=1))
-            sb = np.arctan2(np.linalg.norm(np.cross(proj, vb), axis=1), np.sum(proj * vb, axis=1))
+            sa = np.arctan2(np.linalg.norm(cross(va, proj), axis=1), np.sum(va * proj, axis=1))
+            sb = np.arctan2(np.linalg.norm(cross(proj, vb), axis=1), np.sum(proj * vb, axis=1))
         on_arc = np.abs(sa + sb - span) < 1e-9
         s = sa / np.where(span > 0, span, 1.0)
-        hit = (
-            feed
-            & (size > 1e-12)
-            & (off_plane < np.sin(within))
-            & on_arc
-            & (sa > 1e-6)
-            & (sb > 1e-6)
-        )
-        inserts += [(int(i), float(s[i]), pole) for i in np.flatnonzero(hit)]
+        hit = on_arc & (sa > 1e-6) & (sb > 1e-6)
+        inserts += [(int(near[i]), float(s[i]), pole) for i in np.flatnonzero(hit)]
         if snap_points and n >= 3:
             dist = angle_between(toolpath.axis, pole)
             inner = np.zeros(n, dtype=bool)
