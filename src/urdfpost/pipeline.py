@@ -29,7 +29,7 @@ from urdfpost.program import (
     Coolant,
     Home,
     Insert,
-    Move,
+    MoveTable,
     Program,
     Spindle,
     Stop,
@@ -414,6 +414,159 @@ def collision_world(
     return CollisionWorld.build(machine, tool, tool_length, stock)
 
 
+@dataclass(frozen=True)
+class _Rows:
+    """The rows of a program's moves, before they become blocks.
+
+    Attributes
+    ----------
+    q : ndarray, shape (N, m)
+        Joint values (mm, rad), machine axis order.
+    tip : ndarray, shape (N, 3), mm
+        Tool tip in the workpiece frame.
+    point : ndarray, shape (N,), int
+        The CL point each row reaches or stands on (index into the plan's toolpath).
+    reaches : ndarray, shape (N,), bool
+        Whether the row arrives at its CL point (else it is inserted on the way to it, or
+        stands on a point already reached).
+    kind : ndarray, shape (N,), int
+        ``_CUT``, or ``_LIFT`` / ``_TURN`` / ``_RETURN`` for the rows of a rewind.
+    """
+
+    q: np.ndarray
+    tip: np.ndarray
+    point: np.ndarray
+    reaches: np.ndarray
+    kind: np.ndarray
+
+    @classmethod
+    def empty(cls, joints: int) -> _Rows:
+        """No rows, for ``joints`` joints."""
+        none = np.zeros(0, dtype=int)
+        return cls(np.zeros((0, joints)), np.zeros((0, 3)), none, none.astype(bool), none)
+
+    def __len__(self) -> int:
+        return len(self.point)
+
+
+def _move_table(
+    toolpath: Toolpath,
+    machine: Machine,
+    tcp: bool,
+    rows: _Rows,
+    rewind_feed: float | None,
+) -> MoveTable:
+    """The motion blocks of the rows, as arrays.
+
+    Positions in degrees for the rotary axes; in TCP programs X, Y, Z are the tip. A row that
+    stands on a CL point already reached (a turn at a pole) moves at the feed of the move that
+    follows, even when the point was reached by a rapid; the lift and turn of a rewind are off
+    the part: rapid, or at ``rewind_feed`` (mm/min) when it is given.
+    """
+    n, g = len(toolpath), rows.point
+    rotary_names = {a.name for a in machine.rotary}
+    rotary = np.array([a in rotary_names for a in machine.axis_names])
+    position = np.where(rotary, np.degrees(rows.q), rows.q)
+    if tcp:
+        position[:, list(machine.linear_columns)] = rows.tip
+    # first programmed feed after each point (backward fill), for turns in place
+    fill = np.where(np.isfinite(toolpath.feed), np.arange(n), n)
+    fill = np.minimum.accumulate(fill[::-1])[::-1]
+    feeds = np.append(toolpath.feed, np.nan)
+    next_feed = feeds[np.append(fill[1:], n)] if n else feeds
+    # the CL point reached last before each row (-1 before the first)
+    last = np.maximum.accumulate(np.where(rows.reaches, np.arange(len(rows)), -1))
+    before = np.concatenate([[-1], last[:-1]]) if len(rows) else last
+    arrived = np.where(before >= 0, g[np.maximum(before, 0)], -1)
+    turning = g == arrived
+    rapid = (toolpath.motion[g] == int(Motion.RAPID)) & ~turning
+    feed = np.where(turning, next_feed[g], toolpath.feed[g])
+    off = (rows.kind == _LIFT) | (rows.kind == _TURN)
+    rapid[off] = rewind_feed is None
+    feed[off] = np.nan if rewind_feed is None else rewind_feed
+    feed = np.where(rapid | ~np.isfinite(feed), np.nan, feed)
+    cl_line = np.where(rows.reaches, toolpath.line[g], -1)
+    return MoveTable(position, rapid, feed, cl_line)
+
+
+def _program_body(
+    toolpath: Toolpath,
+    machine: Machine,
+    tcp: bool,
+    rows: _Rows,
+    events: list[Event],
+    comments: list[str],
+    rewind_feed: float | None,
+) -> list[Block | MoveTable]:
+    """The program body: the rows' moves as tables, the events' blocks between them.
+
+    Parameters
+    ----------
+    toolpath : Toolpath
+        The plan's CL data (feeds, motion kinds, lines of the rows' points).
+    machine : Machine
+    tcp : bool
+        TCP program: TCP is switched on before the first move and after every event that
+        switched it off (tool change, home).
+    rows : _Rows
+    events : list of Event
+        Sorted by index: each goes before the first row whose CL point is at or after it.
+    comments : list of str
+        The comment before each rewind, in order.
+    rewind_feed : float or None
+        Feed of a rewind's lift and turn, mm/min; None: rapid.
+
+    Returns
+    -------
+    list of Block and MoveTable
+        Only the few non-motion blocks are made one by one; the moves between them are rows of
+        one table.
+    """
+    table = _move_table(toolpath, machine, tcp, rows, rewind_feed)
+    count, kind = len(rows), rows.kind
+    # the row before which each event comes (count: after the last row)
+    reach = np.maximum.accumulate(rows.point) if count else rows.point
+    at = np.searchsorted(reach, np.array([e.index for e in events], dtype=np.int64))
+    lifts = np.flatnonzero(kind == _LIFT)
+    ends = np.flatnonzero(kind == _RETURN) + 1  # a rewind's last comment after its return
+    starts = np.union1d(np.union1d(at[at < count], lifts), ends[ends < count])
+    if count:
+        starts = np.union1d(starts, [0])
+    body: list[Block | MoveTable] = []
+    tcp_state = [False]
+    by_row: dict[int, list[Event]] = {}
+    for event, row in zip(events, at.tolist(), strict=True):
+        by_row.setdefault(row, []).append(event)
+    lift_comments = iter(comments)
+    done = 0  # rows in tables so far
+    for k in starts.tolist():
+        before: list[Block] = []
+        for event in by_row.get(k, []):
+            before += _event_blocks(event, tcp_state, tcp)
+        if kind[k] == _LIFT:
+            before.append(Comment(next(lift_comments)))
+        if tcp and not tcp_state[0]:
+            before.append(Tcp(on=True))
+            tcp_state[0] = True
+        after_return = k > 0 and kind[k - 1] == _RETURN
+        if before or after_return:
+            if k > done:
+                body.append(table.rows(done, k))
+                done = k
+            if after_return:
+                body.append(Comment(REWIND_END))
+            body += before
+    if count > done:
+        body.append(table.rows(done, count))
+    if count and kind[count - 1] == _RETURN:
+        body.append(Comment(REWIND_END))
+    for event in by_row.get(count, []):
+        body += _event_blocks(event, tcp_state, tcp)
+    if tcp_state[0]:
+        body.append(Tcp(on=False))
+    return body
+
+
 def build_program(
     toolpath: Toolpath,
     machine: Machine,
@@ -457,7 +610,7 @@ def build_program(
         # controls need a tool (and its length offset) before motion; the CL data has none
         warnings.append(f"{toolpath.source}: no tool change before the first move; tool 1 assumed")
         tool_events = (Event(index=0, kind="tool", line=int(toolpath.line[0]), data={"number": 1}),)
-    rows: list[tuple[np.ndarray, np.ndarray, int]] = []  # per output move: q, tip, cl index
+    rows = _Rows.empty(len(machine.axis_names))
     reference = toolpath
     if n:
         q, tip, axis = realise(problem, plan)
@@ -514,10 +667,7 @@ def build_program(
         group = owner[np.minimum(nxt, len(q) - 1)]
         is_cl = (src >= 0) & first[np.maximum(src, 0)]
         out_kind = np.where(src >= 0, kind[np.maximum(src, 0)], _CUT)
-        rows = [
-            (out_q[k], out_tip[k], int(group[k]) if is_cl[k] else -1 - int(group[k]), out_kind[k])
-            for k in range(len(out_q))
-        ]
+        rows = _Rows(q=out_q, tip=out_tip, point=group, reaches=is_cl, kind=out_kind)
         figures["joints"] = out_q
         figures["joint_lines"] = toolpath.line[group]
         if plan.bent or plan.lift.any():
@@ -537,66 +687,18 @@ def build_program(
     figures["reference"] = reference
     figures["world"] = problem.collision
 
-    axes = machine.axis_names
-    rotary = frozenset(a.name for a in machine.rotary)
-    lin_cols = list(machine.linear_columns)
-    blocks: list[Block] = []
-    tcp_state = [False]
-    # first programmed feed after each point (backward fill), for turns in place
-    fill = np.where(np.isfinite(toolpath.feed), np.arange(n), n)
-    fill = np.minimum.accumulate(fill[::-1])[::-1]
-    feeds = np.append(toolpath.feed, np.nan)
-    next_feed = feeds[np.append(fill[1:], n)] if n else feeds
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
-    ev = 0
-    arrived = -1  # last CL point reached
-    rewinds = iter(figures.get("rewinds", []))
     scale = MM_PER_INCH if units == "inch" else 1.0
     rewind_feed = None if options.rewind_feed is None else options.rewind_feed * scale
-    for q, tip, code, kind in rows:
-        g = code if code >= 0 else -1 - code  # the CL point this row reaches or stands on
-        while ev < len(events) and events[ev].index <= g:
-            blocks.extend(_event_blocks(events[ev], tcp_state, options.tcp))
-            ev += 1
-        if kind == _LIFT:
-            blocks.append(Comment(next(rewinds)["comment"]))
-        position = np.where([a in rotary for a in axes], np.degrees(q), q)
-        if options.tcp:
-            position[lin_cols] = tip
-            if not tcp_state[0]:
-                blocks.append(Tcp(on=True))
-                tcp_state[0] = True
-        # rows standing on a reached point (a turn at a pole) move at the feed of the move
-        # that follows, even when the point was reached by a rapid
-        turning = g == arrived
-        rapid = bool(toolpath.motion[g] == Motion.RAPID) and not turning
-        f = next_feed[g] if turning else toolpath.feed[g]
-        if kind in (_LIFT, _TURN):  # off the part: rapid, or the rewind feed when one is set
-            rapid, f = rewind_feed is None, np.nan if rewind_feed is None else rewind_feed
-        feed = float(f) if np.isfinite(f) else None
-        blocks.append(
-            Move(
-                rapid=rapid,
-                position=tuple(float(x) for x in position),
-                feed=None if rapid else feed,
-                cl_line=int(toolpath.line[g]) if code >= 0 else None,
-            )
-        )
-        if kind == _RETURN:
-            blocks.append(Comment(REWIND_END))
-        if code >= 0:
-            arrived = g
-    for e in events[ev:]:
-        blocks.extend(_event_blocks(e, tcp_state, options.tcp))
-    if tcp_state[0]:
-        blocks.append(Tcp(on=False))
+    comments = [r["comment"] for r in figures.get("rewinds", [])]
+    body = _program_body(toolpath, machine, options.tcp, rows, events, comments, rewind_feed)
     program = Program(
         name=_program_name(toolpath, options),
-        axes=axes,
-        rotary=rotary,
+        axes=machine.axis_names,
+        rotary=frozenset(a.name for a in machine.rotary),
         units=units,
         tcp=options.tcp,
-        blocks=tuple(blocks),
+        blocks=body,
         tool_length=tool_length,
         continuous=frozenset(a.name for a in machine.rotary if a.continuous),
     )
@@ -647,7 +749,7 @@ def post(
             f"{program.tool_length:.3f} mm from the gauge point: the tool table length must be 0"
         )
     text = dialect.write(program, block_numbers=options.block_numbers or None, header=header)
-    inserts = [b.text for b in program.blocks if isinstance(b, Insert)]
+    inserts = [b.text for b in program.parts if isinstance(b, Insert)]
     readback = dialect.read(text, path=f"<{dialect.name} program>", verbatim=inserts)
     check, intent = check_program(readback, machine, toolpath, figures, tol, program.tool_length)
     report = make_report(toolpath, machine, program, check, dialect.name, figures)

@@ -3,11 +3,37 @@
 The pipeline builds a :class:`Program`; a dialect turns it into text and reads text back into
 one. Positions are millimetres for linear axes and degrees for rotary axes whatever the program
 units; the dialect converts to inch on writing and back on reading.
+
+Motion blocks are many and the other blocks few: a program holds its runs of moves as
+:class:`MoveTable` arrays between the other blocks (:attr:`Program.parts`), and makes
+:class:`Move` objects only for callers that iterate :attr:`Program.blocks` or ask for
+:meth:`Program.moves`. Code that handles whole programs reads the arrays
+(:meth:`Program.move_table`).
+
+Examples
+--------
+>>> import numpy as np
+>>> table = MoveTable(
+...     position=np.array([[0.0, 0.0], [1.0, 2.0]]),
+...     rapid=np.array([True, False]),
+...     feed=np.array([np.nan, 500.0]),
+...     cl_line=np.array([-1, 12]),
+... )
+>>> program = Program("P", ("X", "Y"), frozenset(), "mm", False, (ToolChange(1), table))
+>>> len(program.blocks), program.blocks[2]
+(3, Move(rapid=False, position=(1.0, 2.0), feed=500.0, cl_line=12))
+>>> program.move_table().position.shape
+(2, 2)
 """
 
 from __future__ import annotations
 
+import itertools
+import math
+import operator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any, overload
 
 import numpy as np
 
@@ -103,6 +129,286 @@ class Home:
 Block = Move | ToolChange | Spindle | Coolant | Comment | Insert | Tcp | Stop | Home
 
 
+def _read_only(values: Any, dtype: type | np.dtype) -> np.ndarray:
+    """``values`` as an array of ``dtype`` that cannot be written through (a view, no copy)."""
+    out = np.asarray(values, dtype=dtype).view()
+    out.flags.writeable = False
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class MoveTable:
+    """Consecutive motion blocks as arrays: row i is one :class:`Move`.
+
+    Attributes
+    ----------
+    position : ndarray, shape (N, m), float
+        One column per axis of :attr:`Program.axes`: mm for linear axes, degrees for rotary
+        (see :attr:`Move.position`); NaN where a position is not known.
+    rapid : ndarray, shape (N,), bool
+        Rapid traverse instead of feed.
+    feed : ndarray, shape (N,), float, mm/min
+        NaN for no feed (:attr:`Move.feed` None).
+    cl_line : ndarray, shape (N,), int64
+        Source line of the CL record the block ends on; -1 for none (inserted blocks).
+
+    The arrays are read-only views; rows are taken with :meth:`rows`, the :class:`Move` objects
+    made with :meth:`moves` (NaN positions become ``math.nan`` itself, feeds NaN None and
+    lines -1 None).
+    """
+
+    position: np.ndarray
+    rapid: np.ndarray
+    feed: np.ndarray
+    cl_line: np.ndarray
+
+    def __post_init__(self) -> None:
+        position = _read_only(self.position, np.float64)
+        n = position.shape[0] if position.ndim == 2 else -1
+        columns = {
+            "rapid": _read_only(self.rapid, np.bool_),
+            "feed": _read_only(self.feed, np.float64),
+            "cl_line": _read_only(self.cl_line, np.int64),
+        }
+        for name, got in (("position", position), *columns.items()):
+            want = (n, position.shape[-1]) if name == "position" else (n,)
+            if n < 0 or got.shape != want:
+                raise ValueError(
+                    f"MoveTable.{name}: expected shape "
+                    f"{'(N, m)' if name == 'position' else '(N,)'} with N rows for every "
+                    f"column, got {got.shape} (position {position.shape})"
+                )
+        object.__setattr__(self, "position", position)
+        for name, got in columns.items():
+            object.__setattr__(self, name, got)
+
+    def __len__(self) -> int:
+        return int(self.position.shape[0])
+
+    def __repr__(self) -> str:
+        return f"MoveTable({len(self)} moves, {self.position.shape[1]} axes)"
+
+    @property
+    def width(self) -> int:
+        """Number of axes (columns of :attr:`position`)."""
+        return int(self.position.shape[1])
+
+    @classmethod
+    def empty(cls, width: int) -> MoveTable:
+        """A table of no moves for ``width`` axes."""
+        return cls(np.zeros((0, width)), np.zeros(0, bool), np.zeros(0), np.zeros(0, np.int64))
+
+    @classmethod
+    def from_moves(cls, moves: Sequence[Move], width: int) -> MoveTable:
+        """The table of ``moves``, each with ``width`` positions.
+
+        Raises
+        ------
+        ValueError
+            A move with another number of positions, or values that are not numbers.
+        """
+        k = len(moves)
+        positions = list(map(operator.attrgetter("position"), moves))
+        wrong = [i for i, p in enumerate(positions) if len(p) != width]
+        if wrong:
+            i = wrong[0]
+            raise ValueError(
+                f"move {i} has {len(positions[i])} positions; expected {width} (one per axis)"
+            )
+        # one flat pass (np.array of a list of tuples is several times slower)
+        flat = itertools.chain.from_iterable(positions)
+        position = np.fromiter(flat, dtype=float, count=k * width).reshape(k, width)
+        feed = [math.nan if m.feed is None else m.feed for m in moves]
+        line = [-1 if m.cl_line is None else m.cl_line for m in moves]
+        return cls(
+            position,
+            np.fromiter(map(operator.attrgetter("rapid"), moves), dtype=bool, count=k),
+            np.array(feed, dtype=float).reshape(k),
+            np.array(line, dtype=np.int64).reshape(k),
+        )
+
+    @classmethod
+    def concatenate(cls, tables: Sequence[MoveTable], width: int) -> MoveTable:
+        """The rows of ``tables`` one after the other (``width`` axes when there are none)."""
+        if len(tables) == 1:
+            return tables[0]
+        if not tables:
+            return cls.empty(width)
+        return cls(
+            np.concatenate([t.position for t in tables]),
+            np.concatenate([t.rapid for t in tables]),
+            np.concatenate([t.feed for t in tables]),
+            np.concatenate([t.cl_line for t in tables]),
+        )
+
+    def rows(self, start: int, stop: int) -> MoveTable:
+        """Rows ``start`` to ``stop`` (exclusive), as views."""
+        return MoveTable(
+            self.position[start:stop],
+            self.rapid[start:stop],
+            self.feed[start:stop],
+            self.cl_line[start:stop],
+        )
+
+    def moves(self) -> list[Move]:
+        """The rows as :class:`Move` objects, in order (Python floats, bools and ints)."""
+        position = self.position
+        nan = np.isnan(position)
+        if nan.any():  # math.nan itself, as a reader of single blocks gives
+            cells = position.astype(object)
+            cells[nan] = math.nan
+            rows = cells.tolist()
+        else:
+            rows = position.tolist()
+        feeds = [None if f != f else f for f in self.feed.tolist()]  # NaN: no feed
+        lines = [None if c < 0 else c for c in self.cl_line.tolist()]
+        return list(map(Move, self.rapid.tolist(), map(tuple, rows), feeds, lines))
+
+    def move(self, index: int) -> Move:
+        """Row ``index`` as a :class:`Move` (negative counts from the end)."""
+        k = range(len(self))[index]
+        return self.rows(k, k + 1).moves()[0]
+
+
+class Blocks(Sequence[Block]):
+    """The body of a :class:`Program`: a sequence of blocks stored as parts.
+
+    A part is a non-motion block, a :class:`Move`, or a :class:`MoveTable` standing for its
+    rows. Indexing, iteration, ``len``, ``in``, equality, hashing, ``repr``, ``+`` and ``*``
+    are those of the tuple of blocks (moves of tables are made as they are reached, not kept);
+    :attr:`parts` gives the parts themselves and :meth:`move_table` all the moves as one table
+    (made once).
+    """
+
+    __slots__ = ("_ends", "_parts", "_plain", "_table")
+
+    def __init__(self, parts: Iterable[Block | MoveTable] = ()) -> None:
+        items = tuple(parts)
+        self._plain = not any(isinstance(p, MoveTable) for p in items)
+        if not self._plain:
+            items = tuple(p for p in items if not (isinstance(p, MoveTable) and len(p) == 0))
+        self._parts: tuple[Block | MoveTable, ...] = items
+        self._ends: np.ndarray | None = None
+        self._table: MoveTable | None = None
+
+    @property
+    def parts(self) -> tuple[Block | MoveTable, ...]:
+        """The blocks as stored: runs of moves as :class:`MoveTable` (or single moves)."""
+        return self._parts
+
+    def _part_ends(self) -> np.ndarray:
+        """Index after the last block of each part, shape (parts,)."""
+        if self._ends is None:
+            sizes = [len(p) if isinstance(p, MoveTable) else 1 for p in self._parts]
+            self._ends = np.cumsum(np.array(sizes, dtype=np.int64))
+        return self._ends
+
+    def __len__(self) -> int:
+        if self._plain:
+            return len(self._parts)
+        ends = self._part_ends()
+        return int(ends[-1]) if ends.size else 0
+
+    @overload
+    def __getitem__(self, index: int) -> Block: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> tuple[Block, ...]: ...
+
+    def __getitem__(self, index: int | slice) -> Block | tuple[Block, ...]:
+        if self._plain:
+            return self._parts[index]
+        if isinstance(index, slice):
+            return tuple(self)[index]
+        n = len(self)
+        k = operator.index(index)
+        if not -n <= k < n:
+            raise IndexError("block index out of range")
+        k %= n
+        ends = self._part_ends()
+        at = int(np.searchsorted(ends, k, side="right"))
+        part = self._parts[at]
+        if isinstance(part, MoveTable):
+            return part.move(k - (int(ends[at - 1]) if at else 0))
+        return part
+
+    def __iter__(self) -> Iterator[Block]:
+        if self._plain:
+            return iter(self._parts)  # type: ignore[arg-type]
+        return self._blocks_of_parts()
+
+    def _blocks_of_parts(self) -> Iterator[Block]:
+        for part in self._parts:
+            if isinstance(part, MoveTable):
+                yield from part.moves()
+            else:
+                yield part
+
+    def _tuple(self) -> tuple[Block, ...]:
+        """The blocks as a tuple (the parts themselves when there is no table)."""
+        return self._parts if self._plain else tuple(self)  # type: ignore[return-value]
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, Blocks):
+            return self._parts is other._parts or self._tuple() == other._tuple()
+        if isinstance(other, tuple):
+            return self._tuple() == other
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash(self._tuple())
+
+    def __add__(self, other: object) -> Blocks:
+        if isinstance(other, Blocks):
+            return Blocks(self._parts + other._parts)
+        if isinstance(other, tuple):
+            return Blocks(self._parts + other)
+        return NotImplemented
+
+    def __radd__(self, other: object) -> Blocks:
+        if isinstance(other, tuple):
+            return Blocks(other + self._parts)
+        return NotImplemented
+
+    def __mul__(self, count: int) -> Blocks:
+        return Blocks(self._parts * operator.index(count))
+
+    __rmul__ = __mul__
+
+    def __repr__(self) -> str:
+        return repr(self._tuple())
+
+    def move_table(self, width: int) -> MoveTable:
+        """All the moves as one table (made on the first call, then kept).
+
+        Parameters
+        ----------
+        width : int
+            Number of axes of the program (for programs without moves).
+
+        Raises
+        ------
+        ValueError
+            A :class:`Move` with another number of positions than ``width``.
+        """
+        if self._table is None or self._table.width != width:
+            tables: list[MoveTable] = []
+            run: list[Move] = []  # consecutive Move objects
+            for part in self._parts:
+                if isinstance(part, Move):
+                    run.append(part)
+                    continue
+                if run:
+                    tables.append(MoveTable.from_moves(run, width))
+                    run = []
+                if isinstance(part, MoveTable):
+                    tables.append(part)
+            if run:
+                tables.append(MoveTable.from_moves(run, width))
+            self._table = MoveTable.concatenate(tables, width)
+        return self._table
+
+
 @dataclass(frozen=True)
 class Program:
     """A whole NC program, independent of the control.
@@ -120,8 +426,10 @@ class Program:
     tcp : bool
         Whether motion is written as tool tip in workpiece coordinates (the control does the
         kinematics) rather than machine axis positions.
-    blocks : tuple of Block
-        The program body, in order; start and end sequences are the dialect's.
+    blocks : Blocks
+        The program body, in order; start and end sequences are the dialect's. Given as an
+        iterable of blocks, in which a :class:`MoveTable` stands for its rows; kept as
+        :class:`Blocks`, a sequence of :class:`Block` equal to the tuple of them.
     tool_length : float
         Tool length in mm the machine-coordinate positions were computed for.
     continuous : frozenset of str
@@ -133,13 +441,40 @@ class Program:
     rotary: frozenset[str]
     units: str
     tcp: bool
-    blocks: tuple[Block, ...]
+    blocks: Blocks
     tool_length: float = 0.0
     continuous: frozenset[str] = frozenset()
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.blocks, Blocks):
+            object.__setattr__(self, "blocks", Blocks(self.blocks))
+
+    @property
+    def parts(self) -> tuple[Block | MoveTable, ...]:
+        """The body as stored: the non-motion blocks, and runs of moves as tables."""
+        return self.blocks.parts
+
+    def move_table(self) -> MoveTable:
+        """All motion blocks as one table, in order (made once per program).
+
+        Raises
+        ------
+        ValueError
+            A :class:`Move` without one position per axis.
+        """
+        return self.blocks.move_table(len(self.axes))
+
     def moves(self) -> list[Move]:
         """The motion blocks, in order."""
-        return [b for b in self.blocks if isinstance(b, Move)]
+        if self.blocks._plain:
+            return [b for b in self.blocks.parts if isinstance(b, Move)]
+        out: list[Move] = []
+        for part in self.blocks.parts:
+            if isinstance(part, MoveTable):
+                out += part.moves()
+            elif isinstance(part, Move):
+                out.append(part)
+        return out
 
 
 def rewind_moves(program: Program) -> np.ndarray:
@@ -147,22 +482,29 @@ def rewind_moves(program: Program) -> np.ndarray:
 
     The comments survive writing and reading back (in any case), so a program read from text
     still tells its rewinds: their moves leave the CL path on purpose and are not compared
-    with it.
+    with it. Computed per part of the program (:attr:`Program.parts`), not per move.
 
     Returns
     -------
     ndarray, shape (N,), bool
         One entry per move of :meth:`Program.moves`.
     """
-    out: list[bool] = []
-    inside = False
-    for b in program.blocks:
-        if isinstance(b, Comment):
-            text = b.text.strip().lower()
+    parts = program.parts
+    # per part: +1 a rewind's first comment, -1 its last, 0 anything else; moves per part
+    marker = np.zeros(len(parts), dtype=np.int8)
+    size = np.zeros(len(parts), dtype=np.int64)
+    for i, part in enumerate(parts):
+        if isinstance(part, MoveTable):
+            size[i] = len(part)
+        elif isinstance(part, Move):
+            size[i] = 1
+        elif isinstance(part, Comment):
+            text = part.text.strip().lower()
             if text.startswith(REWIND_BEGIN):
-                inside = True
+                marker[i] = 1
             elif text == REWIND_END:
-                inside = False
-        elif isinstance(b, Move):
-            out.append(inside)
-    return np.array(out, dtype=bool)
+                marker[i] = -1
+    # inside a rewind: the last marker at or before the part is a first comment
+    last = np.maximum.accumulate(np.where(marker != 0, np.arange(len(parts)), -1))
+    inside = (last >= 0) & (marker[np.maximum(last, 0)] == 1)
+    return np.repeat(inside, size)

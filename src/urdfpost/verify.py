@@ -14,9 +14,7 @@ Everything runs on arrays, in chunks of blocks.
 
 from __future__ import annotations
 
-import itertools
 import logging
-import operator
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -109,7 +107,7 @@ class Verification:
 
 
 def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.ndarray]:
-    """Joint values and rapid flags of a program's moves.
+    """Joint values and rapid flags of a program's moves (from :meth:`Program.move_table`).
 
     Axes the program never writes stay at the machine's home; values not yet programmed at
     the start are taken from home too.
@@ -121,35 +119,27 @@ def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.n
         rotary in rad.
     rapid : ndarray, shape (N,), bool
     """
-    moves = program.moves()
     unknown = [a for a in program.axes if a not in machine.axis_names]
     if unknown:
         raise DialectError(
             f"program {program.name} writes axes {' '.join(unknown)} that machine "
             f"{machine.name} does not have ({' '.join(machine.axis_names)})"
         )
-    values = np.tile(machine.home, (len(moves), 1))
-    if moves:
-        positions = list(map(operator.attrgetter("position"), moves))
-        if set(map(len, positions)) == {len(program.axes)}:
-            # one flat pass (np.array of a list of tuples is several times slower)
-            flat = itertools.chain.from_iterable(positions)
-            pos = np.fromiter(flat, dtype=float, count=len(moves) * len(program.axes))
-            pos = pos.reshape(len(moves), len(program.axes))
-        else:  # says what is wrong
-            pos = np.array(positions, dtype=float)
-        for j, name in enumerate(program.axes):
-            col = machine.axis_names.index(name)
-            column = pos[:, j]
-            if name in program.rotary:
-                column = np.radians(column)
-            # forward fill NaN (modal value not yet programmed), home before the first value
-            ok = ~np.isnan(column)
-            idx = np.where(ok, np.arange(len(column)), -1)
-            idx = np.maximum.accumulate(idx)
-            filled = np.where(idx >= 0, column[np.maximum(idx, 0)], values[:, col])
-            values[:, col] = filled
-    rapid = np.fromiter(map(operator.attrgetter("rapid"), moves), dtype=bool, count=len(moves))
+    table = program.move_table()
+    pos = table.position
+    values = np.tile(machine.home, (len(table), 1))
+    for j, name in enumerate(program.axes):
+        col = machine.axis_names.index(name)
+        column = pos[:, j]
+        if name in program.rotary:
+            column = np.radians(column)
+        # forward fill NaN (modal value not yet programmed), home before the first value
+        ok = ~np.isnan(column)
+        idx = np.where(ok, np.arange(len(column)), -1)
+        idx = np.maximum.accumulate(idx)
+        filled = np.where(idx >= 0, column[np.maximum(idx, 0)], values[:, col])
+        values[:, col] = filled
+    rapid = table.rapid.copy()
     return values, rapid
 
 

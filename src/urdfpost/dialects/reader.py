@@ -16,6 +16,8 @@ Reading rules:
   An axis that has not been programmed yet, or whose position became unknown after a home
   return or a machine-coordinate block, is NaN.
 * Rapid moves have ``feed=None``; feed moves carry the modal feed (None before any F word).
+* Consecutive motion blocks come out as one :class:`~urdfpost.program.MoveTable` in the
+  program's parts (``cl_line`` -1: a program read from text does not know its CL lines).
 * A program's ``axes`` are the axis letters used in motion blocks, in X Y Z A B C order.
 * ``tcp`` is whether TCP was on at the first feed move (or was switched on at all, when the
   program has no feed move).
@@ -43,11 +45,12 @@ from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec
 from urdfpost.errors import ProgramParseError
 from urdfpost.program import (
     Block,
+    Blocks,
     Comment,
     Coolant,
     Home,
     Insert,
-    Move,
+    MoveTable,
     Program,
     Spindle,
     Stop,
@@ -96,12 +99,22 @@ class _ReadMoves:
         self.rapid = rapid
         self.feed = feed
 
-    def moves(self, axes: tuple[str, ...]) -> list[Move]:
-        """The moves, with the positions of ``axes``."""
-        columns = [self.position[:, AXIS_ORDER.index(a)].tolist() for a in axes]
-        positions = zip(*columns, strict=True)  # one tuple per move
-        feeds = [None if f != f else f for f in self.feed.tolist()]  # NaN: no feed
-        return list(map(Move, self.rapid.tolist(), positions, feeds))
+    def columns(self, axes: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions of ``axes`` (shape (k, len(axes))), rapid flags and feeds."""
+        position = self.position[:, [AXIS_ORDER.index(a) for a in axes]]
+        return position, self.rapid, self.feed
+
+
+def _columns_of_singles(
+    moves: list[_ReadMove], axes: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Moves read one by one as :meth:`_ReadMoves.columns` gives them (NaN: unknown, no feed)."""
+    k = len(moves)
+    rows = [[m.position.get(a, math.nan) for a in axes] for m in moves]
+    position = np.array(rows, dtype=float).reshape(k, len(axes))
+    rapid = np.array([m.rapid for m in moves], dtype=bool).reshape(k)
+    feed = np.array([math.nan if m.feed is None else m.feed for m in moves], dtype=float)
+    return position, rapid, feed.reshape(k)
 
 
 class ProgramBuilder:
@@ -356,15 +369,32 @@ class ProgramBuilder:
     def build(self) -> Program:
         """The program read."""
         axes = tuple(a for a in AXIS_ORDER if a in self.axes_seen)
-        blocks: list[Block] = []
+        parts: list[Block | MoveTable] = []
+        run: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # consecutive moves
+        singles: list[_ReadMove] = []
+
+        def end_singles() -> None:
+            if singles:
+                run.append(_columns_of_singles(singles, axes))
+                singles.clear()
+
+        def end_run() -> None:
+            end_singles()
+            if run:
+                position, rapid, feed = (np.concatenate(c) for c in zip(*run, strict=True))
+                parts.append(MoveTable(position, rapid, feed, np.full(len(feed), -1)))
+                run.clear()
+
         for item in self.items:
             if isinstance(item, _ReadMove):
-                position = tuple(item.position.get(a, math.nan) for a in axes)
-                blocks.append(Move(item.rapid, position, item.feed))
+                singles.append(item)
             elif isinstance(item, _ReadMoves):
-                blocks.extend(item.moves(axes))
+                end_singles()
+                run.append(item.columns(axes))
             else:
-                blocks.append(item)
+                end_run()
+                parts.append(item)
+        end_run()
         rotary = frozenset(axes) & ROTARY_ADDRESSES
         tcp = self.tcp_at_first_feed if self.tcp_at_first_feed is not None else self.tcp_ever
         name = self.name or (PurePath(self.path).stem if self.path != "<string>" else "PROGRAM")
@@ -374,7 +404,7 @@ class ProgramBuilder:
             rotary=rotary,
             units=self.units or "mm",
             tcp=tcp,
-            blocks=tuple(blocks),
+            blocks=Blocks(parts),
             continuous=rotary if self.continuous else frozenset(),
         )
 

@@ -7,7 +7,9 @@ switch, a home return or an inserted text writes every axis, the motion code and
 
 Long runs of motion blocks are written many at a time when the control's spec has a
 :class:`~urdfpost.dialects.spec.MotionLayout`: the same modal rules and number formats applied
-to arrays (:mod:`urdfpost.dialects._bulk`), giving the same text as block by block.
+to arrays (:mod:`urdfpost.dialects._bulk`), giving the same text as block by block. The arrays
+are the program's :class:`~urdfpost.program.MoveTable` runs themselves (runs given as
+:class:`~urdfpost.program.Move` objects are turned into arrays chunk by chunk).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from urdfpost.program import (
     Home,
     Insert,
     Move,
+    MoveTable,
     Program,
     Spindle,
     Stop,
@@ -158,17 +161,21 @@ class ProgramWriter:
         if spec.shortest_path and rotary_continuous & self.program.rotary:
             self.emit(spec.shortest_path)
         self._plan_spindle_merges()
-        blocks = self.program.blocks
-        is_move = np.fromiter(map(isinstance, blocks, itertools.repeat(Move)), bool, len(blocks))
+        parts = self.program.parts  # runs of moves as tables (or Move objects)
+        is_move = np.fromiter(map(isinstance, parts, itertools.repeat(Move)), bool, len(parts))
         edges = np.flatnonzero(np.diff(is_move)) + 1
-        for start, end in zip([0, *edges.tolist()], [*edges.tolist(), len(blocks)], strict=True):
+        for start, end in zip([0, *edges.tolist()], [*edges.tolist(), len(parts)], strict=True):
             if start == end:
                 continue
             if is_move[start]:
-                self.write_moves(blocks[start:end])  # type: ignore[arg-type]
+                self.write_moves(parts[start:end])  # type: ignore[arg-type]
             else:
                 for index in range(start, end):
-                    self.write_block(index, blocks[index])
+                    part = parts[index]
+                    if isinstance(part, MoveTable):
+                        self.write_moves(part)
+                    else:
+                        self.write_block(index, part)
         self.emit_templates(spec.finish)
         self.emit_templates(spec.program_close, spec.number_frame)
         return "\n".join(self.lines) + "\n"
@@ -195,7 +202,7 @@ class ProgramWriter:
         """
         if self.spec.tool_change_speed is None:
             return
-        blocks = self.program.blocks
+        blocks = self.program.parts  # a MoveTable is neither a comment nor coolant
         running = False
         for index, block in enumerate(blocks):
             if isinstance(block, Spindle):
@@ -214,7 +221,7 @@ class ProgramWriter:
     # -- blocks ------------------------------------------------------------------------------
 
     def write_block(self, index: int, block: Block) -> None:
-        """Write one program block."""
+        """Write one program block (``index``: its place in :attr:`Program.parts`)."""
         match block:
             case Move():
                 self.write_move(block)
@@ -272,38 +279,71 @@ class ProgramWriter:
         words = MotionWords(move.rapid, code, tuple(changed), feed)
         self.emit(self.spec.format_motion(words))
 
-    def write_moves(self, moves: Sequence[Move]) -> None:
+    def write_moves(self, moves: Sequence[Move] | MoveTable) -> None:
         """Write consecutive motion blocks: as :meth:`write_move` on each, many at a time.
 
         The first block goes through :meth:`write_move` (it may follow a forced state); the
-        others are formatted in chunks when the spec has a motion layout. A chunk whose values
-        the block-by-block path would refuse or treat specially (NaN, a wrong number of values,
-        a feed written as zero) is written block by block from there on, errors included.
+        others are formatted in chunks when the spec has a motion layout, from the table's
+        arrays (or arrays made of the Move objects). A chunk whose values the block-by-block
+        path would refuse or treat specially (NaN, a wrong number of values, a feed written as
+        zero) is written block by block from there on, errors included.
         """
-        if self.spec.motion_layout is None or len(moves) < BULK_MIN_MOVES:
-            for move in moves:
+        width = len(self.program.axes)
+        if isinstance(moves, MoveTable):
+            table = moves
+
+            def arrays(start: int, stop: int) -> _MoveArrays | None:
+                return _arrays_of_table(table.rows(start, stop))
+
+            def objects(start: int, stop: int) -> Sequence[Move]:
+                return table.rows(start, stop).moves()
+        else:
+            run = moves
+
+            def arrays(start: int, stop: int) -> _MoveArrays | None:
+                return _arrays_of_moves(run[start:stop], width)
+
+            def objects(start: int, stop: int) -> Sequence[Move]:
+                return run[start:stop]
+
+        count = len(moves)
+        if self.spec.motion_layout is None or count < BULK_MIN_MOVES:
+            for move in objects(0, count):
                 self.write_move(move)
             return
-        self.write_move(moves[0])
-        for start in range(1, len(moves), _BULK_ROWS):
-            if not self._write_move_chunk(moves[start : start + _BULK_ROWS]):
-                for move in moves[start:]:
+        self.write_move(objects(0, 1)[0])
+        for start in range(1, count, _BULK_ROWS):
+            chunk = arrays(start, start + _BULK_ROWS)
+            if chunk is None or not self._write_move_chunk(*chunk):
+                for move in objects(start, count):
                     self.write_move(move)
                 return
 
-    def _write_move_chunk(self, moves: Sequence[Move]) -> bool:
+    def _write_move_chunk(
+        self, pos: np.ndarray, rapid: np.ndarray, feed: np.ndarray, has_feed: np.ndarray
+    ) -> bool:
         """Write motion blocks that follow a motion block, all at once.
+
+        Parameters
+        ----------
+        pos : ndarray, shape (k, m)
+            Positions, one column per program axis (mm, degrees).
+        rapid : ndarray, shape (k,), bool
+        feed : ndarray, shape (k,), mm/min
+            Where ``has_feed``.
+        has_feed : ndarray, shape (k,), bool
+            Whether the block has a feed (:attr:`Move.feed` not None).
 
         Returns
         -------
         bool
             False, with nothing written, when the blocks are not all plain (finite values for
-            every axis, bool rapid flags, feeds written as positive numbers), the modal state
-            is not known in full, or the block numbers are not a plain ``prefix{n}suffix``.
+            every axis, feeds written as positive numbers), the modal state is not known in
+            full, or the block numbers are not a plain ``prefix{n}suffix``.
         """
         spec, modal, layout = self.spec, self.modal, self.spec.motion_layout
         axes = self.program.axes
-        k = len(moves)
+        k = len(rapid)
         if (
             layout is None
             or modal.force
@@ -313,21 +353,8 @@ class ProgramWriter:
             or (self.numbered and 0 < spec.block_max < spec.block_step)
         ):
             return False
-        rapid_list = list(map(_RAPID, moves))
-        positions = list(map(_POSITION, moves))
-        feed_list = list(map(_FEED, moves))
-        if set(map(type, rapid_list)) != {bool} or set(map(len, positions)) != {len(axes)}:
+        if pos.shape != (k, len(axes)) or not np.isfinite(pos).all():
             return False
-        try:
-            values = itertools.chain.from_iterable(positions)
-            pos = np.fromiter(values, dtype=float, count=k * len(axes)).reshape(k, len(axes))
-            feed = np.array(feed_list, dtype=float)  # None -> NaN
-        except (TypeError, ValueError):
-            return False
-        if not np.isfinite(pos).all():
-            return False
-        rapid = np.array(rapid_list, dtype=bool)
-        has_feed = np.fromiter(map(operator.is_not, feed_list, itertools.repeat(None)), bool, k)
         # -- axis values: scaled integers stand for their texts ---------------------------
         formats: list[NumberFormat] = []
         scaled = np.empty((k, len(axes)), dtype=np.int64)
@@ -410,11 +437,9 @@ class ProgramWriter:
             parts.insert(0, self._block_number_slots(k))
         self.lines.append(_bulk.text_of_rows(np.hstack(parts))[:-1])
         # -- the modal state after the last block -----------------------------------------
-        last = moves[-1]
-        modal.axes.update(
-            (a, self.format_axis(a, v)) for a, v in zip(axes, last.position, strict=True)
-        )
-        modal.motion = last.rapid
+        last = pos[-1].tolist()
+        modal.axes.update((a, self.format_axis(a, v)) for a, v in zip(axes, last, strict=True))
+        modal.motion = bool(rapid[-1])
         if feed_rows.size:
             modal.feed = self.feed_format.format(float(feed[feed_rows[-1]]) / self.feed_scale)
         return True
@@ -453,7 +478,7 @@ class ProgramWriter:
         if block.number < 0:
             raise DialectError(f"tool number {block.number} must not be negative")
         self.modal.tool = block.number
-        merged = self.program.blocks[self._merges[index]] if index in self._merges else None
+        merged = self.program.parts[self._merges[index]] if index in self._merges else None
         if isinstance(merged, Spindle) and self.spec.tool_change_speed is not None:
             rpm = self.spec.rpm.format(merged.rpm)
             self.emit_templates(self.spec.tool_change_speed, tool=block.number, rpm=rpm)
@@ -507,6 +532,34 @@ class ProgramWriter:
             )
         self.emit_templates(templates, tool=self.modal.tool)
         self.modal.invalidate()
+
+
+_MoveArrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""Positions (k, m), rapid flags (k,), feeds (k,) and whether each block has a feed (k,)."""
+
+
+def _arrays_of_table(table: MoveTable) -> _MoveArrays:
+    """The arrays :meth:`ProgramWriter._write_move_chunk` takes, of a table (NaN: no feed)."""
+    return table.position, table.rapid, table.feed, ~np.isnan(table.feed)
+
+
+def _arrays_of_moves(moves: Sequence[Move], width: int) -> _MoveArrays | None:
+    """The same of Move objects; None when they are not plain (a non-bool rapid flag, another
+    number of positions than ``width``, values that are not numbers)."""
+    k = len(moves)
+    rapid_list = list(map(_RAPID, moves))
+    positions = list(map(_POSITION, moves))
+    feed_list = list(map(_FEED, moves))
+    if set(map(type, rapid_list)) != {bool} or set(map(len, positions)) != {width}:
+        return None
+    try:
+        values = itertools.chain.from_iterable(positions)
+        pos = np.fromiter(values, dtype=float, count=k * width).reshape(k, width)
+        feed = np.array(feed_list, dtype=float)  # None -> NaN
+    except (TypeError, ValueError):
+        return None
+    has_feed = np.fromiter(map(operator.is_not, feed_list, itertools.repeat(None)), bool, k)
+    return pos, np.array(rapid_list, dtype=bool), feed, has_feed
 
 
 def _scaled_from_text(text: str, decimals: int) -> int | None:

@@ -161,7 +161,7 @@ def compare(
         if spans is None or name == "recursive":
             spans = _to_cl_indices(plan.spans, plan.toolpath)
         text = dialect.write(program)
-        inserts = [b.text for b in program.blocks if isinstance(b, Insert)]
+        inserts = [b.text for b in program.parts if isinstance(b, Insert)]
         readback = dialect.read(text, path=f"<{dialect.name} program>", verbatim=inserts)
         cl, intended = check_program(readback, machine, toolpath, figures, tol, program.tool_length)
         strat = figures["strategy"]
