@@ -650,3 +650,19 @@ def test_unwritable_output_is_a_domain_error(
     )
     assert rc == 1
     assert capsys.readouterr().err.startswith("urdfpost: ")
+
+
+@pytest.mark.parametrize("strategy", ["cone", "recursive", "none"])
+def test_cl_file_without_motion_posts_an_empty_program_with_a_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], strategy: str
+) -> None:
+    cl = tmp_path / "empty.apt"
+    cl.write_text("PARTNO/EMPTY\nFEDRAT/1000\nFINI\n", encoding="ascii")
+    out = tmp_path / "empty.h"
+    assert (
+        main(["post", str(cl), "--machine", "dmu50", "--strategy", strategy, "-o", str(out)]) == 0
+    )
+    err = capsys.readouterr().err
+    assert "empty.apt: no motion records; the program has no moves" in err
+    text = out.read_text(encoding="ascii")
+    assert "BEGIN PGM EMPTY MM" in text and " L " not in text

@@ -357,6 +357,15 @@ def select(
     if planner not in ("global", "local"):
         raise ValueError(f"unknown planner {planner!r}; expected 'global' or 'local'")
 
+    if n == 0:
+        none = np.zeros((0, len(machine.axes)))
+        return Selection(
+            q=none,
+            branch=np.zeros(0, dtype=int),
+            status=np.zeros(0, dtype=np.int8),
+            arrive=none,
+            rewind=np.zeros(0, dtype=bool),
+        )
     ik = inverse(machine, tip, axis, tool_length, tol, pole_angle=0.0)
     values, ok, branch = _candidates(machine, ik.rotary.angles, ik.rotary.valid)
     pole = ik.status == IKStatus.POLE

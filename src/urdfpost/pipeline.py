@@ -604,6 +604,8 @@ def build_program(
     entry = entry_mask(toolpath)
     figures: dict[str, Any] = {"branch_switches": 0, "pole_points": 0, "inserted_blocks": 0}
     warnings: list[str] = list(plan.notes)
+    if not n:
+        warnings.append(f"{toolpath.source}: no motion records; the program has no moves")
     first_tool = min((e.index for e in toolpath.events if e.kind == "tool"), default=n + 1)
     tool_events: tuple[Event, ...] = ()
     if n and first_tool > 0:
