@@ -622,7 +622,7 @@ def _viterbi(
         block = int(np.clip(np.sqrt(n), *_MIN_PLUS_BLOCK))
     first = np.arange(1, n, block)  # first step of each block
     last = np.minimum(first + block, n)  # one past its last
-    seq = np.array([irregular[a:b].any() for a, b in zip(first, last, strict=True)], dtype=bool)
+    seq = np.logical_or.reduceat(irregular, first) if len(first) else np.zeros(0, dtype=bool)
     bulk = np.flatnonzero(~seq)
     steps = _Steps(p, first[bulk], last[bulk])
     products = _block_products(p, steps, usable, first[bulk], last[bulk])

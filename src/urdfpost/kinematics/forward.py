@@ -376,16 +376,22 @@ def tip_and_axis(
         Unit tool axis (tool frame +Z).
     """
     q = _as_q(machine, q)
-    n = q.shape[0]
-    linear = {c: q[:, c] for c in machine.linear_columns}
-    tip, (axis,), _, _ = _carry(
+    tip, (axis,), _, _ = _tip_and_axis_carried(machine, q, tool_length)
+    return _rows(tip, q.shape[0]), _rows(axis, q.shape[0])  # type: ignore[arg-type]
+
+
+def _tip_and_axis_carried(
+    machine: Machine, q: np.ndarray, tool_length: float, radii: bool = False
+) -> tuple[Vec | None, list[Vec], dict[int, Coord], dict[int, Coord]]:
+    """:func:`_carry` of the tip and the tool axis through joint vectors ``q`` (n, m)."""
+    return _carry(
         _joints_from_tool(machine),
-        linear,
+        {c: q[:, c] for c in machine.linear_columns},
         _trig(machine, q),
         _tool_point(machine, -tool_length),
         [_vec(machine.home_tool_axis)],
+        radii=radii,
     )
-    return _rows(tip, n), _rows(axis, n)  # type: ignore[arg-type]
 
 
 def cos_sin_along(
@@ -520,15 +526,7 @@ def tip_axis_and_reach(
     """
     q = _as_q(machine, q)
     n = q.shape[0]
-    linear = {c: q[:, c] for c in machine.linear_columns}
-    tip, (axis,), reach, swing = _carry(
-        _joints_from_tool(machine),
-        linear,
-        _trig(machine, q),
-        _tool_point(machine, -tool_length),
-        [_vec(machine.home_tool_axis)],
-        radii=True,
-    )
+    tip, (axis,), reach, swing = _tip_and_axis_carried(machine, q, tool_length, radii=True)
     cols = machine.rotary_columns
     reach_a, swing_a = np.empty((n, len(cols))), np.empty((n, len(cols)))
     for i, c in enumerate(cols):

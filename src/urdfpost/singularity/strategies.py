@@ -799,12 +799,11 @@ def strategy_cone(problem: Problem) -> Plan:
     )
 
 
-def _rounding(*values: np.ndarray) -> float:
-    """Rounding of running sums over ``values`` (bands and steps), rad: intervals closed by
-    no more than this are one value."""
-    scale = sum(float(np.abs(v).sum()) if v.ndim and len(v) else 0.0 for v in values[-1:])
-    scale += sum(float(np.abs(v).max(initial=0.0)) for v in values[:-1])
-    return 16.0 * float(np.spacing(scale))
+def _rounding(a: np.ndarray, b: np.ndarray, step: np.ndarray) -> float:
+    """Rounding of the running sums over two bands ``a``, ``b`` and the steps ``step`` (rad):
+    intervals closed by no more than this are one value."""
+    scale = float(np.abs(a).max(initial=0.0)) + float(np.abs(b).max(initial=0.0))
+    return 16.0 * float(np.spacing(scale + float(np.abs(step).sum())))
 
 
 def _reachable(
