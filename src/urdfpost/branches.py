@@ -624,6 +624,7 @@ def _viterbi(
     last = np.minimum(first + block, n)  # one past its last
     seq = np.logical_or.reduceat(irregular, first) if len(first) else np.zeros(0, dtype=bool)
     bulk = np.flatnonzero(~seq)
+    product_of = np.cumsum(~seq) - 1  # block -> its product (bulk blocks)
     steps = _Steps(p, first[bulk], last[bulk])
     products = _block_products(p, steps, usable, first[bulk], last[bulk])
     # costs at the block starts, in order
@@ -632,7 +633,7 @@ def _viterbi(
     for b, (a, e) in enumerate(zip(first, last, strict=True)):
         starts[b] = cost
         if not seq[b]:
-            new = (cost[:, None] + products[np.searchsorted(bulk, b)]).min(axis=0)
+            new = (cost[:, None] + products[product_of[b]]).min(axis=0)
             if np.isfinite(new).any():
                 cost, state = new, p.values[e - 1]
                 continue
