@@ -508,15 +508,22 @@ def _random_moves(
 @pytest.mark.parametrize("name", ["dmu50", "dmu50-nutating", "gantry-ca", "vf2-4axis"])
 @pytest.mark.parametrize("tcp", [False, True])
 @pytest.mark.parametrize("pivot", [0.0, 3.0])
-def test_verify_block_bounds_hold(name: str, tcp: bool, pivot: float) -> None:
+@pytest.mark.parametrize("samples", [10, 18])
+@pytest.mark.parametrize("shift", [0.0, 0.3])
+def test_verify_block_bounds_hold(
+    name: str, tcp: bool, pivot: float, samples: int, shift: float
+) -> None:
     """The bounds that decide which blocks verification refines are above the deviation
-    anywhere in the block (dense samples)."""
+    anywhere in the block (dense samples). With ``shift`` the CL points move along the path
+    by that share of a step, so the projection on a CL segment leaves [0, 1] inside blocks
+    (the clip's kink is between samples)."""
     m = machine(name)
     rng = np.random.default_rng(11)
     for scale in (0.002, 0.05, 0.5):
         q, cl_axis = _random_moves(m, rng, 60, scale)
         tip, axis = tip_and_axis(m, q, 100.0)
-        cl_tip = tip + rng.normal(0.0, 0.01, tip.shape) + pivot * axis
+        along = np.gradient(tip, axis=0) * rng.uniform(-shift, shift, (len(tip), 1))
+        cl_tip = tip + along + rng.normal(0.0, 0.01, tip.shape) + pivot * axis
         values = q.copy()
         if tcp:
             values[:, list(m.linear_columns)] = tip
@@ -533,8 +540,10 @@ def test_verify_block_bounds_hold(name: str, tcp: bool, pivot: float) -> None:
             pivot=pivot,
         )
         blocks = np.arange(len(q) - 1)
-        t = np.linspace(0.0, 1.0, 18)
-        tip_bound, chord_bound = feed.bounds(blocks, *feed.errors(blocks, t), t[1] - t[0])
+        t = np.linspace(0.0, 1.0, samples)
+        outside: list[np.ndarray] = []
+        sampled = feed.errors(blocks, t, outside)
+        tip_bound, chord_bound = feed.bounds(blocks, *sampled, outside[0], t[1] - t[0])
         dist2, chord2 = feed.errors(blocks, np.linspace(0.0, 1.0, 2001))
         assert np.all(np.sqrt(dist2.max(axis=0)) <= tip_bound + 1e-12)
         assert np.all(np.sqrt(chord2.max(axis=0)) <= chord_bound + 1e-12)

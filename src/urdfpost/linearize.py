@@ -112,13 +112,18 @@ class Segments:
             self.inv_dd[index],
         )
 
-    def distance2(self, p: Vec) -> tuple[np.ndarray, np.ndarray]:
+    def distance2(
+        self, p: Vec, outside: list[np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Squared distance of points from the segments, and the parameter of the closest point.
 
         Parameters
         ----------
         p : Vec
             Coordinate arrays of shape (..., n): points of each block.
+        outside : list, optional
+            When given, how far the projection parameter falls outside [0, 1] (0 inside) is
+            appended to it, an array of the shape of ``s``.
 
         Returns
         -------
@@ -134,7 +139,12 @@ class Segments:
         np.multiply(w[2], d[2], out=part)
         s += part
         s *= self.inv_dd
+        if outside is not None:
+            raw = s.copy()
         np.clip(s, 0.0, 1.0, out=s)
+        if outside is not None:
+            raw -= s
+            outside.append(np.abs(raw, out=raw))
         dist2 = None
         for i in range(3):  # w turns into the offset from the closest point, in place
             np.multiply(s, d[i], out=part)

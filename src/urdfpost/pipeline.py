@@ -49,7 +49,7 @@ from urdfpost.singularity.strategies import (
 )
 from urdfpost.tolerances import MM_PER_INCH, Tolerances
 from urdfpost.toolpath import Event, Motion, Toolpath
-from urdfpost.verify import Verification, verify
+from urdfpost.verify import Check, Verification, verify, verify_checks
 
 if TYPE_CHECKING:
     from urdfpost.collision import CollisionWorld
@@ -892,10 +892,11 @@ def check_program(
     reference: Toolpath = figures["reference"]
     if reference is plan.toolpath and not plan.bent:
         return verify(program, machine, toolpath, tool_length=tool_length, tol=tol), None
-    intended = verify(program, machine, reference, tool_length=tool_length, tol=tol)
     pivot = figures["strategy"]["pivot_mm"]
     loose = bent_tolerances(tol, figures["strategy"]["angle_tolerance_deg"], pivot)
-    cl = verify(program, machine, toolpath, tool_length=tool_length, tol=loose, pivot=pivot)
+    intended, cl = verify_checks(
+        program, machine, [Check(reference, tol), Check(toolpath, loose, pivot)], tool_length
+    )
     if plan.lifts:
         cl = replace(
             cl,

@@ -40,7 +40,13 @@ from urdfpost.toolpath import Toolpath
 
 log = logging.getLogger(__name__)
 
-_SAMPLES = 16
+_SAMPLES = 8
+"""Samples inside every block, besides its ends (the bounds of :meth:`_Blocks.bounds` are of
+second order in their spacing, so few blocks need refining after 8)."""
+
+_ITERATIONS = 14
+"""Golden-section iterations of the refinement: the bracket of two sample spacings shrinks to
+under 3e-4 of the block."""
 
 _NEGLIGIBLE = 1e-9
 """Share of a tolerance below which a deviation is not refined (when nothing larger is seen)."""
@@ -151,13 +157,34 @@ def _row_poses(
     In TCP programs the linear values are the tip: only the rotary axes go through the
     kinematics (with the linear ones at 0, which do not turn the tool axis).
     """
+    return _at_pivot(_row_poses_at_tip(machine, values, tcp, tool_length), pivot)
+
+
+def _row_poses_at_tip(
+    machine: Machine, values: np.ndarray, tcp: bool, tool_length: float
+) -> RowPoses:
+    """:func:`_row_poses` of the tip (pivot 0)."""
     if not tcp:
-        return RowPoses.of(machine, values, tool_length - pivot)
+        return RowPoses.of(machine, values, tool_length)
     q = values.copy()
     lin = list(machine.linear_columns)
     q[:, lin] = 0.0
     poses = RowPoses.of(machine, q, 0.0)
-    return replace(poses, tip=values[:, lin] + pivot * poses.axis)
+    return replace(poses, tip=values[:, lin])
+
+
+def _at_pivot(rows: RowPoses, pivot: float) -> RowPoses:
+    """Poses of the point ``pivot`` up the tool axis from the tip of ``rows``.
+
+    The reach grows by at most ``|pivot|`` times the swing (the part of ``pivot`` times the
+    tool axis across each rotary axis' line): an upper bound, which is what the bounds of
+    :meth:`_Blocks.bounds` need.
+    """
+    if pivot == 0.0:
+        return rows
+    return RowPoses(
+        rows.tip + pivot * rows.axis, rows.axis, rows.reach + abs(pivot) * rows.swing, rows.swing
+    )
 
 
 _REACH = 64 + 256 + 1024 + 4096
@@ -392,7 +419,12 @@ class _Polyline:
 
 
 def _span_deviation(
-    points: Vec, axes: Vec, polyline: _Polyline, ja: np.ndarray, jb: np.ndarray
+    points: Vec,
+    axes: Vec,
+    polyline: _Polyline,
+    ja: np.ndarray,
+    jb: np.ndarray,
+    outside: list[np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Distance of sample points from the CL polyline between CL indices ``ja`` and ``jb``, and
     of their tool axes from the CL axis interpolated (slerp) at the nearest place.
@@ -404,6 +436,9 @@ def _span_deviation(
     polyline : _Polyline
     ja, jb : ndarray, shape (n,), int
         CL span of each block (``jb >= ja``).
+    outside : list, optional
+        When given, how far the projection parameter on the span's first segment falls
+        outside [0, 1] is appended to it, an array of shape (s, n).
 
     Returns
     -------
@@ -421,7 +456,7 @@ def _span_deviation(
         a = np.minimum(ja[cols] + off, last)
         pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
         axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
-        d2, u = polyline.segments.take(a).distance2(pts)
+        d2, u = polyline.segments.take(a).distance2(pts, outside if off == 0 else None)
         arc = polyline.arcs.take(a)
         c2 = arc.chord2(axs, *cos_sin(u * arc.omega))
         if off == 0:
@@ -438,7 +473,7 @@ class _Blocks:
     """The feed blocks of a program, and how to evaluate them anywhere.
 
     Block i moves from program row ``start[i]`` to ``start[i] + 1`` and is compared with the CL
-    span ``ja[i] .. jb[i]``.
+    span ``ja[i] .. jb[i]``, where ``valid[i]`` (None: every block).
     """
 
     machine: Machine
@@ -451,54 +486,101 @@ class _Blocks:
     tcp: bool
     tool_length: float
     pivot: float
+    valid: np.ndarray | None = None
 
-    def errors(self, blocks: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def along(self, blocks: np.ndarray, t: np.ndarray) -> tuple[Vec | None, Vec]:
+        """Tool tip (None in TCP programs) and axis along blocks at parameters t, the
+        coordinate arrays of shape (s, k) of :func:`tip_and_axis_along`.
+
+        The same for every comparison of one program (the pivot is added in :meth:`errors`).
+        """
+        q0, q1 = self.values[self.start[blocks]], self.values[self.start[blocks] + 1]
+        return tip_and_axis_along(self.machine, q0, q1, t, self.tool_length, with_tip=not self.tcp)
+
+    def errors(
+        self,
+        blocks: np.ndarray,
+        t: np.ndarray,
+        outside: list[np.ndarray] | None = None,
+        along: tuple[Vec | None, Vec] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Squared distance and chord (:func:`_span_deviation`) of blocks at parameters t.
 
         Parameters
         ----------
         blocks : ndarray, shape (k,), int
         t : ndarray, shape (s,) (the same for every block) or (s, k)
+        outside : list, optional
+            See :func:`_span_deviation`.
+        along : tuple, optional
+            :meth:`along` of the same blocks and t, when known.
 
         Returns
         -------
         dist2, chord2 : ndarray, shape (s, k)
         """
-        q0, q1 = self.values[self.start[blocks]], self.values[self.start[blocks] + 1]
-        length = self.tool_length - self.pivot
-        p, axis = tip_and_axis_along(self.machine, q0, q1, t, length, with_tip=not self.tcp)
-        if p is None:  # TCP: the control moves the tip on the straight line
+        tip, axis = self.along(blocks, t) if along is None else along
+        if tip is None:  # TCP: the control moves the tip on the straight line
+            q0, q1 = self.values[self.start[blocks]], self.values[self.start[blocks] + 1]
             lin = list(self.machine.linear_columns)
             p0, dp = q0[:, lin], q1[:, lin] - q0[:, lin]
             tt = t[:, None] if t.ndim == 1 else t
             p = tuple(p0[:, i] + tt * dp[:, i] + self.pivot * axis[i] for i in range(3))
+        elif self.pivot:
+            p = tuple(tip[i] + self.pivot * axis[i] for i in range(3))
+        else:
+            p = tip
         return _span_deviation(
             p,  # type: ignore[arg-type]
             axis,
             self.polyline,
             self.ja[blocks],
             self.jb[blocks],
+            outside,
         )
 
     def bounds(
-        self, blocks: np.ndarray, dist2: np.ndarray, chord2: np.ndarray, h: float
+        self,
+        blocks: np.ndarray,
+        dist2: np.ndarray,
+        chord2: np.ndarray,
+        outside: np.ndarray,
+        h: float,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Upper bounds on the tip deviation (mm) and on the chord of the axis deviation over
         each whole block, from its samples (evenly spaced h apart, both ends included).
 
-        Where a block is compared with one CL segment:
+        Where a block is compared with one CL segment, from A to A + d, with ``|p'| <= L`` and
+        ``|p''| <= M`` for the measured point p(t) and ``|a'| <= L_a``, ``|a''| <= M_a`` for the
+        tool axis a(t) (:func:`interpolation_bounds`; in TCP programs p is the straight line
+        plus the pivot times the tool axis):
 
-        - the tip deviation is the distance of the point p(t) from the segment, a convex and
-          1-Lipschitz function of p; with ``|p''| <= M`` (:func:`interpolation_bounds`; in TCP
-          programs p is the straight line plus the pivot times the tool axis) it is at most
-          the larger of two neighbouring samples plus ``M h^2 / 8`` between them;
-        - the chord ``|a(t) - e(t)|`` between the tool axis a and the CL axis e (the slerp at
-          the clipped projection parameter s of p on the segment: a kink where the clip
-          starts, so no curvature bound) changes at most at the speed ``|a'| + omega |s'|``,
-          with ``|s'| <= |p'| / |segment|``: between two samples it is at most their mean plus
-          that speed times h / 2.
+        - the tip deviation is the distance of p(t) from the segment, a convex and 1-Lipschitz
+          function of p: it is at most the largest sample plus ``M h^2 / 8`` (p stays that
+          close to the chord between two samples, and on the chord the distance is at most the
+          larger of theirs);
+        - the axis deviation is the chord ``|a(t) - e(s(t))|`` to the CL slerp e (angle omega,
+          speed omega) at the clipped projection parameter ``s = clip(u)``, ``u = (p - A).d /
+          |d|^2``. Without the clip, ``f = a - e(u)`` is smooth with ``|f''| <= M_a + omega^2
+          u'^2 + omega |u''|``, ``|u'| <= L / |d|``, ``|u''| <= M / |d|``, so ``|f|`` is at
+          most its largest sample plus ``|f''| h^2 / 8``; the clip moves e by at most omega
+          times how far u is outside [0, 1], which between samples exceeds the largest sampled
+          excess by at most ``|u''| h^2 / 8``. Together: the largest sampled chord, plus twice
+          omega times the largest sampled excess, plus ``(M_a + omega^2 L^2 / |d|^2 + 2 omega
+          M / |d|) h^2 / 8``. A first-order bound holds too (the chord changes at most at the
+          speed ``L_a + omega L / |d|``: between two samples at most their mean plus that speed
+          times h / 2); the smaller of the two is taken.
 
         A block compared with more than one CL segment gets no bound (infinite).
+
+        Parameters
+        ----------
+        blocks : ndarray, shape (k,), int
+        dist2, chord2 : ndarray, shape (s, k)
+            Samples from :meth:`errors`.
+        outside : ndarray, shape (s, k)
+            How far the projection parameter on the first segment falls outside [0, 1] there.
+        h : float
 
         Returns
         -------
@@ -517,18 +599,43 @@ class _Blocks:
             tip_curv = abs(self.pivot) * axis_curv
         ja = self.ja[blocks]
         inv_length = np.sqrt(self.polyline.segments.inv_dd[ja])  # 0 for a point
-        spin = self.polyline.arcs.omega[ja] * tip_speed * inv_length
+        omega = self.polyline.arcs.omega[ja]
+        spin = omega * tip_speed * inv_length
         g = np.sqrt(chord2)
-        tip_bound = np.sqrt(dist2.max(axis=0)) + tip_curv * (h * h / 8.0)
-        chord_bound = 0.5 * (g[1:] + g[:-1]).max(axis=0) + (axis_speed + spin) * (h / 2.0)
+        room = h * h / 8.0
+        tip_bound = np.sqrt(dist2.max(axis=0)) + tip_curv * room
+        first = 0.5 * (g[1:] + g[:-1]).max(axis=0) + (axis_speed + spin) * (h / 2.0)
+        curv = axis_curv + spin * spin + 2.0 * omega * tip_curv * inv_length
+        second = g.max(axis=0) + 2.0 * omega * outside.max(axis=0) + curv * room
         one = self.jb[blocks] - ja <= 1
-        return np.where(one, tip_bound, np.inf), np.where(one, chord_bound, np.inf)
+        return np.where(one, tip_bound, np.inf), np.where(one, np.minimum(first, second), np.inf)
 
 
-def _block_deviation(
-    feed: _Blocks, tip_level: float, chord2_level: float
-) -> tuple[np.ndarray, float, int, float]:
-    """Deviation of every feed block, sampled and refined where it can matter.
+@dataclass
+class _Deviation:
+    """What :func:`_block_deviation` measured in the blocks of one comparison.
+
+    Attributes
+    ----------
+    tip : ndarray, shape (n,), mm
+        Largest tip deviation seen per block (0 where the block is not compared).
+    total : float, mm
+        Sum of the sampled tip deviations.
+    count : int
+        Number of samples.
+    chord2 : float
+        Largest squared axis chord seen in any block.
+    """
+
+    tip: np.ndarray
+    total: float
+    count: int
+    chord2: float
+
+
+def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) -> list[_Deviation]:
+    """Deviation of every feed block, sampled and refined where it can matter, in one or more
+    comparisons of the same program blocks (the kinematics along them evaluated once).
 
     Every block is sampled at ``_SAMPLES + 2`` evenly spaced parameters, its ends included. The
     worst samples are refined by golden-section search (:func:`refine_max`) in the blocks where
@@ -539,69 +646,104 @@ def _block_deviation(
 
     Parameters
     ----------
-    feed : _Blocks
-    tip_level : float, mm
-        No block needs refining below this tip deviation.
-    chord2_level : float
-        Likewise for the squared axis chord.
+    feeds : list of _Blocks
+        The comparisons; the same machine, program values and blocks (``start``), each with
+        its own CL spans, pivot and the blocks it compares (``valid``).
+    levels : list of (float, float)
+        Per comparison: no block needs refining below this tip deviation (mm) and squared axis
+        chord.
 
     Returns
     -------
-    tip : ndarray, shape (n,), mm
-        Largest tip deviation seen per block.
-    total : float, mm
-        Sum of the sampled tip deviations.
-    count : int
-        Number of samples.
-    chord2 : float
-        Largest squared axis chord seen in any block.
+    list of _Deviation
     """
-    n = len(feed.start)
+    n = len(feeds[0].start)
     t = np.linspace(0.0, 1.0, _SAMPLES + 2)
     h = float(t[1] - t[0])
-    best = (np.zeros(n), np.zeros(n))
-    worst = (np.zeros(n, dtype=int), np.zeros(n, dtype=int))
-    bound = (np.zeros(n), np.zeros(n))
-    total = 0.0
+    out = []
+    best = [(np.zeros(n), np.zeros(n)) for _ in feeds]
+    worst = [(np.zeros(n, dtype=int), np.zeros(n, dtype=int)) for _ in feeds]
+    bound = [(np.zeros(n), np.zeros(n)) for _ in feeds]
+    total = [0.0 for _ in feeds]
     for part in chunks(n, len(t)):
         blocks = np.arange(part.start, part.stop)
-        dist2, chord2 = feed.errors(blocks, t)
-        total += float(np.sqrt(dist2).sum())
+        along = feeds[0].along(blocks, t)
         cols = np.arange(len(blocks))
-        for i, e in enumerate((dist2, chord2)):
-            worst[i][part] = np.argmax(e, axis=0)
-            best[i][part] = e[worst[i][part], cols]
-        bound[0][part], bound[1][part] = feed.bounds(blocks, dist2, chord2, h)
-    levels = (
-        max(float(np.sqrt(best[0].max(initial=0.0))), tip_level),
-        float(np.sqrt(max(best[1].max(initial=0.0), chord2_level))),
-    )
-    wanted = (may_reach(bound[0], levels[0]), may_reach(bound[1], levels[1]))
-    todo = np.flatnonzero(wanted[0] | wanted[1])
-    log.debug(
-        "verify: %d blocks, tip refined in %d, orientation in %d",
-        n,
-        wanted[0].sum(),
-        wanted[1].sum(),
-    )
-    for part in chunks(len(todo), 4):  # four evaluations per block at a time
-        sub = todo[part]
-
-        def errors(
-            idx: np.ndarray, tt: np.ndarray, sub: np.ndarray = sub
-        ) -> tuple[np.ndarray, np.ndarray]:
-            dist2, chord2 = feed.errors(sub[idx], tt[None, :])
-            return dist2[0], chord2[0]
-
-        refined = refine_max(
-            errors,
-            t,
-            (worst[0][sub], worst[1][sub]),
-            (best[0][sub], best[1][sub]),
-            (wanted[0][sub], wanted[1][sub]),
+        for f, feed in enumerate(feeds):
+            outside: list[np.ndarray] = []
+            dist2, chord2 = feed.errors(blocks, t, outside, along)
+            valid = None if feed.valid is None else feed.valid[part]
+            if valid is not None:
+                dist2[:, ~valid] = 0.0
+                chord2[:, ~valid] = 0.0
+            total[f] += float(np.sqrt(dist2).sum())
+            for i, e in enumerate((dist2, chord2)):
+                worst[f][i][part] = np.argmax(e, axis=0)
+                best[f][i][part] = e[worst[f][i][part], cols]
+            tip_bound, chord_bound = feed.bounds(blocks, dist2, chord2, outside[0], h)
+            if valid is not None:  # blocks not compared are never refined
+                tip_bound[~valid] = -np.inf
+                chord_bound[~valid] = -np.inf
+            bound[f][0][part], bound[f][1][part] = tip_bound, chord_bound
+    for f, feed in enumerate(feeds):
+        tip_level, chord2_level = levels[f]
+        level = (
+            max(float(np.sqrt(best[f][0].max(initial=0.0))), tip_level),
+            float(np.sqrt(max(best[f][1].max(initial=0.0), chord2_level))),
         )
-        best[0][sub], best[1][sub] = refined
-    return np.sqrt(best[0]), total, n * len(t), float(best[1].max(initial=0.0))
+        wanted = (may_reach(bound[f][0], level[0]), may_reach(bound[f][1], level[1]))
+        todo = np.flatnonzero(wanted[0] | wanted[1])
+        log.debug(
+            "verify: %d blocks, tip refined in %d, orientation in %d",
+            n,
+            wanted[0].sum(),
+            wanted[1].sum(),
+        )
+        for part in chunks(len(todo), 4):  # four evaluations per block at a time
+            sub = todo[part]
+
+            def errors(
+                idx: np.ndarray, tt: np.ndarray, sub: np.ndarray = sub, feed: _Blocks = feed
+            ) -> tuple[np.ndarray, np.ndarray]:
+                dist2, chord2 = feed.errors(sub[idx], tt[None, :])
+                return dist2[0], chord2[0]
+
+            refined = refine_max(
+                errors,
+                t,
+                (worst[f][0][sub], worst[f][1][sub]),
+                (best[f][0][sub], best[f][1][sub]),
+                (wanted[0][sub], wanted[1][sub]),
+                iterations=_ITERATIONS,
+            )
+            best[f][0][sub], best[f][1][sub] = refined
+        compared = n if feed.valid is None else int(feed.valid.sum())
+        out.append(
+            _Deviation(
+                tip=np.sqrt(best[f][0]),
+                total=total[f],
+                count=compared * len(t),
+                chord2=float(best[f][1].max(initial=0.0)),
+            )
+        )
+    return out
+
+
+@dataclass(frozen=True)
+class Check:
+    """One comparison of a program with CL data (see :func:`verify`).
+
+    Attributes
+    ----------
+    toolpath : Toolpath
+    tol : Tolerances
+    pivot : float, mm
+        The point measured, this far up the tool axis from the tip.
+    """
+
+    toolpath: Toolpath
+    tol: Tolerances
+    pivot: float = 0.0
 
 
 def verify(
@@ -635,6 +777,34 @@ def verify(
     Verification
     """
     tol = tol or Tolerances.for_units(program.units)
+    (check,) = verify_checks(program, machine, [Check(toolpath, tol, pivot)], tool_length)
+    return check
+
+
+def verify_checks(
+    program: Program,
+    machine: Machine,
+    checks: list[Check],
+    tool_length: float | None = None,
+) -> list[Verification]:
+    """:func:`verify` of one program against several CL paths, tolerances or pivots.
+
+    The program is read and run through the machine once: its joint values, the kinematics
+    at its rows and along its blocks are shared by the comparisons.
+
+    Parameters
+    ----------
+    program : Program
+    machine : Machine
+    checks : list of Check
+    tool_length : float, optional, mm
+        As :func:`verify`.
+
+    Returns
+    -------
+    list of Verification
+        One per check, in order.
+    """
     tool_length = program.tool_length if tool_length is None else tool_length
     values, rapid = program_joints(machine, program)
     notes: list[str] = []
@@ -644,97 +814,194 @@ def verify(
     if rewind.any():
         rapid = rapid | rewind
         notes.append(f"{int(rewind.sum())} rewind moves are not compared with the CL path")
-    n_cl = len(toolpath)
-    if len(values) == 0 or n_cl == 0:
-        return Verification(
-            ok=n_cl == 0,
-            cl_points=n_cl,
-            reached=0,
-            missed_lines=[int(x) for x in toolpath.line],
-            blocks=len(values),
-            max_tip_deviation=0.0,
-            mean_tip_deviation=0.0,
-            max_orientation_deviation_deg=0.0,
-            max_rotary_step_deg={},
-            tip_tolerance=tol.tip,
-            orientation_tolerance_deg=float(np.degrees(tol.orientation)),
-            worst_cl_line=None,
-            tcp=program.tcp,
-            notes=["program has no motion"] if len(values) == 0 else ["CL data has no motion"],
-        )
-    rows = _row_poses(machine, values, program.tcp, tool_length, pivot)
-    tip, axis = rows.tip, rows.axis
-    cl_tip = toolpath.tip + pivot * toolpath.axis
-    match = _match(cl_tip, toolpath.axis, tip, axis, tol)
-    reached = match >= 0
-    missed_lines = [int(x) for x in toolpath.line[~reached]]
-
-    # CL span of every program point: last CL index matched at or before it, first after it
-    owner = np.full(len(values), -1)
-    owner[match[reached]] = np.flatnonzero(reached)
-    before = np.maximum.accumulate(np.where(owner >= 0, owner, -1))
-    after_src = np.where(owner >= 0, owner, n_cl)
-    after = np.minimum.accumulate(after_src[::-1])[::-1]
-
-    # the block ends themselves (rapids included) against their CL span
-    ja_pt = np.maximum(before, 0)
-    jb_pt = np.where(after < n_cl, after, n_cl - 1)
-    jb_pt = np.maximum(jb_pt, ja_pt)
-    at_rows = (_sampled_once(tip), _sampled_once(axis))
-    polyline = _Polyline.of(cl_tip, toolpath.axis)
-    dp2, op2 = _span_deviation(*at_rows, polyline, ja_pt, jb_pt)
-    feed_pts = ~rapid | (owner >= 0)
-    dp, op2 = np.sqrt(dp2[0, feed_pts]), op2[0, feed_pts]
-
-    blocks = np.flatnonzero(~rapid[1:]) + 1  # feed block k joins program points k-1 and k
-    blocks = blocks[(before[blocks - 1] >= 0) & (after[blocks] < n_cl)]
-    ja = before[blocks - 1]
-    feed = _Blocks(
-        machine=machine,
-        values=values,
-        rows=rows,
-        start=blocks - 1,
-        ja=ja,
-        jb=np.maximum(after[blocks], ja),
-        polyline=polyline,
-        tcp=program.tcp,
-        tool_length=tool_length,
-        pivot=pivot,
-    )
-    # what no block needs refining for: the largest deviation at a program point, or (when
-    # there is next to none) a billionth of the tolerance
-    tip_level = max(dp.max(initial=0.0), _NEGLIGIBLE * tol.tip)
-    chord2_level = max(op2.max(initial=0.0), (2.0 * np.sin(_NEGLIGIBLE * tol.orientation / 2)) ** 2)
-    dmax, dsum, count, omax = _block_deviation(feed, tip_level, chord2_level)
-    max_tip = float(max(dmax.max(initial=0.0), dp.max(initial=0.0)))
-    mean_tip = (dsum + float(dp.sum())) / max(count + dp.size, 1)
-    max_ori = float(angle_from_chord2(max(omax, float(op2.max(initial=0.0)))))
-    worst_line = None
-    if len(blocks) and dmax.max() >= dp.max(initial=0.0):
-        worst_line = int(toolpath.line[before[blocks[int(np.argmax(dmax))] - 1]])
-    elif dp.size:
-        worst_line = int(toolpath.line[ja_pt[feed_pts][int(np.argmax(dp))]])
-
+    if len(values) == 0 or not all(len(c.toolpath) for c in checks):
+        if len(values) and len(checks) > 1:  # compare those with CL points on their own
+            return [verify_checks(program, machine, [c], tool_length)[0] for c in checks]
+        return [_nothing_to_compare(program, values, c) for c in checks]
+    rows = _row_poses_at_tip(machine, values, program.tcp, tool_length)
     steps: dict[str, float] = {}
     for a in machine.rotary:
         col = machine.axis_names.index(a.name)
         steps[a.name] = float(np.degrees(np.abs(np.diff(values[:, col])).max(initial=0.0)))
-    ok = not missed_lines and max_tip <= tol.tip and max_ori <= tol.orientation
-    if missed_lines:
-        notes.append(f"{len(missed_lines)} CL points not reached, first at line {missed_lines[0]}")
+    blocks = np.flatnonzero(~rapid[1:]) + 1  # feed block k joins program points k-1 and k
+    parts = [_Comparison.of(c, rows, rapid, blocks) for c in checks]
+    feeds = [
+        _Blocks(
+            machine=machine,
+            values=values,
+            rows=part.rows,
+            start=blocks - 1,
+            ja=part.ja,
+            jb=part.jb,
+            polyline=part.polyline,
+            tcp=program.tcp,
+            tool_length=tool_length,
+            pivot=c.pivot,
+            valid=part.valid,
+        )
+        for c, part in zip(checks, parts, strict=True)
+    ]
+    deviations = _block_deviation(
+        feeds, [part.levels(c.tol) for c, part in zip(checks, parts, strict=True)]
+    )
+    return [
+        part.verification(program, c, deviation, blocks, steps, notes)
+        for c, part, deviation in zip(checks, parts, deviations, strict=True)
+    ]
+
+
+def _nothing_to_compare(program: Program, values: np.ndarray, check: Check) -> Verification:
+    """The verification of a program without motion, or against CL data without motion."""
+    tol, n_cl = check.tol, len(check.toolpath)
     return Verification(
-        ok=bool(ok),
+        ok=n_cl == 0,
         cl_points=n_cl,
-        reached=int(reached.sum()),
-        missed_lines=missed_lines,
+        reached=0,
+        missed_lines=[int(x) for x in check.toolpath.line],
         blocks=len(values),
-        max_tip_deviation=max_tip,
-        mean_tip_deviation=float(mean_tip),
-        max_orientation_deviation_deg=float(np.degrees(max_ori)),
-        max_rotary_step_deg=steps,
+        max_tip_deviation=0.0,
+        mean_tip_deviation=0.0,
+        max_orientation_deviation_deg=0.0,
+        max_rotary_step_deg={},
         tip_tolerance=tol.tip,
         orientation_tolerance_deg=float(np.degrees(tol.orientation)),
-        worst_cl_line=worst_line,
+        worst_cl_line=None,
         tcp=program.tcp,
-        notes=notes,
+        notes=["program has no motion" if len(values) == 0 else "CL data has no motion"],
     )
+
+
+@dataclass(frozen=True)
+class _Comparison:
+    """One check's view of a program: which CL points its rows reach, the CL span of every
+    row and feed block, and the deviation at the rows.
+
+    Attributes
+    ----------
+    rows : RowPoses
+        At the check's pivot.
+    polyline : _Polyline
+        Of the CL points (at the pivot).
+    reached : ndarray, shape (n_cl,), bool
+    before : ndarray, shape (N,), int
+        Last CL index matched at or before each program row (-1 before the first).
+    ja, jb : ndarray, shape (n_blocks,), int
+        CL span of each feed block (0 where it is not compared).
+    valid : ndarray or None, shape (n_blocks,), bool
+        The feed blocks compared: those between the first and last CL point reached (None:
+        all of them).
+    row_tip : ndarray, shape (k,), mm
+        Tip deviation at the rows compared (feed rows and rows reaching a CL point).
+    row_chord2 : ndarray, shape (k,)
+        Squared axis chord there.
+    row_span : ndarray, shape (k,), int
+        First CL index of their spans.
+    """
+
+    rows: RowPoses
+    polyline: _Polyline
+    reached: np.ndarray
+    before: np.ndarray
+    ja: np.ndarray
+    jb: np.ndarray
+    valid: np.ndarray | None
+    row_tip: np.ndarray
+    row_chord2: np.ndarray
+    row_span: np.ndarray
+
+    @classmethod
+    def of(
+        cls, check: Check, tip_rows: RowPoses, rapid: np.ndarray, blocks: np.ndarray
+    ) -> _Comparison:
+        """Match the CL points of ``check`` with the rows (poses at the tip ``tip_rows``)."""
+        toolpath, n_cl = check.toolpath, len(check.toolpath)
+        rows = _at_pivot(tip_rows, check.pivot)
+        cl_tip = toolpath.tip + check.pivot * toolpath.axis
+        match = _match(cl_tip, toolpath.axis, rows.tip, rows.axis, check.tol)
+        reached = match >= 0
+        # CL span of every program point: last CL index matched at or before it, first after
+        owner = np.full(len(rows.tip), -1)
+        owner[match[reached]] = np.flatnonzero(reached)
+        before = np.maximum.accumulate(np.where(owner >= 0, owner, -1))
+        after_src = np.where(owner >= 0, owner, n_cl)
+        after = np.minimum.accumulate(after_src[::-1])[::-1]
+
+        # the block ends themselves (rapids included) against their CL span
+        ja_pt = np.maximum(before, 0)
+        jb_pt = np.maximum(np.where(after < n_cl, after, n_cl - 1), ja_pt)
+        polyline = _Polyline.of(cl_tip, toolpath.axis)
+        at_rows = (_sampled_once(rows.tip), _sampled_once(rows.axis))
+        dp2, op2 = _span_deviation(*at_rows, polyline, ja_pt, jb_pt)
+        feed_pts = ~rapid | (owner >= 0)
+
+        valid = (before[blocks - 1] >= 0) & (after[blocks] < n_cl)
+        ja = np.where(valid, before[blocks - 1], 0)
+        jb = np.where(valid, np.maximum(after[blocks], ja), 0)
+        return cls(
+            rows=rows,
+            polyline=polyline,
+            reached=reached,
+            before=before,
+            ja=ja,
+            jb=jb,
+            valid=None if valid.all() else valid,
+            row_tip=np.sqrt(dp2[0, feed_pts]),
+            row_chord2=op2[0, feed_pts],
+            row_span=ja_pt[feed_pts],
+        )
+
+    def levels(self, tol: Tolerances) -> tuple[float, float]:
+        """What no block needs refining for: the largest deviation at a program row, or (when
+        there is next to none) a billionth of the tolerance (tip mm, squared chord)."""
+        tip_level = max(self.row_tip.max(initial=0.0), _NEGLIGIBLE * tol.tip)
+        chord2_level = max(
+            self.row_chord2.max(initial=0.0), (2.0 * np.sin(_NEGLIGIBLE * tol.orientation / 2)) ** 2
+        )
+        return float(tip_level), float(chord2_level)
+
+    def verification(
+        self,
+        program: Program,
+        check: Check,
+        deviation: _Deviation,
+        blocks: np.ndarray,
+        steps: dict[str, float],
+        notes: list[str],
+    ) -> Verification:
+        """The figures of this comparison, with the feed blocks' ``deviation``."""
+        tol, toolpath = check.tol, check.toolpath
+        dp = self.row_tip
+        dmax = deviation.tip if self.valid is None else deviation.tip[self.valid]
+        compared = blocks if self.valid is None else blocks[self.valid]
+        max_tip = float(max(dmax.max(initial=0.0), dp.max(initial=0.0)))
+        mean_tip = (deviation.total + float(dp.sum())) / max(deviation.count + dp.size, 1)
+        max_chord2 = max(deviation.chord2, float(self.row_chord2.max(initial=0.0)))
+        max_ori = float(angle_from_chord2(max_chord2))
+        worst_line = None
+        if len(compared) and dmax.max() >= dp.max(initial=0.0):
+            worst_line = int(toolpath.line[self.before[compared[int(np.argmax(dmax))] - 1]])
+        elif dp.size:
+            worst_line = int(toolpath.line[self.row_span[int(np.argmax(dp))]])
+        missed_lines = [int(x) for x in toolpath.line[~self.reached]]
+        ok = not missed_lines and max_tip <= tol.tip and max_ori <= tol.orientation
+        notes = list(notes)
+        if missed_lines:
+            notes.append(
+                f"{len(missed_lines)} CL points not reached, first at line {missed_lines[0]}"
+            )
+        return Verification(
+            ok=bool(ok),
+            cl_points=len(toolpath),
+            reached=int(self.reached.sum()),
+            missed_lines=missed_lines,
+            blocks=len(self.rows.tip),
+            max_tip_deviation=max_tip,
+            mean_tip_deviation=float(mean_tip),
+            max_orientation_deviation_deg=float(np.degrees(max_ori)),
+            max_rotary_step_deg=steps,
+            tip_tolerance=tol.tip,
+            orientation_tolerance_deg=float(np.degrees(tol.orientation)),
+            worst_cl_line=worst_line,
+            tcp=program.tcp,
+            notes=notes,
+        )
