@@ -207,20 +207,33 @@ def at_param(toolpath: Toolpath, param: np.ndarray, pivot: float) -> tuple[np.nd
     axis : ndarray, shape (k, 3)
         The programmed axis, slerp along each segment.
     """
+    i, j, t = _on_segments(toolpath, param)
+    return _cutting_point(toolpath, i, j, t, pivot), slerp(toolpath.axis[i], toolpath.axis[j], t)
+
+
+def _on_segments(
+    toolpath: Toolpath, param: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The CL segment (from point i to point j) and the parameter in it of positions
+    ``param`` along the path, each of shape (k,)."""
     param = np.asarray(param, dtype=float)
     n = len(toolpath)
     if n == 1:
         i = np.zeros(param.shape, dtype=int)
-        t = np.zeros(param.shape)
-        j = i
-    else:
-        i = np.clip(np.floor(param).astype(int), 0, n - 2)
-        t = np.clip(param - i, 0.0, 1.0)
-        j = i + 1
-    cut = toolpath.tip + pivot * toolpath.axis
-    point = cut[i] + t[:, None] * (cut[j] - cut[i])
-    axis = slerp(toolpath.axis[i], toolpath.axis[j], t)
-    return point, axis
+        return i, i, np.zeros(param.shape)
+    i = np.clip(np.floor(param).astype(int), 0, n - 2)
+    return i, i + 1, np.clip(param - i, 0.0, 1.0)
+
+
+def _cutting_point(
+    toolpath: Toolpath, i: np.ndarray, j: np.ndarray, t: np.ndarray, pivot: float
+) -> np.ndarray:
+    """The cutting point (see :func:`at_param`) on segments i to j at parameters t, (k, 3) mm."""
+    a, b = toolpath.tip[i], toolpath.tip[j]
+    if pivot:
+        a = a + pivot * toolpath.axis[i]
+        b = b + pivot * toolpath.axis[j]
+    return a + t[:, None] * (b - a)
 
 
 def tool_axis_of(machine: Machine, rotary: np.ndarray) -> np.ndarray:
@@ -981,8 +994,9 @@ def solve_rows(
     """
     machine = problem.machine
     pivot = problem.pivot if bent is None else np.where(bent, problem.pivot, 0.0)
-    point, _ = at_param(toolpath, param, 0.0)
-    centre, _ = at_param(toolpath, param, problem.pivot)
+    where = _on_segments(toolpath, param)
+    point = _cutting_point(toolpath, *where, 0.0)
+    centre = _cutting_point(toolpath, *where, problem.pivot)
     axis = tool_axis_of(machine, rotary)
     pv = np.broadcast_to(pivot, (len(param),))[:, None]
     tip = np.where(pv > 0, centre - pv * axis, point) + lift[:, None] * axis
