@@ -105,6 +105,13 @@ class Segments:
         dd = np.einsum("ij,ij->i", d, d)
         return cls(coords(p0), coords(d), np.divide(1.0, dd, out=np.zeros_like(dd), where=dd > 0))
 
+    @classmethod
+    def of_coords(cls, p0: Vec, p1: Vec) -> Segments:
+        """Segments from points ``p0`` to ``p1``, coordinate arrays of shape (n,)."""
+        d = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
+        dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        return cls(p0, d, np.divide(1.0, dd, out=np.zeros_like(dd), where=dd > 0))
+
     def take(self, index: np.ndarray) -> Segments:
         return Segments(
             tuple(c[index] for c in self.a),  # type: ignore[arg-type]
@@ -174,6 +181,16 @@ class Arcs:
         sin = np.sqrt(np.einsum("ij,ij->i", across, across))
         normal = np.divide(across, sin[:, None], out=np.zeros_like(across), where=sin[:, None] > 0)
         return cls(coords(v0), coords(normal), np.arctan2(sin, dot))
+
+    @classmethod
+    def of_coords(cls, v0: Vec, v1: Vec) -> Arcs:
+        """Arcs from unit vectors ``v0`` to ``v1``, coordinate arrays of shape (n,)."""
+        dot = v0[0] * v1[0] + v0[1] * v1[1] + v0[2] * v1[2]
+        across = [v1[i] - dot * v0[i] for i in range(3)]
+        sin = np.sqrt(across[0] * across[0] + across[1] * across[1] + across[2] * across[2])
+        inv = np.divide(1.0, sin, out=np.zeros_like(sin), where=sin > 0)
+        normal = (across[0] * inv, across[1] * inv, across[2] * inv)
+        return cls(v0, normal, np.arctan2(sin, dot))
 
     def take(self, index: np.ndarray) -> Arcs:
         return Arcs(

@@ -397,25 +397,41 @@ def _sampled_once(rows: np.ndarray) -> Vec:
 class _Polyline:
     """The CL path as segments: segment j runs from CL point j to j + 1 (the last is a point).
 
+    The segments and arcs are made for the CL indices asked for (:meth:`take`), not kept for
+    the whole path.
+
     Attributes
     ----------
-    segments : Segments
-        Of the tips (mm).
-    arcs : Arcs
-        Of the tool axes (slerp).
+    tip : Vec
+        Coordinate arrays of the CL points, shape (n,), mm.
+    axis : Vec
+        Of the CL tool axes (unit).
     """
 
-    segments: Segments
-    arcs: Arcs
+    tip: Vec
+    axis: Vec
 
     @classmethod
     def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
         """The polyline of CL points ``tip`` and axes ``axis``, shape (n, 3)."""
-        nxt = np.minimum(np.arange(len(tip)) + 1, len(tip) - 1)
-        return cls(Segments.between(tip, tip[nxt]), Arcs.between(axis, axis[nxt]))
+        return cls(coords(tip), coords(axis))
 
     def __len__(self) -> int:
-        return len(self.arcs.omega)
+        return len(self.tip[0])
+
+    def take(self, index: np.ndarray) -> tuple[Segments, Arcs]:
+        """The segments of the tips (mm) and the arcs of the axes (slerp) from CL points
+        ``index`` to the next ones, shape (k,)."""
+        nxt = np.minimum(index + 1, len(self) - 1)
+        segments = Segments.of_coords(
+            tuple(c[index] for c in self.tip),  # type: ignore[arg-type]
+            tuple(c[nxt] for c in self.tip),  # type: ignore[arg-type]
+        )
+        arcs = Arcs.of_coords(
+            tuple(c[index] for c in self.axis),  # type: ignore[arg-type]
+            tuple(c[nxt] for c in self.axis),  # type: ignore[arg-type]
+        )
+        return segments, arcs
 
 
 def _span_deviation(
@@ -456,8 +472,8 @@ def _span_deviation(
         a = np.minimum(ja[cols] + off, last)
         pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
         axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
-        d2, u = polyline.segments.take(a).distance2(pts, outside if off == 0 else None)
-        arc = polyline.arcs.take(a)
+        seg, arc = polyline.take(a)
+        d2, u = seg.distance2(pts, outside if off == 0 else None)
         c2 = arc.chord2(axs, *cos_sin(u * arc.omega))
         if off == 0:
             dist2, chord2 = d2, c2
@@ -598,8 +614,9 @@ class _Blocks:
             tip_speed = chord + abs(self.pivot) * axis_speed
             tip_curv = abs(self.pivot) * axis_curv
         ja = self.ja[blocks]
-        inv_length = np.sqrt(self.polyline.segments.inv_dd[ja])  # 0 for a point
-        omega = self.polyline.arcs.omega[ja]
+        seg, arc = self.polyline.take(ja)
+        inv_length = np.sqrt(seg.inv_dd)  # 0 for a point
+        omega = arc.omega
         spin = omega * tip_speed * inv_length
         g = np.sqrt(chord2)
         room = h * h / 8.0
