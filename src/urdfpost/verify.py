@@ -211,10 +211,33 @@ _PAIRS = 1 << 20
 _UNKNOWN = -2
 
 
+def _distance(tip: Vec, cl_tip: Vec, rows: np.ndarray, js: np.ndarray) -> np.ndarray:
+    """Distances of program rows from CL points (as ``np.linalg.norm`` computes them).
+
+    Parameters
+    ----------
+    tip, cl_tip : Vec
+        Coordinate arrays of the program rows' and the CL points' tips, mm.
+    rows : ndarray, shape (k, w), int
+    js : ndarray, shape (k, 1), int
+
+    Returns
+    -------
+    ndarray, shape (k, w), mm
+    """
+    d = tip[0][rows] - cl_tip[0][js]
+    out = d * d
+    for i in (1, 2):
+        np.subtract(tip[i][rows], cl_tip[i][js], out=d)
+        d *= d
+        out += d
+    return np.sqrt(out, out=out)
+
+
 def _first_reaching(
-    cl_tip: np.ndarray,
+    cl_tip: Vec,
     cl_axis: np.ndarray,
-    tip: np.ndarray,
+    tip: Vec,
     axis: np.ndarray,
     tol: Tolerances,
     js: np.ndarray,
@@ -230,7 +253,7 @@ def _first_reaching(
         The row; -1 when none does and ``windows`` cover :data:`_REACH` rows or the rest of
         the program, ``_UNKNOWN`` when they cover fewer.
     """
-    n = len(tip)
+    n = len(tip[0])
     out = np.full(len(js), -1)
     todo = np.flatnonzero(start < n)
     lo = 0
@@ -243,7 +266,7 @@ def _first_reaching(
             rows = start[sub, None] + off
             safe = np.minimum(rows, n - 1)
             j = js[sub, None]
-            hit = (np.linalg.norm(tip[safe] - cl_tip[j], axis=2) <= tol.tip) & (rows < n)
+            hit = (_distance(tip, cl_tip, safe, j) <= tol.tip) & (rows < n)
             near = np.nonzero(hit)
             hit[near] = angle_between(axis[safe[near]], cl_axis[j[near[0], 0]]) <= tol.orientation
             found = hit.any(axis=1)
@@ -257,16 +280,16 @@ def _first_reaching(
     return out
 
 
-def _walk(cl_tip: np.ndarray, tip: np.ndarray, js: np.ndarray, k: np.ndarray) -> np.ndarray:
+def _walk(cl_tip: Vec, tip: Vec, js: np.ndarray, k: np.ndarray) -> np.ndarray:
     """Rows ``k`` moved on while the next row is strictly nearer to CL points ``js`` (distances
     computed as the search computes them), a few rows at a time and then more."""
-    n = len(tip)
+    n = len(tip[0])
     k = k.copy()
     active = np.arange(len(k))
     width = 4
     while active.size:
         rows = k[active, None] + np.arange(width)
-        dist = np.linalg.norm(tip[np.minimum(rows, n - 1)] - cl_tip[js[active], None], axis=2)
+        dist = _distance(tip, cl_tip, np.minimum(rows, n - 1), js[active, None])
         dist[rows >= n] = np.inf  # past the end: not nearer
         stop = ~(dist[:, 1:] < dist[:, :-1])
         stops = stop.any(axis=1)
@@ -328,6 +351,7 @@ def _match(
     n_cl = len(cl_tip)
     out = np.full(n_cl, -1)
     ptr, j0, size = 0, 0, 1024
+    cl_tip, tip = coords(cl_tip), coords(tip)  # type: ignore[assignment]
 
     def evaluate(i: np.ndarray, start: np.ndarray, windows: tuple[int, ...]) -> None:
         """Results of points i from the given starts: first row reaching, and walked on."""
