@@ -887,3 +887,23 @@ def test_cross_is_numpy_cross() -> None:
     assert np.array_equal(cross(a, b), np.cross(a, b))
     assert np.array_equal(cross(a[0], b), np.cross(a[0], b))
     assert np.array_equal(cross(a[:, None, :], b[None, :4, :]), np.cross(a[:, None], b[None, :4]))
+
+
+def test_rotate_about_one_axis_is_the_general_rotation() -> None:
+    """Rotating about one axis (the column-by-column path) gives exactly the values of the
+    general Rodrigues formula with the axis repeated per vector."""
+    from urdfpost.kinematics.forward import rotate
+
+    rng = np.random.default_rng(4)
+    for trial in range(20):
+        k = np.array([0.0, 0.0, 1.0]) if trial % 4 == 0 else rng.normal(size=3)
+        k /= np.linalg.norm(k)
+        theta = rng.uniform(-7.0, 7.0, 300)
+        v = rng.normal(size=(300, 3)) if trial % 2 else rng.normal(size=3)
+        general = rotate(np.tile(k, (300, 1)), theta, v)
+        assert np.array_equal(rotate(k, theta, v), general)
+    # and it is a rotation
+    v = rng.normal(size=(300, 3))
+    out = rotate(k, theta, v)
+    np.testing.assert_allclose(np.linalg.norm(out, axis=1), np.linalg.norm(v, axis=1), rtol=1e-13)
+    np.testing.assert_allclose(out @ k, v @ k, atol=1e-12)

@@ -92,12 +92,38 @@ def rotate(k: np.ndarray, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (n, 3)
     """
-    theta = np.asarray(theta, dtype=float)[..., None]
+    k = np.asarray(k, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    if k.ndim == 1 and theta.ndim == 1:
+        return _rotate_about(k, theta, v)
+    theta = theta[..., None]
     k = np.broadcast_to(k, (*theta.shape[:-1], 3))
     v = np.broadcast_to(v, (*theta.shape[:-1], 3))
     kv = np.sum(k * v, axis=-1, keepdims=True)
     cos, sin = np.cos(theta), np.sin(theta)
     return v * cos + cross(k, v) * sin + k * kv * (1.0 - cos)
+
+
+def _rotate_about(k: np.ndarray, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """:func:`rotate` about one axis ``k`` (3,), column by column: the same operations on
+    every element, in the same order, without the (n, 3) temporaries of ``k``."""
+    n = theta.shape[0]
+    v = np.broadcast_to(np.asarray(v, dtype=float), (n, 3))
+    k0, k1, k2 = (float(x) for x in k)
+    v0, v1, v2 = v[:, 0], v[:, 1], v[:, 2]
+    kv = k0 * v0 + k1 * v1 + k2 * v2
+    cos, sin = np.cos(theta), np.sin(theta)
+    rest = 1.0 - cos
+    out = np.empty((n, 3))
+    for i, (ki, vi, ci) in enumerate(
+        (
+            (k0, v0, k1 * v2 - k2 * v1),
+            (k1, v1, k2 * v0 - k0 * v2),
+            (k2, v2, k0 * v1 - k1 * v0),
+        )
+    ):
+        out[:, i] = vi * cos + ci * sin + ki * kv * rest
+    return out
 
 
 def _as_q(machine: Machine, q: np.ndarray) -> np.ndarray:
