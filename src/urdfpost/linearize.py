@@ -623,7 +623,8 @@ class _Rows:
     key: np.ndarray
     poses: RowPoses
 
-    def take(self, index: np.ndarray) -> _Rows:
+    def take(self, index: np.ndarray | slice) -> _Rows:
+        """The rows at ``index`` (a slice gives views)."""
         return _Rows(
             self.q[index],
             self.tip[index],
@@ -720,8 +721,8 @@ def block_errors(
     )
     err = _measure(
         machine,
-        rows.take(np.arange(n - 1)),
-        rows.take(np.arange(1, n)),
+        rows.take(slice(0, n - 1)),
+        rows.take(slice(1, n)),
         tool_length,
         tcp,
         tol,
@@ -786,7 +787,7 @@ def subdivide(
     )
     # the blocks still to decide, as the rows they join; the bisected ones are replaced by
     # their halves, and only those are measured again
-    a, b = rows.take(np.arange(n - 1)), rows.take(np.arange(1, n))
+    a, b = rows.take(slice(0, n - 1)), rows.take(slice(1, n))
     err = _measure(machine, a, b, tool_length, tcp, tol, targets)
     inserted: list[_Rows] = []
     done: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # block keys, tip, orientation
