@@ -1,19 +1,23 @@
 """Many motion blocks at once: their text for the writer, their words for the reader.
 
-Lines are built as rows of a byte matrix: each word has a fixed-width slot, unused bytes are
-NUL, and the text is the matrix with the NUL bytes taken out. A number's text is computed from
-its value scaled to an integer, which gives exactly the text of
-:meth:`~urdfpost.dialects.spec.NumberFormat.format`: the integer is the correctly rounded value
-(as Python's ``f"{value:.3f}"`` rounds it) everywhere except within a hair of a rounding tie,
-where Python's own formatting gives it.
+The writer's side builds the lines of many blocks as columns of a matrix of cells, four
+characters in one uint32 (NUL where a line has nothing there), each word in rows of its own;
+the text is the transposed matrix with the NUL bytes taken out. A number's text is computed
+from its value scaled to an integer, four digits at once from a table, which gives exactly the
+text of :meth:`~urdfpost.dialects.spec.NumberFormat.format`: the integer is the correctly
+rounded value (as Python's ``f"{value:.3f}"`` rounds it) everywhere except within a hair of a
+rounding tie, where Python's own formatting gives it.
 
 The reader's side (:func:`motion_lines`) splits the lines of a text into words with array
-operations, checks which lines are plain motion blocks, and reads all their numbers with one
-call of ``np.fromstring`` (which reads a number as ``float`` does).
+operations, in pieces that keep the arrays in the processor's cache, checks which lines are
+plain motion blocks, and reads all their numbers with one call of ``np.fromstring`` a piece:
+as integers without their points, then divided by a power of ten, which is the ``float`` of
+the text (bit for bit) for up to 15 digits; as ``float`` reads them otherwise.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -56,45 +60,103 @@ def scaled_integers(values: np.ndarray, decimals: int) -> np.ndarray | None:
     return out
 
 
-#: ASCII digits of 0000 to 9999, shape (10000, 4).
-_FOUR_DIGITS = ((np.arange(10_000)[:, None] // np.array([1000, 100, 10, 1])) % 10 + _ZERO).astype(
-    np.uint8
+# -- cells: four characters of a text in one uint32 ------------------------------------------
+
+#: Shift of the character at position 0 to 3 of a cell (a cell is four bytes of the text).
+_SHIFTS = (0, 8, 16, 24) if sys.byteorder == "little" else (24, 16, 8, 0)
+_DIGITS = np.arange(10_000)[:, None] // np.array([1000, 100, 10, 1]) % 10 + _ZERO
+#: The cells of 0000 to 9999, and the same without leading zeros (NUL instead, "0" for 0).
+_FOUR_DIGITS = _DIGITS.astype(np.uint8).view(np.uint32).reshape(-1)
+_FOUR_DIGITS_BARE = (
+    np.where(np.arange(10_000)[:, None] < [1000, 100, 10, 0], 0, _DIGITS)
+    .astype(np.uint8)
+    .view(np.uint32)
+    .reshape(-1)
 )
 
 
-def _digit_columns(magnitude: np.ndarray, width: int) -> np.ndarray:
-    """ASCII digits of non-negative integers, most significant first, shape (k, width)."""
-    groups = -(-width // 4)
-    out = np.empty((magnitude.shape[0], 4 * groups), dtype=np.uint8)
-    rest = magnitude
+#: Every character of a cell.
+_ALL = np.uint32(0xFFFFFFFF)
+
+
+def character_mask(*positions: int) -> np.uint32:
+    """The bits of the characters at ``positions`` (0 to 3) of a cell."""
+    return np.uint32(sum(0xFF << _SHIFTS[p] for p in positions))
+
+
+def _earlier(cells: np.ndarray, positions: int) -> np.ndarray:
+    """Cells with their characters moved ``positions`` places towards the start (the first
+    ones dropped, NUL at the end)."""
+    return cells >> 8 * positions if sys.byteorder == "little" else cells << 8 * positions
+
+
+def text_cells(text: str) -> np.ndarray:
+    """An ASCII text in cells, NUL-padded, shape (c,), uint32."""
+    raw = text.encode("ascii")
+    return np.frombuffer(raw + b"\0" * (-len(raw) % 4), dtype=np.uint32).copy()
+
+
+def repeated_cells(text: str, k: int) -> np.ndarray:
+    """The same ASCII text in ``k`` columns of cells, shape (c, k)."""
+    return np.repeat(text_cells(text)[:, None], k, axis=1)
+
+
+def text_of_cells(matrix: np.ndarray) -> str:
+    """The texts of the columns of a matrix of cells, shape (c, k), without the NUL bytes,
+    concatenated."""
+    return matrix.T.tobytes().translate(None, b"\0").decode("ascii")
+
+
+def _slots(cells: np.ndarray) -> np.ndarray:
+    """The texts of the columns of cells as rows of a byte matrix, shape (k, 4 c)."""
+    return np.ascontiguousarray(cells.T).view(np.uint8)
+
+
+def integer_cells(numbers: np.ndarray, zero: bool = True) -> np.ndarray:
+    """Text of non-negative integers in cells, right-aligned, NUL-padded.
+
+    Parameters
+    ----------
+    numbers : ndarray, shape (k,), int
+    zero : bool
+        Write 0 as "0" (else as nothing: no cell at all when every number is 0).
+
+    Returns
+    -------
+    ndarray, shape (c, k), uint32
+    """
+    top = int(numbers.max()) if numbers.size else 0
+    groups = -(-len(str(top)) // 4) if top or zero else 0
+    out = np.empty((groups, numbers.shape[0]), dtype=np.uint32)
+    rest = numbers
     for g in range(groups - 1, -1, -1):
-        rest, low = np.divmod(rest, 10_000)
-        out[:, 4 * g : 4 * g + 4] = _FOUR_DIGITS[low]
-    return out[:, 4 * groups - width :]
-
-
-def _digit_count(magnitude: np.ndarray) -> np.ndarray:
-    """Decimal digits of non-negative integers (1 for 0), shape (k,)."""
-    count = np.ones(magnitude.shape, dtype=np.int64)
-    limit = 10
-    top = int(magnitude.max()) if magnitude.size else 0
-    while limit <= top:
-        count += magnitude >= limit
-        limit *= 10
-    return count
+        quotient = rest // 10_000
+        low = rest - quotient * 10_000
+        rest = quotient
+        bare = _FOUR_DIGITS_BARE[low]  # in the group of the first digit
+        if g == groups - 1 and zero:
+            out[g] = bare
+        else:
+            out[g] = np.where(numbers >= 10 ** (4 * (groups - 1 - g)), bare, 0)
+        if g:
+            out[g] = np.where(numbers >= 10 ** (4 * (groups - g)), _FOUR_DIGITS[low], out[g])
+    return out
 
 
 def integer_slots(numbers: np.ndarray) -> np.ndarray:
     """Text of non-negative integers, right-aligned in NUL-padded slots, shape (k, width)."""
-    count = _digit_count(numbers)
-    width = int(count.max()) if numbers.size else 1
-    slots = _digit_columns(numbers, width)
-    slots[np.arange(width)[None, :] < (width - count)[:, None]] = 0
-    return slots
+    return _slots(integer_cells(numbers))
 
 
-def number_slots(scaled: np.ndarray, negative: np.ndarray, fmt: NumberFormat) -> np.ndarray:
-    """Text of fixed-point numbers as ``fmt`` writes them, in NUL-padded slots.
+def number_cells(
+    scaled: np.ndarray, negative: np.ndarray, fmt: NumberFormat, head: str = ""
+) -> np.ndarray:
+    """``head`` then the text of fixed-point numbers as ``fmt`` writes them, in cells.
+
+    The point and the decimals fill the last cells; the first of them starts with the last
+    digits of the integer part when the point and the decimals are not a multiple of four
+    characters: with ``head`` "X", ``X+12.3456`` is the cells ``X+__``, ``_12.`` and
+    ``3456`` (``_`` for NUL).
 
     Parameters
     ----------
@@ -103,40 +165,80 @@ def number_slots(scaled: np.ndarray, negative: np.ndarray, fmt: NumberFormat) ->
     negative : ndarray, shape (k,), bool
         Whether the value is below zero (a zero text never gets a minus sign).
     fmt : NumberFormat
+    head : str
+        ASCII text before each number (e.g. ``" X"``).
+
+    Returns
+    -------
+    ndarray, shape (c, k), uint32
+        The texts' characters, NUL where a text has nothing.
+    """
+    k = scaled.shape[0]
+    d = fmt.decimals
+    magnitude = np.abs(scaled)
+    sign = np.where((scaled != 0) & negative, _MINUS, _PLUS if fmt.plus_sign else 0)
+    sign = sign.astype(np.uint32)
+    cells = [repeated_cells(head, k)]
+    if len(head) % 4:
+        cells[0][-1] |= sign << _SHIFTS[len(head) % 4]
+    else:
+        cells.append((sign << _SHIFTS[0])[None, :])
+    if d == 0:
+        cells.append(integer_cells(magnitude))
+        if fmt.point:
+            cells.append(repeated_cells(".", k))
+        return np.concatenate(cells)
+    shared = -(d + 1) % 4  # integer digits in the cell of the point
+    after = 3 - shared  # decimals in the cell of the point
+    whole = magnitude // 10**d
+    fraction = magnitude - whole * 10**d
+    high = whole // 10**shared
+    low = whole - high * 10**shared
+    cells.append(integer_cells(high, zero=shared == 0))
+    # the cell of the point: the last integer digits (but leading zeros), the point and the
+    # first decimals
+    rest = d - after  # decimals in the last cells, a multiple of four
+    first = fraction // 10**rest
+    point = _FOUR_DIGITS[first] & character_mask(*range(4 - after, 4))
+    point |= np.uint32(_POINT << _SHIFTS[shared])
+    if shared:
+        digits = np.where(whole >= 10**shared, _FOUR_DIGITS[low], _FOUR_DIGITS_BARE[low])
+        point |= _earlier(digits, 4 - shared)
+    fraction = fraction - first * 10**rest
+    decimals = np.empty((rest // 4 + 1, k), dtype=np.uint32)
+    decimals[0] = point
+    for g in range(rest // 4, 0, -1):
+        quotient = fraction // 10_000
+        decimals[g] = _FOUR_DIGITS[fraction - quotient * 10_000]
+        fraction = quotient
+    if fmt.trim:
+        # keep the decimals up to the last non-zero one; the point when any is kept
+        kept = np.zeros(k, dtype=bool)
+        places = [(0, p) for p in range(4 - after, 4)]
+        places += [(g, p) for g in range(1, rest // 4 + 1) for p in range(4)]
+        for g, p in reversed(places):
+            kept |= (decimals[g] >> _SHIFTS[p]) & 0xFF != _ZERO
+            decimals[g] &= np.where(kept, _ALL, ~character_mask(p))
+        if not fmt.point:
+            decimals[0] &= np.where(kept, _ALL, ~character_mask(shared))
+    cells.append(decimals)
+    return np.concatenate(cells)
+
+
+def number_slots(scaled: np.ndarray, negative: np.ndarray, fmt: NumberFormat) -> np.ndarray:
+    """Text of fixed-point numbers as ``fmt`` writes them, in NUL-padded slots.
+
+    Parameters
+    ----------
+    scaled, negative, fmt
+        As for :func:`number_cells`.
 
     Returns
     -------
     ndarray, shape (k, width), uint8
         Sign, integer digits, point and decimals; NUL where the text has nothing.
     """
-    d = fmt.decimals
-    magnitude = np.abs(scaled)
-    whole, fraction = np.divmod(magnitude, 10**d)
-    digits = integer_slots(whole)
-    k = scaled.shape[0]
-    sign = np.where((scaled != 0) & negative, _MINUS, _PLUS if fmt.plus_sign else 0)
-    parts = [sign.astype(np.uint8)[:, None], digits]
-    if d == 0:
-        if fmt.point:
-            parts.append(np.full((k, 1), _POINT, dtype=np.uint8))
-        return np.hstack(parts)
-    decimals = _digit_columns(fraction, d)
-    if fmt.trim:
-        # keep the decimals up to the last non-zero one; the point when any is kept
-        kept = np.zeros(k, dtype=np.int64)
-        for col in range(d):
-            kept = np.where(decimals[:, col] != _ZERO, col + 1, kept)
-        decimals[np.arange(d)[None, :] >= kept[:, None]] = 0
-        point = np.where((kept > 0) | fmt.point, _POINT, 0).astype(np.uint8)
-    else:
-        point = np.full(k, _POINT, dtype=np.uint8)
-    parts += [point[:, None], decimals]
-    return np.hstack(parts)
-
-
-def word_slots(text: str, rows: int) -> np.ndarray:
-    """The same ASCII word on every row, shape (rows, len(text))."""
-    return np.tile(np.frombuffer(text.encode("ascii"), dtype=np.uint8), (rows, 1))
+    return _slots(number_cells(scaled, negative, fmt))
 
 
 def text_of_rows(matrix: np.ndarray) -> str:
@@ -151,10 +253,17 @@ def text_of_rows(matrix: np.ndarray) -> str:
 #: AXIS_ORDER, the rapid word, the feed. A block's words come in increasing rank.
 _RANK_NUMBER, _RANK_CODE, _RANK_RAPID, _RANK_FEED = 0, 1, 8, 9
 _AXIS_RANKS = {"X": 2, "Y": 3, "Z": 4, "A": 5, "B": 6, "C": 7}
+#: Rank of a word no plain block has.
+_UNKNOWN = 99
+#: Rank of the axis word of each letter (0 for no axis letter).
+_AXIS_RANK_OF = np.zeros(256, dtype=np.int64)
+for _address, _rank in _AXIS_RANKS.items():
+    _AXIS_RANK_OF[ord(_address)] = _rank
 
-
-#: Character classes of the bytes of a plain motion block; everything else is _OTHER.
-_OTHER, _LETTER, _DIGIT, _POINT_CLASS, _SIGN, _BLANK, _NEWLINE = range(7)
+#: Character classes of the bytes of a plain motion block; everything else is _OTHER. The
+#: order matters: _LETTER to _NEWLINE are the characters the fast path locates one by one,
+#: _NEWLINE and _BLANK separate words.
+_OTHER, _DIGIT, _LETTER, _POINT_CLASS, _SIGN, _NEWLINE, _BLANK = range(7)
 _CLASSES = bytearray([_OTHER] * 256)
 for _code in range(65, 91):
     _CLASSES[_code] = _LETTER
@@ -165,6 +274,18 @@ _CLASSES[32], _CLASSES[10] = _BLANK, _NEWLINE
 _CLASS_TABLE = bytes(_CLASSES)
 #: The bytes with letters turned into blanks (what is left of a word is its number).
 _NO_LETTERS = bytes(32 if 65 <= c <= 90 else c for c in range(256))
+_LINE_BREAK, _MINUS_BYTE = 10, 45
+
+#: Characters of text split into words at once by :func:`motion_lines`: small enough for its
+#: temporary arrays (some 20 bytes a character) to stay in the processor's cache.
+MOTION_PIECE = 1 << 18
+#: Most digits of a number the fast path reads as an integer (below 2**53: exact in a float).
+_MAX_DIGITS = 15
+#: ``10.0**k`` for the decimals of those numbers, exact.
+_POWERS_OF_TEN = np.array([float(10**k) for k in range(_MAX_DIGITS + 1)])
+#: Bits of each count packed in one int64 by the fast path (inner letters, points, signs,
+#: line breaks after a word).
+_FIELD_BITS = 16
 
 
 @dataclass(frozen=True)
@@ -227,23 +348,37 @@ class MotionLines:
     feed: np.ndarray
 
 
-def _keyword_at(b: np.ndarray, starts: np.ndarray, lengths: np.ndarray, word: str) -> np.ndarray:
-    """Which tokens (start offsets, lengths) of the byte array are exactly ``word``."""
-    match = lengths == len(word)
-    last = b.shape[0] - 1
-    for i, char in enumerate(word.encode("ascii")):
-        match &= b[np.minimum(starts + i, last)] == char
-    return match
+class _Unread(Exception):
+    """The numbers of the plain lines did not read as expected (no line is read in bulk)."""
 
 
-def motion_lines(text: str, grammar: MotionGrammar) -> MotionLines:
+def _no_motion(starts: np.ndarray, ends: np.ndarray) -> MotionLines:
+    """Lines none of which is a plain motion block."""
+    count = ends.shape[0]
+    return MotionLines(
+        starts,
+        ends,
+        np.zeros(count, dtype=bool),
+        np.full((count, 6), np.nan),
+        np.full(count, -1, dtype=np.int8),
+        np.zeros(count, dtype=bool),
+        np.full(count, np.nan),
+    )
+
+
+def motion_lines(text: str, grammar: MotionGrammar, piece: int = MOTION_PIECE) -> MotionLines:
     """Find and read the plain motion blocks among the lines of ``text``, all at once.
+
+    The text is split into words in pieces of about ``piece`` characters cut at line breaks;
+    the result does not depend on ``piece``.
 
     Parameters
     ----------
     text : str
         Lines separated by ``\\n`` only.
     grammar : MotionGrammar
+    piece : int
+        Characters split at once (at least; a piece ends at a line break).
 
     Returns
     -------
@@ -251,76 +386,105 @@ def motion_lines(text: str, grammar: MotionGrammar) -> MotionLines:
         Numbers are read as ``float`` reads them (bit for bit).
     """
     raw = text.encode("ascii", "replace")
-    b = np.frombuffer(raw, dtype=np.uint8)
-    cls = np.frombuffer(raw.translate(_CLASS_TABLE), dtype=np.uint8)
-    n = b.shape[0]
-    newline = cls == _NEWLINE
-    ends = np.flatnonzero(newline)
-    if n and not newline[-1]:
+    n = len(raw)
+    if not n:
+        return _general_lines(raw, grammar)
+    ends = np.flatnonzero(np.frombuffer(raw, dtype=np.uint8) == _LINE_BREAK)
+    if raw[-1] != _LINE_BREAK:
         ends = np.append(ends, n)
     starts = np.concatenate([[0], ends[:-1] + 1]).astype(np.int64)
+    out = _no_motion(starts, ends)
+    fast = _letters_only(grammar.lead) and _letters_only(grammar.rapid_word)
     count = ends.shape[0]
-    axes = np.full((count, 6), np.nan)
-    code = np.full(count, -1, dtype=np.int8)
-    rapid_word = np.zeros(count, dtype=bool)
-    feed = np.full(count, np.nan)
-    empty = MotionLines(starts, ends, np.zeros(count, bool), axes, code, rapid_word, feed)
-    if not count:
-        return empty
-    lengths = ends - starts
-    plain = lengths > 0
-    # lines with a character no plain block has, or blanks not between two words
-    blank = cls == _BLANK
-    separator = blank | newline
-    odd = np.flatnonzero(cls == _OTHER)
-    doubled = np.flatnonzero(blank[1:] & separator[:-1]) + 1  # after a blank or line start
-    trailing = np.flatnonzero(blank[:-1] & newline[1:])
-    for positions in (odd, doubled, trailing):
-        plain[np.searchsorted(starts, positions, side="right") - 1] = False
-    plain &= ~blank[np.minimum(starts, n - 1)] & ~blank[np.maximum(ends - 1, 0)]
-    # tokens: runs of characters between blanks and line breaks
-    inside = ~separator
-    first = inside.copy()
-    first[1:] &= separator[:-1]
-    last = inside.copy()
-    last[:-1] &= separator[1:]
-    tokens = np.flatnonzero(first)
-    if not tokens.size:
-        return empty
-    token_len = np.flatnonzero(last) + 1 - tokens
-    line = np.searchsorted(starts, tokens, side="right") - 1
+    unread = False
+    row = 0
+    while row < count:
+        begin = int(starts[row])
+        stop = min(int(np.searchsorted(ends, begin + max(piece, 1) - 1)) + 1, count)
+        lines = slice(row, stop)
+        text_piece = raw[begin : int(ends[stop - 1]) + 1]
+        part = None
+        try:
+            if fast:
+                part = _fast_lines(text_piece, grammar, starts[lines] - begin, ends[lines] - begin)
+            if part is None:
+                part = _general_lines(text_piece, grammar)
+        except _Unread:  # like one piece: nothing is read, errors are raised
+            unread = True
+            row = stop
+            continue
+        out.plain[lines] = part.plain
+        out.axes[lines] = part.axes
+        out.code[lines] = part.code
+        out.rapid_word[lines] = part.rapid_word
+        out.feed[lines] = part.feed
+        row = stop
+    return _no_motion(starts, ends) if unread else out
 
-    owner_of = np.cumsum(first, dtype=np.int32) - 1  # token of each character inside one
 
-    def per_token(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """How many of the characters at ``positions`` each token has, and their tokens."""
-        owner = owner_of[positions]
-        return np.bincount(owner, minlength=tokens.shape[0]), owner
+def _letters_only(word: str | None) -> bool:
+    """Whether a keyword of the grammar is absent or upper case ASCII letters only."""
+    return not word or (word.isascii() and word.isalpha() and word.isupper())
 
+
+def _line_of(starts: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Line (index into ``starts``) of each offset in ``positions``."""
+    return np.searchsorted(starts, positions, side="right") - 1
+
+
+def _keyword_at(
+    b: np.ndarray, starts: np.ndarray, lengths: np.ndarray, head: np.ndarray, word: str
+) -> np.ndarray:
+    """Which tokens (start offsets, lengths, first bytes) of the byte array are exactly
+    ``word`` (not empty)."""
+    chars = word.encode("ascii")
+    match = (lengths == len(chars)) & (head == chars[0])
+    if len(chars) > 1:
+        candidates = np.flatnonzero(match)
+        at = starts[candidates]
+        same = np.ones(candidates.shape[0], dtype=bool)
+        for i, char in enumerate(chars[1:], start=1):
+            same &= b[at + i] == char
+        match[candidates[~same]] = False
+    return match
+
+
+def _token_ranks(
+    grammar: MotionGrammar,
+    b: np.ndarray,
+    tokens: np.ndarray,
+    token_len: np.ndarray,
+    word: np.ndarray,
+    bare: np.ndarray,
+    dots: np.ndarray,
+    signs: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rank of each token in a plain block (``_UNKNOWN`` for no word of one), and whether the
+    token is read as a number.
+
+    Parameters
+    ----------
+    grammar : MotionGrammar
+    b : ndarray, uint8
+        The text.
+    tokens, token_len : ndarray, shape (T,), int
+        Offset and length of each token.
+    word, bare : ndarray, shape (T,), bool
+        Whether the token is a letter and a number, or a number alone.
+    dots, signs : ndarray, shape (T,), int
+        Points and signs in each token.
+
+    Returns
+    -------
+    rank : ndarray, shape (T,), int64
+    has_number : ndarray, shape (T,), bool
+    """
     head = b[tokens]
-    head_letter = cls[tokens] == _LETTER
-    letter = cls == _LETTER
-    inner_letters, _ = per_token(np.flatnonzero(letter[1:] & inside[:-1]) + 1)
-    letters = head_letter + inner_letters
-    dots, _ = per_token(np.flatnonzero(cls == _POINT_CLASS))
-    sign_at = np.flatnonzero(cls == _SIGN)
-    signs, sign_owner = per_token(sign_at)
-    digits = token_len - letters - dots - signs  # in lines of plain characters
-    # a sign goes first in the number: after the letter of a word, at the start of a bare one
-    misplaced = sign_at != tokens[sign_owner] + head_letter[sign_owner]
-    sign_ok = np.ones(tokens.shape[0], dtype=bool)
-    sign_ok[sign_owner[misplaced]] = False
-    number_ok = (digits >= 1) & (dots <= 1) & (signs <= 1) & sign_ok
-    word = head_letter & (letters == 1) & (token_len >= 2) & number_ok
-    bare = ~head_letter & (letters == 0) & number_ok  # a number without a letter
-    rank = np.full(tokens.shape[0], 99, dtype=np.int64)
-    has_number = np.zeros(tokens.shape[0], dtype=bool)
-    for address, r in _AXIS_RANKS.items():
-        hit = word & (head == ord(address))
-        if grammar.require_point:
-            hit &= dots == 1
-        rank[hit] = r
-        has_number |= hit
+    axis_rank = _AXIS_RANK_OF[head]
+    has_number = word & (axis_rank > 0)
+    if grammar.require_point:
+        has_number &= dots == 1
+    rank = np.where(has_number, axis_rank, _UNKNOWN)
     hit = word & (head == ord("F"))
     rank[hit] = _RANK_FEED
     has_number |= hit
@@ -336,48 +500,286 @@ def motion_lines(text: str, grammar: MotionGrammar) -> MotionLines:
         rank[hit] = _RANK_CODE
         has_number |= hit
     if grammar.lead:
-        rank[_keyword_at(b, tokens, token_len, grammar.lead)] = _RANK_CODE
+        rank[_keyword_at(b, tokens, token_len, head, grammar.lead)] = _RANK_CODE
     if grammar.rapid_word:
-        rank[_keyword_at(b, tokens, token_len, grammar.rapid_word)] = _RANK_RAPID
-    # a line is plain when its tokens are known and in increasing rank, with an axis word
-    bad_token = rank == 99
-    same_line = line[1:] == line[:-1]
-    bad_token[1:] |= same_line & (rank[1:] <= rank[:-1])
-    plain &= np.bincount(line, weights=bad_token, minlength=count) == 0
-    is_axis = (rank >= 2) & (rank <= 7)
-    plain &= np.bincount(line, weights=is_axis, minlength=count) > 0
+        rank[_keyword_at(b, tokens, token_len, head, grammar.rapid_word)] = _RANK_RAPID
+    return rank, has_number
+
+
+def _check_lines(
+    grammar: MotionGrammar, plain: np.ndarray, line: np.ndarray, rank: np.ndarray
+) -> None:
+    """Keep as plain the lines whose tokens are known, in increasing rank, with an axis word
+    (and the block number and lead when the grammar requires them); in place.
+
+    Parameters
+    ----------
+    grammar : MotionGrammar
+    plain : ndarray, shape (L,), bool
+    line : ndarray, shape (T,), int
+        Line of each token, non-decreasing.
+    rank : ndarray, shape (T,), int
+        Rank of each token.
+    """
+    bad_token = rank == _UNKNOWN
+    bad_token[1:] |= (line[1:] == line[:-1]) & (rank[1:] <= rank[:-1])
+    # what the tokens of each line (with any) have: bit 0 a bad token, 1 an axis, 2 a block
+    # number, 3 a lead or motion code
+    flags = bad_token.view(np.uint8).copy()
+    flags |= ((rank >= 2) & (rank <= 7)).view(np.uint8) << 1
+    required = 2
     if grammar.number_required:
-        plain &= np.bincount(line, weights=rank == _RANK_NUMBER, minlength=count) > 0
+        flags |= (rank == _RANK_NUMBER).view(np.uint8) << 2
+        required |= 4
     if grammar.lead:
-        plain &= np.bincount(line, weights=rank == _RANK_CODE, minlength=count) > 0
+        flags |= (rank == _RANK_CODE).view(np.uint8) << 3
+        required |= 8
+    first = np.concatenate([[0], np.flatnonzero(line[1:] != line[:-1]) + 1])  # of each line
+    found = np.bitwise_or.reduceat(flags, first)
+    keep = np.zeros(plain.shape[0], dtype=bool)
+    keep[line[first]] = (found & (required | 1)) == required
+    plain &= keep
+
+
+def _store_values(
+    grammar: MotionGrammar,
+    lines: MotionLines,
+    line: np.ndarray,
+    rank: np.ndarray,
+    read: np.ndarray,
+    values: np.ndarray,
+) -> MotionLines:
+    """The lines with the numbers read in their axes, feeds and codes, and their rapid words;
+    lines with a feed of zero or an unknown code are no longer plain.
+
+    Parameters
+    ----------
+    grammar : MotionGrammar
+    lines : MotionLines
+        Of the text (all lines), with no word read; ``plain`` as checked so far (updated).
+    line, rank : ndarray, shape (T,), int
+        Line and rank of each token.
+    read : ndarray, shape (R,), int
+        The tokens whose numbers were read (those with one in the plain lines), in order.
+    values : ndarray, shape (R,)
+        Their numbers.
+
+    Returns
+    -------
+    MotionLines
+    """
+    plain = lines.plain
+    words = np.full((plain.shape[0], _RANK_FEED + 1), np.nan)  # the number of each rank
+    words.reshape(-1)[line[read] * (_RANK_FEED + 1) + rank[read]] = values
+    feed = words[:, _RANK_FEED]
+    plain &= ~(feed <= 0.0)  # the reader refuses F0
+    if grammar.codes:
+        value = words[:, _RANK_CODE]
+        known = np.zeros(plain.shape, dtype=bool)
+        for key, rapid in grammar.codes.items():
+            match = value == key
+            lines.code[match] = 1 if rapid else 0
+            known |= match
+        plain &= known | np.isnan(value)
+    if grammar.rapid_word:
+        rapid = line[rank == _RANK_RAPID]
+        lines.rapid_word[rapid] = plain[rapid]
+    return MotionLines(
+        lines.starts, lines.ends, plain, words[:, 2:8], lines.code, lines.rapid_word, feed
+    )
+
+
+def _numbers_text(raw: bytes, lines: MotionLines, delete: bytes) -> bytes:
+    """The text with letters and ``delete`` taken out, blank but in the plain lines."""
+    if lines.plain.all():
+        return raw.translate(_NO_LETTERS, delete)
+    kept = np.frombuffer(raw.translate(_NO_LETTERS), dtype=np.uint8).copy()
+    kept[~np.repeat(lines.plain, lines.ends - lines.starts + 1)[: kept.shape[0]]] = 32
+    return kept.tobytes().translate(None, delete)
+
+
+def _general_lines(raw: bytes, grammar: MotionGrammar) -> MotionLines:
+    """:func:`motion_lines` of one piece of text (ASCII bytes), for any text and grammar.
+
+    Raises
+    ------
+    _Unread
+        The numbers read are not one for each number word of the plain lines.
+    """
+    b = np.frombuffer(raw, dtype=np.uint8)
+    cls = np.frombuffer(raw.translate(_CLASS_TABLE), dtype=np.uint8)
+    n = b.shape[0]
+    newline = cls == _NEWLINE
+    ends = np.flatnonzero(newline)
+    if n and not newline[-1]:
+        ends = np.append(ends, n)
+    starts = np.concatenate([[0], ends[:-1] + 1]).astype(np.int64)
+    out = _no_motion(starts, ends)
+    count = ends.shape[0]
+    if not count:
+        return out
+    lengths = ends - starts
+    plain = lengths > 0
+    # lines with a character no plain block has, or blanks not between two words
+    blank = cls == _BLANK
+    separator = blank | newline
+    odd = np.flatnonzero(cls == _OTHER)
+    doubled = np.flatnonzero(blank[1:] & separator[:-1]) + 1  # after a blank or line start
+    trailing = np.flatnonzero(blank[:-1] & newline[1:])
+    for positions in (odd, doubled, trailing):
+        plain[_line_of(starts, positions)] = False
+    plain &= ~blank[np.minimum(starts, n - 1)] & ~blank[np.maximum(ends - 1, 0)]
+    # tokens: runs of characters between blanks and line breaks
+    inside = ~separator
+    first = inside.copy()
+    first[1:] &= separator[:-1]
+    last = inside.copy()
+    last[:-1] &= separator[1:]
+    tokens = np.flatnonzero(first)
+    if not tokens.size:
+        return out
+    token_len = np.flatnonzero(last) + 1 - tokens
+    line = _line_of(starts, tokens)
+
+    owner_of = np.cumsum(first, dtype=np.int32) - 1  # token of each character inside one
+
+    def per_token(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How many of the characters at ``positions`` each token has, and their tokens."""
+        owner = owner_of[positions]
+        return np.bincount(owner, minlength=tokens.shape[0]), owner
+
+    head_letter = cls[tokens] == _LETTER
+    letter = cls == _LETTER
+    inner_letters, _ = per_token(np.flatnonzero(letter[1:] & inside[:-1]) + 1)
+    letters = head_letter + inner_letters
+    dots, _ = per_token(np.flatnonzero(cls == _POINT_CLASS))
+    sign_at = np.flatnonzero(cls == _SIGN)
+    signs, sign_owner = per_token(sign_at)
+    digits = token_len - letters - dots - signs  # in lines of plain characters
+    # a sign goes first in the number: after the letter of a word, at the start of a bare one
+    misplaced = sign_at != tokens[sign_owner] + head_letter[sign_owner]
+    sign_ok = np.ones(tokens.shape[0], dtype=bool)
+    sign_ok[sign_owner[misplaced]] = False
+    number_ok = (digits >= 1) & (dots <= 1) & (signs <= 1) & sign_ok
+    word = head_letter & (letters == 1) & (token_len >= 2) & number_ok
+    bare = ~head_letter & (letters == 0) & number_ok  # a number without a letter
+    rank, has_number = _token_ranks(grammar, b, tokens, token_len, word, bare, dots, signs)
+    _check_lines(grammar, plain, line, rank)
     # the numbers of the plain lines, in token order, read at once
     if not plain.any():
-        return empty
-    numbers = raw.translate(_NO_LETTERS)
-    if not plain.all():
-        kept = np.frombuffer(numbers, dtype=np.uint8).copy()
-        kept[~np.repeat(plain, lengths + 1)[:n]] = 32
-        numbers = kept.tobytes()
-    values = np.fromstring(numbers, sep=" ")
-    mine = has_number & plain[line]
-    if values.shape[0] != int(mine.sum()):  # cannot happen for checked tokens; be safe
-        return empty
-    value = np.full(tokens.shape[0], np.nan)
-    value[mine] = values
-    hit = mine & (rank >= 2) & (rank <= 7)
-    axes[line[hit], rank[hit] - 2] = value[hit]
-    hit = mine & (rank == _RANK_FEED)
-    feed[line[hit]] = value[hit]
-    plain[line[hit & ~(value > 0.0)]] = False  # the reader refuses F0
-    if grammar.codes:
-        hit = mine & (rank == _RANK_CODE)
-        known = np.zeros(hit.shape, dtype=bool)
-        for key, rapid in grammar.codes.items():
-            match = hit & (value == key)
-            code[line[match]] = 1 if rapid else 0
-            known |= match
-        plain[line[hit & ~known]] = False
-    if grammar.rapid_word:
-        hit = plain[line] & (rank == _RANK_RAPID)
-        rapid_word[line[hit]] = True
-    return MotionLines(starts, ends, plain, axes, code, rapid_word, feed)
+        return out
+    out.plain[:] = plain
+    values = np.fromstring(_numbers_text(raw, out, b""), sep=" ")
+    read = np.flatnonzero(has_number & plain[line])
+    if values.shape[0] != read.shape[0]:  # cannot happen for checked tokens; be safe
+        raise _Unread
+    return _store_values(grammar, out, line, rank, read, values)
+
+
+def _fast_lines(
+    raw: bytes, grammar: MotionGrammar, starts: np.ndarray, ends: np.ndarray
+) -> MotionLines | None:
+    """:func:`motion_lines` of one piece of text (ASCII bytes) with its lines, faster.
+
+    Characters are located one by one only where a word starts and where there is a letter,
+    point, sign or line break; the numbers are read as integers, their points taken out, and
+    divided by powers of ten (exact: the same ``float``).
+
+    Returns
+    -------
+    MotionLines or None
+        None when the piece is beyond this path (2**15 letters, points, signs and line breaks
+        from a word to the next, a number of more than 15 digits; a grammar whose keywords
+        are not letters only is the caller's to avoid).
+    """
+    b = np.frombuffer(raw, dtype=np.uint8)
+    cls = np.frombuffer(raw.translate(_CLASS_TABLE), dtype=np.uint8)
+    n = b.shape[0]
+    out = _no_motion(starts, ends)
+    plain = ends > starts
+    # lines with a character no plain block has, or blanks not between two words
+    separator = cls >= _NEWLINE
+    blank = cls == _BLANK
+    odd = cls == _OTHER
+    if odd.any():
+        plain[_line_of(starts, np.flatnonzero(odd))] = False
+    doubled = blank[1:] & separator[:-1]  # after a blank or line start
+    if doubled.any():
+        plain[_line_of(starts, np.flatnonzero(doubled) + 1)] = False
+    trailing = blank[:-1] & (cls[1:] == _NEWLINE)
+    if trailing.any():
+        plain[_line_of(starts, np.flatnonzero(trailing))] = False
+    if blank[0]:
+        plain[0] = False
+    if blank[-1]:
+        plain[-1] = False
+    # tokens, and the characters located: token starts, letters, points, signs, line breaks
+    first = ~separator
+    first[1:] &= separator[:-1]
+    last = ~separator
+    last[:-1] &= separator[1:]
+    located = (cls - np.uint8(_LETTER)) <= np.uint8(_NEWLINE - _LETTER)
+    located |= first
+    at = np.flatnonzero(located)
+    kind = cls[at]
+    is_head = first[at]
+    head_at = np.flatnonzero(is_head)  # index into ``at`` of each token start
+    tokens = at[head_at]
+    if not tokens.size:
+        return out
+    if at.shape[0] >= 1 << (_FIELD_BITS - 1) and (
+        max(int(np.diff(head_at).max(initial=0)), at.shape[0] - int(head_at[-1]))
+        >= 1 << (_FIELD_BITS - 1)
+    ):
+        return None  # a count of a token could overflow its field
+    token_len = np.flatnonzero(last) + 1 - tokens
+    # counts of each token and the line breaks after it, from its start to the next token's
+    head_kind = kind[head_at]
+    counted = kind > _LETTER  # points, signs, line breaks
+    counted |= (kind == _LETTER) & ~is_head  # letters after the first
+    weight = kind.astype(np.int64)
+    weight -= _LETTER
+    np.maximum(weight, 0, out=weight)
+    weight *= _FIELD_BITS
+    weight = np.left_shift(counted.astype(np.int64), weight)
+    counts = np.add.reduceat(weight, head_at)
+    mask = (1 << _FIELD_BITS) - 1
+    inner_letters = counts & mask
+    dots = (counts >> _FIELD_BITS) & mask
+    signs = (counts >> 2 * _FIELD_BITS) & mask
+    breaks = counts >> 3 * _FIELD_BITS
+    line = np.empty(tokens.shape[0], dtype=np.int64)
+    line[0] = head_at[0]  # the characters located before the first token are line breaks
+    np.cumsum(breaks[:-1], out=line[1:])
+    line[1:] += head_at[0]
+    head_letter = head_kind == _LETTER
+    letters = head_letter + inner_letters
+    digits = token_len - letters - dots - signs  # in lines of plain characters
+    # a sign goes first in the number: after the letter of a word, at the start of a bare one
+    sign_first = cls[np.minimum(tokens + head_letter, n - 1)] == _SIGN
+    number_ok = (digits >= 1) & (dots <= 1) & ((signs == 0) | ((signs == 1) & sign_first))
+    word = head_letter & (letters == 1) & (token_len >= 2) & number_ok
+    bare = ~head_letter & (letters == 0) & number_ok  # a number without a letter
+    rank, has_number = _token_ranks(grammar, b, tokens, token_len, word, bare, dots, signs)
+    _check_lines(grammar, plain, line, rank)
+    if not plain.any():
+        return out
+    # the numbers of the plain lines, in token order: integers, scaled by their decimals
+    read = np.flatnonzero(has_number & plain[line])
+    if int(digits.max()) > _MAX_DIGITS and int(digits[read].max(initial=0)) > _MAX_DIGITS:
+        return None
+    out.plain[:] = plain
+    integers = np.fromstring(_numbers_text(raw, out, b"."), dtype=np.int64, sep=" ")
+    if integers.shape[0] != read.shape[0]:  # cannot happen for checked tokens; be safe
+        return None
+    # the point of a number is the last character located in its token, followed by the line
+    # breaks after it
+    following = np.empty_like(head_at)
+    following[:-1] = head_at[1:]
+    following[-1] = at.shape[0]
+    point = at[following - 1 - breaks]
+    decimals = np.where(dots == 1, tokens + token_len - 1 - point, 0)[read]
+    values = integers / _POWERS_OF_TEN[decimals]
+    zero = read[integers == 0]
+    values[integers == 0] = np.where(b[tokens[zero] + head_letter[zero]] == _MINUS_BYTE, -0.0, 0.0)
+    return _store_values(grammar, out, line, rank, read, values)

@@ -52,10 +52,14 @@ logger = logging.getLogger(__name__)
 
 #: Fewest consecutive motion blocks written at once (shorter runs go block by block).
 BULK_MIN_MOVES = 16
-#: Motion blocks formatted together (bounds the memory of the byte matrix, ~100 bytes a block).
-_BULK_ROWS = 1 << 15
+#: Motion blocks formatted together (their arrays, ~100 bytes a block, stay in the cache).
+_BULK_ROWS = 1 << 13
 
 _RAPID, _POSITION, _FEED = (operator.attrgetter(name) for name in ("rapid", "position", "feed"))
+#: Masks of a cell (four characters, see :mod:`~urdfpost.dialects._bulk`): all of it, all but
+#: its first character (the blank before a word that starts a line).
+_ALL_CHARACTERS = np.uint32(0xFFFFFFFF)
+_NOT_FIRST_CHARACTER = ~_bulk.character_mask(0)
 
 _SPINDLE_ACTIONS = {"cw": "spindle_cw", "ccw": "spindle_ccw", "off": "spindle_off"}
 _COOLANT_ACTIONS = {"flood": "coolant_flood", "mist": "coolant_mist", "off": "coolant_off"}
@@ -397,45 +401,52 @@ class ProgramWriter:
         if feed_rows.size:
             feed_written[1:] = feed_scaled[1:] != feed_scaled[:-1]
             feed_written[0] = last_feed is None or feed_scaled[0] != last_feed
-        # -- the lines --------------------------------------------------------------------
-        words = []
+        # -- the lines, one column each: cells of four characters, NUL where none ---------
+        blocks = [self._block_number_cells(k)] if self.numbered else []
+        # lines with a word already (the next needs a blank): the block number's is the blank
+        # after it
+        started = np.full(k, self.numbered)
+
+        def add(cells: np.ndarray, present: np.ndarray | None) -> None:
+            """A word (a blank, then its text) on the lines ``present`` (None: all)."""
+            if present is not None:
+                cells *= present
+            cells[0] &= np.where(started, _ALL_CHARACTERS, _NOT_FIRST_CHARACTER)
+            if present is None:
+                started[:] = True
+            else:
+                started[:] |= present
+            blocks.append(cells)
+
         if layout.lead:
-            words.append(_bulk.word_slots(" " + layout.lead, k))
+            add(_bulk.repeated_cells(" " + layout.lead, k), None)
         if spec.rapid_modal:
             code_rows = rapid != np.concatenate([[modal.motion], rapid[:-1]])
-            rapid_code = " " + spec.g_code_for("rapid")
-            linear_code = " " + spec.g_code_for("linear")
-            width = max(len(rapid_code), len(linear_code))
-            code = np.where(
-                rapid[:, None],
-                _bulk.word_slots(rapid_code.ljust(width, "\0"), 1),
-                _bulk.word_slots(linear_code.ljust(width, "\0"), 1),
-            )
-            code[~code_rows] = 0
-            words.append(code)
+            rapid_code = _bulk.text_cells(" " + spec.g_code_for("rapid"))
+            linear_code = _bulk.text_cells(" " + spec.g_code_for("linear"))
+            width = max(rapid_code.size, linear_code.size)  # NUL cells for the shorter
+            rapid_code = np.pad(rapid_code, (0, width - rapid_code.size))
+            linear_code = np.pad(linear_code, (0, width - linear_code.size))
+            add(np.where(rapid[None, :], rapid_code[:, None], linear_code[:, None]), code_rows)
         for j, address in enumerate(axes):
-            slots = _bulk.number_slots(scaled[:, j], pos[:, j] < 0, formats[j])
-            word = np.hstack([_bulk.word_slots(" " + address, k), slots])
-            word[~written[:, j]] = 0
-            words.append(word)
+            add(
+                _bulk.number_cells(scaled[:, j], pos[:, j] < 0, formats[j], " " + address),
+                written[:, j],
+            )
         if layout.rapid_word:
-            word = _bulk.word_slots(" " + layout.rapid_word, k)
-            word[~rapid] = 0
-            words.append(word)
-        if feed_rows.size:
-            positive = np.zeros(feed_rows.size, dtype=bool)
-            slots = _bulk.number_slots(feed_scaled, positive, self.feed_format)
-            word = np.zeros((k, 2 + slots.shape[1]), dtype=np.uint8)
-            word[feed_rows] = np.hstack([_bulk.word_slots(" F", feed_rows.size), slots])
-            word[feed_rows[~feed_written]] = 0
-            words.append(word)
-        body = np.hstack(words)
-        first = (body != 0).argmax(axis=1)  # every word starts with a blank; not the first
-        body[np.arange(k), first] = 0
-        parts = [body, np.full((k, 1), ord("\n"), dtype=np.uint8)]
-        if self.numbered:
-            parts.insert(0, self._block_number_slots(k))
-        self.lines.append(_bulk.text_of_rows(np.hstack(parts))[:-1])
+            add(_bulk.repeated_cells(" " + layout.rapid_word, k), rapid)
+        if feed_written.any():
+            at = feed_rows[feed_written]
+            cells = _bulk.number_cells(
+                feed_scaled[feed_written], np.zeros(at.size, dtype=bool), self.feed_format, " F"
+            )
+            feeds = np.zeros((cells.shape[0], k), dtype=np.uint32)
+            feeds[:, at] = cells
+            present = np.zeros(k, dtype=bool)
+            present[at] = True
+            add(feeds, present)
+        blocks.append(_bulk.repeated_cells("\n", k))
+        self.lines.append(_bulk.text_of_cells(np.concatenate(blocks))[:-1])
         # -- the modal state after the last block -----------------------------------------
         last = pos[-1].tolist()
         modal.axes.update((a, self.format_axis(a, v)) for a, v in zip(axes, last, strict=True))
@@ -444,8 +455,9 @@ class ProgramWriter:
             modal.feed = self.feed_format.format(float(feed[feed_rows[-1]]) / self.feed_scale)
         return True
 
-    def _block_number_slots(self, k: int) -> np.ndarray:
-        """Block numbers of the next ``k`` lines with their blank, shape (k, width)."""
+    def _block_number_cells(self, k: int) -> np.ndarray:
+        """Block numbers of the next ``k`` lines (without the blank after them), one column
+        of cells each (see :func:`~urdfpost.dialects._bulk.text_of_cells`), shape (c, k)."""
         spec = self.spec
         step, top = spec.block_step, spec.block_max
         numbers = self._next_number + step * np.arange(k, dtype=np.int64)
@@ -459,11 +471,11 @@ class ProgramWriter:
         self._next_number = step if top and following > top else following
         assert self._number_affixes is not None
         prefix, suffix = self._number_affixes
-        return np.hstack(
+        return np.concatenate(
             [
-                _bulk.word_slots(prefix, k),
-                _bulk.integer_slots(numbers),
-                _bulk.word_slots(suffix + " ", k),
+                _bulk.repeated_cells(prefix, k),
+                _bulk.integer_cells(numbers),
+                _bulk.repeated_cells(suffix, k),
             ]
         )
 
