@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from urdfpost import UnreachableError, load_machine
-from urdfpost.branches import Preference, select
+from urdfpost.branches import TWO_PI, Preference, _wrap, select
 from urdfpost.kinematics import IKStatus, tip_and_axis, tip_and_axis_pin
 
 
@@ -134,3 +134,33 @@ def test_selection_reproduces_reachable_paths(name: str, seed: int) -> None:
     cols = list(m.rotary_columns)
     travel = np.abs(np.diff(sel.q[:, cols], axis=0)).sum()
     assert travel <= np.abs(np.diff(q[:, cols], axis=0)).sum() + np.pi + 1e-6
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1.0, 3.0, 2.0 * np.pi, 3.0 * np.pi, 50.0, 1e6])
+def test_wrap_is_the_mod_formula_to_the_bit(scale: float) -> None:
+    """The planner's wrap (turns added without branches, fmod skipped in range) gives what
+    ``pi - mod(pi - a, 2 pi)`` gives, bit for bit: few angles, differences of wrapped angles
+    (within range), anything else (fmod), the edges of the range, signed zeros and NaN."""
+    rng = np.random.default_rng(int(scale * 1000) % 2**32)
+    edges = np.array(
+        [
+            m
+            for e in (-TWO_PI, 0.0, TWO_PI, 2 * TWO_PI, -np.pi, np.pi, 3 * np.pi)
+            for m in (e, np.nextafter(e, np.inf), np.nextafter(e, -np.inf))
+        ]
+    )
+    for a in (
+        rng.uniform(-scale, scale, 5000),
+        np.concatenate([rng.uniform(-scale, scale, 5000), np.pi - edges, edges, [0.0, -0.0]]),
+        rng.uniform(-np.pi, np.pi, 5000) - rng.uniform(-np.pi, np.pi, 5000),
+        np.array([scale, -scale, np.nan, -0.0]),
+        np.concatenate([rng.uniform(-np.pi, np.pi, 100), [np.nan]]),
+    ):
+        want = np.pi - np.mod(np.pi - a, TWO_PI)
+        got = _wrap(a)
+        assert np.array_equal(np.isnan(got), np.isnan(want))
+        keep = ~np.isnan(want)
+        assert np.array_equal(got[keep].view(np.int64), want[keep].view(np.int64))
+        out = a.copy()
+        assert _wrap(out, out=out) is out
+        assert np.array_equal(out[keep].view(np.int64), want[keep].view(np.int64))

@@ -115,8 +115,45 @@ class Selection:
         return np.flatnonzero(self.rewind)
 
 
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return np.pi - np.mod(np.pi - a, TWO_PI)
+def _wrap(a: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Angles wrapped to (-pi, pi]: ``pi - mod(pi - a, 2 pi)``.
+
+    Bit for bit what that formula gives with ``np.mod``, which is ``fmod`` plus a turn where
+    the remainder is negative (a zero remainder's sign does not matter after ``pi -``), several
+    times faster: the turns are added as 0 or 2 pi (no branches on the data), and for
+    ``pi - a`` within (-2 pi, 4 pi), as for differences of two wrapped angles, ``fmod`` is a
+    turn off where it is 2 pi or more, which is exact there. A few angles take the formula
+    itself (fewer calls). ``out`` may be ``a``.
+    """
+    m = np.subtract(np.pi, a, out=out)
+    if m.size <= 64:  # a few angles: the fewest calls
+        return np.subtract(np.pi, np.mod(m, TWO_PI), out=out)
+    if m.min() > -TWO_PI and m.max() < 2.0 * TWO_PI:
+        m -= TWO_PI * (m >= TWO_PI)
+    else:
+        np.fmod(m, TWO_PI, out=m)
+    m += TWO_PI * (m < 0.0)
+    return np.subtract(np.pi, m, out=m)
+
+
+def _total(size: list[np.ndarray]) -> np.ndarray:
+    """Sum of the rotary axes' motions ``size`` (one array per axis), in order: with one or
+    two axes, to the bit what a sum over an axis of one array gives. May be ``size[0]``."""
+    if len(size) == 1:
+        return size[0]
+    total = np.add(size[0], size[1])
+    for s in size[2:]:
+        total += s
+    return total
+
+
+def _rows_any(a: np.ndarray) -> np.ndarray:
+    """Whether each row of a boolean array of shape (n, k) has a true entry, shape (n,): one
+    column at a time, which is much faster than numpy's reduction over a short last axis."""
+    out = np.zeros(len(a), dtype=bool)
+    for c in range(a.shape[1]):
+        out |= a[:, c]
+    return out
 
 
 def _candidates(
@@ -137,6 +174,9 @@ def _candidates(
     branch : ndarray, shape (K,), int
     """
     rot = machine.rotary
+    n, _, r = angles.shape
+    lo = np.array([a.lower for a in rot]) - _SLACK
+    hi = np.array([a.upper for a in rot]) + _SLACK
     shift_sets = []
     for j, a in enumerate(rot):
         col = angles[:, :, j]
@@ -144,28 +184,48 @@ def _candidates(
             shift_sets.append(np.array([0.0]))
             continue
         # the multiples that can put some angle of the path within travel
-        k_lo = int(np.floor((a.lower - np.nanmax(col)) / TWO_PI))
-        k_hi = int(np.ceil((a.upper - np.nanmin(col)) / TWO_PI))
-        shift_sets.append(TWO_PI * np.arange(k_lo, k_hi + 1))
+        top, bottom = np.nanmax(col), np.nanmin(col)
+        k_lo = int(np.floor((a.lower - top) / TWO_PI))
+        k_hi = int(np.ceil((a.upper - bottom) / TWO_PI))
+        shifts = TWO_PI * np.arange(k_lo, k_hi + 1)
+        if not (np.isnan(col) & valid).any():
+            # without those that put none (rounding is monotonic: nothing is above top +
+            # shift), which could never be taken; an undetermined angle fits every multiple
+            shifts = shifts[(top + shifts >= lo[j]) & (bottom + shifts <= hi[j])]
+        shift_sets.append(shifts)
     grids = np.meshgrid(*shift_sets, indexing="ij")
     shifts = np.stack([g.ravel() for g in grids], axis=1)  # (W, r)
-    values = (angles[:, :, None, :] + shifts[None, None, :, :]).reshape(
-        angles.shape[0], -1, len(rot)
-    )
-    branch = np.repeat(np.arange(2), shifts.shape[0])
-    ok = np.repeat(valid, shifts.shape[0], axis=1)
-    lo = np.array([a.lower for a in rot]) - _SLACK
-    hi = np.array([a.upper for a in rot]) + _SLACK
-    inside = (values >= lo) & (values <= hi) | np.isnan(values)
-    return values, ok & inside.all(axis=2), branch
+    values = np.empty((n, 2, len(shifts), r))
+    ok = np.repeat(valid, len(shifts), axis=1)
+    limited = [j for j in range(r) if lo[j] > -np.inf or hi[j] < np.inf]  # (others: all within)
+    for sl in _chunks(n, values[0].size):  # temporaries in cache
+        out = values[sl]
+        for w, shift in enumerate(shifts):
+            for j in range(r):
+                np.add(angles[sl, :, j], shift[j], out=out[:, :, w, j])
+        out = out.reshape(len(out), -1, r)
+        for j in limited:
+            v = out[:, :, j]
+            ok[sl] &= (v >= lo[j]) & (v <= hi[j]) | np.isnan(v)
+    branch = np.repeat(np.arange(2), len(shifts))
+    return values.reshape(n, 2 * len(shifts), r), ok, branch
+
+
+def _chunks(n: int, size: int) -> list[slice]:
+    """Slices of ``range(n)`` with about :data:`_CHUNK` array entries each, for points that
+    take ``size`` entries each."""
+    rows = max(1, _CHUNK // max(1, size))
+    return [slice(lo, lo + rows) for lo in range(0, n, rows)]
 
 
 def _linear_ok(machine: Machine, q: np.ndarray) -> np.ndarray:
     """Whether the linear axes of ``q`` (n, 2, m) are within travel, shape (n, 2)."""
-    cols = list(machine.linear_columns)
-    lin = q[:, :, cols]
-    lo, hi = machine.lower[cols] - _SLACK, machine.upper[cols] + _SLACK
-    return ((lin >= lo) & (lin <= hi)).all(axis=2)
+    ok = np.ones(q.shape[:2], dtype=bool)
+    for sl in _chunks(len(q), q[0].size):
+        for j in machine.linear_columns:
+            v = q[sl, :, j]
+            ok[sl] &= (v >= machine.lower[j] - _SLACK) & (v <= machine.upper[j] + _SLACK)
+    return ok
 
 
 def _unreachable_message(
@@ -261,10 +321,47 @@ def _limit_penalty(machine: Machine, values: np.ndarray) -> np.ndarray:
     for j, a in enumerate(machine.rotary):
         if a.continuous or not (np.isfinite(a.lower) and np.isfinite(a.upper)):
             continue
-        room = np.minimum(values[:, :, j] - a.lower, a.upper - values[:, :, j])
-        close = np.clip(1.0 - room / LIMIT_MARGIN, 0.0, 1.0)
-        pen += LIMIT_WEIGHT * np.nan_to_num(close, nan=0.0)
+        v = values[:, :, j]
+        close = np.minimum(v - a.lower, a.upper - v)  # the room left, then how close
+        np.divide(close, LIMIT_MARGIN, out=close)
+        np.subtract(1.0, close, out=close)
+        np.clip(close, 0.0, 1.0, out=close)
+        np.nan_to_num(close, copy=False, nan=0.0)
+        close *= LIMIT_WEIGHT
+        pen += close
     return pen
+
+
+def _point_costs(
+    machine: Machine,
+    values: np.ndarray,
+    entry: np.ndarray,
+    prefer: Preference | None,
+    limits: bool,
+) -> np.ndarray:
+    """Cost of taking each candidate at each point, shape (n, K) (``values`` (n, K, r)): the
+    preference, a tiny pull toward small angles, and (``limits``) the penalty near travel
+    limits. Computed a few thousand points at a time (temporaries in cache)."""
+    names = [a.name for a in machine.rotary]
+    j = names.index(prefer.axis) if prefer is not None and prefer.axis in names else None
+    out = np.empty(values.shape[:2])
+    for sl in _chunks(len(values), values[0].size):
+        v = values[sl]
+        cost = np.zeros(v.shape[:2])
+        if prefer is not None and j is not None:
+            wrong = v[:, :, j] * prefer.sign < -1e-9  # (an undetermined angle is not)
+            # at an entry the preference outweighs any difference in motion but not a flip
+            # it would force later (a flip costs half a turn plus the jump); elsewhere it
+            # breaks ties
+            cost = np.where(wrong, 1.0, 0.0) * np.where(entry[sl], np.pi, 1e-6)[:, None]
+        # a tiny pull toward small angles makes ties (e.g. +-180 degrees) deterministic
+        pull = _total([np.nan_to_num(np.abs(v[:, :, a]), copy=False) for a in range(v.shape[2])])
+        pull *= 1e-9
+        cost += pull
+        if limits:
+            cost += _limit_penalty(machine, v)
+        out[sl] = cost
+    return out
 
 
 def _step_weights(machine: Machine) -> np.ndarray:
@@ -371,35 +468,26 @@ def select(
     pole = ik.status == IKStatus.POLE
     # linear travel: known per branch except at poles, where it depends on the held angle
     lin_ok = _linear_ok(machine, ik.q) | pole[:, None]
-    rotary_ok = ok.any(axis=1)
-    ok &= lin_ok[:, branch]
-    dead = ~ok.any(axis=1)
+    within = ok & lin_ok[:, branch]
+    dead = ~_rows_any(within)
     if dead.any():
         i = int(np.argmax(dead))
-        if rotary_ok[i]:
+        if ok[i].any():
             raise UnreachableError(_linear_message(machine, ik.q[i], tip[i], int(lines[i]), source))
         raise UnreachableError(
             _unreachable_message(machine, axis[i], int(ik.status[i]), int(lines[i]), source)
         )
 
+    ok = within
     # candidates (360-degree multiples) within travel nowhere on the path are never taken
-    keep = ok.any(axis=0)
-    values, ok, branch = values[:, keep], ok[:, keep], branch[keep]
+    keep = np.array([ok[:, k].any() for k in range(ok.shape[1])], dtype=bool)
+    if not keep.all():  # (compress keeps the arrays in point order, which the planner walks)
+        values, ok, branch = values.compress(keep, 1), ok.compress(keep, 1), branch[keep]
 
     entry = np.zeros(n, dtype=bool) if entry is None else np.asarray(entry, dtype=bool).copy()
     entry[0] = True
     cutting = ~entry if cutting is None else np.asarray(cutting, dtype=bool) & ~entry
-    pref_cost = np.zeros(values.shape[:2])
-    if prefer is not None and prefer.axis in [a.name for a in machine.rotary]:
-        j = [a.name for a in machine.rotary].index(prefer.axis)
-        wrong = np.nan_to_num(values[:, :, j] * prefer.sign, nan=0.0) < -1e-9
-        # at an entry the preference outweighs any difference in motion but not a flip it
-        # would force later (a flip costs half a turn plus the jump); elsewhere it breaks ties
-        pref_cost = np.where(wrong, 1.0, 0.0) * np.where(entry, np.pi, 1e-6)[:, None]
-    # a tiny pull toward small angles makes ties (e.g. +-180 degrees) deterministic
-    pref_cost = pref_cost + 1e-9 * np.abs(np.nan_to_num(values)).sum(axis=2)
-    if planner == "global":
-        pref_cost = pref_cost + _limit_penalty(machine, values)
+    pref_cost = _point_costs(machine, values, entry, prefer, planner == "global")
 
     problem = _Plan(
         machine=machine,
@@ -408,7 +496,7 @@ def select(
         branch=branch,
         pref_cost=pref_cost,
         start=start[list(machine.rotary_columns)],
-        singular=(ik.status == IKStatus.POLE) | (ik.status == IKStatus.EDGE),
+        singular=pole | (ik.status == IKStatus.EDGE),
         cutting=cutting,
         weights=_step_weights(machine),
         switch_cost=np.pi if planner == "global" else 0.0,
@@ -421,6 +509,8 @@ def select(
         blocked = ~problem.usable().any(axis=1)
         if blocked.any():
             _raise_dead_end(problem, int(np.argmax(blocked)))
+    status = ik.status
+    del ik  # (its joint vectors are the largest arrays here: the planner can reuse the memory)
     for _ in range(_MAX_COLLISION_ROUNDS):
         chosen, arrive_k, rot_leave, rot_arrive = (
             _viterbi(problem) if planner == "global" else _greedy(problem)
@@ -444,16 +534,17 @@ def select(
     if rewind.any():
         _check_linear(machine, q_arrive, pole, lines, source)
     notes = _exclusion_notes(problem, chosen, arrive_k)
-    log.debug(
-        "selected %d points, branch switches: %d, rewinds: %d",
-        n,
-        int(np.sum(np.diff(branch[chosen]) != 0)),
-        int(rewind.sum()),
-    )
+    if log.isEnabledFor(logging.DEBUG):  # (the counts are passes over the whole path)
+        log.debug(
+            "selected %d points, branch switches: %d, rewinds: %d",
+            n,
+            int(np.sum(np.diff(branch[chosen]) != 0)),
+            int(rewind.sum()),
+        )
     return Selection(
         q=q,
         branch=branch[chosen],
-        status=ik.status.copy(),
+        status=status.copy(),
         arrive=q_arrive,
         rewind=rewind,
         notes=notes,
@@ -480,49 +571,94 @@ class _Plan:
 
     def __post_init__(self) -> None:
         self.cont = np.array([a.continuous for a in self.machine.rotary], dtype=bool)
+        self.switch = self.branch[:, None] != self.branch[None, :]  # (K, K): a branch switch
+        self.cont_axes = [int(a) for a in np.flatnonzero(self.cont)]
 
-    def _diff(self, idx: np.ndarray, prev: np.ndarray) -> np.ndarray:
-        """Rotary motion from states to every candidate at points ``idx``.
+    def _diff(self, i: int, state: np.ndarray) -> np.ndarray:
+        """Rotary motion from states to every candidate at point ``i``.
 
         Parameters
         ----------
-        idx : ndarray, shape (j,), int
-        prev : ndarray, shape (j, S, r), rad
-            States (rows) the motion starts from, per point.
+        i : int
+        state : ndarray, shape (S, r), rad
+            States (rows) the motion starts from.
 
         Returns
         -------
-        ndarray, shape (j, S, K, r), rad
+        ndarray, shape (S, K, r), rad
             Limited axes land on the candidate, continuous ones take the shortest rotation to
             it, an undetermined angle holds.
         """
-        diff = self.values[idx][:, None, :, :] - prev[:, :, None, :]
-        diff[..., self.cont] = _wrap(diff[..., self.cont])
-        return np.nan_to_num(diff, nan=0.0)
+        diff = self.values[i] - state[:, None, :]
+        for a in self.cont_axes:
+            _wrap(diff[..., a], out=diff[..., a])
+        if np.isnan(diff).any():
+            np.nan_to_num(diff, copy=False, nan=0.0)
+        return diff
 
-    def _move_cost(self, idx: np.ndarray, diff: np.ndarray) -> np.ndarray:
-        """Cost of the moves ``diff`` (j, S, K, r) into points ``idx``, shape (j, S, K): inf
-        for a move that would need a jump on a cutting move (collisions not included)."""
-        size = np.abs(diff)
-        travel = size.sum(axis=3)
-        cost = travel + (size * self.weights).max(axis=3, initial=0.0)
+    def _size(self, diff: np.ndarray, axis: int, nan: bool) -> np.ndarray:
+        """How far rotary axis ``axis`` moves: the absolute value of what :meth:`_diff`
+        gives for it, made in place from ``diff``, the candidates' angles less the states'
+        (``nan``: whether there may be undetermined angles)."""
+        if self.cont[axis]:
+            _wrap(diff, out=diff)
+        if nan:
+            np.nan_to_num(diff, copy=False, nan=0.0)
+        return np.abs(diff, out=diff)
+
+    def _move_cost(
+        self,
+        size: list[np.ndarray],
+        regular: np.ndarray | bool,
+        cutting: np.ndarray | bool,
+        switch: np.ndarray,
+        out: np.ndarray,
+    ) -> np.ndarray:
+        """Cost of moves, in ``out``: inf for a move that would need a jump on a cutting move
+        (collisions not included).
+
+        Parameters
+        ----------
+        size : list of ndarray
+            How far each rotary axis moves (:meth:`_size`), from each state to each
+            candidate. The axes are summed in order: with one or two rotary axes that is to
+            the bit the sum over an axis of one array.
+        regular, cutting : ndarray or bool
+            Whether each move is between regular points, and whether it cuts (a bool for
+            all alike).
+        switch : ndarray, bool
+            Whether each move switches branch.
+        out : ndarray
+            Of the shape all of these broadcast to.
+        """
+        # the largest weighted size (sizes and weights are at least 0: no need to start
+        # the largest from 0), plus the travel
+        cost = np.multiply(size[0], self.weights[0], out=out)
+        travel = _total(size)
+        if len(size) > 1:
+            weighted = np.empty_like(size[0])
+            for s, w in zip(size[1:], self.weights[1:], strict=True):
+                np.maximum(cost, np.multiply(s, w, out=weighted), out=cost)
+        cost += travel
         # the branches meet only at singular points; a switch between two regular points
         # turns the first axis by about half a turn within one block unless the tilt is small
         # (the path passes close to the pole there)
-        regular = ~(self.singular[idx] | self.singular[idx - 1])
-        switch = self.branch[:, None] != self.branch[None, :]
-        cost = cost + np.where(regular[:, None, None] & switch, self.switch_cost, 0.0)
+        if self.switch_cost and regular is not False:  # (adding 0 elsewhere)
+            switch_cost = np.where(switch, self.switch_cost, 0.0)
+            cost += switch_cost if regular is True else switch_cost * np.asarray(regular, float)
         # a jump no subdivision can follow while cutting: a switch that swings the axes, or a
         # limited axis turning the long way round
-        jump = switch & (travel > JUMP) | (size[..., ~self.cont] > np.pi).any(axis=3)
-        return np.where((regular & self.cutting[idx])[:, None, None] & jump, np.inf, cost)
-
-    def _rewind_cost(self, diff: np.ndarray) -> np.ndarray:
-        """Cost of rewinds ``diff`` (j, K, K, r) from each candidate to each other at a point,
-        shape (j, K, K) (inf on the diagonal; collisions not included)."""
-        cost = REWIND_COST + np.abs(diff).sum(axis=3)
-        k = np.arange(cost.shape[1])
-        cost[:, k, k] = np.inf
+        if regular is False or cutting is False:
+            return cost
+        jump = switch & (travel > JUMP)
+        for s, cont in zip(size, self.cont, strict=True):
+            if not cont:
+                jump |= s > np.pi
+        if regular is not True:
+            jump &= regular
+        if cutting is not True:
+            jump &= cutting
+        np.putmask(cost, jump, np.inf)
         return cost
 
     def usable(self) -> np.ndarray:
@@ -548,20 +684,30 @@ class _Plan:
         cost : ndarray, shape (S, K)
             Inf for a move that would need a jump on a cutting move, or that collides.
         """
-        idx = np.array([i])
-        diff = self._diff(idx, state[None])
-        cost = self._move_cost(idx, diff)[0]
+        diff = self._diff(i, state)
+        size = np.abs(diff)
+        regular = not (self.singular[i] or self.singular[i - 1])
+        cost = self._move_cost(
+            [size[..., a] for a in range(size.shape[2])],
+            regular,
+            bool(self.cutting[i]),
+            self.switch,
+            np.empty(self.switch.shape),
+        )
         for kp, k in self.exclude.moves.get(i, ()):
             cost[kp, k] = np.inf
-        return diff[0], cost
+        return diff, cost
 
     def rewind_steps(self, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rewinds at point ``i`` from each arrival state (rows) to each candidate (columns)."""
-        diff = self._diff(np.array([i]), state[None])
-        cost = self._rewind_cost(diff)[0]
+        diff = self._diff(i, state)
+        size = np.abs(diff)
+        cost = REWIND_COST + _total([size[..., a] for a in range(size.shape[2])])
+        k = np.arange(len(cost))
+        cost[k, k] = np.inf
         for ki, k in self.exclude.rewinds.get(i, ()):
             cost[ki, k] = np.inf
-        return diff[0], cost
+        return diff, cost
 
     def rewinds_at(self, idx: np.ndarray) -> np.ndarray:
         """Whether a rewind may follow the arrival at points ``idx`` (the move on cuts)."""
@@ -572,9 +718,43 @@ class _Plan:
 _MIN_PLUS_BLOCK = (8, 512)  # smallest and largest block of the blocked recursion, points
 
 
-def _min_plus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Min-plus products of stacks of matrices, (j, K, K) x (j, K, K) -> (j, K, K)."""
-    return (a[:, :, :, None] + b[:, None, :, :]).min(axis=2)
+def _min_plus(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Min-plus products of matrices stacked along the last axis, (K, K, j) x (K, K, j) ->
+    (K, K, j).
+
+    One sum and one minimum per inner index, each over all matrices at once (the minimum is
+    exact, so the order does not matter). ``out`` must not overlap ``a`` or ``b``.
+    """
+    out = np.add(a[:, :1], b[None, 0], out=out)
+    if len(a) > 1:
+        term = np.empty_like(out)
+        for t in range(1, len(a)):
+            np.minimum(out, np.add(a[:, t : t + 1], b[None, t], out=term), out=out)
+    return out
+
+
+def _min_arg(
+    cost: np.ndarray, step: np.ndarray, out: np.ndarray, arg: np.ndarray, scratch: np.ndarray
+) -> None:
+    """Least ``cost[s] + step[s, k]`` over the rows s, with the first row that gives it (what
+    ``argmin`` picks), for matrices stacked along the last axis.
+
+    Parameters
+    ----------
+    cost : ndarray, shape (K, j)
+    step : ndarray, shape (K, K, j)
+    out : ndarray, shape (K, j)
+        Filled with the least costs.
+    arg : ndarray, shape (K, j), int
+        Filled with their rows.
+    scratch : ndarray, shape (K, j)
+    """
+    np.add(cost[0], step[0], out=out)
+    arg.fill(0)
+    for s in range(1, len(cost)):
+        term = np.add(cost[s], step[s], out=scratch)
+        np.copyto(arg, s, where=term < out)
+        np.minimum(out, term, out=out)
 
 
 def _viterbi(
@@ -592,6 +772,12 @@ def _viterbi(
     the best predecessors (all blocks at once). Blocks with path-dependent steps are run point
     by point from their start state. The predecessors are followed back the same way (maps
     composed per block), and the actual (unwrapped) angles are rebuilt along the chosen path.
+
+    With a few candidates per point numpy's cost is per operation, not per number: the step
+    matrices of the blocks done at once are laid out step by step with the blocks last
+    (:class:`_Steps`), so that each operation of the block passes runs along all blocks in
+    contiguous memory, and they are made a few thousand entries per operation (temporaries
+    in cache). The layout changes no number: each is the same operations in the same order.
 
     Parameters
     ----------
@@ -613,7 +799,9 @@ def _viterbi(
     cost0, state0 = p.first_state()
     back = np.zeros((n, n_cand), dtype=np.int32)
     rback = np.full((n, n_cand), -1, dtype=np.int32)
-    held = (np.isnan(p.values).any(axis=2) & usable).any(axis=1)
+    held = np.zeros(n, dtype=bool)  # a usable candidate holds an undetermined angle
+    for k in range(n_cand):
+        held |= _rows_any(np.isnan(p.values[:, k])) & usable[:, k]
     irregular = np.zeros(n, dtype=bool)  # steps into these points depend on the path
     irregular[1:] = held[1:] | held[:-1]
     irregular[list(p.exclude.moves) + list(p.exclude.rewinds)] = True
@@ -625,8 +813,15 @@ def _viterbi(
     seq = np.logical_or.reduceat(irregular, first) if len(first) else np.zeros(0, dtype=bool)
     bulk = np.flatnonzero(~seq)
     product_of = np.cumsum(~seq) - 1  # block -> its product (bulk blocks)
-    steps = _Steps(p, first[bulk], last[bulk])
-    products = _block_products(p, steps, usable, first[bulk], last[bulk])
+    # the bulk blocks in runs whose step matrices fit in _CACHE_BYTES: one run has them
+    # computed once for both passes, several have them computed again for the second
+    size = max(1, int(_CACHE_BYTES // (block * _Steps.bytes_per_step(n_cand))))
+    runs = [slice(a, a + size) for a in range(0, len(bulk), size)]
+    products = np.empty((len(bulk), n_cand, n_cand))
+    kept: _Steps | None = None
+    for run in runs:
+        kept = _Steps(p, usable, first[bulk[run]], last[bulk[run]])
+        products[run] = _block_products(kept)
     # costs at the block starts, in order
     starts = np.empty((len(first), n_cand))
     cost, state = cost0, state0
@@ -639,7 +834,11 @@ def _viterbi(
                 continue
         # path-dependent steps, or a dead end to locate: point by point
         cost, state = _sequential(p, usable, a, e, cost, state, back, rback)
-    ends = _block_steps(p, steps, usable, first[bulk], last[bulk], starts[bulk], back, rback)
+    ends = np.empty((len(bulk), n_cand))
+    for run in reversed(runs):  # the last run first: its step matrices are still there
+        steps = kept or _Steps(p, usable, first[bulk[run]], last[bulk[run]])
+        kept = None
+        ends[run] = _block_steps(steps, starts[bulk[run]], back, rback)
     if len(first) and not seq[-1]:
         cost = ends[-1]  # the recorded arithmetic, which the predecessors follow
     chosen, arrive = _follow_back(int(np.argmin(cost)), back, rback, block)
@@ -660,6 +859,7 @@ def _sequential(
     """The recursion point by point over steps ``lo..hi-1`` from ``cost`` and the actual
     angles ``state`` (K, r) at point ``lo - 1``; fills ``back`` and ``rback`` there."""
     cols = np.arange(len(cost))
+    may_rewind = p.rewinds_at(np.arange(lo, hi))
     for i in range(lo, hi):
         diff, step = p.steps(i, state)
         total = cost[:, None] + step
@@ -668,7 +868,7 @@ def _sequential(
         arrive_state = state[best] + diff[best, cols]
         back[i] = best
         cost, state = arrive_cost, arrive_state
-        if p.rewinds_at(np.array([i]))[0] and np.isfinite(arrive_cost).any():
+        if may_rewind[i - lo] and np.isfinite(arrive_cost).any():
             rdiff, rstep = p.rewind_steps(i, arrive_state)
             rtotal = arrive_cost[:, None] + rstep
             rbest = np.argmin(rtotal, axis=0)
@@ -683,116 +883,170 @@ def _sequential(
     return cost, state
 
 
-def _bulk_steps(p: _Plan, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-    """Step matrices into points ``idx`` whose steps do not depend on the path.
-
-    Returns
-    -------
-    move : ndarray, shape (j, K, K)
-        Move costs (without the preference cost of the candidate).
-    rewind : ndarray, shape (j, K, K), or None
-        Rewind costs at the points (inf where no rewind may follow), None when none may.
-    may_rewind : ndarray, shape (j,), bool
-    """
-    prev = p.values[idx - 1]
-    move = p._move_cost(idx, p._diff(idx, prev))
-    may_rewind = p.rewinds_at(idx)
-    if not may_rewind.any():
-        return move, None, may_rewind
-    here = p.values[idx]
-    rewind = p._rewind_cost(p._diff(idx, here))
-    rewind[~may_rewind] = np.inf
-    return move, rewind, may_rewind
-
-
 _CACHE_BYTES = 256e6  # step matrices kept between the passes when they fit in this
-_CACHE_CHUNK = 65536  # points per array operation when filling them
+_CHUNK = 32768  # array entries per operation in the element-wise passes (temporaries in cache)
+_COPY = 262144  # array entries per copy when laying arrays out anew
 
 
-class _Steps:
-    """Step matrices of the path-independent steps (:func:`_bulk_steps`), computed once for
-    all points of the blocks done in bulk when they fit in ``_CACHE_BYTES``, otherwise on
-    demand."""
+def _by_step(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``a[rows]`` laid out step by step with the blocks last: ``out[j, ..., b]`` is
+    ``a[rows[b, j]]``.
 
-    def __init__(self, p: _Plan, first: np.ndarray, last: np.ndarray) -> None:
-        self.p = p
-        n, n_cand = p.values.shape[:2]
-        self.move: np.ndarray | None = None
-        if not len(first) or n * n_cand * n_cand * 16 > _CACHE_BYTES:
-            return
-        rows = np.concatenate([np.arange(a, e) for a, e in zip(first, last, strict=True)])
-        self.move = np.empty((n, n_cand, n_cand))
-        self.rewind = np.full((n, n_cand, n_cand), np.inf)
-        self.may = np.zeros(n, dtype=bool)
-        for lo in range(0, len(rows), _CACHE_CHUNK):
-            chunk = rows[lo : lo + _CACHE_CHUNK]
-            move, rewind, may = _bulk_steps(p, chunk)
-            self.move[chunk] = move
-            self.may[chunk] = may
-            if rewind is not None:
-                self.rewind[chunk] = rewind
-
-    def __call__(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-        if self.move is None:
-            return _bulk_steps(self.p, idx)
-        may = self.may[idx]
-        return self.move[idx], self.rewind[idx] if may.any() else None, may
-
-
-def _block_products(
-    p: _Plan, steps: _Steps, usable: np.ndarray, first: np.ndarray, last: np.ndarray
-) -> np.ndarray:
-    """Min-plus product of the steps of each block (moves, preference costs, rewinds), all
-    blocks at once, shape (len(first), K, K)."""
-    n_cand = p.values.shape[1]
-    eye = np.eye(n_cand, dtype=bool)
-    out = np.where(eye, 0.0, np.inf)[None].repeat(len(first), axis=0)
-    for j in range(int((last - first).max(initial=0))):
-        on = np.flatnonzero(first + j < last)
-        idx = first[on] + j
-        move, rewind, _ = steps(idx)
-        move = np.where(usable[idx][:, None, :], move + p.pref_cost[idx][:, None, :], np.inf)
-        step = move
-        if rewind is not None:
-            layer = np.where(eye, 0.0, np.where(usable[idx][:, None, :], rewind, np.inf))
-            step = _min_plus(move, layer)
-        out[on] = _min_plus(out[on], step)
+    Gathered and moved a few blocks at a time, so that what is read and written stays in the
+    cache and the address translation buffers (a point's neighbours along the path are far
+    apart in the result).
+    """
+    out = np.empty((rows.shape[1], *a.shape[1:], rows.shape[0]), dtype=a.dtype)
+    per = max(1, _COPY // max(1, rows.shape[1] * a[0].size))
+    for lo in range(0, len(rows), per):
+        out[..., lo : lo + per] = np.moveaxis(np.take(a, rows[lo : lo + per], axis=0), 0, -1)
     return out
 
 
-def _block_steps(
-    p: _Plan,
-    steps: _Steps,
-    usable: np.ndarray,
-    first: np.ndarray,
-    last: np.ndarray,
-    starts: np.ndarray,
-    back: np.ndarray,
-    rback: np.ndarray,
-) -> np.ndarray:
-    """The recursion within each block from its start cost, all blocks at once; fills
-    ``back`` and ``rback`` (same arithmetic as :func:`_sequential`) and returns the costs at
-    the blocks' last points, shape (len(first), K)."""
-    cost = starts.copy()
-    for j in range(int((last - first).max(initial=0))):
-        on = np.flatnonzero(first + j < last)
-        idx = first[on] + j
-        move, rewind, may_rewind = steps(idx)
-        total = cost[on][:, :, None] + move
-        best = np.argmin(total, axis=1)
-        arrive = np.take_along_axis(total, best[:, None, :], axis=1)[:, 0, :]
-        arrive = np.where(usable[idx], arrive + p.pref_cost[idx], np.inf)
-        back[idx] = best
-        if rewind is not None:
-            rtotal = arrive[:, :, None] + rewind
-            rbest = np.argmin(rtotal, axis=1)
-            rcost = np.take_along_axis(rtotal, rbest[:, None, :], axis=1)[:, 0, :]
-            rcost = np.where(usable[idx], rcost, np.inf)
-            take = (rcost < arrive) & may_rewind[:, None]
-            rback[idx] = np.where(take, rbest, -1)
-            arrive = np.where(take, rcost, arrive)
-        cost[on] = arrive
-    return cost
+def _blocks_last(a: np.ndarray) -> np.ndarray:
+    """The first axis of ``a`` (the blocks) moved last, as a new array, a few blocks at a
+    time (as :func:`_by_step`)."""
+    out = np.empty((*a.shape[1:], a.shape[0]), dtype=a.dtype)
+    per = max(1, _COPY // max(1, a[0].size))
+    for lo in range(0, len(a), per):
+        out[..., lo : lo + per] = np.moveaxis(a[lo : lo + per], 0, -1)
+    return out
+
+
+def _blocks_first(a: np.ndarray) -> np.ndarray:
+    """The last axis of ``a`` (the blocks) moved first, as a new array, a few blocks at a
+    time (as :func:`_by_step`)."""
+    out = np.empty((a.shape[-1], *a.shape[:-1]), dtype=a.dtype)
+    per = max(1, _COPY // max(1, out[0].size))
+    for lo in range(0, len(out), per):
+        out[lo : lo + per] = np.moveaxis(a[..., lo : lo + per], -1, 0)
+    return out
+
+
+class _Steps:
+    """Step matrices of a run of blocks whose steps do not depend on the path (neither end
+    holds an undetermined angle), laid out step by step with the blocks last (``move[j, s,
+    k, b]``: step ``j`` of block ``b``), so that each step of the block passes takes slices
+    and works along the blocks. The blocks are as long as the first but the last, which may
+    be shorter: the first ``count[j]`` have a step ``j``.
+
+    Attributes
+    ----------
+    move : ndarray, shape (J, K, K, B)
+        Move costs (without the preference cost of the candidate).
+    layer : ndarray, shape (J, K, K, B), or None
+        Rewind layers: 0 on the diagonal (no rewind), the rewind costs into usable
+        candidates elsewhere where a rewind may follow, inf otherwise; None where no rewind
+        may follow in the run.
+    rewinds : ndarray, shape (J,), bool
+        Whether a rewind may follow step ``j`` in some block.
+    pref : ndarray, shape (J, K, B)
+        Preference costs of the candidates.
+    unusable : ndarray, shape (J, K, B), bool
+    count : ndarray, shape (J,), int
+    first, last : ndarray, shape (B,), int
+        The blocks' first steps and one past their last.
+    """
+
+    def __init__(self, p: _Plan, usable: np.ndarray, first: np.ndarray, last: np.ndarray) -> None:
+        self.first, self.last = first, last
+        n_cand, r = p.values.shape[1:]
+        n_steps = int((last - first).max(initial=0))
+        steps = np.arange(n_steps + 1)
+        # the point before each block and its points (past its end: its last point)
+        rows = np.minimum(first[:, None] - 1 + steps, (last - 1)[:, None])
+        at = np.ascontiguousarray(rows.T)  # step by step
+        inside = steps[:-1] < (last - first)[:, None]
+        self.count = inside.sum(axis=0)
+        singular = p.singular[at]
+        regular = ~(singular[1:] | singular[:-1])
+        cutting = p.cutting[at[1:]]
+        may = p.rewinds_at(at[1:]) & inside.T
+        self.rewinds = may.any(axis=1)
+        self.pref = _by_step(p.pref_cost, rows[:, 1:])
+        self.unusable = _by_step(usable, rows[:, 1:])
+        np.logical_not(self.unusable, out=self.unusable)
+        self.move = np.empty((n_steps, n_cand, n_cand, len(first)))
+        self.layer = np.empty_like(self.move) if may.any() else None
+        switch = p.switch[:, :, None]
+        k = np.arange(n_cand)
+        per = max(1, _CHUNK // (n_cand * n_cand * len(first)))
+        for lo in range(0, n_steps, per):
+            s = slice(lo, min(lo + per, n_steps))
+            values = np.take(p.values, at[s.start : s.stop + 1], axis=0)  # (j + 1, B, K, r)
+            values = np.ascontiguousarray(np.moveaxis(values, 1, -1))
+            here, prev = values[1:], values[:-1]
+            nan = bool(np.isnan(here).any() or np.isnan(prev).any())
+            size = [p._size(here[:, None, :, a] - prev[:, :, None, a], a, nan) for a in range(r)]
+            p._move_cost(size, regular[s, None, None], cutting[s, None, None], switch, self.move[s])
+            if self.layer is None:
+                continue
+            layer = self.layer[s]
+            if may[s].any():
+                size = [
+                    p._size(here[:, None, :, a] - here[:, :, None, a], a, nan) for a in range(r)
+                ]
+                np.add(REWIND_COST, _total(size), out=layer)
+                np.copyto(layer, np.inf, where=~may[s, None, None])
+                np.copyto(layer, np.inf, where=self.unusable[s, None])
+            else:
+                layer.fill(np.inf)
+            layer[:, k, k] = 0.0
+
+    @staticmethod
+    def bytes_per_step(n_cand: int) -> int:
+        """Memory a step of one block takes (its matrices, costs and indices), bytes."""
+        return 16 * n_cand * n_cand + 9 * n_cand + 24
+
+
+def _block_products(s: _Steps) -> np.ndarray:
+    """Min-plus product of the steps of each block (moves, preference costs, rewinds), all
+    blocks at once, shape (B, K, K)."""
+    n_cand, n_blocks = s.move.shape[2:]
+    eye = np.eye(n_cand, dtype=bool)[:, :, None]
+    out = np.where(eye, 0.0, np.inf).repeat(n_blocks, axis=2)
+    step, turned, product = np.empty_like(out), np.empty_like(out), np.empty_like(out)
+    for j, c in enumerate(s.count):
+        move = np.add(s.move[j, ..., :c], s.pref[j, None, :, :c], out=step[..., :c])
+        np.copyto(move, np.inf, where=s.unusable[j, None, :, :c])
+        if s.layer is not None and s.rewinds[j]:
+            move = _min_plus(move, s.layer[j, ..., :c], out=turned[..., :c])
+        out[..., :c] = _min_plus(out[..., :c], move, out=product[..., :c])
+    return _blocks_first(out)
+
+
+def _block_steps(s: _Steps, starts: np.ndarray, back: np.ndarray, rback: np.ndarray) -> np.ndarray:
+    """The recursion within each block from its start cost (``starts``, shape (B, K)), all
+    blocks at once; fills ``back`` and ``rback`` (same arithmetic as :func:`_sequential`)
+    and returns the costs at the blocks' last points, shape (B, K).
+
+    The rewind layer's zero diagonal stands for no rewind: a rewind is taken where it is
+    cheaper than arriving, as in :func:`_sequential`, whose diagonal is inf."""
+    cost = starts.T.copy()
+    back_s = np.zeros(s.pref.shape, dtype=back.dtype)
+    rback_s = np.full_like(back_s, -1)
+    arrive, rcost, scratch = np.empty_like(cost), np.empty_like(cost), np.empty_like(cost)
+    best = np.empty(cost.shape, dtype=np.intp)
+    for j, c in enumerate(s.count):
+        _min_arg(cost[:, :c], s.move[j, ..., :c], arrive[:, :c], best[:, :c], scratch[:, :c])
+        back_s[j, :, :c] = best[:, :c]
+        arrive[:, :c] += s.pref[j, :, :c]
+        np.copyto(arrive[:, :c], np.inf, where=s.unusable[j, :, :c])
+        if s.layer is not None and s.rewinds[j]:
+            _min_arg(arrive[:, :c], s.layer[j, ..., :c], rcost[:, :c], best[:, :c], scratch[:, :c])
+            np.copyto(rback_s[j, :, :c], best[:, :c], where=rcost[:, :c] < arrive[:, :c])
+            np.minimum(arrive[:, :c], rcost[:, :c], out=arrive[:, :c])
+        cost[:, :c] = arrive[:, :c]
+    # back into point order, a run of adjacent blocks at a time (all as long as the first
+    # but the last)
+    back_b, rback_b = _blocks_first(back_s), _blocks_first(rback_s)
+    n_cand = back.shape[1]
+    cut = np.flatnonzero(s.first[1:] != s.last[:-1]) + 1
+    for lo, hi in zip(np.r_[0, cut], np.r_[cut, len(s.first)], strict=True):
+        a, e = s.first[lo], s.last[hi - 1]
+        back[a:e] = back_b[lo:hi].reshape(-1, n_cand)[: e - a]
+        rback[a:e] = rback_b[lo:hi].reshape(-1, n_cand)[: e - a]
+    return cost.T
 
 
 def _follow_back(
@@ -803,34 +1057,40 @@ def _follow_back(
     At each point ``i`` the path leaves with ``chosen[i]``, arrived with ``arrive[i]``
     (``rback`` where a rewind was taken) and came from ``back[i, arrive[i]]``. The maps from
     the candidate at a block's last point to that before its first are composed for all
-    blocks at once, followed block by block, then every block is walked at once.
+    blocks at once, followed block by block, then every block is walked at once. The blocks
+    end at the last point; the first is filled up with points that keep the candidate.
     """
     n, n_cand = back.shape
-    arrive_of = np.where(rback >= 0, rback, np.arange(n_cand)[None, :])  # (n, K)
-    came = np.take_along_axis(back, arrive_of, axis=1)  # leave at i -> leave at i - 1
-    chosen = np.empty(n, dtype=np.int64)
-    arrive = np.empty(n, dtype=np.int64)
-    hi = np.arange(n, 0, -block)[::-1]  # one past each block's last point, blocks from 0
-    lo = np.maximum(hi - block, 0)
+    keep = np.arange(n_cand)
+    rewound = rback >= 0
+    arrive_of = np.where(rewound, rback, keep[None, :]) if rewound.any() else None  # (n, K)
+    # leave at i -> leave at i - 1
+    came = back if arrive_of is None else np.take_along_axis(back, arrive_of, axis=1)
+    n_blocks = -(-n // block)
+    pad = n_blocks * block - n
+    maps = np.empty((n_blocks * block, n_cand), dtype=came.dtype)
+    maps[:pad] = keep
+    maps[pad:] = came
+    maps = _blocks_last(maps.reshape(n_blocks, block, n_cand))  # [j, :, b]: step j of block b
+    at = np.arange(n_blocks)  # each block's column in a step's flattened maps
     # composed maps: leave at a block's last point -> leave at the point before its first
-    comp = np.repeat(np.arange(n_cand)[None, :], len(hi), axis=0)
+    comp = np.repeat(keep[:, None], n_blocks, axis=1)
     for j in range(block - 1, -1, -1):
-        on = np.flatnonzero(lo + j < hi)
-        idx = lo[on] + j
-        comp[on] = np.take_along_axis(came[idx], comp[on], axis=1)
-    ends = np.empty(len(hi), dtype=np.int64)
+        comp = np.take(maps[j], comp * n_blocks + at)
+    ends = np.empty(n_blocks, dtype=np.int64)
     k = k_end
-    for b in range(len(hi) - 1, -1, -1):
+    for b in range(n_blocks - 1, -1, -1):
         ends[b] = k
-        k = int(comp[b, k])
-    cur = ends.copy()
+        k = int(comp[k, b])
+    chosen = np.empty((block, n_blocks), dtype=np.int64)
+    cur = ends
     for j in range(block - 1, -1, -1):
-        on = np.flatnonzero(lo + j < hi)
-        idx = lo[on] + j
-        chosen[idx] = cur[on]
-        arrive[idx] = arrive_of[idx, cur[on]]
-        cur[on] = came[idx, cur[on]]
-    return chosen, arrive
+        chosen[j] = cur
+        cur = np.take(maps[j], cur * n_blocks + at)
+    leave = _blocks_first(chosen).reshape(-1)[pad:]
+    if arrive_of is None:
+        return leave, leave.copy()
+    return leave, np.take(arrive_of, leave + np.arange(n) * n_cand)
 
 
 def _angles_along(
@@ -842,21 +1102,34 @@ def _angles_along(
     that sequence limited axes take the candidates' values, an undetermined angle holds the
     last determined one, and continuous axes take the shortest rotation from the previous
     value (the first point starts from ``state0``, the candidate's angles nearest the start).
+    A point without a rewind is one state in the sequence: the step from arriving to leaving
+    it would be zero, and adds nothing to the running sums.
     """
-    n = len(chosen)
-    idx = np.arange(n)
-    seq = np.empty((2 * n, p.values.shape[2]))
-    seq[0::2] = p.values[idx, arrive]
-    seq[1::2] = p.values[idx, chosen]
-    seq[0] = seq[1] = state0[chosen[0]]
-    known = ~np.isnan(seq)
-    fill = np.maximum.accumulate(np.where(known, np.arange(2 * n)[:, None], 0), axis=0)
-    seq = np.take_along_axis(seq, fill, axis=0)
-    cont = p.cont
-    if cont.any():
-        step = _wrap(np.diff(seq[:, cont], axis=0))
-        seq[1:, cont] = seq[0, cont] + np.cumsum(step, axis=0)
-    return seq[1::2], seq[0::2]
+    n, n_cand, r = p.values.shape
+    flat = p.values.reshape(-1, r)
+    at = np.arange(n) * n_cand
+    turn = chosen != arrive  # never at the first point
+    into = out = None
+    if turn.any():
+        into = np.arange(n) + np.cumsum(turn) - turn  # where each arrival is in the sequence
+        out = into + turn
+        seq = np.empty((n + int(turn.sum()), r))
+        seq[into] = np.take(flat, at + arrive, axis=0)
+        seq[out] = np.take(flat, at + chosen, axis=0)
+    else:
+        seq = np.take(flat, at + chosen, axis=0)
+    seq[0] = state0[chosen[0]]
+    for a in range(r):
+        known = ~np.isnan(seq[:, a])
+        if known.all():
+            continue
+        seq[:, a] = seq[np.maximum.accumulate(np.where(known, np.arange(len(seq)), 0)), a]
+    for a in np.flatnonzero(p.cont):
+        col = seq[:, a]
+        col[1:] = col[0] + np.cumsum(_wrap(np.diff(col)))
+    if into is None or out is None:
+        return seq, seq.copy()
+    return seq[out], seq[into]
 
 
 def _greedy(p: _Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -1039,7 +1312,7 @@ def _exclude_colliding_moves(
 def _exclusion_notes(p: _Plan, chosen: np.ndarray, arrive_k: np.ndarray) -> list[str]:
     """One note per run of points where a collision decided the branch."""
     notes: list[str] = []
-    excluded = p.exclude.state.any(axis=1)
+    excluded = _rows_any(p.exclude.state)
     runs = np.flatnonzero(excluded & ~np.r_[False, excluded[:-1]])
     for i in runs:
         k_bad = int(np.flatnonzero(p.exclude.state[i])[0])
@@ -1065,9 +1338,10 @@ def _check_linear(
     """Linear travel at the poles (where it was unknown before the angle was held)."""
     cols = list(machine.linear_columns)
     lo, hi = machine.lower[cols] - _SLACK, machine.upper[cols] + _SLACK
-    bad = ((q[:, cols] < lo) | (q[:, cols] > hi)).any(axis=1) & pole
+    at = np.flatnonzero(pole)
+    bad = ((q[at][:, cols] < lo) | (q[at][:, cols] > hi)).any(axis=1)
     if bad.any():
-        i = int(np.argmax(bad))
+        i = int(at[np.argmax(bad)])
         j = int(np.argmax((q[i, cols] < lo) | (q[i, cols] > hi)))
         a = machine.linear[j]
         raise UnreachableError(

@@ -486,8 +486,11 @@ def assemble(machine: Machine, rotary: np.ndarray, linear: np.ndarray) -> np.nda
     """
     n = rotary.shape[0]
     q = np.empty((n, len(machine.axes)))
-    q[:, list(machine.rotary_columns)] = rotary
-    q[:, list(machine.linear_columns)] = linear
+    rot, lin = list(machine.rotary_columns), list(machine.linear_columns)
+    for sl in _blocks(n):  # (in blocks: what is written stays in the cache)
+        qb = q[sl]
+        qb[:, rot] = rotary[sl]
+        qb[:, lin] = linear[sl]
     return q
 
 
@@ -597,11 +600,10 @@ def inverse(
             pole = block.status == IKStatus.POLE
             tip_b = _coords(tip[sl])
             qb = q[sl]
+            qb[:, :, rot_cols] = block.angles
             for b, ((cos1, sin1), *rest) in enumerate(block.turns):
                 cos1[pole], sin1[pole] = cos_pole, sin_pole
                 lin = _linear_block(chain, ((cos1, sin1), *rest), tip_b, tool_length)
-                for col, value in zip(rot_cols, block.angles[:, b].T, strict=True):
-                    qb[:, b, col] = value
                 for col, value in zip(lin_cols, lin, strict=True):
                     qb[:, b, col] = value
             qb[:, :, rot_cols[0]][pole] = pole_angle
