@@ -971,8 +971,11 @@ class _Comparison:
         ja_pt = np.maximum(before, 0)
         jb_pt = np.maximum(np.where(after < n_cl, after, n_cl - 1), ja_pt)
         polyline = _Polyline.of(cl_tip, toolpath.axis)
-        at_rows = (_sampled_once(rows.tip), _sampled_once(rows.axis))
-        dp2, op2 = _span_deviation(*at_rows, polyline, ja_pt, jb_pt)
+        dp2, op2 = np.empty(len(rows.tip)), np.empty(len(rows.tip))
+        for part in chunks(len(rows.tip), 1):
+            at_rows = (_sampled_once(rows.tip[part]), _sampled_once(rows.axis[part]))
+            d2, c2 = _span_deviation(*at_rows, polyline, ja_pt[part], jb_pt[part])
+            dp2[part], op2[part] = d2[0], c2[0]
         feed_pts = ~rapid | (owner >= 0)
 
         valid = (before[blocks - 1] >= 0) & (after[blocks] < n_cl)
@@ -986,8 +989,8 @@ class _Comparison:
             ja=ja,
             jb=jb,
             valid=None if valid.all() else valid,
-            row_tip=np.sqrt(dp2[0, feed_pts]),
-            row_chord2=op2[0, feed_pts],
+            row_tip=np.sqrt(dp2[feed_pts]),
+            row_chord2=op2[feed_pts],
             row_span=ja_pt[feed_pts],
         )
 
