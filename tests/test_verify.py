@@ -541,9 +541,9 @@ def test_verify_block_bounds_hold(
         )
         blocks = np.arange(len(q) - 1)
         t = np.linspace(0.0, 1.0, samples)
-        outside: list[np.ndarray] = []
-        sampled = feed.errors(blocks, t, outside)
-        tip_bound, chord_bound = feed.bounds(blocks, *sampled, outside[0], t[1] - t[0])
+        first: list = []
+        sampled = feed.errors(blocks, t, first)
+        tip_bound, chord_bound = feed.bounds(blocks, *sampled, first[0], t[1] - t[0])
         dist2, chord2 = feed.errors(blocks, np.linspace(0.0, 1.0, 2001))
         assert np.all(np.sqrt(dist2.max(axis=0)) <= tip_bound + 1e-12)
         assert np.all(np.sqrt(chord2.max(axis=0)) <= chord_bound + 1e-12)

@@ -458,13 +458,23 @@ class _Polyline:
         return segments, arcs
 
 
+@dataclass(frozen=True)
+class _FirstSpan:
+    """The first CL segment and arc of the spans of blocks, and how far the projection
+    parameter of samples on that segment falls outside [0, 1] (shape (s, n); 0 inside)."""
+
+    segments: Segments
+    arcs: Arcs
+    outside: np.ndarray
+
+
 def _span_deviation(
     points: Vec,
     axes: Vec,
     polyline: _Polyline,
     ja: np.ndarray,
     jb: np.ndarray,
-    outside: list[np.ndarray] | None = None,
+    first: list[_FirstSpan] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Distance of sample points from the CL polyline between CL indices ``ja`` and ``jb``, and
     of their tool axes from the CL axis interpolated (slerp) at the nearest place.
@@ -476,9 +486,9 @@ def _span_deviation(
     polyline : _Polyline
     ja, jb : ndarray, shape (n,), int
         CL span of each block (``jb >= ja``).
-    outside : list, optional
-        When given, how far the projection parameter on the span's first segment falls
-        outside [0, 1] is appended to it, an array of shape (s, n).
+    first : list, optional
+        When given, the span's first segment and arc, and how far the projection parameter
+        on that segment falls outside [0, 1], are appended to it (:class:`_FirstSpan`).
 
     Returns
     -------
@@ -497,7 +507,10 @@ def _span_deviation(
         pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
         axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
         seg, arc = polyline.take(a)
-        d2, u = seg.distance2(pts, outside if off == 0 else None)
+        outside: list[np.ndarray] | None = [] if off == 0 and first is not None else None
+        d2, u = seg.distance2(pts, outside)
+        if outside:
+            first.append(_FirstSpan(seg, arc, outside[0]))  # type: ignore[union-attr]
         c2 = arc.chord2(axs, *cos_sin(u * arc.omega))
         if off == 0:
             dist2, chord2 = d2, c2
@@ -541,7 +554,7 @@ class _Blocks:
         self,
         blocks: np.ndarray,
         t: np.ndarray,
-        outside: list[np.ndarray] | None = None,
+        first: list[_FirstSpan] | None = None,
         along: tuple[Vec | None, Vec] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Squared distance and chord (:func:`_span_deviation`) of blocks at parameters t.
@@ -550,7 +563,7 @@ class _Blocks:
         ----------
         blocks : ndarray, shape (k,), int
         t : ndarray, shape (s,) (the same for every block) or (s, k)
-        outside : list, optional
+        first : list, optional
             See :func:`_span_deviation`.
         along : tuple, optional
             :meth:`along` of the same blocks and t, when known.
@@ -576,7 +589,7 @@ class _Blocks:
             self.polyline,
             self.ja[blocks],
             self.jb[blocks],
-            outside,
+            first,
         )
 
     def bounds(
@@ -584,7 +597,7 @@ class _Blocks:
         blocks: np.ndarray,
         dist2: np.ndarray,
         chord2: np.ndarray,
-        outside: np.ndarray,
+        span: _FirstSpan,
         h: float,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Upper bounds on the tip deviation (mm) and on the chord of the axis deviation over
@@ -618,8 +631,9 @@ class _Blocks:
         blocks : ndarray, shape (k,), int
         dist2, chord2 : ndarray, shape (s, k)
             Samples from :meth:`errors`.
-        outside : ndarray, shape (s, k)
-            How far the projection parameter on the first segment falls outside [0, 1] there.
+        span : _FirstSpan
+            The blocks' first CL segments and arcs, and how far the projection parameter falls
+            outside [0, 1] at the samples (from :meth:`errors`).
         h : float
 
         Returns
@@ -638,16 +652,15 @@ class _Blocks:
             tip_speed = chord + abs(self.pivot) * axis_speed
             tip_curv = abs(self.pivot) * axis_curv
         ja = self.ja[blocks]
-        seg, arc = self.polyline.take(ja)
-        inv_length = np.sqrt(seg.inv_dd)  # 0 for a point
-        omega = arc.omega
+        inv_length = np.sqrt(span.segments.inv_dd)  # 0 for a point
+        omega = span.arcs.omega
         spin = omega * tip_speed * inv_length
         g = np.sqrt(chord2)
         room = h * h / 8.0
         tip_bound = np.sqrt(dist2.max(axis=0)) + tip_curv * room
         first = 0.5 * (g[1:] + g[:-1]).max(axis=0) + (axis_speed + spin) * (h / 2.0)
         curv = axis_curv + spin * spin + 2.0 * omega * tip_curv * inv_length
-        second = g.max(axis=0) + 2.0 * omega * outside.max(axis=0) + curv * room
+        second = g.max(axis=0) + 2.0 * omega * span.outside.max(axis=0) + curv * room
         one = self.jb[blocks] - ja <= 1
         return np.where(one, tip_bound, np.inf), np.where(one, np.minimum(first, second), np.inf)
 
@@ -711,8 +724,8 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
         along = feeds[0].along(blocks, t)
         cols = np.arange(len(blocks))
         for f, feed in enumerate(feeds):
-            outside: list[np.ndarray] = []
-            dist2, chord2 = feed.errors(blocks, t, outside, along)
+            first: list[_FirstSpan] = []
+            dist2, chord2 = feed.errors(blocks, t, first, along)
             valid = None if feed.valid is None else feed.valid[part]
             if valid is not None:
                 dist2[:, ~valid] = 0.0
@@ -721,7 +734,7 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
             for i, e in enumerate((dist2, chord2)):
                 worst[f][i][part] = np.argmax(e, axis=0)
                 best[f][i][part] = e[worst[f][i][part], cols]
-            tip_bound, chord_bound = feed.bounds(blocks, dist2, chord2, outside[0], h)
+            tip_bound, chord_bound = feed.bounds(blocks, dist2, chord2, first[0], h)
             if valid is not None:  # blocks not compared are never refined
                 tip_bound[~valid] = -np.inf
                 chord_bound[~valid] = -np.inf
