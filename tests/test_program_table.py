@@ -126,9 +126,9 @@ def build_both(
     seen: dict[str, Any] = {}
     real = pipeline_module._program_body
 
-    def capture(tp, m, tcp, rows, events, comments, rewind_feed):
+    def capture(tp, m, tcp, rows, events, comments, rewind_feed, **piece):
         seen.update(toolpath=tp, rows=rows, events=list(events))
-        return real(tp, m, tcp, rows, events, comments, rewind_feed)
+        return real(tp, m, tcp, rows, events, comments, rewind_feed, **piece)
 
     monkeypatch.setattr(pipeline_module, "_program_body", capture)
     units = options.units or toolpath.units

@@ -42,6 +42,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 TWO_PI = 2.0 * np.pi
+_SAME_ANGLE = 1e-7  # rad: a candidate with the start's angles (continued paths)
 _SLACK = 1e-9  # rad or mm beyond travel still accepted (rounding of limits written in degrees)
 
 DEFAULT_RETRACT = 50.0
@@ -395,6 +396,7 @@ def select(
     cutting: np.ndarray | None = None,
     collision: CollisionWorld | None = None,
     retract: float = DEFAULT_RETRACT,
+    fixed_start: bool = False,
 ) -> Selection:
     """Choose one solution per point (see the module docstring for the rules).
 
@@ -430,6 +432,10 @@ def select(
         excluded; None: no collision checks.
     retract : float, mm
         Lift along the tool axis for a rewind.
+    fixed_start : bool
+        The first point continues a path posted before (a piece of a streamed post): it must
+        take the rotary angles of ``start`` exactly (unwrapped as they are), whatever the
+        preference; ``start`` is required then.
 
     Returns
     -------
@@ -450,6 +456,8 @@ def select(
     lines = np.arange(1, n + 1) if lines is None else np.asarray(lines)
     if prefer is None and machine.settings.prefer is not None:
         prefer = Preference(*machine.settings.prefer)
+    if fixed_start and start is None:
+        raise ValueError("fixed_start needs the joint vector to start from")
     start = machine.home if start is None else np.asarray(start, dtype=float)
     if planner not in ("global", "local"):
         raise ValueError(f"unknown planner {planner!r}; expected 'global' or 'local'")
@@ -503,7 +511,14 @@ def select(
         lines=lines,
         source=source,
         exclude=_Exclusions(state=np.zeros(values.shape[:2], dtype=bool)),
+        fixed_start=fixed_start,
     )
+    if fixed_start and not np.isfinite(problem.first_state()[0]).any():
+        raise UnreachableError(
+            f"{source}:{int(lines[0])}: the path cannot go on from where the part before it "
+            f"ended (rotary {np.degrees(problem.start).round(4).tolist()} deg): no candidate "
+            "there is within travel with those angles"
+        )
     if collision is not None:
         _exclude_colliding_states(problem, collision, ik.q, pole)
         blocked = ~problem.usable().any(axis=1)
@@ -568,6 +583,7 @@ class _Plan:
     lines: np.ndarray
     source: str
     exclude: _Exclusions
+    fixed_start: bool = False  # the first point takes the start's angles (a continued path)
 
     def __post_init__(self) -> None:
         self.cont = np.array([a.continuous for a in self.machine.rotary], dtype=bool)
@@ -671,6 +687,11 @@ class _Plan:
         cont = self.cont
         state[:, cont] += TWO_PI * np.round((self.start[cont] - state[:, cont]) / TWO_PI)
         cost = np.where(self.usable()[0], self.pref_cost[0], np.inf)
+        if self.fixed_start:
+            # only the candidates with the start's angles, which they take exactly
+            same = np.all(np.abs(state - self.start) <= _SAME_ANGLE, axis=1)
+            cost = np.where(same & np.isfinite(cost), 0.0, np.inf)
+            state[same] = self.start
         return cost, state
 
     def steps(self, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -497,6 +497,8 @@ def _program_body(
     events: list[Event],
     comments: list[str],
     rewind_feed: float | None,
+    tcp_on: bool = False,
+    close: bool = True,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -515,6 +517,10 @@ def _program_body(
         The comment before each rewind, in order.
     rewind_feed : float or None
         Feed of a rewind's lift and turn, mm/min; None: rapid.
+    tcp_on : bool
+        TCP is on before the body (a piece of a streamed post that continues one with TCP).
+    close : bool
+        The body ends the program: TCP is switched off at its end.
 
     Returns
     -------
@@ -533,7 +539,7 @@ def _program_body(
     if count:
         starts = np.union1d(starts, [0])
     body: list[Block | MoveTable] = []
-    tcp_state = [False]
+    tcp_state = [tcp_on]
     by_row: dict[int, list[Event]] = {}
     for event, row in zip(events, at.tolist(), strict=True):
         by_row.setdefault(row, []).append(event)
@@ -562,9 +568,30 @@ def _program_body(
         body.append(Comment(REWIND_END))
     for event in by_row.get(count, []):
         body += _event_blocks(event, tcp_state, tcp)
-    if tcp_state[0]:
+    if tcp_state[0] and close:
         body.append(Tcp(on=False))
     return body
+
+
+@dataclass(frozen=True)
+class Continuation:
+    """How a piece of a streamed post joins the pieces around it.
+
+    Attributes
+    ----------
+    start : ndarray or None, shape (m,)
+        Joint vector at the piece's first CL point, which the piece before ended on (its last
+        row, already written): the piece's plan starts from it exactly, and its program leaves
+        that row out. None for the first piece.
+    tcp_on : bool
+        TCP is on where the piece starts.
+    last : bool
+        The piece ends the program (TCP is switched off at its end).
+    """
+
+    start: np.ndarray | None
+    tcp_on: bool
+    last: bool
 
 
 def build_program(
@@ -574,6 +601,8 @@ def build_program(
     tol: Tolerances,
     progress: Callable[[int], None] | None = None,
     plan: Plan | None = None,
+    problem: Problem | None = None,
+    piece: Continuation | None = None,
 ) -> tuple[Program, dict[str, Any]]:
     """The controller-neutral program for a toolpath (no verification).
 
@@ -586,6 +615,12 @@ def build_program(
     progress : callable, optional
     plan : Plan, optional
         The strategy's plan, when already made.
+    problem : Problem, optional
+        The strategy's input, when already made (:func:`make_problem`).
+    piece : Continuation, optional
+        When the toolpath is a piece of a streamed post: where it starts, and whether it ends
+        the program. The program of a piece that continues another has no row for its first
+        CL point (the other's last), and only the last piece switches TCP off at its end.
 
     Returns
     -------
@@ -595,7 +630,11 @@ def build_program(
         (``"plan"``) and the reference path the program follows (``"reference"``).
     """
     units = options.units or toolpath.units
-    problem = make_problem(toolpath, machine, options, tol)
+    if problem is None:
+        problem = make_problem(toolpath, machine, options, tol)
+    continued = piece is not None and piece.start is not None
+    if continued:
+        problem = replace(problem, start=piece.start)
     tool_length = problem.tool_length
     if plan is None:
         plan = STRATEGIES[strategy_name(machine, options)](problem)
@@ -608,7 +647,7 @@ def build_program(
         warnings.append(f"{toolpath.source}: no motion records; the program has no moves")
     first_tool = min((e.index for e in toolpath.events if e.kind == "tool"), default=n + 1)
     tool_events: tuple[Event, ...] = ()
-    if n and first_tool > 0:
+    if n and first_tool > 0 and not continued:
         # controls need a tool (and its length offset) before motion; the CL data has none
         warnings.append(f"{toolpath.source}: no tool change before the first move; tool 1 assumed")
         tool_events = (Event(index=0, kind="tool", line=int(toolpath.line[0]), data={"number": 1}),)
@@ -670,6 +709,16 @@ def build_program(
         is_cl = (src >= 0) & first[np.maximum(src, 0)]
         out_kind = np.where(src >= 0, kind[np.maximum(src, 0)], _CUT)
         rows = _Rows(q=out_q, tip=out_tip, point=group, reaches=is_cl, kind=out_kind)
+        if continued:  # its first row is the last of the piece before, already written
+            assert piece is not None and piece.start is not None
+            if not np.allclose(out_q[0], piece.start, rtol=0.0, atol=1e-9):
+                raise UrdfpostError(
+                    f"{toolpath.source}:{int(toolpath.line[0])}: a streamed piece does not "
+                    "start where the piece before ended (internal error)"
+                )
+            rows = _Rows(
+                q=out_q[1:], tip=out_tip[1:], point=group[1:], reaches=is_cl[1:], kind=out_kind[1:]
+            )
         figures["joints"] = out_q
         figures["joint_lines"] = toolpath.line[group]
         if plan.bent or plan.lift.any():
@@ -693,7 +742,17 @@ def build_program(
     scale = MM_PER_INCH if units == "inch" else 1.0
     rewind_feed = None if options.rewind_feed is None else options.rewind_feed * scale
     comments = [r["comment"] for r in figures.get("rewinds", [])]
-    body = _program_body(toolpath, machine, options.tcp, rows, events, comments, rewind_feed)
+    body = _program_body(
+        toolpath,
+        machine,
+        options.tcp,
+        rows,
+        events,
+        comments,
+        rewind_feed,
+        tcp_on=piece is not None and piece.tcp_on,
+        close=piece is None or piece.last,
+    )
     program = Program(
         name=_program_name(toolpath, options),
         axes=machine.axis_names,

@@ -75,6 +75,10 @@ class Verification:
     worst_cl_line : int or None
         CL line nearest the worst tip deviation.
     tcp : bool
+    notes : list of str
+    compared : int
+        How many deviations the mean is over (kept out of :meth:`as_dict`; merging the
+        verifications of the pieces of a streamed post weighs their means by it).
     """
 
     ok: bool
@@ -91,10 +95,13 @@ class Verification:
     worst_cl_line: int | None
     tcp: bool
     notes: list[str] = field(default_factory=list)
+    compared: int = 0
 
     def as_dict(self) -> dict:
         """Plain data for JSON reports."""
-        return asdict(self)
+        out = asdict(self)
+        del out["compared"]
+        return out
 
     def summary(self, units: str = "mm") -> str:
         """One paragraph for people, lengths in ``units``."""
@@ -1061,4 +1068,5 @@ class _Comparison:
             worst_cl_line=worst_line,
             tcp=program.tcp,
             notes=notes,
+            compared=deviation.count + dp.size,
         )

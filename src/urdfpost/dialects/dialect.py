@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from urdfpost.dialects.reader import read_program
+from urdfpost.dialects.reader import ProgramReader, read_program
 from urdfpost.dialects.spec import ROTARY_ADDRESSES, DialectSpec
-from urdfpost.dialects.writer import write_program
+from urdfpost.dialects.writer import ProgramWriter, program_writer, write_program
 from urdfpost.program import Program
 from urdfpost.tolerances import MM_PER_INCH
 
@@ -76,6 +76,24 @@ class Dialect:
             header=header,
             program_number=program_number,
         )
+
+    def writer(
+        self,
+        program: Program,
+        *,
+        block_numbers: bool | None = None,
+        program_number: int | None = None,
+    ) -> ProgramWriter:
+        """A writer for a program written in pieces: ``open(header)``, then
+        ``write_body(piece)`` for each piece, ``close()``; ``take()`` gives the text written so
+        far. ``program`` (the first piece) gives the name, axes, units and TCP mode; the
+        parameters are those of :meth:`write`."""
+        return program_writer(self.spec, program, block_numbers, program_number)
+
+    def reader(self, path: str = "<string>") -> ProgramReader:
+        """A reader for a program given in pieces (``feed(text, verbatim)``, ``take()``): the
+        counterpart of :meth:`writer`."""
+        return ProgramReader(self.spec, path)
 
     def read(self, text: str, *, path: str = "<string>", verbatim: Iterable[str] = ()) -> Program:
         """Read a program of this control.

@@ -834,45 +834,88 @@ def read_program(
     ProgramParseError
         A line cannot be read.
     """
-    builder = ProgramBuilder(spec, path)
-    parse_line = spec.parse_line or parse_gcode_line
-    trusted = {line.strip() for insert in verbatim for line in insert.splitlines()} - {""}
+    reader = ProgramReader(spec, path)
+    reader.feed(text, verbatim)
+    return reader.take()
 
-    def read_line(number: int, line: str) -> None:
-        builder.line = number
-        content = line.strip()
-        if spec.block_numbers_mandatory:
-            content = re.sub(r"^\d+\s+", "", content)
-        if content in trusted:
-            builder.insert(content)
-        elif content:
-            parse_line(spec, builder, line)
 
-    grammar = _grammar(spec)
-    if grammar is None or _has_other_breaks(text):
-        for number, line in enumerate(text.splitlines(), start=1):
-            read_line(number, line)
-        return builder.build()
-    if "\r" in text:  # one \n per line break: the line numbers of splitlines
-        text = text.replace("\r\n", "\n").replace("\r", "\n")
-    number = 1  # of the first line of the piece
-    start = 0
-    while start < len(text):
-        end = text.find("\n", start + _BULK_PIECE) + 1 or len(text)
-        piece = text[start:end]
-        lines = _bulk.motion_lines(piece, grammar)
-        plain = lines.plain.copy()
-        if trusted:
-            plain &= ~_trusted_lines(piece, lines, trusted, spec.block_numbers_mandatory)
-        edges = [0, *(np.flatnonzero(np.diff(plain)) + 1).tolist(), plain.shape[0]]
-        for row, stop in itertools.pairwise(edges):
-            bulk = bool(plain[row]) and stop - row >= BULK_MIN_LINES
-            if not (bulk and builder.moves(lines, slice(row, stop), number + row)):
-                for r in range(row, stop):
-                    read_line(number + r, piece[lines.starts[r] : lines.ends[r]])
-        number += plain.shape[0]
-        start = end
-    return builder.build()
+class ProgramReader:
+    """Reads a program given in pieces (a streamed post reads back what it writes as it goes).
+
+    Feeding the text of a program in pieces cut at line ends and taking the program read after
+    each gives the blocks :func:`read_program` gives for the whole text, piece by piece: the
+    modal state and the line numbers carry on.
+
+    Parameters
+    ----------
+    spec : DialectSpec
+        The control.
+    path : str
+        File name for error messages.
+    """
+
+    def __init__(self, spec: DialectSpec, path: str = "<string>") -> None:
+        self.spec = spec
+        self.builder = ProgramBuilder(spec, path)
+        self.parse_line = spec.parse_line or parse_gcode_line
+        self.grammar = _grammar(spec)
+        self.lines_read = 0
+
+    def feed(self, text: str, verbatim: Iterable[str] = ()) -> None:
+        """Read the next piece of the text (whole lines), with the verbatim texts of its
+        :class:`Insert` blocks (see :func:`read_program`).
+
+        Raises
+        ------
+        ProgramParseError
+            A line that cannot be read (numbered within the whole text fed so far).
+        """
+        spec, builder, parse_line = self.spec, self.builder, self.parse_line
+        trusted = {line.strip() for insert in verbatim for line in insert.splitlines()} - {""}
+
+        def read_line(number: int, line: str) -> None:
+            builder.line = number
+            content = line.strip()
+            if spec.block_numbers_mandatory:
+                content = re.sub(r"^\d+\s+", "", content)
+            if content in trusted:
+                builder.insert(content)
+            elif content:
+                parse_line(spec, builder, line)
+
+        grammar = self.grammar
+        if grammar is None or _has_other_breaks(text):
+            lines = text.splitlines()
+            for number, line in enumerate(lines, start=self.lines_read + 1):
+                read_line(number, line)
+            self.lines_read += len(lines)
+            return
+        if "\r" in text:  # one \n per line break: the line numbers of splitlines
+            text = text.replace("\r\n", "\n").replace("\r", "\n")
+        number = self.lines_read + 1  # of the first line of the piece
+        start = 0
+        while start < len(text):
+            end = text.find("\n", start + _BULK_PIECE) + 1 or len(text)
+            piece = text[start:end]
+            lines = _bulk.motion_lines(piece, grammar)
+            plain = lines.plain.copy()
+            if trusted:
+                plain &= ~_trusted_lines(piece, lines, trusted, spec.block_numbers_mandatory)
+            edges = [0, *(np.flatnonzero(np.diff(plain)) + 1).tolist(), plain.shape[0]]
+            for row, stop in itertools.pairwise(edges):
+                bulk = bool(plain[row]) and stop - row >= BULK_MIN_LINES
+                if not (bulk and builder.moves(lines, slice(row, stop), number + row)):
+                    for r in range(row, stop):
+                        read_line(number + r, piece[lines.starts[r] : lines.ends[r]])
+            number += plain.shape[0]
+            start = end
+        self.lines_read = number - 1
+
+    def take(self) -> Program:
+        """The blocks read since the last call, as a program (its axes: those seen so far)."""
+        program = self.builder.build()
+        self.builder.items = []
+        return program
 
 
 def _trusted_lines(

@@ -154,6 +154,15 @@ class ProgramWriter:
 
     def write(self, header: str | None) -> str:
         """The whole program text, ending with a newline."""
+        self.open(header)
+        self.write_body()
+        self.close()
+        text = "\n".join(self.lines) + "\n"
+        self.lines = []
+        return text
+
+    def open(self, header: str | None) -> None:
+        """Write the program start: its opening, name and ``header`` comments and the setup."""
         spec = self.spec
         self.emit_templates(spec.program_open, spec.number_frame)
         if spec.name_comment:
@@ -164,6 +173,28 @@ class ProgramWriter:
         rotary_continuous = self.program.continuous & frozenset(self.program.axes)
         if spec.shortest_path and rotary_continuous & self.program.rotary:
             self.emit(spec.shortest_path)
+
+    def write_body(self, program: Program | None = None) -> None:
+        """Write the blocks of ``program`` (default: the program given at construction).
+
+        A program written in pieces (a streamed post) passes each piece in turn, between
+        :meth:`open` and :meth:`close`: the modal state and the block numbers carry on, so
+        the text is the one the pieces would make as one program. The pieces must have the
+        axes, units and TCP mode of the first.
+        """
+        if program is not None:
+            if (program.axes, program.units, program.tcp) != (
+                self.program.axes,
+                self.program.units,
+                self.program.tcp,
+            ):
+                raise DialectError(
+                    f"a piece of program {self.program.name} has axes {program.axes}, units "
+                    f"{program.units}, TCP {program.tcp}; the program has "
+                    f"{self.program.axes}, {self.program.units}, TCP {self.program.tcp}"
+                )
+            self.program = program
+            self._merges = {}
         self._plan_spindle_merges()
         parts = self.program.parts  # runs of moves as tables (or Move objects)
         is_move = np.fromiter(map(isinstance, parts, itertools.repeat(Move)), bool, len(parts))
@@ -180,9 +211,19 @@ class ProgramWriter:
                         self.write_moves(part)
                     else:
                         self.write_block(index, part)
-        self.emit_templates(spec.finish)
-        self.emit_templates(spec.program_close, spec.number_frame)
-        return "\n".join(self.lines) + "\n"
+
+    def close(self) -> None:
+        """Write the program end."""
+        self.emit_templates(self.spec.finish)
+        self.emit_templates(self.spec.program_close, self.spec.number_frame)
+
+    def take(self) -> str:
+        """The lines written since the last call, each ending with a newline ("" if none)."""
+        if not self.lines:
+            return ""
+        text = "\n".join(self.lines) + "\n"
+        self.lines = []
+        return text
 
     def _check_program(self) -> None:
         axes = self.program.axes
@@ -624,9 +665,16 @@ def write_program(
     DialectError
         The program cannot be written for this control.
     """
+    return program_writer(spec, program, block_numbers, program_number).write(header)
+
+
+def program_writer(
+    spec: DialectSpec, program: Program, block_numbers: bool | None, program_number: int | None
+) -> ProgramWriter:
+    """A :class:`ProgramWriter` with the control's block numbering rules applied (see
+    :func:`write_program` for the parameters)."""
     if block_numbers is None:
         block_numbers = spec.block_numbers_default or spec.block_numbers_mandatory
     if spec.block_numbers_mandatory and not block_numbers:
         raise DialectError(f"{spec.name} programs are always numbered")
-    writer = ProgramWriter(spec, program, block_numbers, program_number)
-    return writer.write(header)
+    return ProgramWriter(spec, program, block_numbers, program_number)

@@ -100,6 +100,9 @@ class Problem:
         Branch candidates and moves that collide are excluded (None: not checked).
     retract : float, mm
         Lift along the tool axis for a rewind.
+    start : ndarray or None, shape (m,)
+        Joint vector the path continues from (a piece of a streamed post): the first point
+        takes its rotary angles exactly. None: the path starts afresh from home.
     """
 
     machine: Machine
@@ -113,6 +116,7 @@ class Problem:
     lift: float = 0.0
     collision: CollisionWorld | None = None
     retract: float = DEFAULT_RETRACT
+    start: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -188,6 +192,8 @@ def exact_selection(problem: Problem, toolpath: Toolpath, planner: str | None = 
         cutting=toolpath.motion == Motion.FEED,
         collision=problem.collision,
         retract=problem.retract,
+        start=problem.start,
+        fixed_start=problem.start is not None,
     )
 
 

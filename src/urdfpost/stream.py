@@ -1,0 +1,494 @@
+"""Posting in pieces: a long job in bounded memory, written and verified as it goes.
+
+:func:`post_stream` takes the CL data as consecutive pieces (from
+:func:`urdfpost.readers.read_cl_chunks`, or slices of one toolpath) and posts them one piece of
+about ``piece_points`` CL points at a time. Nothing of the whole job is held but what the
+figures need, so memory depends on the piece size and not on the length of the job.
+
+How the pieces join:
+
+- **Planning** sees ahead. Each piece is planned over a window of ``lookahead`` more CL points
+  than it posts (the singularity strategy, branch choice and rewinds as in :func:`post`), and
+  only the part up to the cut is kept. The cut is a CL point where nothing spans it: a feed
+  move on both sides, no CL event there, no singular span or lift within a point of it, the
+  tool axis away from the poles and as programmed (not bent by the strategy), and one program
+  row there. The next window starts at that point, which takes the angles the piece before
+  chose exactly (``fixed_start`` of :func:`urdfpost.branches.select`), so the joint path is
+  continuous and no rewind or branch switch appears at a cut. The branch choice at a cut is
+  the best one over the window, which sees ``lookahead`` points past it: where the best choice
+  over the whole job would differ (a travel limit further ahead that the other branch avoids)
+  the streamed program rewinds later instead. A strategy that shapes a whole feed run (``cone``)
+  shapes the two halves of a run cut in two on their own. Either way the program is checked
+  like any other, and on jobs without such cases the text is the one :func:`post` writes.
+- **Writing** is one program: the control's writer keeps its modal state and block numbers
+  from piece to piece, and the text goes to a temporary file beside the output, renamed into
+  place when the last piece is verified (nothing is left behind on an error).
+- **Verification** reads back each piece's text with one reader (its modal state carries on
+  too) and checks it against the piece's CL points, starting from the last row of the piece
+  before: every block of the program is checked once. The figures are merged.
+
+Figures that depend on the whole job are taken from the first window: the program name
+(``PARTNO``), the ball radius of the first cutter and the tool of the collision world.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from urdfpost.errors import ToleranceError, UrdfpostError
+from urdfpost.linearize import angle_between
+from urdfpost.machine import Machine
+from urdfpost.pipeline import (
+    Continuation,
+    PostOptions,
+    build_program,
+    check_collisions,
+    check_program,
+    make_problem,
+    make_report,
+    strategy_name,
+)
+from urdfpost.program import Blocks, Insert, MoveTable, Program
+from urdfpost.singularity.strategies import STRATEGIES, Plan, tool_axis_of
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Motion, Toolpath
+from urdfpost.verify import Verification
+
+log = logging.getLogger(__name__)
+
+PIECE_POINTS = 500_000
+"""CL points posted per piece by default."""
+
+LOOKAHEAD = 50_000
+"""CL points a piece's plan sees past its end by default."""
+
+
+@dataclass(frozen=True)
+class StreamResult:
+    """What :func:`post_stream` produced.
+
+    Attributes
+    ----------
+    path : Path
+        The program file written.
+    verification : Verification
+        Of the whole program read back, against the CL data (the pieces' checks merged).
+    report : dict
+        As :func:`urdfpost.pipeline.post` reports, with ``streamed`` figures (pieces, piece
+        size, lookahead).
+    """
+
+    path: Path
+    verification: Verification
+    report: dict[str, Any]
+
+
+# -- toolpath pieces -----------------------------------------------------------------------------
+
+
+def toolpath_slice(toolpath: Toolpath, a: int, b: int, *, first_events: bool = True) -> Toolpath:
+    """Points ``a`` to ``b - 1`` of a toolpath, with their events re-indexed.
+
+    The events before points ``a + 1 .. b - 1`` come along, those before point ``a`` when
+    ``first_events``, and those after the last point when ``b`` is the end. Array views, no
+    copies.
+    """
+    n = len(toolpath)
+    lo = a if first_events else a + 1
+    events = tuple(
+        replace(e, index=e.index - a)
+        for e in toolpath.events
+        if lo <= e.index < b or (b == n and e.index == n)
+    )
+    return replace(
+        toolpath,
+        tip=toolpath.tip[a:b],
+        axis=toolpath.axis[a:b],
+        feed=toolpath.feed[a:b],
+        motion=toolpath.motion[a:b],
+        line=toolpath.line[a:b],
+        events=events,
+    )
+
+
+def toolpath_pieces(toolpath: Toolpath, points: int) -> Iterator[Toolpath]:
+    """A toolpath as consecutive pieces of at most ``points`` points (the form
+    :func:`urdfpost.readers.read_cl_chunks` gives; for jobs already in memory, and tests)."""
+    n = len(toolpath)
+    if n == 0:
+        yield toolpath
+        return
+    for a in range(0, n, points):
+        b = min(a + points, n)
+        piece = toolpath_slice(toolpath, a, b)
+        yield replace(piece, warnings=toolpath.warnings if a == 0 else ())
+
+
+def _joined(a: Toolpath, b: Toolpath) -> Toolpath:
+    """Toolpath ``b`` appended to ``a`` (events of ``a`` after its last point come before
+    ``b``'s first)."""
+    n = len(a)
+    return replace(
+        b,
+        tip=np.concatenate([a.tip, b.tip]),
+        axis=np.concatenate([a.axis, b.axis]),
+        feed=np.concatenate([a.feed, b.feed]),
+        motion=np.concatenate([a.motion, b.motion]),
+        line=np.concatenate([a.line, b.line]),
+        events=a.events + tuple(replace(e, index=e.index + n) for e in b.events),
+        warnings=a.warnings + b.warnings,
+    )
+
+
+# -- where a piece ends --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Cut:
+    point: int  # CL index in the window
+    plan: Plan  # the plan up to it
+
+
+def _cut(window: Toolpath, plan: Plan, target: int, machine: Machine, tol: Tolerances) -> _Cut:
+    """The last CL point at or before ``target`` where a piece can end (module docstring),
+    and the window's plan up to it.
+
+    Raises
+    ------
+    UrdfpostError
+        No such point in the second half of the piece.
+    """
+    n = len(window)
+    hi = min(target, n - 2)
+    lo = max(1, target // 2)
+    c = np.arange(lo, hi + 1)
+    line, motion = window.line, window.motion
+    ok = (motion[c] == Motion.FEED) & (motion[c + 1] == Motion.FEED)
+    ok &= (line[c - 1] < line[c]) & (line[c] < line[c + 1])
+    events = np.array([e.index for e in window.events], dtype=np.int64)
+    ok &= ~np.isin(c, events) & ~np.isin(c + 1, events)
+    if machine.rotary:  # the tool axis well away from the poles of the first rotary axis
+        cos_pole = np.abs(window.axis[c] @ machine.rotary[0].direction)
+        ok &= cos_pole < np.cos(10.0 * max(tol.pole, tol.pole_crossing))
+    tp, param = plan.toolpath, plan.param
+    spans = [(s.first, s.last) for s in plan.spans]
+    for point in c[ok][::-1].tolist():
+        at = int(np.searchsorted(tp.line, line[point], side="right")) - 1
+        if at < 1 or at >= len(tp) - 1 or tp.line[at] != line[point]:
+            continue
+        if not (
+            np.array_equal(tp.tip[at], window.tip[point])
+            and np.array_equal(tp.axis[at], window.axis[point])
+        ):
+            continue  # moved by the strategy
+        if any(first - 1 <= at <= last + 1 for first, last in spans):
+            continue
+        rows = np.flatnonzero(param == at)
+        if len(rows) != 1:
+            continue  # a turn in place or a rewind there
+        r = int(rows[0])
+        if plan.lift[max(r - 1, 0) : r + 2].any():
+            continue
+        if angle_between(tool_axis_of(machine, plan.rotary[r : r + 1]), tp.axis[at])[0] > 1e-9:
+            continue  # the strategy bent the tool axis there: the next piece starts exact
+        kept = replace(
+            plan,
+            toolpath=toolpath_slice(tp, 0, at + 1),
+            param=param[: r + 1],
+            rotary=plan.rotary[: r + 1],
+            lift=plan.lift[: r + 1],
+            spans=[s for s in plan.spans if s.last < at],
+        )
+        return _Cut(point=point, plan=kept)
+    raise UrdfpostError(
+        f"{window.source}: no CL point between lines {int(line[lo])} and {int(line[hi])} where "
+        "a streamed piece can end (each is an event, a rapid move, near a pole or in a "
+        "singular span); post with larger pieces"
+    )
+
+
+# -- merging the figures -------------------------------------------------------------------------
+
+
+def merge_verifications(parts: list[Verification]) -> Verification:
+    """One verification of the pieces' checks of a streamed program.
+
+    Each piece after the first starts with the CL point and the program row the piece before
+    ended with: they are counted once.
+    """
+    first = parts[0]
+    joins = len(parts) - 1
+    missed: list[int] = []
+    for v in parts:
+        lines = v.missed_lines
+        if missed and lines and lines[0] == missed[-1]:
+            lines = lines[1:]  # the point at a join, missed in both pieces
+        missed += lines
+    cl_points = sum(v.cl_points for v in parts) - joins
+    worst = max(parts, key=lambda v: v.max_tip_deviation)
+    compared = sum(v.compared for v in parts)
+    mean = sum(v.mean_tip_deviation * v.compared for v in parts) / max(compared, 1)
+    steps: dict[str, float] = {}
+    for v in parts:
+        for k, x in v.max_rotary_step_deg.items():
+            steps[k] = max(steps.get(k, 0.0), x)
+    notes: list[str] = []
+    for v in parts:
+        notes += [x for x in v.notes if x not in notes]
+    return replace(
+        first,
+        ok=all(v.ok for v in parts),
+        cl_points=cl_points,
+        reached=cl_points - len(missed),
+        missed_lines=missed,
+        blocks=sum(v.blocks for v in parts) - joins,
+        max_tip_deviation=worst.max_tip_deviation,
+        mean_tip_deviation=float(mean),
+        max_orientation_deviation_deg=max(v.max_orientation_deviation_deg for v in parts),
+        max_rotary_step_deg=steps,
+        worst_cl_line=worst.worst_cl_line,
+        notes=notes,
+        compared=compared,
+    )
+
+
+class _Figures:
+    """The report figures of the pieces, added up."""
+
+    def __init__(self) -> None:
+        self.figures: dict[str, Any] = {}
+        self.collisions: list[dict[str, Any]] = []
+
+    def add(self, figures: dict[str, Any], collisions: dict[str, Any]) -> None:
+        f = self.figures
+        for key in ("branch_switches", "pole_points", "inserted_blocks", "pole_turns"):
+            f[key] = f.get(key, 0) + int(figures.get(key, 0))
+        f.setdefault("rewinds", []).extend(figures.get("rewinds", []))
+        strategy = dict(figures["strategy"])
+        if "strategy" not in f:
+            f["strategy"] = strategy
+        else:
+            s = f["strategy"]
+            s["bent"] = bool(s["bent"] or strategy["bent"])
+            s["lifts"] += strategy["lifts"]
+            s["spans"] += strategy["spans"]
+        warnings = f.setdefault("warnings", [])
+        warnings += [w for w in figures.get("warnings", []) if w not in warnings]
+        self.collisions.append(collisions)
+
+    def collision_figures(self) -> dict[str, Any]:
+        checked = [c for c in self.collisions if c.get("checked")]
+        if not checked:
+            return {"checked": False}
+        out = dict(
+            min(checked, key=lambda c: np.inf if c["min_clearance"] is None else c["min_clearance"])
+        )
+        out["moves"] = sum(c["moves"] for c in checked)
+        out["samples"] = sum(c["samples"] for c in checked)
+        out["clearance_points"] = sum(c["clearance_points"] for c in checked)
+        return out
+
+
+# -- the post ------------------------------------------------------------------------------------
+
+
+def _prepended(program: Program, axes: tuple[str, ...], row: np.ndarray) -> Program:
+    """``program`` with a first move at ``row`` (positions of ``axes``): where the piece before
+    ended, so that the first block of the piece is checked too."""
+    position = np.array([row[axes.index(a)] if a in axes else np.nan for a in program.axes])
+    start = MoveTable(position[None, :], np.zeros(1, bool), np.full(1, np.nan), np.full(1, -1))
+    return replace(program, blocks=Blocks((start, *program.parts)))
+
+
+def post_stream(
+    pieces: Iterable[Toolpath],
+    machine: Machine,
+    out: str | os.PathLike[str],
+    options: PostOptions | None = None,
+    *,
+    piece_points: int = PIECE_POINTS,
+    lookahead: int = LOOKAHEAD,
+    progress: Callable[[int], None] | None = None,
+) -> StreamResult:
+    """Post CL data given in pieces to a program file, a piece at a time (module docstring).
+
+    Parameters
+    ----------
+    pieces : iterable of Toolpath
+        Consecutive pieces of one job (:func:`urdfpost.readers.read_cl_chunks`), any sizes.
+    machine : Machine
+    out : path
+        The program file; written only when the whole program is verified.
+    options : PostOptions, optional
+    piece_points : int
+        CL points posted per piece (the last may be up to ``lookahead`` longer).
+    lookahead : int
+        CL points past a piece's end its plan takes into account.
+    progress : callable, optional
+        Called with the number of CL points just posted.
+
+    Returns
+    -------
+    StreamResult
+
+    Raises
+    ------
+    UnreachableError, CollisionError, ToleranceError, UrdfpostError
+        As :func:`urdfpost.pipeline.post`; nothing is written then.
+    ValueError
+        ``piece_points`` under 2 or ``lookahead`` under 1.
+    """
+    from urdfpost.dialects import dialect_for
+
+    if piece_points < 2 or lookahead < 1:
+        raise ValueError(
+            f"piece_points must be at least 2 and lookahead at least 1, got {piece_points} and "
+            f"{lookahead}"
+        )
+    options = options or PostOptions()
+    out = Path(out)
+    dialect = dialect_for(options.controller or machine.settings.controller)
+    source = iter(pieces)
+    buffer = next(source, None)
+    if buffer is None:
+        raise ValueError("post_stream: no toolpath pieces given")
+    exhausted = False
+    units = options.units or buffer.units
+    tol = Tolerances.for_units(units, options.tolerance)
+    base = None
+    writer = None
+    reader = dialect.reader(path=str(out))
+    checks: list[Verification] = []
+    intents: list[Verification] = []
+    figures = _Figures()
+    start: np.ndarray | None = None
+    previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes and last row read back
+    first_piece: Toolpath | None = None
+    last_piece: Toolpath | None = None
+    reader_warnings: list[str] = []
+    program: Program | None = None
+    count = 0
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
+    tmp = Path(tmp_name)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+            while True:
+                while not exhausted and len(buffer) < piece_points + lookahead:
+                    more = next(source, None)
+                    if more is None:
+                        exhausted = True
+                    else:
+                        reader_warnings += more.warnings
+                        buffer = _joined(buffer, replace(more, warnings=()))
+                if first_piece is None:
+                    reader_warnings = list(buffer.warnings) + reader_warnings
+                    buffer = replace(buffer, warnings=())
+                last = exhausted and len(buffer) <= piece_points + lookahead
+                window = buffer if last else toolpath_slice(buffer, 0, piece_points + lookahead)
+                if base is None:
+                    base = make_problem(window, machine, options, tol)
+                problem = replace(base, toolpath=window, start=start)
+                plan = STRATEGIES[strategy_name(machine, options)](problem)
+                if last:
+                    piece, cut = window, len(window) - 1
+                else:
+                    c = _cut(window, plan, piece_points, machine, tol)
+                    cut, plan = c.point, c.plan
+                    piece = toolpath_slice(window, 0, cut + 1)
+                first_piece = first_piece or piece
+                last_piece = piece
+                continuation = Continuation(
+                    start=start, tcp_on=start is not None and options.tcp, last=last
+                )
+                program, found = build_program(
+                    piece,
+                    machine,
+                    options,
+                    tol,
+                    plan=plan,
+                    problem=replace(problem, toolpath=piece),
+                    piece=continuation,
+                )
+                collisions = check_collisions(found, piece, units)
+                if writer is None:
+                    writer = dialect.writer(program, block_numbers=options.block_numbers or None)
+                    header = None
+                    if not options.tcp:
+                        header = (
+                            f"machine coordinates for machine {machine.name} with tool length "
+                            f"{program.tool_length:.3f} mm from the gauge point: the tool "
+                            "table length must be 0"
+                        )
+                    writer.open(header)
+                writer.write_body(program)
+                if last:
+                    writer.close()
+                text = writer.take()
+                reader.feed(text, [b.text for b in program.parts if isinstance(b, Insert)])
+                readback = reader.take()
+                if previous is not None:
+                    readback = _prepended(readback, *previous)
+                check, intent = check_program(
+                    readback, machine, piece, found, tol, program.tool_length
+                )
+                for v, what in ((intent, "the path its strategy intended"), (check, "the CL data")):
+                    if v is not None and not v.ok:
+                        raise ToleranceError(
+                            f"{piece.source}: the program misses its tolerance against {what} "
+                            f"(lines {int(piece.line[0])} to {int(piece.line[-1])}), nothing "
+                            f"written: {v.summary(units)}"
+                            + (f"; worst near CL line {v.worst_cl_line}" if v.worst_cl_line else "")
+                        )
+                handle.write(text)
+                checks.append(check)
+                if intent is not None:
+                    intents.append(intent)
+                figures.add(found, collisions)
+                table = readback.move_table()
+                if len(table):
+                    previous = (readback.axes, np.asarray(table.position[-1]))
+                if "joints" in found and len(found["joints"]):
+                    start = found["joints"][-1]
+                count += 1
+                if progress:
+                    progress(len(piece) - (1 if count > 1 else 0))
+                if last:
+                    break
+                buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)
+                log.info(
+                    "streamed piece %d: CL lines %d to %d", count, piece.line[0], piece.line[-1]
+                )
+        verification = merge_verifications(checks)
+        assert program is not None and first_piece is not None and last_piece is not None
+        merged = dict(figures.figures)
+        merged["warnings"] = merged.get("warnings", [])
+        job = replace(last_piece, warnings=tuple(reader_warnings))
+        report = make_report(job, machine, program, verification, dialect.name, merged)
+        report["collisions"] = figures.collision_figures()
+        if intents:
+            report["strategy"]["intended_path_check"] = merge_verifications(intents).as_dict()
+        report["streamed"] = {"pieces": count, "piece_points": piece_points, "lookahead": lookahead}
+        os.replace(tmp, out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return StreamResult(path=out, verification=verification, report=report)
+
+
+__all__ = [
+    "LOOKAHEAD",
+    "PIECE_POINTS",
+    "StreamResult",
+    "merge_verifications",
+    "post_stream",
+    "toolpath_pieces",
+    "toolpath_slice",
+]
