@@ -13,7 +13,7 @@ import logging
 import os
 import sys
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +25,8 @@ from urdfpost.errors import UrdfpostError
 log = logging.getLogger("urdfpost")
 
 MAX_WARNINGS_SHOWN = 20
+_PIECE_POINTS = 500_000  # (urdfpost.stream.PIECE_POINTS, not imported at start-up)
+_STREAM_BYTES = 256 << 20  # CL files larger than this are posted in pieces by default
 
 
 def _write_atomic(files: dict[Path, str]) -> None:
@@ -74,6 +76,34 @@ def _read_cl(args: argparse.Namespace, machine: Any) -> Any:
         chord = Tolerances.for_units(toolpath.units, args.tolerance).chord
         toolpath = read_cl(args.cl, format=args.format, units=units, chord_tolerance=chord)
     return toolpath
+
+
+def _read_cl_pieces(
+    args: argparse.Namespace, machine: Any, points: int
+) -> tuple[Any, Iterator[Any]]:
+    """The CL file as pieces of at most ``points`` points, read as they are needed.
+
+    Returns the first piece (for the units) and an iterator over all of them, the first
+    included; as :func:`_read_cl` for the units and the chord tolerance.
+    """
+    import itertools
+
+    from urdfpost.readers import read_cl_chunks
+    from urdfpost.tolerances import Tolerances
+
+    units = args.units or machine.settings.units
+
+    def pieces(chord: float) -> Iterator[Any]:
+        return read_cl_chunks(
+            args.cl, max_points=points, format=args.format, units=units, chord_tolerance=chord
+        )
+
+    chunks = pieces(Tolerances.for_units(units, args.tolerance).chord)
+    first = next(chunks)
+    if first.units != units:
+        chunks = pieces(Tolerances.for_units(first.units, args.tolerance).chord)
+        first = next(chunks)
+    return first, itertools.chain([first], chunks)
 
 
 def _length(value: str) -> float:
@@ -210,6 +240,14 @@ def build_parser() -> argparse.ArgumentParser:
     po.add_argument("--block-numbers", action="store_true", help="number the blocks")
     po.add_argument("--name", help="program name (default: PARTNO or URDFPOST)")
     po.add_argument("--report", help="write a JSON report here")
+    po.add_argument(
+        "--piece-points",
+        type=int,
+        metavar="N",
+        help="post in pieces of about N CL points, read, written and verified one at a time "
+        "(bounded memory for long jobs); 0: never. Default: pieces of "
+        f"{_PIECE_POINTS} points when the CL file is over {_STREAM_BYTES >> 20} MB",
+    )
     _planning_arguments(po)
     po.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
@@ -321,7 +359,16 @@ def _cmd_post(args: argparse.Namespace) -> int:
     from urdfpost.tolerances import MM_PER_INCH
 
     machine = load_machine(args.machine)
-    toolpath = _read_cl(args, machine)
+    pieces = args.piece_points
+    if pieces is None:
+        size = Path(args.cl).stat().st_size if Path(args.cl).is_file() else 0
+        pieces = _PIECE_POINTS if size > _STREAM_BYTES else 0
+    if pieces < 0 or pieces == 1:
+        raise UrdfpostError(f"--piece-points: expected 0 or at least 2, got {pieces}")
+    if pieces:
+        toolpath, chunks = _read_cl_pieces(args, machine, pieces)
+    else:
+        toolpath, chunks = _read_cl(args, machine), None
     units = toolpath.units
     scale = MM_PER_INCH if units == "inch" else 1.0
     dialect = dialect_for(
@@ -347,18 +394,25 @@ def _cmd_post(args: argparse.Namespace) -> int:
         holder_diameter=args.holder_diameter,
         holder_length=args.holder_length,
     )
+    out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     with tqdm(
-        total=len(toolpath),
+        total=None if chunks is not None else len(toolpath),
         unit="pt",
         desc="posting",
         disable=args.quiet or None,
         file=sys.stderr,
         leave=False,
     ) as bar:
-        result = post(toolpath, machine, options, progress=bar.update)
+        if chunks is not None:
+            from urdfpost.stream import post_stream
+
+            result = post_stream(
+                chunks, machine, out, options, piece_points=pieces, progress=bar.update
+            )
+        else:
+            result = post(toolpath, machine, options, progress=bar.update)
     _show_warnings(result.report["warnings"])
-    out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
-    files = {out: result.text}
+    files = {} if chunks is not None else {out: result.text}
     if args.report:
         files[Path(args.report)] = json.dumps(result.report, indent=2) + "\n"
     _write_atomic(files)

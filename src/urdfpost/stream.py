@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from urdfpost.errors import ToleranceError, UrdfpostError
+from urdfpost.errors import ToleranceError
 from urdfpost.linearize import angle_between
 from urdfpost.machine import Machine
 from urdfpost.pipeline import (
@@ -68,7 +68,8 @@ PIECE_POINTS = 500_000
 """CL points posted per piece by default."""
 
 LOOKAHEAD = 50_000
-"""CL points a piece's plan sees past its end by default."""
+"""CL points a piece's plan sees past its end, at most, by default (a fifth of the piece below
+five times this)."""
 
 
 @dataclass(frozen=True)
@@ -132,19 +133,24 @@ def toolpath_pieces(toolpath: Toolpath, points: int) -> Iterator[Toolpath]:
         yield replace(piece, warnings=toolpath.warnings if a == 0 else ())
 
 
-def _joined(a: Toolpath, b: Toolpath) -> Toolpath:
-    """Toolpath ``b`` appended to ``a`` (events of ``a`` after its last point come before
-    ``b``'s first)."""
-    n = len(a)
+def _joined(first: Toolpath, more: list[Toolpath]) -> Toolpath:
+    """Toolpaths appended to ``first`` (events after the last point of one come before the
+    first point of the next)."""
+    parts = [first, *more]
+    offsets = np.cumsum([0, *(len(p) for p in parts)])
     return replace(
-        b,
-        tip=np.concatenate([a.tip, b.tip]),
-        axis=np.concatenate([a.axis, b.axis]),
-        feed=np.concatenate([a.feed, b.feed]),
-        motion=np.concatenate([a.motion, b.motion]),
-        line=np.concatenate([a.line, b.line]),
-        events=a.events + tuple(replace(e, index=e.index + n) for e in b.events),
-        warnings=a.warnings + b.warnings,
+        more[-1],
+        tip=np.concatenate([p.tip for p in parts]),
+        axis=np.concatenate([p.axis for p in parts]),
+        feed=np.concatenate([p.feed for p in parts]),
+        motion=np.concatenate([p.motion for p in parts]),
+        line=np.concatenate([p.line for p in parts]),
+        events=tuple(
+            replace(e, index=e.index + int(at))
+            for p, at in zip(parts, offsets, strict=False)
+            for e in p.events
+        ),
+        warnings=tuple(w for p in parts for w in p.warnings),
     )
 
 
@@ -157,18 +163,15 @@ class _Cut:
     plan: Plan  # the plan up to it
 
 
-def _cut(window: Toolpath, plan: Plan, target: int, machine: Machine, tol: Tolerances) -> _Cut:
+def _cut(
+    window: Toolpath, plan: Plan, target: int, machine: Machine, tol: Tolerances
+) -> _Cut | None:
     """The last CL point at or before ``target`` where a piece can end (module docstring),
-    and the window's plan up to it.
-
-    Raises
-    ------
-    UrdfpostError
-        No such point in the second half of the piece.
+    and the window's plan up to it; None when there is none.
     """
     n = len(window)
     hi = min(target, n - 2)
-    lo = max(1, target // 2)
+    lo = 1
     c = np.arange(lo, hi + 1)
     line, motion = window.line, window.motion
     ok = (motion[c] == Motion.FEED) & (motion[c + 1] == Motion.FEED)
@@ -208,11 +211,7 @@ def _cut(window: Toolpath, plan: Plan, target: int, machine: Machine, tol: Toler
             spans=[s for s in plan.spans if s.last < at],
         )
         return _Cut(point=point, plan=kept)
-    raise UrdfpostError(
-        f"{window.source}: no CL point between lines {int(line[lo])} and {int(line[hi])} where "
-        "a streamed piece can end (each is an event, a rapid move, near a pole or in a "
-        "singular span); post with larger pieces"
-    )
+    return None
 
 
 # -- merging the figures -------------------------------------------------------------------------
@@ -315,7 +314,7 @@ def post_stream(
     options: PostOptions | None = None,
     *,
     piece_points: int = PIECE_POINTS,
-    lookahead: int = LOOKAHEAD,
+    lookahead: int | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> StreamResult:
     """Post CL data given in pieces to a program file, a piece at a time (module docstring).
@@ -330,8 +329,9 @@ def post_stream(
     options : PostOptions, optional
     piece_points : int
         CL points posted per piece (the last may be up to ``lookahead`` longer).
-    lookahead : int
-        CL points past a piece's end its plan takes into account.
+    lookahead : int, optional
+        CL points past a piece's end its plan takes into account; default a fifth of
+        ``piece_points``, at most :data:`LOOKAHEAD`.
     progress : callable, optional
         Called with the number of CL points just posted.
 
@@ -348,6 +348,8 @@ def post_stream(
     """
     from urdfpost.dialects import dialect_for
 
+    if lookahead is None:
+        lookahead = max(1, min(LOOKAHEAD, piece_points // 5))
     if piece_points < 2 or lookahead < 1:
         raise ValueError(
             f"piece_points must be at least 2 and lookahead at least 1, got {piece_points} and "
@@ -380,19 +382,24 @@ def post_stream(
     tmp = Path(tmp_name)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+            want = piece_points  # CL points of the next piece (more where no cut was found)
             while True:
-                while not exhausted and len(buffer) < piece_points + lookahead:
+                pending, have = [], len(buffer)
+                while not exhausted and have < want + lookahead:
                     more = next(source, None)
                     if more is None:
                         exhausted = True
                     else:
                         reader_warnings += more.warnings
-                        buffer = _joined(buffer, replace(more, warnings=()))
+                        pending.append(replace(more, warnings=()))
+                        have += len(more)
+                if pending:
+                    buffer = _joined(buffer, pending)
                 if first_piece is None:
                     reader_warnings = list(buffer.warnings) + reader_warnings
                     buffer = replace(buffer, warnings=())
-                last = exhausted and len(buffer) <= piece_points + lookahead
-                window = buffer if last else toolpath_slice(buffer, 0, piece_points + lookahead)
+                last = exhausted and len(buffer) <= want + lookahead
+                window = buffer if last else toolpath_slice(buffer, 0, want + lookahead)
                 if base is None:
                     base = make_problem(window, machine, options, tol)
                 problem = replace(base, toolpath=window, start=start)
@@ -400,8 +407,12 @@ def post_stream(
                 if last:
                     piece, cut = window, len(window) - 1
                 else:
-                    c = _cut(window, plan, piece_points, machine, tol)
-                    cut, plan = c.point, c.plan
+                    c = _cut(window, plan, want, machine, tol)
+                    if c is None:  # nowhere to end a piece: a longer one
+                        want *= 2
+                        log.info("no place to end a streamed piece; trying %d points", want)
+                        continue
+                    cut, plan, want = c.point, c.plan, piece_points
                     piece = toolpath_slice(window, 0, cut + 1)
                 first_piece = first_piece or piece
                 last_piece = piece

@@ -115,6 +115,7 @@ class ProgramWriter:
         self.modal = _Modal()
         self._next_number = spec.block_start
         self._merges: dict[int, int] = {}  # tool change index -> merged spindle index
+        self._spindle_running = False  # at the end of the pieces written so far
         self._check_program()
         self.fields = {
             "name": spec.format_name(program.name),
@@ -245,10 +246,14 @@ class ProgramWriter:
         Only while the spindle is stopped: a speed in the tool change would otherwise change
         the speed of the running spindle before its next start block.
         """
+        blocks = self.program.parts  # a MoveTable is neither a comment nor coolant
+        running = self._spindle_running  # (as the pieces before left it)
+        for block in blocks:
+            if isinstance(block, Spindle):
+                running = block.direction != "off"
+        running, self._spindle_running = self._spindle_running, running
         if self.spec.tool_change_speed is None:
             return
-        blocks = self.program.parts  # a MoveTable is neither a comment nor coolant
-        running = False
         for index, block in enumerate(blocks):
             if isinstance(block, Spindle):
                 running = block.direction != "off"

@@ -7,6 +7,7 @@ arrays (runs of records read in bulk) and turns them into the arrays of a
 
 from __future__ import annotations
 
+import bisect
 import math
 import re
 from collections.abc import Sequence
@@ -96,7 +97,9 @@ class ToolpathBuilder:
 
     Points come one at a time (:meth:`add_point`, kept in Python lists, cheap to append) or as
     whole arrays (:meth:`add_arrays`, for runs of records read in bulk); both end up in order
-    in the arrays of :meth:`build`.
+    in the arrays of :meth:`build`. A streaming reader hands out the points in pieces with
+    :meth:`take` and builds the rest at the end; point indices (``len``, event indices) stay
+    those of the whole file.
 
     Parameters
     ----------
@@ -115,10 +118,17 @@ class ToolpathBuilder:
         # earlier points as arrays: (tip, axis, feed, motion, line) per chunk
         self._chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         self._chunked = 0
+        self._taken = 0  # points handed out by take()
         self.events: list[Event] = []
         self.warnings: list[str] = []
+        self._warned_at: list[int] = []  # index of the next point when each warning came
 
     def __len__(self) -> int:
+        return self._taken + self._chunked + len(self._motion)
+
+    @property
+    def held(self) -> int:
+        """Points added and not yet handed out by :meth:`take`."""
         return self._chunked + len(self._motion)
 
     def _flush(self) -> None:
@@ -278,9 +288,13 @@ class ToolpathBuilder:
     def warn(self, line: int, message: str) -> None:
         """Record a warning "FILE:LINE: message"."""
         self.warnings.append(f"{self.source}:{line}: {message}")
+        self._warned_at.append(len(self))
 
     def build(self, *, units: str, multiaxis: bool) -> Toolpath:
-        """Return the :class:`Toolpath` of everything added so far."""
+        """Return the :class:`Toolpath` of everything added (and not taken) so far.
+
+        After :meth:`take`, the event indices are counted from the first point held.
+        """
         self._flush()
         chunks = self._chunks
         if len(chunks) == 1:
@@ -298,12 +312,77 @@ class ToolpathBuilder:
             feed=feed,
             motion=motion,
             line=line,
-            events=tuple(self.events),
+            events=_shifted(self.events, self._taken),
             units=units,
             source=self.source,
             warnings=tuple(self.warnings),
             multiaxis=multiaxis,
         )
+
+    def take(self, count: int, *, units: str, multiaxis: bool) -> Toolpath:
+        """Hand out the first ``count`` points held as a :class:`Toolpath`, and forget them.
+
+        The piece carries the events and warnings recorded before its last point's successor
+        was added (events re-indexed from the piece's first point). Later points, events and
+        warnings stay for the next piece or :meth:`build`.
+
+        Parameters
+        ----------
+        count : int
+            Points to hand out, ``1 <= count <= held``.
+        units : str
+            Units of the file, for the piece.
+        multiaxis : bool
+            Whether a record up to the piece's last point carried a tool axis.
+        """
+        if not 0 < count <= self.held:
+            raise ValueError(f"count: expected 1 to {self.held} points, got {count}")
+        self._flush()
+        parts: list[tuple[np.ndarray, ...]] = []
+        need = count
+        while need:
+            chunk = self._chunks[0]
+            size = chunk[0].shape[0]
+            if size <= need:
+                parts.append(chunk)
+                del self._chunks[0]
+                need -= size
+            else:  # split the chunk; copy the piece so that it holds no view of the rest
+                parts.append(tuple(a[:need].copy() for a in chunk))
+                self._chunks[0] = tuple(a[need:] for a in chunk)  # type: ignore[assignment]
+                need = 0
+        if len(parts) == 1:
+            tip, axis, feed, motion, line = parts[0]
+        else:
+            tip, axis, feed, motion, line = (np.concatenate(p) for p in zip(*parts, strict=True))
+        first = self._taken
+        self._chunked -= count
+        self._taken += count
+        split = bisect.bisect_left([e.index for e in self.events], self._taken)
+        events = self.events[:split]
+        del self.events[:split]
+        split = bisect.bisect_left(self._warned_at, self._taken)
+        warnings = self.warnings[:split]
+        del self.warnings[:split], self._warned_at[:split]
+        return Toolpath(
+            tip=tip,
+            axis=axis,
+            feed=feed,
+            motion=motion,
+            line=line,
+            events=_shifted(events, first),
+            units=units,
+            source=self.source,
+            warnings=tuple(warnings),
+            multiaxis=multiaxis,
+        )
+
+
+def _shifted(events: Sequence[Event], offset: int) -> tuple[Event, ...]:
+    """``events`` with ``offset`` subtracted from their indices."""
+    if not offset:
+        return tuple(events)
+    return tuple(Event(e.index - offset, e.kind, e.line, e.data) for e in events)
 
 
 def unit_vector(

@@ -10,6 +10,10 @@ A file is read in three steps:
 3. :class:`_AptInterpreter` walks the records with the modal state (tool axis, feed, spindle,
    coordinate frame, pending ``RAPID``/``CIRCLE``) and fills a toolpath builder.
 
+Steps 1 and 3 keep their state between calls, so that :func:`~urdfpost.readers.read_cl_chunks`
+can feed them a file piece by piece (:func:`scan_piece`, :meth:`_AptInterpreter.step`) after a
+quick pass for step 2.
+
 Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records. Step 1 finds such runs
 (:func:`scan_text`) and reads their numbers in bulk with numpy into a :class:`GotoRun`; step 3
 applies the modal state to the whole run at once, with the same arithmetic in the same order as
@@ -77,7 +81,19 @@ RADIUS_MISMATCH_WARN = 0.005
 """mm. Arc end points further than this from the CIRCLE radius get a warning: files printed with
 four decimals in inch round by up to 0.0013 mm per coordinate, so less is only rounding."""
 
-__all__ = ["GotoRun", "Record", "detect_apt", "read_apt_text", "scan_records", "scan_text"]
+__all__ = [
+    "GotoRun",
+    "Record",
+    "declared_units",
+    "detect_apt",
+    "feed_units",
+    "is_nx_record",
+    "normalise_breaks",
+    "read_apt_text",
+    "scan_piece",
+    "scan_records",
+    "scan_text",
+]
 
 #: NX "Information listing" header and "Tool Path Listing" trailer lines.
 _LISTING_LINE = re.compile(
@@ -376,11 +392,13 @@ def _goto_values(lines: str, count: int) -> np.ndarray | None:
     return values
 
 
-def _bulk_runs(text: str) -> Iterator[tuple[int, int, np.ndarray, int]]:
+def _bulk_runs(
+    text: str, bulk_piece: int | None = None
+) -> Iterator[tuple[int, int, np.ndarray, int]]:
     """Runs of one-line GOTO records in ``text`` with their numbers read in bulk.
 
-    Long blocks are read in pieces of about :data:`_BULK_PIECE` characters, which bounds the
-    memory of the intermediate copies.
+    Long blocks are read in pieces of about ``bulk_piece`` characters (default
+    :data:`_BULK_PIECE`), which bounds the memory of the intermediate copies.
 
     Yields
     ------
@@ -390,11 +408,12 @@ def _bulk_runs(text: str) -> Iterator[tuple[int, int, np.ndarray, int]]:
     comments : int
         Lines of the run with a trailing ``$$`` comment.
     """
+    size = _BULK_PIECE if bulk_piece is None else bulk_piece
     for start, end in _goto_blocks(text):
         while start < end:
             cut = end
-            if end - start > 2 * _BULK_PIECE:
-                cut = text.find("\n", start + _BULK_PIECE, end) + 1 or end
+            if end - start > 2 * size:
+                cut = text.find("\n", start + size, end) + 1 or end
             piece = text[start:cut]
             count = piece.count("\n") + (not piece.endswith("\n"))
             if count >= BULK_MIN_RECORDS:
@@ -443,25 +462,53 @@ def scan_text(text: str, source: str) -> _Scan:
     CLDataError
         When the file ends inside a continued record.
     """
-    if "\r" in text:  # one \n per line break, so that line numbers stay those of split_lines
-        text = text.replace("\r\n", "\n").replace("\r", "\n")
     scanner = _Scanner(source)
-    pos, line = 0, 1  # start of the next line to scan, and its number
-    for start, end, values, comments in _bulk_runs(text):
+    after = scan_piece(scanner, normalise_breaks(text), 1)
+    if after is not None:
+        scanner.after_fini(after)
+    return scanner.finish()
+
+
+def normalise_breaks(text: str) -> str:
+    """``text`` with one ``\\n`` per line break (CRLF and CR replaced).
+
+    Line numbers stay those of :func:`split_lines`. A text cut after a line break (never
+    between CR and LF) can be normalised piece by piece.
+    """
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text
+
+
+def scan_piece(
+    scanner: _Scanner, text: str, line: int, bulk_piece: int | None = None
+) -> Iterator[str] | None:
+    """Scan the lines of ``text`` into ``scanner``'s records, GOTO runs read in bulk.
+
+    ``text`` has ``\\n`` line breaks only and starts at the start of line number ``line``; the
+    scanner may hold a continued record from the lines before. Called on consecutive pieces
+    of a file cut at line breaks, it makes the records of the whole file (GOTO runs may be
+    cut where the pieces are). ``bulk_piece`` is as for :func:`_bulk_runs`.
+
+    Returns
+    -------
+    iterator of str or None
+        None, or when the scanner reads FINI, the lines of ``text`` after it.
+    """
+    pos = 0  # start of the next line to scan; its number is ``line``
+    for start, end, values, comments in _bulk_runs(text, bulk_piece):
         if start > pos:
             lines = text[pos : start - 1].split("\n")
             scanned = scanner.feed(lines, line)
             if scanner.fini:
-                scanner.after_fini(itertools.chain(lines[scanned:], text[start:].split("\n")))
-                return scanner.finish()
+                return itertools.chain(lines[scanned:], text[start:].split("\n"))
             line += len(lines)
         if scanner.pending is not None:  # the first GOTO line continues a record
             first_end = text.find("\n", start, end)
             first_end = end if first_end < 0 else first_end + 1
             scanner.feed([text[start:first_end].rstrip("\n")], line)
             if scanner.fini:
-                scanner.after_fini(text[first_end:].split("\n"))
-                return scanner.finish()
+                return iter(text[first_end:].split("\n"))
             comments -= "$$" in text[start:first_end]  # counted by the scanner
             start, values, line = first_end, values[1:], line + 1
         scanner.scan.trailing_comments += comments
@@ -472,8 +519,8 @@ def scan_text(text: str, source: str) -> _Scan:
     lines = text[pos:].split("\n")
     scanned = scanner.feed(lines, line)
     if scanner.fini:
-        scanner.after_fini(lines[scanned:])
-    return scanner.finish()
+        return iter(lines[scanned:])
+    return None
 
 
 def detect_apt(text: str) -> bool:
@@ -481,21 +528,40 @@ def detect_apt(text: str) -> bool:
     return APT_LINE.search(text) is not None
 
 
-def _file_units(records: Sequence[Record]) -> str | None:
+def _file_units(records: Sequence[Record | GotoRun]) -> str | None:
     """Units the records declare: the first UNITS record, else the first feed-unit keyword."""
     for record in records:
-        if record.word == "UNITS" and record.args:
-            units = _UNITS_WORDS.get(record.args[0].upper())
-            if units:
-                return units
+        units = declared_units(record)
+        if units:
+            return units
     for record in records:
-        for token in record.args or ():
-            upper = token.upper()
-            if upper in ("IPM", "IPR"):
-                return "inch"
-            if upper in ("MMPM", "MMPR"):
-                return "mm"
+        units = feed_units(record)
+        if units:
+            return units
     return None
+
+
+def declared_units(record: Record | GotoRun) -> str | None:
+    """Units of a ``UNITS/`` record ("mm" or "inch"), or None."""
+    if record.word == "UNITS" and record.args:
+        return _UNITS_WORDS.get(record.args[0].upper())
+    return None
+
+
+def feed_units(record: Record | GotoRun) -> str | None:
+    """Units of the first feed-unit keyword (``IPM``, ``MMPR``, ...) among the arguments."""
+    for token in record.args or ():
+        upper = token.upper()
+        if upper in ("IPM", "IPR"):
+            return "inch"
+        if upper in ("MMPM", "MMPR"):
+            return "mm"
+    return None
+
+
+def is_nx_record(record: Record | GotoRun) -> bool:
+    """Whether a record is one that only NX CLSF listings have."""
+    return record.word in _NX_WORDS
 
 
 def _split_tokens(record: Record, source: str) -> tuple[list[str], list[float]]:
@@ -599,18 +665,32 @@ class _AptInterpreter:
     # -- driving --------------------------------------------------------------------------
 
     def run(self, records: Sequence[Record | GotoRun]) -> None:
-        """Interpret ``records`` in order."""
+        """Interpret ``records`` in order, those of a whole file."""
         for record in records:
-            if isinstance(record, GotoRun):
-                self._goto_run(record)
-                continue
-            if self.circle is not None and record.word not in ("GOTO", "PAINT", "$$"):
-                raise CLDataError(
-                    self.source,
-                    self.circle.line,
-                    f"expected a GOTO after CIRCLE, got '{record.text}' on line {record.line}",
-                )
-            self.handlers.get(record.word, self._unknown)(record)
+            self.step(record)
+        self.finish()
+
+    def step(self, record: Record | GotoRun) -> None:
+        """Interpret one record (or run of GOTO records)."""
+        if isinstance(record, GotoRun):
+            self._goto_run(record)
+            return
+        if self.circle is not None and record.word not in ("GOTO", "PAINT", "$$"):
+            raise CLDataError(
+                self.source,
+                self.circle.line,
+                f"expected a GOTO after CIRCLE, got '{record.text}' on line {record.line}",
+            )
+        self.handlers.get(record.word, self._unknown)(record)
+
+    def finish(self) -> None:
+        """Check the end of the file: no CIRCLE waiting for its GOTO.
+
+        Raises
+        ------
+        CLDataError
+            When a CIRCLE has no GOTO after it.
+        """
         if self.circle is not None:
             raise CLDataError(
                 self.source, self.circle.line, "expected a GOTO after CIRCLE, got the end of file"
@@ -1159,7 +1239,7 @@ def read_apt_text(
         raise ValueError(f"chord_tolerance: expected a positive length, got {chord_tolerance!r}")
     scan = scan_text(text, source)
     file_units = _file_units(scan.records) or fallback
-    nx = scan.listing_lines > 0 or any(r.word in _NX_WORDS for r in scan.records)
+    nx = scan.listing_lines > 0 or any(is_nx_record(r) for r in scan.records)
     runs = [r for r in scan.records if isinstance(r, GotoRun)]
     logger.debug(
         "%s: %d records (%d GOTO in %d runs read in bulk), units %s, dialect %s, "

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+from collections.abc import Iterable
 
 from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Motion, Toolpath
@@ -27,7 +28,7 @@ from .apt import split_lines
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["read_plain_text"]
+__all__ = ["PlainReader", "read_plain_text"]
 
 _SEPARATOR = re.compile(r"\s*,\s*|\s+")
 _COMMENT = re.compile(r"[#;]")
@@ -64,25 +65,74 @@ def read_plain_text(
         For a line that is not 3 or 6 numbers, or a tool axis of zero length.
     """
     del chord_tolerance
-    file_units = normalise_units(units)
-    scale = scale_of(file_units)
-    builder = ToolpathBuilder(source)
-    axis = (0.0, 0.0, 1.0)
-    multiaxis = False
-    for number, raw in enumerate(split_lines(text), start=1):
-        code, comment = _split_comment(raw)
-        if comment:
-            builder.add_event("comment", number, text=comment)
-        if not code:
-            continue
-        values = _values(code, source, number)
-        if len(values) == 6:
-            axis = unit_vector(values[3:], builder=builder, line=number)
-            multiaxis = True
-        tip = tuple(v * scale for v in values[:3])
-        builder.add_point(tip, axis, math.nan, Motion.FEED, number)
-    logger.debug("%s: %d points, units %s", source, len(builder), file_units)
-    return builder.build(units=file_units, multiaxis=multiaxis)
+    reader = PlainReader(source, units)
+    reader.feed(split_lines(text), 1)
+    return reader.build()
+
+
+class PlainReader:
+    """Reads the lines of a plain point list, a few at a time, keeping the modal tool axis.
+
+    Parameters
+    ----------
+    source : str
+        File name for messages.
+    units : str, optional
+        Units of the values ("mm" or "inch"; default "mm").
+
+    Attributes
+    ----------
+    builder : ToolpathBuilder
+        The points, events and warnings read so far.
+    units : str
+        "mm" or "inch".
+    multiaxis_from : int or None
+        Index of the first point with its own tool axis (None before one).
+    """
+
+    def __init__(self, source: str, units: str | None) -> None:
+        self.source = source
+        self.units = normalise_units(units)
+        self.scale = scale_of(self.units)
+        self.builder = ToolpathBuilder(source)
+        self.axis = (0.0, 0.0, 1.0)
+        self.multiaxis_from: int | None = None
+
+    def feed(self, lines: Iterable[str], first: int) -> None:
+        """Read ``lines`` (without line breaks), the first of which is line number ``first``.
+
+        Raises
+        ------
+        CLDataError
+            For a line that is not 3 or 6 numbers, or a tool axis of zero length.
+        """
+        source, scale, builder, axis = self.source, self.scale, self.builder, self.axis
+        try:
+            for number, raw in enumerate(lines, start=first):
+                code, comment = _split_comment(raw)
+                if comment:
+                    builder.add_event("comment", number, text=comment)
+                if not code:
+                    continue
+                values = _values(code, source, number)
+                if len(values) == 6:
+                    axis = unit_vector(values[3:], builder=builder, line=number)
+                    if self.multiaxis_from is None:
+                        self.multiaxis_from = len(builder)
+                tip = tuple(v * scale for v in values[:3])
+                builder.add_point(tip, axis, math.nan, Motion.FEED, number)
+        finally:
+            self.axis = axis
+
+    @property
+    def multiaxis(self) -> bool:
+        """Whether any line so far gave a tool axis."""
+        return self.multiaxis_from is not None
+
+    def build(self) -> Toolpath:
+        """The toolpath of the lines read (after :meth:`ToolpathBuilder.take`: the rest)."""
+        logger.debug("%s: %d points, units %s", self.source, len(self.builder), self.units)
+        return self.builder.build(units=self.units, multiaxis=self.multiaxis)
 
 
 def _split_comment(raw: str) -> tuple[str, str]:

@@ -1,0 +1,251 @@
+"""The streamed post (urdfpost.stream): pieces joined into the program a whole post writes."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from urdfpost import load_machine
+from urdfpost.branches import select
+from urdfpost.errors import ToleranceError, UnreachableError
+from urdfpost.pipeline import PostOptions, post
+from urdfpost.readers import read_cl
+from urdfpost.stream import merge_verifications, post_stream, toolpath_pieces, toolpath_slice
+from urdfpost.toolpath import Event, Toolpath
+from urdfpost.verify import Verification
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def raster(tmp_path_factory: pytest.TempPathFactory) -> Toolpath:
+    """The benchmark's hemisphere raster (passes over and beside the pole), 6000 points."""
+    spec = importlib.util.spec_from_file_location("make_large_cl", ROOT / "bench/make_large_cl.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    path = tmp_path_factory.mktemp("raster") / "hemisphere_6000.apt"
+    return read_cl(module.write_hemisphere(6000, path))
+
+
+def with_events(toolpath: Toolpath) -> Toolpath:
+    """The toolpath with events in the middle and at the end (a tool change and spindle, a
+    home return, an insert, a stop), which the pieces must not cut through."""
+    n = len(toolpath)
+    extra = (
+        Event(index=n // 3, kind="tool", line=1, data={"number": 2}),
+        Event(index=n // 3, kind="spindle", line=2, data={"rpm": 9000.0, "direction": "cw"}),
+        Event(index=n // 2, kind="home", line=3),
+        Event(index=n // 2, kind="insert", line=4, data={"text": "M50"}),
+        Event(index=n // 2 + 1, kind="stop", line=5, data={"optional": True}),
+        Event(index=n, kind="comment", line=6, data={"text": "the end"}),
+    )
+    events = sorted(toolpath.events + extra, key=lambda e: e.index)
+    return replace(toolpath, events=tuple(events))
+
+
+def assert_same_text(got: str, want: str) -> None:
+    """Equal texts, or the first line that differs (pytest's diff of long texts is slow)."""
+    a, b = got.splitlines(), want.splitlines()
+    for k, (x, y) in enumerate(zip(a, b, strict=False)):
+        assert x == y, f"line {k + 1}: {x!r} != {y!r}"
+    assert len(a) == len(b) and got == want
+
+
+def streamed_text(tmp_path: Path, toolpath: Toolpath, options: PostOptions, **kw) -> tuple:
+    out = tmp_path / "out.nc"
+    result = post_stream(
+        toolpath_pieces(toolpath, kw.pop("read", 997)), load_machine("dmu50"), out, options, **kw
+    )
+    return out.read_text(encoding="utf-8"), result
+
+
+@pytest.mark.parametrize(
+    ("controller", "tcp", "pieces", "lookahead"),
+    [
+        ("heidenhain", False, 1500, 400),
+        ("fanuc", False, 2000, 300),
+        ("siemens", False, 700, 700),
+        ("linuxcnc", False, 2500, 50),
+    ],
+)
+def test_streamed_program_is_the_whole_post(
+    tmp_path: Path, raster: Toolpath, controller: str, tcp: bool, pieces: int, lookahead: int
+) -> None:
+    """Cut into pieces, with CL events on the way, the text is the one post() writes, and the
+    merged verification has its figures."""
+    job = with_events(raster)
+    options = PostOptions(controller=controller, tcp=tcp)
+    whole = post(job, load_machine("dmu50"), options)
+    text, result = streamed_text(tmp_path, job, options, piece_points=pieces, lookahead=lookahead)
+    assert result.report["streamed"]["pieces"] > 2
+    assert_same_text(text, whole.text)
+    v, w = result.verification, whole.verification
+    assert v.ok and (v.cl_points, v.reached, v.blocks) == (w.cl_points, w.reached, w.blocks)
+    assert v.max_tip_deviation == w.max_tip_deviation
+    assert v.max_orientation_deviation_deg == w.max_orientation_deviation_deg
+    assert v.max_rotary_step_deg == w.max_rotary_step_deg
+    # the mean counts the deviations at each join twice: close, not equal
+    assert v.mean_tip_deviation == pytest.approx(w.mean_tip_deviation, rel=0.01)
+    for key in ("branch_switches", "pole_points", "inserted_blocks"):
+        assert result.report[key] == whole.report[key], key
+    assert not list(tmp_path.glob(".out.nc.*")), "temporary file left behind"
+
+
+def test_streamed_tcp_program_within_rounding_of_the_whole_post(
+    tmp_path: Path, raster: Toolpath
+) -> None:
+    """In TCP output the blocks inserted on a piece's moves come from positions along the CL
+    path counted from the piece's start: the same numbers within rounding, so the written
+    values agree to one unit of the last decimal."""
+    options = PostOptions(controller="heidenhain", tcp=True)
+    whole = post(raster, load_machine("dmu50"), options)
+    text, result = streamed_text(tmp_path, raster, options, piece_points=1000, lookahead=300)
+    a, b = whole.text.splitlines(), text.splitlines()
+    assert len(a) == len(b)
+    differ = [(x, y) for x, y in zip(a, b, strict=True) if x != y]
+    assert len(differ) < 0.1 * len(a)
+    for x, y in differ:
+        wx, wy = x.split(), y.split()
+        assert [w[0] for w in wx] == [w[0] for w in wy]
+        for p, q in zip(wx, wy, strict=True):
+            if p != q:
+                assert abs(float(p[1:]) - float(q[1:])) <= 1.001e-3, (x, y)
+    assert result.verification.ok
+
+
+def test_reader_piece_sizes_do_not_matter(tmp_path: Path, raster: Toolpath) -> None:
+    options = PostOptions(controller="heidenhain", tcp=False)
+    small = toolpath_slice(raster, 0, 1200)
+    texts = {
+        read: streamed_text(tmp_path, small, options, read=read, piece_points=400, lookahead=90)[0]
+        for read in (1, 7, 1200)
+    }
+    assert_same_text(texts[1], texts[1200])
+    assert_same_text(texts[7], texts[1200])
+
+
+def test_piece_that_misses_its_tolerance_writes_nothing(
+    tmp_path: Path, raster: Toolpath, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A piece that fails its check after others were written: the old file stays, and no
+    temporary file is left."""
+    import urdfpost.stream as stream_module
+
+    real = stream_module.check_program
+    calls = []
+
+    def second_fails(*args, **kw):
+        check, intent = real(*args, **kw)
+        calls.append(1)
+        return (replace(check, ok=False) if len(calls) == 2 else check), intent
+
+    monkeypatch.setattr(stream_module, "check_program", second_fails)
+    out = tmp_path / "out.nc"
+    out.write_text("old program\n")
+    options = PostOptions(controller="heidenhain", tcp=False)
+    with pytest.raises(ToleranceError, match="misses its tolerance against the CL data"):
+        post_stream(toolpath_pieces(raster, 500), load_machine("dmu50"), out, options,
+                    piece_points=1000, lookahead=100)  # fmt: skip
+    assert len(calls) == 2
+    assert out.read_text() == "old program\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.nc"]
+
+
+def test_pieces_reassemble_the_toolpath(raster: Toolpath) -> None:
+    job = with_events(raster)
+    pieces = list(toolpath_pieces(job, 777))
+    assert sum(len(p) for p in pieces) == len(job)
+    np.testing.assert_array_equal(np.concatenate([p.tip for p in pieces]), job.tip)
+    at = np.cumsum([0] + [len(p) for p in pieces])
+    events = [replace(e, index=e.index + int(a)) for p, a in zip(pieces, at, strict=False)
+              for e in p.events]  # fmt: skip
+    assert tuple(events) == job.events
+
+
+def test_fixed_start_takes_the_start_angles() -> None:
+    """A continued path starts on the branch it ended on, even against the preference, and a
+    start no candidate has is an error naming the line."""
+    machine = load_machine("dmu50")
+    tip = np.array([[10.0, 0.0, 100.0], [11.0, 0.0, 100.0]])
+    axis = np.array([[0.3, 0.0, 1.0], [0.31, 0.0, 1.0]])
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    free = select(machine, tip, axis, lines=np.array([5, 6]))
+    c = [machine.axis_names.index(a.name) for a in machine.rotary]
+    turned = free.q[0].copy()
+    assert machine.rotary[0].continuous
+    turned[c[0]] += 4 * np.pi  # two turns more on the continuous table
+    fixed = select(machine, tip, axis, start=turned, fixed_start=True, lines=np.array([5, 6]))
+    np.testing.assert_allclose(fixed.q[0, c], turned[c], atol=0.0)
+    assert abs(fixed.q[1, c[0]] - turned[c[0]]) < 0.1  # and goes on from there
+    wrong = free.q[0].copy()
+    wrong[c[1]] += 0.3  # a tilt the point does not have
+    with pytest.raises(UnreachableError, match=":5: the path cannot go on"):
+        select(machine, tip, axis, start=wrong, fixed_start=True, lines=np.array([5, 6]))
+
+
+def test_merge_counts_the_joins_once() -> None:
+    def part(points: int, blocks: int, missed: list[int], worst: float, line: int) -> Verification:
+        return Verification(
+            ok=not missed,
+            cl_points=points,
+            reached=points - len(missed),
+            missed_lines=missed,
+            blocks=blocks,
+            max_tip_deviation=worst,
+            mean_tip_deviation=worst / 2,
+            max_orientation_deviation_deg=worst,
+            max_rotary_step_deg={"B": worst, "C": 1.0},
+            tip_tolerance=0.01,
+            orientation_tolerance_deg=0.1,
+            worst_cl_line=line,
+            tcp=False,
+            notes=["a"],
+            compared=10 * blocks,
+        )
+
+    merged = merge_verifications([part(10, 12, [], 0.002, 3), part(5, 6, [40], 0.004, 44)])
+    assert (merged.cl_points, merged.reached, merged.blocks) == (14, 13, 17)
+    assert merged.missed_lines == [40] and not merged.ok
+    assert merged.max_tip_deviation == 0.004 and merged.worst_cl_line == 44
+    assert merged.mean_tip_deviation == pytest.approx((0.001 * 120 + 0.002 * 60) / 180)
+    assert merged.max_rotary_step_deg == {"B": 0.004, "C": 1.0} and merged.notes == ["a"]
+    # a point missed at the join is one point
+    twice = merge_verifications([part(10, 12, [9], 0.0, 1), part(5, 6, [9], 0.0, 1)])
+    assert twice.missed_lines == [9] and twice.reached == 13
+
+
+def test_cli_posts_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``urdfpost post --piece-points N`` reads, writes and verifies in pieces: the example
+    job in three pieces is the program of the whole post, and the report says so."""
+    from urdfpost.cli import main
+
+    dome = ROOT / "examples" / "dome.apt"
+    whole, pieces = tmp_path / "whole.h", tmp_path / "pieces.h"
+    common = ["post", str(dome), "--machine", "dmu50", "--no-tcp", "-q"]
+    assert main([*common, "-o", str(whole)]) == 0
+    report = tmp_path / "r.json"
+    assert main([*common, "-o", str(pieces), "--piece-points", "100", "--report", str(report)]) == 0
+    assert_same_text(pieces.read_text(), whole.read_text())
+    figures = json.loads(report.read_text())
+    assert figures["streamed"] == {"pieces": 3, "piece_points": 100, "lookahead": 20}
+    assert figures["cl_points"] == figures["cl_points_reached"] == 301 and figures["verified"]
+    assert "301/301 CL points reached" in capsys.readouterr().out
+
+
+def test_cli_rejects_a_piece_of_one_point(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from urdfpost.cli import main
+
+    out = tmp_path / "x.h"
+    dome = str(ROOT / "examples" / "dome.apt")
+    args = ["post", dome, "--machine", "dmu50", "-o", str(out), "--piece-points", "1"]
+    assert main(args) == 1
+    assert "--piece-points: expected 0 or at least 2, got 1" in capsys.readouterr().err
+    assert not out.exists()
