@@ -22,7 +22,10 @@ column is the peak after the imports, before the work) do not pollute each other
 (e) ``numerical IK``: per-point damped least squares with Pinocchio on the tool pose relative to
     the workpiece (position and tool axis), warm-started from the previous point, as one would
     write it without a closed-form solver; a sample of points, extrapolated to the file;
-(f) ``closed-form IK``: :func:`urdfpost.kinematics.inverse.inverse` over all points of the file.
+(f) ``closed-form IK``: :func:`urdfpost.kinematics.inverse.inverse` over all points of the file;
+(g) ``streamed``: (b) for the fastest control in pieces of 500k CL points
+    (:func:`urdfpost.stream.post_stream` over :func:`urdfpost.readers.read_cl_chunks`), at 1M
+    and 10M points by default (``--stream-sizes``): its peak memory must not grow with the job.
 
 Printed ratios: post over floor, numerical over closed-form IK per point, and the growth of
 time with size. Nothing here is a test: speed is never checked in the suite.
@@ -91,6 +94,38 @@ def measure_post(path: str, control: str, tcp: bool) -> dict[str, Any]:
         "text_mb": len(result.text) / 1e6,
         "max_dev_mm": v.max_tip_deviation,
         "ok": v.ok,
+        "base_mb": base,
+    }
+
+
+def measure_stream(path: str, control: str, tcp: bool) -> dict[str, Any]:
+    """The post of (b)/(c) in pieces (:func:`urdfpost.stream.post_stream`, the file read with
+    :func:`urdfpost.readers.read_cl_chunks`), the program written to a temporary file."""
+    import tempfile
+
+    from urdfpost import PostOptions, load_machine
+    from urdfpost.readers import read_cl_chunks
+    from urdfpost.stream import PIECE_POINTS, post_stream
+
+    machine = load_machine(MACHINE)
+    base = _peak_mb()
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "program.nc"
+        t = time.perf_counter()
+        pieces = read_cl_chunks(path, max_points=PIECE_POINTS // 2)
+        options = PostOptions(controller=control, tcp=tcp)
+        result = post_stream(pieces, machine, out, options, piece_points=PIECE_POINTS)
+        dt = time.perf_counter() - t
+        text_mb = out.stat().st_size / 1e6
+    v = result.verification
+    return {
+        "seconds": dt,
+        "points": v.cl_points,
+        "blocks": v.blocks,
+        "text_mb": text_mb,
+        "max_dev_mm": v.max_tip_deviation,
+        "ok": v.ok,
+        "pieces": result.report["streamed"]["pieces"],
         "base_mb": base,
     }
 
@@ -274,6 +309,8 @@ def child(kind: str, path: str, control: str, tcp: bool) -> None:
         out = measure_read(path)
     elif kind == "post":
         out = measure_post(path, control, tcp)
+    elif kind == "stream":
+        out = measure_stream(path, control, tcp)
     elif kind == "floor":
         out = measure_floor(path)
     elif kind == "ik":
@@ -355,6 +392,11 @@ def main(argv: list[str] | None = None) -> int:
         "--timeout", type=float, default=1800.0, help="per measurement, s (default 1800)"
     )
     parser.add_argument("--no-post", action="store_true", help="skip (b) and (c), the full posts")
+    parser.add_argument(
+        "--stream-sizes",
+        default="1000000,10000000",
+        help="CL points of the streamed posts (g), comma-separated; '' for none",
+    )
     parser.add_argument("--child", help=argparse.SUPPRESS)
     parser.add_argument("--path", help=argparse.SUPPRESS)
     parser.add_argument("--control", default="", help=argparse.SUPPRESS)
@@ -425,6 +467,28 @@ def main(argv: list[str] | None = None) -> int:
                 ratio = per_point / (res["ik"]["seconds"] / n)
                 print(f"  closed-form IK is {ratio:.0f}x faster per point than numerical IK")
         results[n] = res
+
+    streamed = [int(x) for x in args.stream_sizes.split(",") if x.strip()]
+    if streamed and fast:
+        print(f"\n(g) streamed post, machine coordinates, {fast}, pieces of 500k CL points")
+        print(f"  {'CL points':<34} {'time s':>9} {'CL pts/s':>11} {'peak MB':>9} {'base':>7}")
+        peaks = {}
+        for n in streamed:
+            r = run_child("stream", ensure_file(n), args.timeout, fast, False)
+            note = ""
+            if "error" not in r:
+                peaks[n] = r["peak_mb"]
+                note = (
+                    f"{r['pieces']} pieces, {r['blocks']} blocks, {r['text_mb']:.0f} MB text, "
+                    f"max dev {r['max_dev_mm']:.4f} mm, verified {r['ok']}"
+                )
+            print_row(f"{n}", r, n, note)
+        if len(peaks) > 1:
+            a, b = min(peaks), max(peaks)
+            print(
+                f"  peak memory {b} / {a} points: {peaks[b] / peaks[a]:.2f}x "
+                f"(points ratio {b / a:g})"
+            )
 
     print(f"\nload average {os.getloadavg()[0]:.1f} at the end (other processes skew times)")
     if len(sizes) > 1:
