@@ -18,12 +18,16 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from urdfpost.kinematics.forward import (
+    ROWS,
+    Chain,
+    Scratch,
     Vec,
+    chain_of,
     cos_sin_along,
     interpolation_bounds,
     tip_and_axis_along,
@@ -112,7 +116,7 @@ class Segments:
         dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
         return cls(p0, d, np.divide(1.0, dd, out=np.zeros_like(dd), where=dd > 0))
 
-    def take(self, index: np.ndarray) -> Segments:
+    def take(self, index: np.ndarray | slice) -> Segments:
         return Segments(
             tuple(c[index] for c in self.a),  # type: ignore[arg-type]
             tuple(c[index] for c in self.d),  # type: ignore[arg-type]
@@ -120,7 +124,10 @@ class Segments:
         )
 
     def distance2(
-        self, p: Vec, outside: list[np.ndarray] | None = None
+        self,
+        p: Vec,
+        outside: list[np.ndarray] | None = None,
+        scratch: Scratch | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Squared distance of points from the segments, and the parameter of the closest point.
 
@@ -131,6 +138,8 @@ class Segments:
         outside : list, optional
             When given, how far the projection parameter falls outside [0, 1] (0 inside) is
             appended to it, an array of the shape of ``s``.
+        scratch : Scratch, optional
+            Started for the shape of ``p``: the results and temporaries are taken from it.
 
         Returns
         -------
@@ -139,9 +148,14 @@ class Segments:
             In [0, 1].
         """
         a, d = self.a, self.d
-        w = [p[0] - a[0], p[1] - a[1], p[2] - a[2]]
-        s = w[0] * d[0]
-        part = w[1] * d[1]
+        if scratch is None:
+            w = [p[0] - a[0], p[1] - a[1], p[2] - a[2]]
+            s = w[0] * d[0]
+            part = w[1] * d[1]
+        else:
+            w = [np.subtract(p[i], a[i], out=scratch.take()) for i in range(3)]
+            s = np.multiply(w[0], d[0], out=scratch.take())
+            part = np.multiply(w[1], d[1], out=scratch.take())
         s += part
         np.multiply(w[2], d[2], out=part)
         s += part
@@ -192,14 +206,20 @@ class Arcs:
         normal = (across[0] * inv, across[1] * inv, across[2] * inv)
         return cls(v0, normal, np.arctan2(sin, dot))
 
-    def take(self, index: np.ndarray) -> Arcs:
+    def take(self, index: np.ndarray | slice) -> Arcs:
         return Arcs(
             tuple(c[index] for c in self.v0),  # type: ignore[arg-type]
             tuple(c[index] for c in self.normal),  # type: ignore[arg-type]
             self.omega[index],
         )
 
-    def chord2(self, v: Vec, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
+    def chord2(
+        self,
+        v: Vec,
+        cos: np.ndarray | float,
+        sin: np.ndarray | float,
+        scratch: Scratch | None = None,
+    ) -> np.ndarray:
         """Squared chord from unit vectors ``v`` to the arcs' points of the given angles.
 
         Parameters
@@ -208,6 +228,8 @@ class Arcs:
             Coordinate arrays of shape (..., n).
         cos, sin : ndarray, shape (..., n)
             Of ``t * omega`` at each of them.
+        scratch : Scratch, optional
+            Started for the shape of the result: it and the temporaries are taken from it.
 
         Returns
         -------
@@ -215,14 +237,20 @@ class Arcs:
             ``|v - slerp|^2``; the angle is :func:`angle_from_chord2` of it.
         """
         shape = np.broadcast_shapes(np.shape(v[0]), np.shape(cos))
-        out, r, part = np.zeros(shape), np.empty(shape), np.empty(shape)
+        if scratch is None:
+            out, r, part = np.empty(shape), np.empty(shape), np.empty(shape)
+        else:
+            out, r, part = scratch.take(), scratch.take(), scratch.take()
         for i in range(3):
             np.multiply(cos, self.v0[i], out=r)
             np.subtract(v[i], r, out=r)
             np.multiply(sin, self.normal[i], out=part)
             r -= part
-            r *= r
-            out += r
+            if i == 0:  # the sum starts at 0, and 0 + r^2 is r^2 (a square is never -0)
+                np.multiply(r, r, out=out)
+            else:
+                r *= r
+                out += r
         return out
 
 
@@ -356,7 +384,7 @@ class RowPoses:
     swing: np.ndarray
 
     @classmethod
-    def of(cls, machine: Machine, q: np.ndarray, tool_length: float) -> RowPoses:
+    def of(cls, machine: Machine | Chain, q: np.ndarray, tool_length: float) -> RowPoses:
         """The poses at joint values ``q`` (n, m), mm / rad."""
         return cls(*tip_axis_and_reach(machine, q, tool_length))
 
@@ -374,6 +402,11 @@ def may_reach(bound: np.ndarray, level: float | np.ndarray) -> np.ndarray:
     return bound * (1.0 + _BOUND_SLACK[0]) + _BOUND_SLACK[1] >= level
 
 
+POSE_ROWS = 2 * ROWS
+"""Rows whose poses (:class:`RowPoses`) :func:`_block_errors` works out at a time, when it
+works them out: a few chunks' worth, in pieces of :data:`urdfpost.kinematics.forward.ROWS`."""
+
+
 def _block_errors(
     machine: Machine,
     q0: np.ndarray,
@@ -382,7 +415,7 @@ def _block_errors(
     p1: np.ndarray,
     v0: np.ndarray,
     v1: np.ndarray,
-    ends: tuple[RowPoses, RowPoses],
+    ends: tuple[RowPoses, RowPoses] | None,
     tool_length: float,
     tcp: bool,
     tol: Tolerances,
@@ -390,33 +423,120 @@ def _block_errors(
 ) -> BlockError:
     """Worst deviation of blocks from (q0, p0, v0) to (q1, p1, v1), each of length n.
 
+    ``ends`` are the poses at q0 and q1; None when the blocks join consecutive rows of one
+    path (``q1[i]`` is ``q0[i + 1]``): they are then worked out where they are needed, a few
+    chunks at a time (:data:`POSE_ROWS`), each row once.
+
     Every block is sampled at ``tol.samples_per_block`` evenly spaced parameters. The maximum
     is refined (:func:`refine_max`) where it matters: everywhere when ``targets`` is None,
     otherwise only in blocks where the refinement could take it past a target (tip mm,
     orientation rad). Elsewhere the largest sample is kept, which is then within the
     refinement's reach of the true maximum and below the target either way (see
     :func:`_sampled_errors`).
+
+    The blocks go through the kinematics a chunk (:func:`chunks`) at a time, the same chunks
+    whatever else changes: the refinement's cosines depend on the largest angle refined in a
+    chunk (:func:`cos_sin`).
     """
     n = q0.shape[0]
+    samples = tol.samples_per_block
     tip_err, ori_err = np.empty(n), np.empty(n)
-    for part in chunks(n, tol.samples_per_block):
+    chain, scratch = chain_of(machine), Scratch()
+    poses, first, last = None, 0, -1  # poses of the rows first .. last of consecutive blocks
+    for part in chunks(n, samples):
+        seg = Segments.between(p0[part], p1[part])
+        arc = Arcs.between(v0[part], v1[part])
+        slack = None
+        if targets is not None:
+            if ends is not None:
+                pose = (ends[0].take(part), ends[1].take(part))
+            else:  # each row's pose once, for a few chunks at a time
+                if part.stop > last:
+                    first, last = part.start, min(n, part.start + POSE_ROWS - 1)
+                    rows = np.concatenate([q0[first:last], q1[last - 1 : last]])
+                    poses = RowPoses.of(chain, rows, tool_length)
+                assert poses is not None
+                k, at = part.stop - part.start, part.start - first
+                pose = (poses.take(slice(at, at + k)), poses.take(slice(at + 1, at + k + 1)))
+            slack = _Slack.of(chain, q0[part], q1[part], seg, arc, pose, 1.0 / (samples + 1), tcp)
         tip_err[part], ori_err[part] = _sampled_errors(
-            machine,
+            chain,
+            scratch,
             q0[part],
             q1[part],
-            Segments.between(p0[part], p1[part]),
-            Arcs.between(v0[part], v1[part]),
-            (ends[0].take(part), ends[1].take(part)),
+            seg,
+            arc,
+            slack,
             tool_length,
             tcp,
-            tol.samples_per_block,
+            samples,
             targets,
         )
     return BlockError(tip=tip_err, orientation=ori_err)
 
 
+@dataclass(frozen=True)
+class _Slack:
+    """What bounds the errors of whole blocks besides their largest samples.
+
+    See :func:`_error_bounds`. Per block (arrays of shape (n,)): the larger of the squared tip
+    distances at the two block ends and the room the tip's curvature leaves between samples
+    (both None in TCP programs, where the tip is on the segment), and likewise for the squared
+    chord of the orientation error.
+    """
+
+    end_dist2: np.ndarray | None
+    tip_room: np.ndarray | None
+    end_chord2: np.ndarray
+    chord_room: np.ndarray
+
+    @classmethod
+    def of(
+        cls,
+        machine: Machine | Chain,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        seg: Segments,
+        arc: Arcs,
+        ends: tuple[RowPoses, RowPoses],
+        h: float,
+        tcp: bool,
+    ) -> _Slack:
+        """The slack of blocks from ``q0`` to ``q1`` (n, m) with samples ``h`` apart."""
+        _, tip_curv, _, axis_curv = interpolation_bounds(
+            machine, q0, q1, ends[0].reach, ends[1].reach, ends[0].swing, ends[1].swing
+        )
+        at_ends = [
+            arc.chord2(coords(e.axis), c, s)
+            for e, c, s in ((ends[0], 1.0, 0.0), (ends[1], np.cos(arc.omega), np.sin(arc.omega)))
+        ]
+        room = h * h / 8.0
+        end_chord2, chord_room = np.maximum(*at_ends), (axis_curv + arc.omega**2) * room
+        if tcp:
+            return cls(None, None, end_chord2, chord_room)
+        at_ends = [seg.distance2(coords(e.tip))[0] for e in ends]
+        return cls(np.maximum(*at_ends), tip_curv * room, end_chord2, chord_room)
+
+    def take(self, index: slice) -> _Slack:
+        """The slack of the blocks at ``index``."""
+        return _Slack(
+            None if self.end_dist2 is None else self.end_dist2[index],
+            None if self.tip_room is None else self.tip_room[index],
+            self.end_chord2[index],
+            self.chord_room[index],
+        )
+
+    def bounds(self, dist2: np.ndarray, chord2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds on the tip error (mm; 0 in TCP programs) and the chord of the orientation
+        error of blocks whose largest samples are ``dist2`` and ``chord2`` (n,)."""
+        chord = np.sqrt(np.maximum(chord2, self.end_chord2)) + self.chord_room
+        if self.end_dist2 is None or self.tip_room is None:
+            return np.zeros_like(chord), chord
+        return np.sqrt(np.maximum(dist2, self.end_dist2)) + self.tip_room, chord
+
+
 def _error_bounds(
-    machine: Machine,
+    machine: Machine | Chain,
     q0: np.ndarray,
     q1: np.ndarray,
     seg: Segments,
@@ -441,7 +561,8 @@ def _error_bounds(
       function of ``a - e``, whose second derivative is at most ``|a''| + omega^2`` (e runs at
       the constant speed omega on its great circle). The angle increases with the chord.
 
-    M and ``|a''|`` come from :func:`urdfpost.kinematics.forward.interpolation_bounds`.
+    M and ``|a''|`` come from :func:`urdfpost.kinematics.forward.interpolation_bounds`; the
+    terms that do not depend on the samples are :class:`_Slack`.
 
     Parameters
     ----------
@@ -456,34 +577,26 @@ def _error_bounds(
     -------
     tip, chord : ndarray, shape (n,)
     """
-    _, tip_curv, _, axis_curv = interpolation_bounds(
-        machine, q0, q1, ends[0].reach, ends[1].reach, ends[0].swing, ends[1].swing
-    )
-    at_ends = [
-        arc.chord2(coords(e.axis), c, s)
-        for e, c, s in ((ends[0], 1.0, 0.0), (ends[1], np.cos(arc.omega), np.sin(arc.omega)))
-    ]
-    room = h * h / 8.0
-    chord = np.sqrt(np.maximum(chord2, np.maximum(*at_ends))) + (axis_curv + arc.omega**2) * room
-    if tcp:
-        return np.zeros_like(chord), chord
-    at_ends = [seg.distance2(coords(e.tip))[0] for e in ends]
-    return np.sqrt(np.maximum(dist2, np.maximum(*at_ends))) + tip_curv * room, chord
+    return _Slack.of(machine, q0, q1, seg, arc, ends, h, tcp).bounds(dist2, chord2)
 
 
 def _sampled_errors(
-    machine: Machine,
+    chain: Chain,
+    scratch: Scratch,
     q0: np.ndarray,
     q1: np.ndarray,
     seg: Segments,
     arc: Arcs,
-    ends: tuple[RowPoses, RowPoses],
+    slack: _Slack | None,
     tool_length: float,
     tcp: bool,
     samples: int,
     targets: tuple[float, float] | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tip (mm) and orientation (rad) errors of one chunk of blocks; see :func:`_block_errors`.
+
+    The samples' temporaries come from ``scratch``, the same arrays for every chunk.
+    ``slack`` (with ``targets`` only) completes the bounds of :func:`_error_bounds`.
 
     A block is refined where :func:`_error_bounds` does not keep it below the target. The
     golden-section search only ever reports values of the function, at most its maximum, so
@@ -492,28 +605,27 @@ def _sampled_errors(
     """
     n = q0.shape[0]
     t = np.arange(1, samples + 1) / (samples + 1)
-    tip, axis = tip_and_axis_along(machine, q0, q1, t, tool_length, with_tip=not tcp)
-    cos, sin = cos_sin_along(np.zeros(n), arc.omega, t)
-    chord2 = arc.chord2(axis, cos, sin)
+    scratch.start((samples, n))
+    tip, axis = tip_and_axis_along(chain, q0, q1, t, tool_length, with_tip=not tcp, scratch=scratch)
+    cos, sin = cos_sin_along(np.zeros(n), arc.omega, t, out=(scratch.take(), scratch.take()))
+    chord2 = arc.chord2(axis, cos, sin, scratch)
     if tcp:  # the control keeps the tip on the segment
-        dist2 = np.zeros((samples, n))
+        dist2, best = None, (np.zeros(n), _column_max(chord2))
     else:
         assert tip is not None
-        dist2, _ = seg.distance2(tip)
-    cols = np.arange(n)
-    worst = (np.argmax(dist2, axis=0), np.argmax(chord2, axis=0))
-    best = (dist2[worst[0], cols], chord2[worst[1], cols])
+        dist2 = seg.distance2(tip, scratch=scratch)[0]
+        best = (_column_max(dist2), _column_max(chord2))
     if targets is None:
         wanted = (np.full(n, not tcp), np.ones(n, dtype=bool))
     else:
-        h = 1.0 / (samples + 1)
-        bound = _error_bounds(machine, q0, q1, seg, arc, ends, best[0], best[1], h, tcp)
+        assert slack is not None
+        bound = slack.bounds(best[0], best[1])
         want_tip = np.zeros(n, dtype=bool) if tcp else may_reach(bound[0], targets[0])
         wanted = (want_tip, may_reach(bound[1], 2.0 * np.sin(targets[1] / 2.0)))
 
     def errors(blocks: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p, v = tip_and_axis_along(
-            machine, q0[blocks], q1[blocks], tt[None, :], tool_length, with_tip=not tcp
+            chain, q0[blocks], q1[blocks], tt[None, :], tool_length, with_tip=not tcp
         )
         sub = arc.take(blocks)
         c2 = sub.chord2((v[0][0], v[1][0], v[2][0]), *cos_sin(tt * sub.omega))
@@ -524,8 +636,33 @@ def _sampled_errors(
     log.debug(
         "%d blocks: tip refined in %d, orientation in %d", n, wanted[0].sum(), wanted[1].sum()
     )
+    # the worst sample only where the search starts from it
+    worst = (
+        np.zeros(n, dtype=np.intp) if dist2 is None else _first_largest(dist2, wanted[0]),
+        _first_largest(chord2, wanted[1]),
+    )
     best = refine_max(errors, t, worst, best, wanted)
     return np.sqrt(best[0]), angle_from_chord2(best[1])
+
+
+def _column_max(values: np.ndarray) -> np.ndarray:
+    """Largest value of each column of ``values`` (s, n), as the value at its first maximum
+    (``np.argmax`` along the first axis) is: the same number, except where a NaN or a zero
+    is the largest (NaNs may differ in payload, zeros in sign), which go by argmax."""
+    best = values.max(axis=0)
+    if np.isnan(best).any() or not best.all():
+        best = values[np.argmax(values, axis=0), np.arange(values.shape[1])]
+    return best
+
+
+def _first_largest(values: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """Row of the first maximum of each column of ``values`` (s, n) where ``wanted`` (0 in
+    the other columns)."""
+    index = np.zeros(values.shape[1], dtype=np.intp)
+    cols = np.flatnonzero(wanted)
+    if cols.size:
+        index[cols] = np.argmax(values[:, cols], axis=0)
+    return index
 
 
 @dataclass(frozen=True)
@@ -613,7 +750,9 @@ class _Rows:
     key : ndarray, shape (k,)
         Where the row goes: its index in the input, inserted rows halfway between their
         neighbours' keys (dyadic fractions, exact in floating point).
-    poses : RowPoses
+    poses : RowPoses or None
+        None until needed (:meth:`posed`): the blocks between consecutive input rows work
+        them out a few chunks at a time (:func:`_block_errors`).
     """
 
     q: np.ndarray
@@ -621,7 +760,7 @@ class _Rows:
     axis: np.ndarray
     param: np.ndarray | None
     key: np.ndarray
-    poses: RowPoses
+    poses: RowPoses | None
 
     def take(self, index: np.ndarray | slice) -> _Rows:
         """The rows at ``index`` (a slice gives views)."""
@@ -631,8 +770,14 @@ class _Rows:
             self.axis[index],
             None if self.param is None else self.param[index],
             self.key[index],
-            self.poses.take(index),
+            None if self.poses is None else self.poses.take(index),
         )
+
+    def posed(self, machine: Machine, tool_length: float) -> _Rows:
+        """The rows with their poses worked out."""
+        if self.poses is not None:
+            return self
+        return replace(self, poses=RowPoses.of(machine, self.q, tool_length))
 
     @staticmethod
     def concat(parts: list[_Rows]) -> _Rows:
@@ -640,6 +785,7 @@ class _Rows:
             return np.concatenate([getattr(p, name) for p in parts])
 
         poses = [p.poses for p in parts]
+        assert all(p is not None for p in poses), "concatenated rows have their poses"
         return _Rows(
             cat("q"),
             cat("tip"),
@@ -662,7 +808,8 @@ def _measure(
     tol: Tolerances,
     targets: tuple[float, float] | None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Errors of the blocks from rows ``a`` to rows ``b``."""
+    """Errors of the blocks from rows ``a`` to rows ``b``; rows without their poses are
+    consecutive rows of one path (``b.q[i]`` is ``a.q[i + 1]``)."""
     e = _block_errors(
         machine,
         a.q,
@@ -671,7 +818,7 @@ def _measure(
         b.tip,
         a.axis,
         b.axis,
-        (a.poses, b.poses),
+        None if a.poses is None or b.poses is None else (a.poses, b.poses),
         tool_length,
         tcp,
         tol,
@@ -716,9 +863,7 @@ def block_errors(
     if q.shape[0] <= 1:
         return BlockError(np.zeros(0), np.zeros(0))
     n = q.shape[0]
-    rows = _Rows(
-        q, tip, axis, None, np.arange(n, dtype=float), RowPoses.of(machine, q, tool_length)
-    )
+    rows = _Rows(q, tip, axis, None, np.arange(n, dtype=float), None)
     err = _measure(
         machine,
         rows.take(slice(0, n - 1)),
@@ -774,7 +919,7 @@ def subdivide(
     Linearized
     """
     tol = tol or Tolerances()
-    q, tip, axis = np.array(q, dtype=float), np.array(tip, dtype=float), np.array(axis, dtype=float)
+    q, tip, axis = (np.asarray(x, dtype=float) for x in (q, tip, axis))
     n = len(q)
     targets = (tol.tip * tol.interpolation_share, tol.orientation * tol.interpolation_share)
     rows = _Rows(
@@ -783,7 +928,7 @@ def subdivide(
         axis,
         None if param is None else np.asarray(param, dtype=float),
         np.arange(n, dtype=float),
-        RowPoses.of(machine, q, tool_length),
+        None,
     )
     # the blocks still to decide, as the rows they join; the bisected ones are replaced by
     # their halves, and only those are measured again
@@ -798,7 +943,7 @@ def subdivide(
             a = a.take(np.zeros(0, dtype=int))
             break
         idx = np.flatnonzero(bad)
-        a, b = a.take(idx), b.take(idx)
+        a, b = a.take(idx).posed(machine, tool_length), b.take(idx).posed(machine, tool_length)
         pmid = None if a.param is None or b.param is None else 0.5 * (a.param + b.param)
         if solve_at is not None and pmid is not None:
             qm, pm, vm = solve_at(pmid, a.q, b.q)
@@ -813,16 +958,66 @@ def subdivide(
         err = _measure(machine, a, b, tool_length, tcp, tol, targets)
     else:
         done.append((a.key, err[0], err[1]))  # still beyond the targets at the largest depth
-    every = _Rows.concat([rows, *inserted]) if inserted else rows
-    order = np.argsort(every.key, kind="stable")
-    keys = np.concatenate([d[0] for d in done])
-    blocks = np.argsort(keys, kind="stable")
-    err_tip = np.concatenate([d[1] for d in done])[blocks]
-    err_ori = np.concatenate([d[2] for d in done])[blocks]
+    # the rows and the blocks in key order: the first of each are in order already, the few
+    # added after them are merged in
+    if inserted:
+        extra = _Rows.concat(inserted)
+        at, order = _merge_positions(rows.key, extra.key)
+        q, tip, axis = (
+            _inserted(whole, at, part[order])
+            for whole, part in ((q, extra.q), (tip, extra.tip), (axis, extra.axis))
+        )
+        source = _inserted(np.arange(n), at, np.full(len(order), -1))
+    else:
+        q, tip, axis, source = q.copy(), tip.copy(), axis.copy(), np.arange(n)
+    if len(done) > 1:
+        at, order = _merge_positions(done[0][0], np.concatenate([d[0] for d in done[1:]]))
+        err_tip, err_ori = (
+            _inserted(done[0][i], at, np.concatenate([d[i] for d in done[1:]])[order])
+            for i in (1, 2)
+        )
+    else:
+        err_tip, err_ori = done[0][1], done[0][2]
     return Linearized(
-        q=every.q[order],
-        tip=every.tip[order],
-        axis=every.axis[order],
-        source=np.where(order < n, order, -1),
-        error=BlockError(tip=err_tip, orientation=err_ori),
+        q=q, tip=tip, axis=axis, source=source, error=BlockError(tip=err_tip, orientation=err_ori)
     )
+
+
+def _merge_positions(first: np.ndarray, more: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the keys ``more`` go among the sorted keys ``first``, as a stable sort of both
+    would put them (after equal keys of ``first``).
+
+    Returns
+    -------
+    at : ndarray, shape (k,), int
+        Per key of ``more`` in sorted order: the number of keys of ``first`` before it.
+    order : ndarray, shape (k,), int
+        The stable sort of ``more``.
+    """
+    order = np.argsort(more, kind="stable")
+    return np.searchsorted(first, more[order], side="right"), order
+
+
+def _inserted(whole: np.ndarray, at: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``whole`` with ``rows`` inserted in order, row i after the first ``at[i]`` of ``whole``
+    (``at`` non-decreasing): copies of the stretches between them when they are few."""
+    out = np.empty((len(whole) + len(rows), *whole.shape[1:]), dtype=whole.dtype)
+    final = at + np.arange(len(rows))  # where the rows land
+    if len(rows) > _FEW_INSERTED:
+        keep = np.ones(len(out), dtype=bool)
+        keep[final] = False
+        out[keep] = whole
+        out[final] = rows
+        return out
+    prev = 0
+    for i, (k, f) in enumerate(zip(at.tolist(), final.tolist(), strict=True)):
+        out[prev + i : f] = whole[prev:k]
+        out[f] = rows[i]
+        prev = k
+    out[prev + len(rows) :] = whole[prev:]
+    return out
+
+
+_FEW_INSERTED = 256
+"""Up to this many inserted rows, :func:`_inserted` copies the stretches between them; beyond,
+masks are faster."""

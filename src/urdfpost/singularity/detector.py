@@ -16,7 +16,13 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from urdfpost.kinematics.forward import cross, rotate, tip_and_axis
+from urdfpost.kinematics.forward import (
+    ROWS,
+    Chain,
+    axis_and_joint_directions,
+    chain_of,
+    row_chunks,
+)
 from urdfpost.machine import Machine
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
@@ -24,7 +30,7 @@ from urdfpost.toolpath import Motion, Toolpath
 log = logging.getLogger(__name__)
 
 
-def orientation_jacobian(machine: Machine, q: np.ndarray) -> np.ndarray:
+def orientation_jacobian(machine: Machine | Chain, q: np.ndarray) -> np.ndarray:
     """Jacobian of the tool-axis vector with respect to the rotary joints (vectorised).
 
     Column j is ``omega_j(q) x v``, where ``omega_j`` is the direction of rotary joint j in the
@@ -34,7 +40,7 @@ def orientation_jacobian(machine: Machine, q: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    machine : Machine
+    machine : Machine or Chain
     q : ndarray, shape (n, m) or (m,), mm / rad
 
     Returns
@@ -42,21 +48,69 @@ def orientation_jacobian(machine: Machine, q: np.ndarray) -> np.ndarray:
     ndarray, shape (n, 3, r)
         Columns in :attr:`Machine.rotary` (chain) order, per radian.
     """
-    q = np.asarray(q, dtype=float).reshape(-1, len(machine.axes))
+    chain = chain_of(machine)
+    q = np.asarray(q, dtype=float).reshape(-1, chain.n_axes)
+    out = np.empty((q.shape[0], 3, len(chain.rotary_columns)))
+    for part in row_chunks(q.shape[0]):
+        _jacobian_into(out[part], chain, q[part])
+    return out
+
+
+def _jacobian_into(out: np.ndarray, chain: Chain, q: np.ndarray) -> np.ndarray:
+    """:func:`orientation_jacobian` of a few thousand rows ``q`` into ``out`` (k, 3, r); returns
+    the tool axis (k, 3)."""
+    v, directions = axis_and_joint_directions(chain, q)
+    v0, v1, v2 = v[:, 0], v[:, 1], v[:, 2]
+    for j, w in enumerate(directions):  # cross(w, v), the same products and differences
+        w0, w1, w2 = w[:, 0], w[:, 1], w[:, 2]
+        for i, (a, b, c, d) in enumerate(((w1, v2, w2, v1), (w2, v0, w0, v2), (w0, v1, w1, v0))):
+            col = out[:, i, j]
+            np.multiply(a, b, out=col)
+            col -= c * d
+    return v
+
+
+def _conditioning_of(j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest singular value and condition number of Jacobians ``j`` (n, 3, r)."""
+    if j.shape[2] == 2:
+        # two columns: s1^2 + s2^2 is the sum of their squared lengths and s1 s2 the area of
+        # the parallelogram they span (which keeps its precision where s2 is tiny)
+        total = np.einsum("nij,nij->n", j, j)
+        (a0, b0), (a1, b1), (a2, b2) = ((j[:, i, 0], j[:, i, 1]) for i in range(3))
+        # the length of their cross product, by the same operations as
+        # np.linalg.norm(cross(a, b), axis=1) without its reduction over rows of three
+        c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        area = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+        smax = np.sqrt(0.5 * (total + np.sqrt(np.maximum(total**2 - 4.0 * area**2, 0.0))))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            smin = np.where(smax > 0, area / np.where(smax > 0, smax, 1.0), 0.0)
+    else:
+        s = np.linalg.svd(j, compute_uv=False)  # (n, r), descending
+        smin, smax = s[:, -1], s[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kappa = np.where(smin > 0, smax / np.where(smin > 0, smin, 1.0), np.inf)
+    return smin, kappa
+
+
+def _conditioning_and_axis(
+    machine: Machine | Chain, q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`conditioning` and the tool axis (n, 3), a few thousand rows at a time (the
+    Jacobians of one chunk stay in the CPU cache and are not kept)."""
+    chain = chain_of(machine)
+    q = np.asarray(q, dtype=float).reshape(-1, chain.n_axes)
     n = q.shape[0]
-    _, v = tip_and_axis(machine, q)
-    chain = [a for a in sorted(machine.axes, key=lambda a: a.chain_index) if a.rotary]
-    cols = []
-    for j, a in enumerate(chain):
-        # the joint's direction turned by the joints before it in the chain
-        w = np.broadcast_to(a.screw[:3], (n, 3))
-        for b in chain[j - 1 :: -1] if j else ():
-            w = rotate(b.screw[:3], q[:, machine.axis_names.index(b.name)], w)
-        cols.append(cross(w, v))
-    return np.stack(cols, axis=2)
+    sigma, kappa, axis = np.empty(n), np.empty(n), np.empty((n, 3))
+    size = max(1, min(n, ROWS))
+    j = np.empty((size, 3, len(chain.rotary_columns)))
+    for part in row_chunks(n, size):
+        k = part.stop - part.start
+        axis[part] = _jacobian_into(j[:k], chain, q[part])
+        sigma[part], kappa[part] = _conditioning_of(j[:k])
+    return sigma, kappa, axis
 
 
-def conditioning(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def conditioning(machine: Machine | Chain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Smallest singular value and condition number of the orientation Jacobian.
 
     For a machine with one rotary axis the Jacobian is a single column; its norm is both the
@@ -64,7 +118,7 @@ def conditioning(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
     Parameters
     ----------
-    machine : Machine
+    machine : Machine or Chain
     q : ndarray, shape (n, m) or (m,), mm / rad
 
     Returns
@@ -76,21 +130,8 @@ def conditioning(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
     kappa : ndarray, shape (n,)
         sigma_max / sigma_min (``inf`` at a singular point).
     """
-    j = orientation_jacobian(machine, q)
-    if j.shape[2] == 2:
-        # two columns: s1^2 + s2^2 is the sum of their squared lengths and s1 s2 the area of
-        # the parallelogram they span (which keeps its precision where s2 is tiny)
-        total = np.einsum("nij,nij->n", j, j)
-        area = np.linalg.norm(cross(j[:, :, 0], j[:, :, 1]), axis=1)
-        smax = np.sqrt(0.5 * (total + np.sqrt(np.maximum(total**2 - 4.0 * area**2, 0.0))))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            smin = np.where(smax > 0, area / np.where(smax > 0, smax, 1.0), 0.0)
-    else:
-        s = np.linalg.svd(j, compute_uv=False)  # (n, r), descending
-        smin, smax = s[:, -1], s[:, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        kappa = np.where(smin > 0, smax / np.where(smin > 0, smin, 1.0), np.inf)
-    return smin, kappa
+    sigma, kappa, _ = _conditioning_and_axis(machine, q)
+    return sigma, kappa
 
 
 @dataclass(frozen=True)
@@ -136,21 +177,19 @@ class Span:
 def joined_runs(joined: np.ndarray) -> list[tuple[int, int]]:
     """Maximal runs [s, e] (e > s) of points each joined to the one before it.
 
-    ``joined[i]`` says point i continues the run of point i - 1.
+    ``joined[i]`` says point i continues the run of point i - 1 (``joined[0]`` is not read).
+
+    Examples
+    --------
+    >>> joined_runs(np.array([True, True, True, False, True, False, False]))
+    [(0, 2), (3, 4)]
     """
-    n = len(joined)
-    runs = []
-    i = 0
-    while i < n - 1:
-        if joined[i + 1]:
-            j = i + 1
-            while j + 1 < n and joined[j + 1]:
-                j += 1
-            runs.append((i, j))
-            i = j
-        else:
-            i += 1
-    return runs
+    links = np.zeros(max(len(joined) + 1, 2), dtype=np.int8)  # links[i]: i joined to i - 1
+    links[1:-1] = np.asarray(joined, dtype=bool)[1:]
+    change = np.diff(links)
+    starts = np.flatnonzero(change == 1)  # the first link of a run joins its start to the next
+    ends = np.flatnonzero(change == -1)
+    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True)]
 
 
 def feed_runs(toolpath: Toolpath) -> list[tuple[int, int]]:
@@ -197,19 +236,19 @@ def detect(
     if n == 0 or not machine.rotary:
         return []
     runs = feed_runs(toolpath) if runs is None else runs
-    sigma, kappa = conditioning(machine, q)
+    sigma, kappa, v = _conditioning_and_axis(machine, q)
     rot_cols = list(machine.rotary_columns)
-    rot = q[:, rot_cols]
-    step = np.zeros((n, len(rot_cols)))
-    step[1:] = np.abs(np.diff(rot, axis=0))
-    k1 = machine.rotary[0].direction
-    _, v = tip_and_axis(machine, q)
-    near_pole = np.sqrt(np.clip(1.0 - (v @ k1) ** 2, 0.0, None)) < tol.singular_sigma
+    # cosine of the angle between the tool axis and the first rotary axis, of the whole path
+    # at once (the last bits of a matrix product can depend on how its rows are split); the
+    # rest is element-wise, worked out per run and per span
+    along_k1 = v @ machine.rotary[0].direction
     spans: list[Span] = []
     for s, e in runs:
         low = sigma[s : e + 1] < tol.singular_sigma
         swing = np.zeros(e - s + 1, dtype=bool)
-        big = (step[s + 1 : e + 1] > tol.swing_limit).any(axis=1)
+        big = np.zeros(e - s, dtype=bool)  # a rotary step into the point after
+        for c in rot_cols:
+            big |= np.abs(np.diff(q[s : e + 1, c])) > tol.swing_limit
         swing[1:] |= big
         swing[:-1] |= big
         mark = low | swing
@@ -230,8 +269,11 @@ def detect(
                 merged.append([a, b])
         for a, b in merged:
             sl = slice(a, b + 1)
+            step = np.zeros((b - a + 1, len(rot_cols)))  # rotary steps into each point
+            step[1:] = np.abs(np.diff(q[sl][:, rot_cols], axis=0))
             if (sigma[sl] < tol.singular_sigma).any():
-                kind = "pole" if near_pole[sl].any() else "edge"
+                sin_k1 = np.sqrt(np.clip(1.0 - along_k1[sl] ** 2, 0.0, None))
+                kind = "pole" if (sin_k1 < tol.singular_sigma).any() else "edge"
             else:
                 kind = "swing"
             spans.append(
@@ -243,8 +285,8 @@ def detect(
                     kind=kind,
                     min_sigma=float(sigma[sl].min()),
                     max_kappa=float(kappa[sl].max()),
-                    swing_deg=float(np.degrees(step[a + 1 : b + 1, 0].sum())),
-                    max_step_deg=float(np.degrees(step[a + 1 : b + 1].max(initial=0.0))),
+                    swing_deg=float(np.degrees(step[1:, 0].sum())),
+                    max_step_deg=float(np.degrees(step[1:].max(initial=0.0))),
                 )
             )
     log.debug("%d singular spans", len(spans))
