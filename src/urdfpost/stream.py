@@ -373,9 +373,9 @@ def post_stream(
     figures = _Figures()
     start: np.ndarray | None = None
     previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes and last row read back
-    first_piece: Toolpath | None = None
     last_piece: Toolpath | None = None
-    reader_warnings: list[str] = []
+    reader_warnings = list(buffer.warnings)  # the job's, in order
+    buffer = replace(buffer, warnings=())
     program: Program | None = None
     count = 0
     fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
@@ -395,9 +395,6 @@ def post_stream(
                         have += len(more)
                 if pending:
                     buffer = _joined(buffer, pending)
-                if first_piece is None:
-                    reader_warnings = list(buffer.warnings) + reader_warnings
-                    buffer = replace(buffer, warnings=())
                 last = exhausted and len(buffer) <= want + lookahead
                 window = buffer if last else toolpath_slice(buffer, 0, want + lookahead)
                 if base is None:
@@ -414,7 +411,6 @@ def post_stream(
                         continue
                     cut, plan, want = c.point, c.plan, piece_points
                     piece = toolpath_slice(window, 0, cut + 1)
-                first_piece = first_piece or piece
                 last_piece = piece
                 continuation = Continuation(
                     start=start, tcp_on=start is not None and options.tcp, last=last
@@ -478,7 +474,7 @@ def post_stream(
                     "streamed piece %d: CL lines %d to %d", count, piece.line[0], piece.line[-1]
                 )
         verification = merge_verifications(checks)
-        assert program is not None and first_piece is not None and last_piece is not None
+        assert program is not None and last_piece is not None
         merged = dict(figures.figures)
         merged["warnings"] = merged.get("warnings", [])
         job = replace(last_piece, warnings=tuple(reader_warnings))
