@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -119,6 +120,23 @@ def test_streamed_tcp_program_within_rounding_of_the_whole_post(
     assert result.verification.ok
 
 
+def test_worker_and_serial_checks_agree(tmp_path: Path, raster: Toolpath) -> None:
+    """Pieces verified in the worker process or here, one after the other: the same program
+    and the same figures."""
+    options = PostOptions(controller="siemens", tcp=True)
+    job = with_events(raster)
+    got = {
+        parallel: streamed_text(
+            tmp_path, job, options, piece_points=900, lookahead=200, parallel=parallel
+        )
+        for parallel in (False, True)
+    }
+    assert_same_text(got[True][0], got[False][0])
+    assert got[True][1].verification == got[False][1].verification
+    assert got[True][1].report == got[False][1].report
+    assert got[True][1].report["streamed"]["pieces"] > 4
+
+
 def test_reader_piece_sizes_do_not_matter(tmp_path: Path, raster: Toolpath) -> None:
     options = PostOptions(controller="heidenhain", tcp=False)
     small = toolpath_slice(raster, 0, 1200)
@@ -130,31 +148,61 @@ def test_reader_piece_sizes_do_not_matter(tmp_path: Path, raster: Toolpath) -> N
     assert_same_text(texts[7], texts[1200])
 
 
+@pytest.mark.parametrize("parallel", [False, True])
 def test_piece_that_misses_its_tolerance_writes_nothing(
-    tmp_path: Path, raster: Toolpath, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, raster: Toolpath, monkeypatch: pytest.MonkeyPatch, parallel: bool
 ) -> None:
-    """A piece that fails its check after others were written: the old file stays, and no
+    """A piece that fails its check after others were written (its CL points moved 0.1 mm
+    before they are checked, in this process or in the worker): the old file stays, and no
     temporary file is left."""
     import urdfpost.stream as stream_module
 
-    real = stream_module.check_program
-    calls = []
+    real = stream_module._Checks.submit
+    jobs = []
 
-    def second_fails(*args, **kw):
-        check, intent = real(*args, **kw)
-        calls.append(1)
-        return (replace(check, ok=False) if len(calls) == 2 else check), intent
+    def second_moved(self, job):
+        jobs.append(1)
+        if len(jobs) == 2:
+            job = replace(
+                job, piece=replace(job.piece, tip=job.piece.tip + np.array([0.0, 0.1, 0.0]))
+            )
+        real(self, job)
 
-    monkeypatch.setattr(stream_module, "check_program", second_fails)
+    monkeypatch.setattr(stream_module._Checks, "submit", second_moved)
     out = tmp_path / "out.nc"
     out.write_text("old program\n")
     options = PostOptions(controller="heidenhain", tcp=False)
-    with pytest.raises(ToleranceError, match="misses its tolerance against the CL data"):
+    with pytest.raises(ToleranceError, match="misses its tolerance against the CL data") as err:
         post_stream(toolpath_pieces(raster, 500), load_machine("dmu50"), out, options,
-                    piece_points=1000, lookahead=100)  # fmt: skip
-    assert len(calls) == 2
+                    piece_points=1000, lookahead=100, parallel=parallel)  # fmt: skip
+    assert len(jobs) >= 2
+    second = raster.line[1000]  # about where the second piece starts
+    lines = [int(x) for x in re.findall(r"lines (\d+) to (\d+)", str(err.value))[0]]
+    assert lines[0] <= second <= lines[1]
     assert out.read_text() == "old program\n"
     assert [p.name for p in tmp_path.iterdir()] == ["out.nc"]
+
+
+def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> None:
+    """An error in the verification worker (here a program line the reader rejects) is raised
+    where the post runs, as the same error with its file and line."""
+    from urdfpost.errors import ProgramParseError
+    from urdfpost.stream import _Checks, _Job
+    from urdfpost.tolerances import Tolerances
+
+    checks = _Checks(
+        load_machine("dmu50"), "heidenhain", "prog.h", Tolerances.for_units("mm"), "mm", True
+    )
+    try:
+        piece = toolpath_slice(read_cl(ROOT / "examples/dome.apt"), 0, 2)
+        checks.submit(_Job(text="0 BEGIN PGM X MM\nL X1 Y\n", inserts=[], piece=piece,
+                           figures={}, tool_length=0.0))  # fmt: skip
+        with pytest.raises(ProgramParseError) as err:
+            checks.finish()
+        assert (err.value.path, err.value.line) == ("prog.h", 2)
+    finally:
+        checks.close()
+    assert checks.process is None
 
 
 def test_pieces_reassemble_the_toolpath(raster: Toolpath) -> None:

@@ -25,8 +25,8 @@ from urdfpost.errors import UrdfpostError
 log = logging.getLogger("urdfpost")
 
 MAX_WARNINGS_SHOWN = 20
-_PIECE_POINTS = 500_000  # (urdfpost.stream.PIECE_POINTS, not imported at start-up)
-_STREAM_BYTES = 256 << 20  # CL files larger than this are posted in pieces by default
+_PIECE_POINTS = 100_000  # (urdfpost.stream.PIECE_POINTS, not imported at start-up)
+_STREAM_BYTES = 16 << 20  # CL files larger than this are posted in pieces by default
 
 
 def _write_atomic(files: dict[Path, str]) -> None:
@@ -245,7 +245,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         metavar="N",
         help="post in pieces of about N CL points, read, written and verified one at a time "
-        "(bounded memory for long jobs); 0: never. Default: pieces of "
+        "(bounded memory for long jobs; each piece verified in a second process while the next "
+        "is planned); 0: never. Default: pieces of "
         f"{_PIECE_POINTS} points when the CL file is over {_STREAM_BYTES >> 20} MB",
     )
     _planning_arguments(po)
@@ -357,6 +358,9 @@ def _cmd_post(args: argparse.Namespace) -> int:
     from urdfpost.machine import load_machine
     from urdfpost.pipeline import PostOptions, post
     from urdfpost.tolerances import MM_PER_INCH
+
+    # no monitor thread: a streamed post forks its verification worker, best from one thread
+    tqdm.monitor_interval = 0
 
     machine = load_machine(args.machine)
     pieces = args.piece_points

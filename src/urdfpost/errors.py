@@ -35,6 +35,10 @@ class CLDataError(UrdfpostError):
         self.detail = message
         super().__init__(f"{path}:{line}: {message}")
 
+    def __reduce__(self) -> tuple[type, tuple[str, int, str]]:
+        # rebuilt from the three parts (a verification worker sends its errors back)
+        return type(self), (self.path, self.line, self.detail)
+
 
 class UnreachableError(UrdfpostError):
     """A CL point that no inverse-kinematics branch reaches within the machine's travel."""
@@ -71,3 +75,7 @@ class ProgramParseError(DialectError):
         self.line = line
         self.detail = message
         super().__init__(f"{path}:{line}: {message}")
+
+    def __reduce__(self) -> tuple[type, tuple[str, int, str]]:
+        # rebuilt from the three parts (a verification worker sends its errors back)
+        return type(self), (self.path, self.line, self.detail)

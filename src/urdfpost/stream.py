@@ -25,7 +25,10 @@ How the pieces join:
   place when the last piece is verified (nothing is left behind on an error).
 - **Verification** reads back each piece's text with one reader (its modal state carries on
   too) and checks it against the piece's CL points, starting from the last row of the piece
-  before: every block of the program is checked once. The figures are merged.
+  before: every block of the program is checked once. The figures are merged. On a machine
+  with more than one core this runs in a worker process, one piece behind the planning, so
+  the two share the work (a piece is handed over when the one before is checked: one piece
+  waits at most). A piece that misses its tolerance stops the post all the same.
 
 Figures that depend on the whole job are taken from the first window: the program name
 (``PARTNO``), the ball radius of the first cutter and the tool of the collision world.
@@ -33,17 +36,23 @@ Figures that depend on the whole job are taken from the first window: the progra
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import multiprocessing
 import os
+import pickle
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
+from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from urdfpost.errors import ToleranceError
+from urdfpost.errors import ToleranceError, UrdfpostError
 from urdfpost.linearize import angle_between
 from urdfpost.machine import Machine
 from urdfpost.pipeline import (
@@ -64,12 +73,17 @@ from urdfpost.verify import Verification
 
 log = logging.getLogger(__name__)
 
-PIECE_POINTS = 500_000
+PIECE_POINTS = 100_000
 """CL points posted per piece by default."""
 
 LOOKAHEAD = 50_000
 """CL points a piece's plan sees past its end, at most, by default (a fifth of the piece below
 five times this)."""
+
+
+_FORK = sys.platform.startswith("linux")
+"""Whether verification workers are forked (where forking a process that runs numpy is safe);
+elsewhere pieces are verified in the worker only when asked for, in a spawned process."""
 
 
 @dataclass(frozen=True)
@@ -307,6 +321,172 @@ def _prepended(program: Program, axes: tuple[str, ...], row: np.ndarray) -> Prog
     return replace(program, blocks=Blocks((start, *program.parts)))
 
 
+@dataclass(frozen=True)
+class _Job:
+    """What checking one piece takes: its text, the CL points and the figures of its plan."""
+
+    text: str
+    inserts: list[str]  # the texts of the piece's inserted blocks, in order
+    piece: Toolpath
+    figures: dict[str, Any]  # what :func:`check_program` reads of build_program's figures
+    tool_length: float  # mm
+
+
+def _check_figures(found: dict[str, Any]) -> dict[str, Any]:
+    """The figures of :func:`build_program` that :func:`check_program` reads (the plan without
+    its joint curve, a closure that stays behind)."""
+    plan: Plan = found["plan"]
+    reference = found["reference"]
+    kept = replace(plan, curve=None)
+    return {
+        "plan": kept,
+        "reference": kept.toolpath if reference is plan.toolpath else reference,
+        "strategy": found["strategy"],
+    }
+
+
+class _Verifier:
+    """Reads back the pieces' texts in order with one reader and checks each against its CL
+    points, from the last row of the piece before (module docstring)."""
+
+    def __init__(
+        self, machine: Machine, controller: str, path: str, tol: Tolerances, units: str
+    ) -> None:
+        from urdfpost.dialects import dialect_for
+
+        self.machine, self.tol, self.units = machine, tol, units
+        self.reader = dialect_for(controller).reader(path=path)
+        self.previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
+
+    def check(self, job: _Job) -> tuple[Verification, Verification | None]:
+        """The piece's verifications against the CL data and against its strategy's path.
+
+        Raises
+        ------
+        ToleranceError
+            Either misses its tolerance.
+        """
+        self.reader.feed(job.text, job.inserts)
+        readback = self.reader.take()
+        if self.previous is not None:
+            readback = _prepended(readback, *self.previous)
+        piece = job.piece
+        check, intent = check_program(
+            readback, self.machine, piece, job.figures, self.tol, job.tool_length
+        )
+        for v, what in ((intent, "the path its strategy intended"), (check, "the CL data")):
+            if v is not None and not v.ok:
+                raise ToleranceError(
+                    f"{piece.source}: the program misses its tolerance against {what} "
+                    f"(lines {int(piece.line[0])} to {int(piece.line[-1])}), nothing "
+                    f"written: {v.summary(self.units)}"
+                    + (f"; worst near CL line {v.worst_cl_line}" if v.worst_cl_line else "")
+                )
+        table = readback.move_table()
+        if len(table):
+            self.previous = (readback.axes, np.asarray(table.position[-1]))
+        return check, intent
+
+
+def _serve(conn: Connection, *args: Any) -> None:
+    """A verification worker: checks the jobs it receives with one :class:`_Verifier` and
+    sends back ``(True, result)`` or ``(False, exception)``, until it receives None."""
+    verifier = _Verifier(*args)
+    while (job := conn.recv()) is not None:
+        try:
+            answer: tuple[bool, Any] = (True, verifier.check(job))
+        except Exception as exc:  # sent back to be raised where the post runs
+            answer = (False, exc)
+            try:
+                pickle.dumps(exc)
+            except Exception:
+                answer = (False, UrdfpostError(f"verification failed: {exc!r}"))
+        conn.send(answer)
+
+
+class _Checks:
+    """The pieces' checks, in order: in a worker process while the next piece is planned (the
+    two cores of a small machine share the work), or here one after the other.
+
+    One piece is checked at a time; the next is handed over when the one before has been
+    checked, so at most one piece waits (memory stays bounded).
+    """
+
+    def __init__(
+        self,
+        machine: Machine,
+        controller: str,
+        path: str,
+        tol: Tolerances,
+        units: str,
+        parallel: bool,
+    ) -> None:
+        self.results: list[tuple[Verification, Verification | None]] = []
+        self.local: _Verifier | None = None
+        self.conn: Connection | None = None
+        self.process: BaseProcess | None = None
+        self.busy = False
+        args = (machine, controller, path, tol, units)
+        if not parallel:
+            self.local = _Verifier(*args)
+            return
+        # a fork carries the machine over as it is and does not import the caller's main
+        # module again (which a script without a main guard would not survive)
+        context = multiprocessing.get_context("fork" if _FORK else "spawn")
+        self.conn, child = context.Pipe()
+        self.process = context.Process(target=_serve, args=(child, *args), daemon=True)
+        self.process.start()
+        child.close()
+        log.info("streamed pieces are verified in worker process %d", self.process.pid)
+
+    def submit(self, job: _Job) -> None:
+        """Check ``job`` (after the one before, which it waits for in the worker)."""
+        if self.local is not None:
+            self.results.append(self.local.check(job))
+            return
+        assert self.conn is not None
+        self._collect()
+        self.conn.send(job)
+        self.busy = True
+
+    def finish(self) -> list[tuple[Verification, Verification | None]]:
+        """Every piece's verifications, in order, once all are checked."""
+        self._collect()
+        return self.results
+
+    def _collect(self) -> None:
+        if not self.busy:
+            return
+        assert self.conn is not None and self.process is not None
+        try:
+            ok, value = self.conn.recv()
+        except EOFError:
+            raise UrdfpostError(
+                f"the verification worker (process {self.process.pid}) stopped with exit code "
+                f"{self.process.exitcode}"
+            ) from None
+        self.busy = False
+        if not ok:
+            raise value
+        self.results.append(value)
+
+    def close(self) -> None:
+        """Stop the worker (at once when a check is still running: the post has failed)."""
+        if self.process is None or self.conn is None:
+            return
+        if self.busy:
+            self.process.terminate()
+        else:
+            with contextlib.suppress(OSError):
+                self.conn.send(None)
+        self.process.join(timeout=10)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self.conn.close()
+        self.process = None
+
+
 def post_stream(
     pieces: Iterable[Toolpath],
     machine: Machine,
@@ -316,6 +496,7 @@ def post_stream(
     piece_points: int = PIECE_POINTS,
     lookahead: int | None = None,
     progress: Callable[[int], None] | None = None,
+    parallel: bool | None = None,
 ) -> StreamResult:
     """Post CL data given in pieces to a program file, a piece at a time (module docstring).
 
@@ -334,6 +515,11 @@ def post_stream(
         ``piece_points``, at most :data:`LOOKAHEAD`.
     progress : callable, optional
         Called with the number of CL points just posted.
+    parallel : bool, optional
+        Verify each piece in a worker process while the next one is planned; default on Linux
+        when the machine has more than one core and the job more than one piece. (Elsewhere
+        the worker is spawned: the calling script needs the ``if __name__ == "__main__"``
+        guard of :mod:`multiprocessing`.)
 
     Returns
     -------
@@ -367,16 +553,13 @@ def post_stream(
     tol = Tolerances.for_units(units, options.tolerance)
     base = None
     writer = None
-    reader = dialect.reader(path=str(out))
-    checks: list[Verification] = []
-    intents: list[Verification] = []
     figures = _Figures()
     start: np.ndarray | None = None
-    previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes and last row read back
     last_piece: Toolpath | None = None
     reader_warnings = list(buffer.warnings)  # the job's, in order
     buffer = replace(buffer, warnings=())
     program: Program | None = None
+    checks: _Checks | None = None
     count = 0
     fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
     tmp = Path(tmp_name)
@@ -399,6 +582,10 @@ def post_stream(
                 window = buffer if last else toolpath_slice(buffer, 0, want + lookahead)
                 if base is None:
                     base = make_problem(window, machine, options, tol)
+                if checks is None:
+                    if parallel is None:
+                        parallel = _FORK and not last and (os.cpu_count() or 1) > 1
+                    checks = _Checks(machine, dialect.name, str(out), tol, units, parallel)
                 problem = replace(base, toolpath=window, start=start)
                 plan = STRATEGIES[strategy_name(machine, options)](problem)
                 if last:
@@ -439,29 +626,17 @@ def post_stream(
                 if last:
                     writer.close()
                 text = writer.take()
-                reader.feed(text, [b.text for b in program.parts if isinstance(b, Insert)])
-                readback = reader.take()
-                if previous is not None:
-                    readback = _prepended(readback, *previous)
-                check, intent = check_program(
-                    readback, machine, piece, found, tol, program.tool_length
-                )
-                for v, what in ((intent, "the path its strategy intended"), (check, "the CL data")):
-                    if v is not None and not v.ok:
-                        raise ToleranceError(
-                            f"{piece.source}: the program misses its tolerance against {what} "
-                            f"(lines {int(piece.line[0])} to {int(piece.line[-1])}), nothing "
-                            f"written: {v.summary(units)}"
-                            + (f"; worst near CL line {v.worst_cl_line}" if v.worst_cl_line else "")
-                        )
                 handle.write(text)
-                checks.append(check)
-                if intent is not None:
-                    intents.append(intent)
+                checks.submit(
+                    _Job(
+                        text=text,
+                        inserts=[b.text for b in program.parts if isinstance(b, Insert)],
+                        piece=piece,
+                        figures=_check_figures(found),
+                        tool_length=program.tool_length,
+                    )
+                )
                 figures.add(found, collisions)
-                table = readback.move_table()
-                if len(table):
-                    previous = (readback.axes, np.asarray(table.position[-1]))
                 if "joints" in found and len(found["joints"]):
                     start = found["joints"][-1]
                 count += 1
@@ -473,7 +648,10 @@ def post_stream(
                 log.info(
                     "streamed piece %d: CL lines %d to %d", count, piece.line[0], piece.line[-1]
                 )
-        verification = merge_verifications(checks)
+        assert checks is not None
+        results = checks.finish()
+        verification = merge_verifications([check for check, _ in results])
+        intents = [intent for _, intent in results if intent is not None]
         assert program is not None and last_piece is not None
         merged = dict(figures.figures)
         merged["warnings"] = merged.get("warnings", [])
@@ -487,6 +665,9 @@ def post_stream(
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    finally:
+        if checks is not None:
+            checks.close()
     return StreamResult(path=out, verification=verification, report=report)
 
 
