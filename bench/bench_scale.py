@@ -506,13 +506,13 @@ def main(argv: list[str] | None = None) -> int:
             for n in sizes
             if "error" not in results[n].get(f"streamed mc {fast}", {"error": "-"})
         }
-        for n in streamed:
+        for n in sorted({*peaks, *streamed}):
             r = peaks.get(n) or run_child("stream", ensure_file(n), args.timeout, fast, False)
             print_row(f"{n}", r, n, _stream_note(r, None))
             if "error" not in r:
                 peaks[n] = r
-        if len(peaks) > 1:
-            a, b = min(peaks), max(peaks)
+        if len(peaks) > 1:  # the two largest jobs
+            a, b = sorted(peaks)[-2:]
 
             def total(r: dict[str, Any]) -> float:
                 return r["peak_mb"] + r["worker_peak_mb"]

@@ -95,6 +95,15 @@ def test_streamed_program_is_the_whole_post(
     assert v.mean_tip_deviation == pytest.approx(w.mean_tip_deviation, rel=0.01)
     for key in ("branch_switches", "pole_points", "inserted_blocks"):
         assert result.report[key] == whole.report[key], key
+    # the singular spans numbered along the whole job (their conditioning figures come from
+    # arrays of another length: equal to rounding)
+    spans, want = result.report["strategy"]["spans"], whole.report["strategy"]["spans"]
+    assert spans and len(spans) == len(want)
+    for got, expected in zip(spans, want, strict=True):
+        assert got == pytest.approx(expected, rel=1e-12, abs=0.0)
+        assert [got[k] for k in ("first", "last", "first_line", "last_line", "kind")] == [
+            expected[k] for k in ("first", "last", "first_line", "last_line", "kind")
+        ]
     assert not list(tmp_path.glob(".out.nc.*")), "temporary file left behind"
 
 

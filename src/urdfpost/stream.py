@@ -30,7 +30,9 @@ How the pieces join:
   the two share the work (a piece is handed over when the one before is checked: one piece
   waits at most). A piece that misses its tolerance stops the post all the same.
 
-Figures that depend on the whole job are taken from the first window: the program name
+The singular spans of the report are numbered along the pieces' plan paths joined (each join
+once), as :func:`post` numbers them along its plan's path. Figures that depend on the whole job
+are taken from the first window: the program name
 (``PARTNO``), the ball radius of the first cutter and the tool of the collision world.
 """
 
@@ -279,6 +281,7 @@ class _Figures:
     def __init__(self) -> None:
         self.figures: dict[str, Any] = {}
         self.collisions: list[dict[str, Any]] = []
+        self.offset = 0  # index of the piece's first point in the joined plan paths
 
     def add(self, figures: dict[str, Any], collisions: dict[str, Any]) -> None:
         f = self.figures
@@ -286,6 +289,12 @@ class _Figures:
             f[key] = f.get(key, 0) + int(figures.get(key, 0))
         f.setdefault("rewinds", []).extend(figures.get("rewinds", []))
         strategy = dict(figures["strategy"])
+        # span indices of the whole job: the pieces' plan paths joined, each join counted once
+        at = self.offset
+        strategy["spans"] = [
+            {**sp, "first": sp["first"] + at, "last": sp["last"] + at} for sp in strategy["spans"]
+        ]
+        self.offset += len(figures["plan"].toolpath) - 1
         if "strategy" not in f:
             f["strategy"] = strategy
         else:
