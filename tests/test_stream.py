@@ -205,7 +205,7 @@ def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> Non
     try:
         piece = toolpath_slice(read_cl(ROOT / "examples/dome.apt"), 0, 2)
         checks.submit(_Job(text="0 BEGIN PGM X MM\nL X1 Y\n", inserts=[], piece=piece,
-                           figures={}, tool_length=0.0))  # fmt: skip
+                           reference=None, lifts=0, strategy={}, tool_length=0.0))  # fmt: skip
         with pytest.raises(ProgramParseError) as err:
             checks.finish()
         assert (err.value.path, err.value.line) == ("prog.h", 2)

@@ -949,20 +949,61 @@ def check_program(
     """
     plan: Plan = figures["plan"]
     reference: Toolpath = figures["reference"]
-    if reference is plan.toolpath and not plan.bent:
+    bent = reference is not plan.toolpath or plan.bent
+    return check_against(
+        program,
+        machine,
+        toolpath,
+        reference if bent else None,
+        plan.lifts,
+        figures["strategy"],
+        tol,
+        tool_length,
+    )
+
+
+def check_against(
+    program: Program,
+    machine: Machine,
+    toolpath: Toolpath,
+    reference: Toolpath | None,
+    lifts: int,
+    strategy: dict[str, Any],
+    tol: Tolerances,
+    tool_length: float,
+) -> tuple[Verification, Verification | None]:
+    """:func:`check_program` from the figures it reads.
+
+    Parameters
+    ----------
+    program, machine, toolpath, tol, tool_length
+        As :func:`check_program`.
+    reference : Toolpath or None
+        The path the strategy intended, where it bent the tool axis or moved the path; None:
+        the CL data is the path.
+    lifts : int
+        Lifted spans of the plan.
+    strategy : dict
+        The strategy figures of :func:`build_program` (``pivot_mm``, ``angle_tolerance_deg``).
+
+    Returns
+    -------
+    cl, intended : Verification, Verification or None
+    """
+    if reference is None:
         return verify(program, machine, toolpath, tool_length=tool_length, tol=tol), None
-    pivot = figures["strategy"]["pivot_mm"]
-    loose = bent_tolerances(tol, figures["strategy"]["angle_tolerance_deg"], pivot)
+    pivot = strategy["pivot_mm"]
+    loose = bent_tolerances(tol, strategy["angle_tolerance_deg"], pivot)
     intended, cl = verify_checks(
         program, machine, [Check(reference, tol), Check(toolpath, loose, pivot)], tool_length
     )
-    if plan.lifts:
+    if lifts:
         cl = replace(
             cl,
             ok=intended.ok,
             notes=[
                 *cl.notes,
-                f"{plan.lifts} lifted spans: the tip leaves the CL path there by design",
+                f"{lifts} lifted spans: the tip leaves the CL path there by design",
             ],
         )
     return cl, intended

@@ -61,8 +61,8 @@ from urdfpost.pipeline import (
     Continuation,
     PostOptions,
     build_program,
+    check_against,
     check_collisions,
-    check_program,
     make_problem,
     make_report,
     strategy_name,
@@ -332,26 +332,31 @@ def _prepended(program: Program, axes: tuple[str, ...], row: np.ndarray) -> Prog
 
 @dataclass(frozen=True)
 class _Job:
-    """What checking one piece takes: its text, the CL points and the figures of its plan."""
+    """What checking one piece takes: its text, its CL points and what its plan intended."""
 
     text: str
     inserts: list[str]  # the texts of the piece's inserted blocks, in order
     piece: Toolpath
-    figures: dict[str, Any]  # what :func:`check_program` reads of build_program's figures
+    reference: Toolpath | None  # the strategy's path where it bent the axis (check_against)
+    lifts: int
+    strategy: dict[str, Any]
     tool_length: float  # mm
 
-
-def _check_figures(found: dict[str, Any]) -> dict[str, Any]:
-    """The figures of :func:`build_program` that :func:`check_program` reads (the plan without
-    its joint curve, a closure that stays behind)."""
-    plan: Plan = found["plan"]
-    reference = found["reference"]
-    kept = replace(plan, curve=None)
-    return {
-        "plan": kept,
-        "reference": kept.toolpath if reference is plan.toolpath else reference,
-        "strategy": found["strategy"],
-    }
+    @classmethod
+    def of(cls, text: str, program: Program, piece: Toolpath, found: dict[str, Any]) -> _Job:
+        """The job of a piece posted as ``program`` (written as ``text``), with the figures
+        ``found`` of :func:`build_program`."""
+        plan: Plan = found["plan"]
+        reference = found["reference"]
+        return cls(
+            text=text,
+            inserts=[b.text for b in program.parts if isinstance(b, Insert)],
+            piece=piece,
+            reference=reference if reference is not plan.toolpath or plan.bent else None,
+            lifts=plan.lifts,
+            strategy=found["strategy"],
+            tool_length=program.tool_length,
+        )
 
 
 class _Verifier:
@@ -380,8 +385,15 @@ class _Verifier:
         if self.previous is not None:
             readback = _prepended(readback, *self.previous)
         piece = job.piece
-        check, intent = check_program(
-            readback, self.machine, piece, job.figures, self.tol, job.tool_length
+        check, intent = check_against(
+            readback,
+            self.machine,
+            piece,
+            job.reference,
+            job.lifts,
+            job.strategy,
+            self.tol,
+            job.tool_length,
         )
         for v, what in ((intent, "the path its strategy intended"), (check, "the CL data")):
             if v is not None and not v.ok:
@@ -636,15 +648,7 @@ def post_stream(
                     writer.close()
                 text = writer.take()
                 handle.write(text)
-                checks.submit(
-                    _Job(
-                        text=text,
-                        inserts=[b.text for b in program.parts if isinstance(b, Insert)],
-                        piece=piece,
-                        figures=_check_figures(found),
-                        tool_length=program.tool_length,
-                    )
-                )
+                checks.submit(_Job.of(text, program, piece, found))
                 figures.add(found, collisions)
                 if "joints" in found and len(found["joints"]):
                     start = found["joints"][-1]
