@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -142,7 +143,10 @@ def test_worker_and_serial_checks_agree(tmp_path: Path, raster: Toolpath) -> Non
     }
     assert_same_text(got[True][0], got[False][0])
     assert got[True][1].verification == got[False][1].verification
-    assert got[True][1].report == got[False][1].report
+    reports = {k: dict(v[1].report) for k, v in got.items()}
+    assert reports[True].pop("streamed")["worker"] is True
+    assert reports[False].pop("streamed")["worker"] is False
+    assert reports[True] == reports[False]
     assert got[True][1].report["streamed"]["pieces"] > 4
 
 
@@ -214,6 +218,33 @@ def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> Non
     assert checks.process is None
 
 
+def test_a_worker_that_dies_is_an_error(tmp_path: Path) -> None:
+    """A verification worker killed while it checks a piece (out of memory, say): the post
+    fails with a clear error instead of waiting."""
+    import os
+    import signal
+
+    from urdfpost.errors import UrdfpostError
+    from urdfpost.stream import _Checks, _Job
+    from urdfpost.tolerances import Tolerances
+
+    checks = _Checks(
+        load_machine("dmu50"), "heidenhain", "prog.h", Tolerances.for_units("mm"), "mm", True
+    )
+    try:
+        assert checks.process is not None and checks.process.pid is not None
+        os.kill(checks.process.pid, signal.SIGKILL)
+        checks.process.join()
+        piece = toolpath_slice(read_cl(ROOT / "examples/dome.apt"), 0, 2)
+        job = _Job(text="", inserts=[], piece=piece, reference=None, lifts=0, strategy={},
+                   tool_length=0.0)  # fmt: skip
+        with pytest.raises(UrdfpostError, match=r"verification worker .* exit code -9"):
+            checks.submit(job)
+            checks.finish()
+    finally:
+        checks.close()
+
+
 def test_pieces_reassemble_the_toolpath(raster: Toolpath) -> None:
     job = with_events(raster)
     pieces = list(toolpath_pieces(job, 777))
@@ -277,9 +308,13 @@ def test_merge_counts_the_joins_once() -> None:
     assert twice.missed_lines == [9] and twice.reached == 13
 
 
-def test_cli_posts_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """``urdfpost post --piece-points N`` reads, writes and verifies in pieces: the example
-    job in three pieces is the program of the whole post, and the report says so."""
+@pytest.mark.parametrize("single", [False, True])
+def test_cli_posts_in_pieces(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], single: bool
+) -> None:
+    """``urdfpost post --piece-points N`` reads, writes and verifies in pieces (in a worker
+    process, or not with ``--single-process``): the example job in three pieces is the program
+    of the whole post, and the report says so."""
     from urdfpost.cli import main
 
     dome = ROOT / "examples" / "dome.apt"
@@ -287,10 +322,18 @@ def test_cli_posts_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     common = ["post", str(dome), "--machine", "dmu50", "--no-tcp", "-q"]
     assert main([*common, "-o", str(whole)]) == 0
     report = tmp_path / "r.json"
-    assert main([*common, "-o", str(pieces), "--piece-points", "100", "--report", str(report)]) == 0
+    extra = ["--single-process"] if single else []
+    args = [*common, "-o", str(pieces), "--piece-points", "100", "--report", str(report), *extra]
+    assert main(args) == 0
     assert_same_text(pieces.read_text(), whole.read_text())
     figures = json.loads(report.read_text())
-    assert figures["streamed"] == {"pieces": 3, "piece_points": 100, "lookahead": 20}
+    worker = not single and (os.cpu_count() or 1) > 1
+    assert figures["streamed"] == {
+        "pieces": 3,
+        "piece_points": 100,
+        "lookahead": 20,
+        "worker": worker,
+    }
     assert figures["cl_points"] == figures["cl_points_reached"] == 301 and figures["verified"]
     assert "301/301 CL points reached" in capsys.readouterr().out
 

@@ -249,6 +249,12 @@ def build_parser() -> argparse.ArgumentParser:
         "is planned); 0: never. Default: pieces of "
         f"{_PIECE_POINTS} points when the CL file is over {_STREAM_BYTES >> 20} MB",
     )
+    po.add_argument(
+        "--single-process",
+        action="store_true",
+        help="with --piece-points: verify each piece in this process after it is planned (by "
+        "default a second process verifies it while the next is planned)",
+    )
     _planning_arguments(po)
     po.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
@@ -411,7 +417,13 @@ def _cmd_post(args: argparse.Namespace) -> int:
             from urdfpost.stream import post_stream
 
             result = post_stream(
-                chunks, machine, out, options, piece_points=pieces, progress=bar.update
+                chunks,
+                machine,
+                out,
+                options,
+                piece_points=pieces,
+                progress=bar.update,
+                parallel=False if args.single_process else None,
             )
         else:
             result = post(toolpath, machine, options, progress=bar.update)

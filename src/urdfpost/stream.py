@@ -467,7 +467,10 @@ class _Checks:
             return
         assert self.conn is not None
         self._collect()
-        self.conn.send(job)
+        try:
+            self.conn.send(job)
+        except OSError:  # a broken pipe: the worker is gone
+            raise self._gone() from None
         self.busy = True
 
     def finish(self) -> list[tuple[Verification, Verification | None]]:
@@ -481,15 +484,22 @@ class _Checks:
         assert self.conn is not None and self.process is not None
         try:
             ok, value = self.conn.recv()
-        except EOFError:
-            raise UrdfpostError(
-                f"the verification worker (process {self.process.pid}) stopped with exit code "
-                f"{self.process.exitcode}"
-            ) from None
+        except (EOFError, OSError):
+            raise self._gone() from None
         self.busy = False
         if not ok:
             raise value
         self.results.append(value)
+
+    def _gone(self) -> UrdfpostError:
+        """The error of a worker that stopped (killed, out of memory), nothing written."""
+        assert self.process is not None
+        self.process.join(timeout=10)
+        self.busy = False
+        return UrdfpostError(
+            f"the verification worker (process {self.process.pid}) stopped with exit code "
+            f"{self.process.exitcode} before the program was verified; nothing written"
+        )
 
     def close(self) -> None:
         """Stop the worker (at once when a check is still running: the post has failed)."""
@@ -673,7 +683,12 @@ def post_stream(
         report["collisions"] = figures.collision_figures()
         if intents:
             report["strategy"]["intended_path_check"] = merge_verifications(intents).as_dict()
-        report["streamed"] = {"pieces": count, "piece_points": piece_points, "lookahead": lookahead}
+        report["streamed"] = {
+            "pieces": count,
+            "piece_points": piece_points,
+            "lookahead": lookahead,
+            "worker": bool(parallel),  # pieces verified in a worker process
+        }
         os.replace(tmp, out)
     except BaseException:
         tmp.unlink(missing_ok=True)
