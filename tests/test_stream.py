@@ -150,6 +150,30 @@ def test_worker_and_serial_checks_agree(tmp_path: Path, raster: Toolpath) -> Non
     assert got[True][1].report["streamed"]["pieces"] > 4
 
 
+def test_joins_that_rest_on_the_lookahead_are_reported(tmp_path: Path) -> None:
+    """Both branches within travel all along (tilt 20 deg on a B -35..120 machine): the first
+    join's branch choice is not settled by its window (the whole job could take the other
+    branch from the start). Later joins start from that choice: leaving it would take a
+    rewind, so their choices are settled given it. The program is still verified; the report
+    lists the join and warns once."""
+    m = load_machine("umc750")
+    n = 3000
+    az = np.radians(np.linspace(0.0, 120.0, n))
+    t = np.radians(20.0)
+    axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
+    tip = np.stack([np.linspace(-20, 20, n), 5 * np.sin(az), np.zeros(n)], axis=1)
+    job = Toolpath.from_points(tip, axis, feed=1000.0, source="twofold")
+    out = tmp_path / "out.nc"
+    options = PostOptions(controller="heidenhain", tcp=False)
+    result = post_stream(toolpath_pieces(job, 700), m, out, options, piece_points=800,
+                         lookahead=100)  # fmt: skip
+    streamed = result.report["streamed"]
+    assert streamed["pieces"] >= 3 and result.verification.ok
+    assert streamed["unsettled_joins"] == [int(job.line[800])]  # the first join, at the target
+    (warning,) = [w for w in result.report["warnings"] if "lookahead" in w]
+    assert warning.startswith("twofold: at ") and "--piece-points 0" in warning
+
+
 def test_reader_piece_sizes_do_not_matter(tmp_path: Path, raster: Toolpath) -> None:
     options = PostOptions(controller="heidenhain", tcp=False)
     small = toolpath_slice(raster, 0, 1200)
@@ -333,6 +357,7 @@ def test_cli_posts_in_pieces(
         "piece_points": 100,
         "lookahead": 20,
         "worker": worker,
+        "unsettled_joins": [],  # one branch within travel at the joins
     }
     assert figures["cl_points"] == figures["cl_points_reached"] == 301 and figures["verified"]
     assert "301/301 CL points reached" in capsys.readouterr().out

@@ -282,3 +282,99 @@ def test_without_the_step_cache(
     tip, axis = spiral_axis(3.0, 300, 30.0)
     select(m, tip, axis, tool_length=m.settings.tool_length)
     assert compared.calls == 2 and compared.rewinds > 0
+
+
+# -- settled choices: what no later CL points can change ---------------------------------------
+
+
+def _settled_by_walking(back: np.ndarray, rback: np.ndarray, alive: np.ndarray) -> int:
+    """The last point where the paths into every alive candidate of the last point agree,
+    each path followed back one point at a time."""
+    n, _ = back.shape
+    paths = []
+    for k in np.flatnonzero(alive):
+        path = np.empty(n, dtype=int)
+        path[-1] = k
+        for i in range(n - 1, 0, -1):
+            a = rback[i, k] if rback[i, k] >= 0 else k
+            k = back[i, a]
+            path[i - 1] = k
+        paths.append(path)
+    if len(paths) <= 1:
+        return n - 1
+    agree = np.all(np.array(paths) == paths[0], axis=0)
+    return int(np.flatnonzero(agree).max(initial=-1))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 90),
+    n_cand=st.integers(1, 6),
+    block=st.integers(1, 12),
+    rewinds=st.floats(0.0, 0.3),
+)
+def test_settled_point_of_random_maps(
+    seed: int, n: int, n_cand: int, block: int, rewinds: float
+) -> None:
+    """Followed back as a set, block by block, the survivors meet where following each one
+    back point by point says they do."""
+    rng = np.random.default_rng(seed)
+    # maps that merge now and then (few distinct predecessors), like a real recursion's
+    back = rng.integers(0, max(1, n_cand // 2 + rng.integers(0, 2)), (n, n_cand)).astype(np.int32)
+    back = np.where(rng.random((n, n_cand)) < 0.7, np.arange(n_cand), back).astype(np.int32)
+    rback = np.where(
+        rng.random((n, n_cand)) < rewinds, rng.integers(0, n_cand, (n, n_cand)), -1
+    ).astype(np.int32)
+    alive = rng.random(n_cand) < 0.7
+    alive[rng.integers(0, n_cand)] = True
+    k_end = int(rng.choice(np.flatnonzero(alive)))
+    *_, settled = branches._follow_back(k_end, back, rback, block, alive)
+    assert settled == _settled_by_walking(back, rback, alive)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    name=st.sampled_from(MACHINES),
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(20, 150),
+    cut=st.floats(0.2, 0.9),
+    pole_every=st.integers(0, 9),
+)
+def test_settled_choices_are_those_of_the_whole_path(
+    name: str, seed: int, n: int, cut: float, pole_every: int
+) -> None:
+    """Planned over a first part of a path, the choices up to its settled point are those the
+    plan over the whole path makes: what lets a streamed post cut there."""
+    rng = np.random.default_rng(seed)
+    m = load_machine(name)
+    polar = np.abs(np.cumsum(rng.normal(0.0, 0.1, n))) % 1.4
+    az = np.cumsum(rng.normal(0.0, 0.4, n))
+    if pole_every:
+        polar[::pole_every] = 0.0
+    axis = np.stack([np.sin(polar) * np.cos(az), np.sin(polar) * np.sin(az), np.cos(polar)], axis=1)
+    tip = np.cumsum(rng.normal(0.0, 2.0, (n, 3)), axis=0)
+    part = max(2, int(cut * n))
+    try:
+        whole = select(m, tip, axis, tool_length=m.settings.tool_length)
+        first = select(m, tip[:part], axis[:part], tool_length=m.settings.tool_length)
+    except UnreachableError:
+        return
+    assert first.settled is not None and -1 <= first.settled < part
+    s = first.settled + 1
+    np.testing.assert_array_equal(first.branch[:s], whole.branch[:s])
+    np.testing.assert_array_equal(first.rewind[:s], whole.rewind[:s])
+    np.testing.assert_allclose(first.q[:s], whole.q[:s], rtol=0, atol=1e-9)
+
+
+def test_two_branches_within_travel_stay_unsettled() -> None:
+    """Where both branches reach every point and nothing forces either, the paths into them
+    need not meet: such a choice is not settled (a streamed post reports the join)."""
+    m = load_machine("umc750")  # B -35..120 deg: both tilts within travel up to 35 deg
+    n = 200
+    az = np.radians(np.linspace(0.0, 90.0, n))
+    t = np.radians(20.0)
+    axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
+    tip = np.stack([np.linspace(-20, 20, n), np.zeros(n), np.zeros(n)], axis=1)
+    sel = select(m, tip, axis, tool_length=m.settings.tool_length)
+    assert sel.settled is not None and sel.settled < n - 1

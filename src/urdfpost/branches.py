@@ -101,6 +101,10 @@ class Selection:
         within travel (or clear of collisions) goes on from there.
     notes : list of str
         Why candidates were passed over (collisions), for the report.
+    settled : int or None
+        The last point whose choice no points after the path could change (the best paths
+        into every candidate still possible at the last point agree up to it), -1 when none;
+        None: not known.
     """
 
     q: np.ndarray
@@ -109,6 +113,7 @@ class Selection:
     arrive: np.ndarray
     rewind: np.ndarray
     notes: list[str] = field(default_factory=list)
+    settled: int | None = None
 
     @property
     def rewinds(self) -> np.ndarray:
@@ -527,9 +532,11 @@ def select(
     status = ik.status
     del ik  # (its joint vectors are the largest arrays here: the planner can reuse the memory)
     for _ in range(_MAX_COLLISION_ROUNDS):
-        chosen, arrive_k, rot_leave, rot_arrive = (
-            _viterbi(problem) if planner == "global" else _greedy(problem)
-        )
+        if planner == "global":
+            chosen, arrive_k, rot_leave, rot_arrive, settled = _viterbi(problem)
+        else:  # each choice depends on the points before it only
+            chosen, arrive_k, rot_leave, rot_arrive = _greedy(problem)
+            settled = n - 1
         lin = solve_linear(machine, rot_leave, tip, tool_length)
         q = assemble(machine, rot_leave, lin)
         rewind = chosen != arrive_k
@@ -563,6 +570,7 @@ def select(
         arrive=q_arrive,
         rewind=rewind,
         notes=notes,
+        settled=settled,
     )
 
 
@@ -862,9 +870,11 @@ def _viterbi(
         ends[run] = _block_steps(steps, starts[bulk[run]], back, rback)
     if len(first) and not seq[-1]:
         cost = ends[-1]  # the recorded arithmetic, which the predecessors follow
-    chosen, arrive = _follow_back(int(np.argmin(cost)), back, rback, block)
+    chosen, arrive, settled = _follow_back(
+        int(np.argmin(cost)), back, rback, block, np.isfinite(cost)
+    )
     rot_leave, rot_arrive = _angles_along(p, state0, chosen, arrive)
-    return chosen, arrive, rot_leave, rot_arrive
+    return chosen, arrive, rot_leave, rot_arrive, settled
 
 
 def _sequential(
@@ -1071,15 +1081,28 @@ def _block_steps(s: _Steps, starts: np.ndarray, back: np.ndarray, rback: np.ndar
 
 
 def _follow_back(
-    k_end: int, back: np.ndarray, rback: np.ndarray, block: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Candidates along the best path from the last point's ``k_end``, back to the first.
+    k_end: int, back: np.ndarray, rback: np.ndarray, block: int, alive: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Candidates along the best path from the last point's ``k_end``, back to the first, and
+    how far the paths into every ``alive`` candidate of the last point agree.
 
     At each point ``i`` the path leaves with ``chosen[i]``, arrived with ``arrive[i]``
     (``rback`` where a rewind was taken) and came from ``back[i, arrive[i]]``. The maps from
     the candidate at a block's last point to that before its first are composed for all
     blocks at once, followed block by block, then every block is walked at once. The blocks
     end at the last point; the first is filled up with points that keep the candidate.
+
+    The best paths into the alive candidates of the last point (the survivors) are followed
+    back as a set, block by block and then step by step in the block where they meet: once
+    two meet they agree on every point before. Whatever points came after the last one, the
+    best path over them all would continue one of the survivors, so its choices up to the
+    point where all survivors agree are these (the choice there is settled).
+
+    Returns
+    -------
+    chosen, arrive : ndarray, shape (n,), int
+    settled : int
+        The last point where every survivor leaves with the same candidate (-1: none).
     """
     n, n_cand = back.shape
     keep = np.arange(n_cand)
@@ -1103,6 +1126,7 @@ def _follow_back(
     for b in range(n_blocks - 1, -1, -1):
         ends[b] = k
         k = int(comp[k, b])
+    settled = _settled(np.flatnonzero(alive), comp, maps, block, pad)
     chosen = np.empty((block, n_blocks), dtype=np.int64)
     cur = ends
     for j in range(block - 1, -1, -1):
@@ -1110,8 +1134,33 @@ def _follow_back(
         cur = np.take(maps[j], cur * n_blocks + at)
     leave = _blocks_first(chosen).reshape(-1)[pad:]
     if arrive_of is None:
-        return leave, leave.copy()
-    return leave, np.take(arrive_of, leave + np.arange(n) * n_cand)
+        return leave, leave.copy(), settled
+    return leave, np.take(arrive_of, leave + np.arange(n) * n_cand), settled
+
+
+def _settled(
+    survivors: np.ndarray, comp: np.ndarray, maps: np.ndarray, block: int, pad: int
+) -> int:
+    """The last point where the paths into ``survivors`` (candidates at the last point) all
+    leave with the same candidate, -1 when they never do (:func:`_follow_back`'s maps:
+    ``comp[:, b]`` over block b, ``maps[j][k, b]`` over its step j, ``pad`` points of filling
+    before the first)."""
+    n_blocks = comp.shape[1]
+    last = n_blocks * block - 1 - pad
+    if len(survivors) <= 1:
+        return last
+    at = survivors
+    for b in range(n_blocks - 1, -1, -1):
+        before = np.unique(comp[at, b])
+        if len(before) > 1:
+            at = before
+            continue
+        for j in range(block - 1, -1, -1):  # they meet in block b: where
+            if len(at) == 1:
+                return max(b * block + j - pad, -1)
+            at = np.unique(maps[j][at, b])
+        return max(b * block - 1 - pad, -1)
+    return -1
 
 
 def _angles_along(

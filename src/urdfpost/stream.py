@@ -15,9 +15,15 @@ How the pieces join:
   row there. The next window starts at that point, which takes the angles the piece before
   chose exactly (``fixed_start`` of :func:`urdfpost.branches.select`), so the joint path is
   continuous and no rewind or branch switch appears at a cut. The branch choice at a cut is
-  the best one over the window, which sees ``lookahead`` points past it: where the best choice
-  over the whole job would differ (a travel limit further ahead that the other branch avoids)
-  the streamed program rewinds later instead. A strategy that shapes a whole feed run (``cone``)
+  the best one over the window, which sees ``lookahead`` points past it. Where the best paths
+  into every candidate still possible at the window's end agree up to the cut (the survivors
+  of the branch planner have met: :attr:`urdfpost.branches.Selection.settled`), no CL points
+  after the window can change it, and the choice is the one a plan of the whole job makes;
+  such a cut is preferred (in the second half of the piece). Where there is none, as when
+  both branches stay within travel all along, the choice rests on the lookahead: a travel
+  limit further on that the other branch avoids would get a rewind later instead. The report
+  lists those joins (``streamed.unsettled_joins``) and warns; the joins after one start from
+  its choice, and are settled given it. A strategy that shapes a whole feed run (``cone``)
   shapes the two halves of a run cut in two on their own. Either way the program is checked
   like any other, and on jobs without such cases the text is the one :func:`post` writes.
 - **Writing** is one program: the control's writer keeps its modal state and block numbers
@@ -177,6 +183,7 @@ def _joined(first: Toolpath, more: list[Toolpath]) -> Toolpath:
 class _Cut:
     point: int  # CL index in the window
     plan: Plan  # the plan up to it
+    settled: bool  # whether the branch choice up to it is the one the whole job would make
 
 
 def _cut(
@@ -184,6 +191,10 @@ def _cut(
 ) -> _Cut | None:
     """The last CL point at or before ``target`` where a piece can end (module docstring),
     and the window's plan up to it; None when there is none.
+
+    A point where the branch choice is settled (:attr:`Plan.settled`: no CL points after the
+    window could change it) is taken when there is one in the second half of the piece;
+    otherwise the last possible point, whose choice rests on the lookahead.
     """
     n = len(window)
     hi = min(target, n - 2)
@@ -197,37 +208,71 @@ def _cut(
     if machine.rotary:  # the tool axis well away from the poles of the first rotary axis
         cos_pole = np.abs(window.axis[c] @ machine.rotary[0].direction)
         ok &= cos_pole < np.cos(10.0 * max(tol.pole, tol.pole_crossing))
-    tp, param = plan.toolpath, plan.param
     spans = [(s.first, s.last) for s in plan.spans]
-    for point in c[ok][::-1].tolist():
-        at = int(np.searchsorted(tp.line, line[point], side="right")) - 1
-        if at < 1 or at >= len(tp) - 1 or tp.line[at] != line[point]:
-            continue
-        if not (
-            np.array_equal(tp.tip[at], window.tip[point])
-            and np.array_equal(tp.axis[at], window.axis[point])
-        ):
-            continue  # moved by the strategy
-        if any(first - 1 <= at <= last + 1 for first, last in spans):
-            continue
-        rows = np.flatnonzero(param == at)
-        if len(rows) != 1:
-            continue  # a turn in place or a rewind there
-        r = int(rows[0])
-        if plan.lift[max(r - 1, 0) : r + 2].any():
-            continue
-        if angle_between(tool_axis_of(machine, plan.rotary[r : r + 1]), tp.axis[at])[0] > 1e-9:
-            continue  # the strategy bent the tool axis there: the next piece starts exact
-        kept = replace(
-            plan,
-            toolpath=toolpath_slice(tp, 0, at + 1),
-            param=param[: r + 1],
-            rotary=plan.rotary[: r + 1],
-            lift=plan.lift[: r + 1],
-            spans=[s for s in plan.spans if s.last < at],
-        )
-        return _Cut(point=point, plan=kept)
-    return None
+    settled = len(plan.toolpath) - 1 if plan.settled is None else plan.settled
+    points = c[ok]
+
+    def last_regular(upto: int, down_to: int) -> tuple[int, int] | None:
+        """The last point at or before CL point ``upto`` (and not before ``down_to``) where a
+        piece can end, with its plan point."""
+        for point in points[: np.searchsorted(points, upto, side="right")][::-1].tolist():
+            if point < down_to:
+                break
+            at = _regular(window, plan, point, spans, machine)
+            if at is not None:
+                return point, at
+        return None
+
+    found = last_regular(target, 0)
+    if found is None:
+        return None
+    if found[1] > settled and settled >= 0:  # a settled point in the second half?
+        upto = int(np.searchsorted(line, plan.toolpath.line[settled], side="right")) - 1
+        earlier = last_regular(upto, target // 2)
+        if earlier is not None:
+            return _kept(plan, *earlier, settled=True)
+    return _kept(plan, *found, settled=found[1] <= settled)
+
+
+def _regular(
+    window: Toolpath, plan: Plan, point: int, spans: list[tuple[int, int]], machine: Machine
+) -> int | None:
+    """The plan's point of CL point ``point`` when a piece can end there (no span, lift, turn
+    in place or bent axis at it: the module docstring), else None."""
+    tp = plan.toolpath
+    at = int(np.searchsorted(tp.line, window.line[point], side="right")) - 1
+    if at < 1 or at >= len(tp) - 1 or tp.line[at] != window.line[point]:
+        return None
+    if not (
+        np.array_equal(tp.tip[at], window.tip[point])
+        and np.array_equal(tp.axis[at], window.axis[point])
+    ):
+        return None  # moved by the strategy
+    if any(first - 1 <= at <= last + 1 for first, last in spans):
+        return None
+    r = int(np.searchsorted(plan.param, at, side="left"))
+    if int(np.searchsorted(plan.param, at, side="right")) - r != 1:
+        return None  # a turn in place or a rewind there, or no row
+    if plan.lift[max(r - 1, 0) : r + 2].any():
+        return None
+    if angle_between(tool_axis_of(machine, plan.rotary[r : r + 1]), tp.axis[at])[0] > 1e-9:
+        return None  # the strategy bent the tool axis there: the next piece starts exact
+    return at
+
+
+def _kept(plan: Plan, point: int, at: int, *, settled: bool) -> _Cut:
+    """The cut at CL point ``point`` of the window, point ``at`` of the plan."""
+    r = int(np.searchsorted(plan.param, at))
+    kept = replace(
+        plan,
+        toolpath=toolpath_slice(plan.toolpath, 0, at + 1),
+        param=plan.param[: r + 1],
+        rotary=plan.rotary[: r + 1],
+        lift=plan.lift[: r + 1],
+        spans=[s for s in plan.spans if s.last < at],
+        settled=min(at, len(plan.toolpath) - 1 if plan.settled is None else plan.settled),
+    )
+    return _Cut(point=point, plan=kept, settled=settled)
 
 
 # -- merging the figures -------------------------------------------------------------------------
@@ -591,6 +636,7 @@ def post_stream(
     buffer = replace(buffer, warnings=())
     program: Program | None = None
     checks: _Checks | None = None
+    unsettled: list[int] = []  # CL lines of the joins whose branch choice rests on the lookahead
     count = 0
     fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
     tmp = Path(tmp_name)
@@ -629,6 +675,8 @@ def post_stream(
                         continue
                     cut, plan, want = c.point, c.plan, piece_points
                     piece = toolpath_slice(window, 0, cut + 1)
+                    if not c.settled:
+                        unsettled.append(int(window.line[cut]))
                 last_piece = piece
                 continuation = Continuation(
                     start=start, tcp_on=start is not None and options.tcp, last=last
@@ -678,6 +726,13 @@ def post_stream(
         assert program is not None and last_piece is not None
         merged = dict(figures.figures)
         merged["warnings"] = merged.get("warnings", [])
+        if unsettled:
+            merged["warnings"].append(
+                f"{last_piece.source}: at {len(unsettled)} of {count - 1} joins of the "
+                f"streamed pieces (the first at CL line {unsettled[0]}) the branch choice rests on "
+                f"{lookahead} CL points of lookahead: the whole job could choose otherwise "
+                "there (a travel limit further on); --piece-points 0 plans it whole"
+            )
         job = replace(last_piece, warnings=tuple(reader_warnings))
         report = make_report(job, machine, program, verification, dialect.name, merged)
         report["collisions"] = figures.collision_figures()
@@ -688,6 +743,8 @@ def post_stream(
             "piece_points": piece_points,
             "lookahead": lookahead,
             "worker": bool(parallel),  # pieces verified in a worker process
+            # joins where the branch choice is not settled by the window (CL lines)
+            "unsettled_joins": unsettled,
         }
         os.replace(tmp, out)
     except BaseException:

@@ -143,6 +143,9 @@ class Plan:
     bent : bool
         Whether the tool axis was moved off the programmed one anywhere.
     notes : list of str
+    settled : int or None
+        The last point of ``toolpath`` whose branch choice no CL points after the path could
+        change (:attr:`urdfpost.branches.Selection.settled`); None: not known.
     """
 
     toolpath: Toolpath
@@ -153,6 +156,7 @@ class Plan:
     spans: list[Span] = field(default_factory=list)
     bent: bool = False
     notes: list[str] = field(default_factory=list)
+    settled: int | None = None
 
     @property
     def lifts(self) -> int:
@@ -437,6 +441,7 @@ def _plain(problem: Problem, toolpath: Toolpath, sel: Selection, spans: list[Spa
         lift=np.zeros(len(param)),
         spans=spans,
         notes=list(sel.notes),
+        settled=sel.settled,
     )
 
 
@@ -457,6 +462,7 @@ def strategy_none(problem: Problem) -> Plan:
         lift=np.zeros(len(param)),
         spans=_spans(problem, tp, sel),
         notes=list(sel.notes),
+        settled=sel.settled,
     )
 
 
@@ -629,6 +635,7 @@ def _interpolated(problem: Problem, shape: str) -> Plan:
         spans=spans,
         bent=True,
         notes=list(sel.notes),
+        settled=sel.settled,
     )
 
 
@@ -815,6 +822,7 @@ def strategy_cone(problem: Problem) -> Plan:
         spans=spans,
         bent=True,
         notes=list(sel.notes),
+        settled=sel.settled,
     )
 
 
