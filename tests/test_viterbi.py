@@ -223,6 +223,20 @@ def test_rewinds(compared: Compared, turns: float) -> None:
         assert sel.rewind.any()
 
 
+def random_walk(
+    rng: np.random.Generator, n: int, pole_every: int, *, step: float, reach: float, turn: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A random walk of the tool axis about +Z (polar steps ``step`` rad, folded at ``reach``,
+    azimuth steps ``turn`` rad; every ``pole_every``-th point exactly on +Z) and of the tip
+    (2 mm steps): tip and axis, shape (n, 3)."""
+    polar = np.abs(np.cumsum(rng.normal(0.0, step, n))) % reach
+    az = np.cumsum(rng.normal(0.0, turn, n))
+    if pole_every:
+        polar[::pole_every] = 0.0
+    axis = np.stack([np.sin(polar) * np.cos(az), np.sin(polar) * np.sin(az), np.cos(polar)], axis=1)
+    return np.cumsum(rng.normal(0.0, 2.0, (n, 3)), axis=0), axis
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     name=st.sampled_from(MACHINES),
@@ -236,12 +250,7 @@ def test_random_walks(name: str, seed: int, n: int, pole_every: int, entries: in
     entries and rapids: both recursions agree, or both fail with the same message."""
     rng = np.random.default_rng(seed)
     m = load_machine(name)
-    polar = np.abs(np.cumsum(rng.normal(0.0, 0.08, n))) % 1.2
-    az = np.cumsum(rng.normal(0.0, 0.5, n))
-    if pole_every:
-        polar[::pole_every] = 0.0
-    axis = np.stack([np.sin(polar) * np.cos(az), np.sin(polar) * np.sin(az), np.cos(polar)], axis=1)
-    tip = np.cumsum(rng.normal(0.0, 2.0, (n, 3)), axis=0)
+    tip, axis = random_walk(rng, n, pole_every, step=0.08, reach=1.2, turn=0.5)
     entry = np.zeros(n, dtype=bool)
     entry[rng.integers(0, n, entries)] = True
     cutting = rng.random(n) > 0.1
@@ -348,12 +357,7 @@ def test_settled_choices_are_those_of_the_whole_path(
     plan over the whole path makes: what lets a streamed post cut there."""
     rng = np.random.default_rng(seed)
     m = load_machine(name)
-    polar = np.abs(np.cumsum(rng.normal(0.0, 0.1, n))) % 1.4
-    az = np.cumsum(rng.normal(0.0, 0.4, n))
-    if pole_every:
-        polar[::pole_every] = 0.0
-    axis = np.stack([np.sin(polar) * np.cos(az), np.sin(polar) * np.sin(az), np.cos(polar)], axis=1)
-    tip = np.cumsum(rng.normal(0.0, 2.0, (n, 3)), axis=0)
+    tip, axis = random_walk(rng, n, pole_every, step=0.1, reach=1.4, turn=0.4)
     part = max(2, int(cut * n))
     try:
         whole = select(m, tip, axis, tool_length=m.settings.tool_length)
