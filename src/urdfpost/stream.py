@@ -51,6 +51,7 @@ import os
 import pickle
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
@@ -491,7 +492,9 @@ class _Checks:
         self.local: _Verifier | None = None
         self.conn: Connection | None = None
         self.process: BaseProcess | None = None
-        self.busy = False
+        self.busy = False  # a job was handed over and its result not taken yet
+        self.sender: threading.Thread | None = None
+        self.sent = True  # whether the last job reached the worker
         args = (machine, controller, path, tol, units)
         if not parallel:
             self.local = _Verifier(*args)
@@ -506,17 +509,25 @@ class _Checks:
         log.info("streamed pieces are verified in worker process %d", self.process.pid)
 
     def submit(self, job: _Job) -> None:
-        """Check ``job`` (after the one before, which it waits for in the worker)."""
+        """Check ``job`` (after the one before, which it waits for in the worker).
+
+        The job is pickled and sent from a thread, so that planning the next piece goes on
+        while the worker takes it in.
+        """
         if self.local is not None:
             self.results.append(self.local.check(job))
             return
-        assert self.conn is not None
         self._collect()
+        self.busy = True
+        self.sender = threading.Thread(target=self._send, args=(job,), daemon=True)
+        self.sender.start()
+
+    def _send(self, job: _Job) -> None:
+        assert self.conn is not None
         try:
             self.conn.send(job)
-        except OSError:  # a broken pipe: the worker is gone
-            raise self._gone() from None
-        self.busy = True
+        except OSError:  # a broken pipe: the worker is gone (reported by _collect)
+            self.sent = False
 
     def finish(self) -> list[tuple[Verification, Verification | None]]:
         """Every piece's verifications, in order, once all are checked."""
@@ -527,7 +538,10 @@ class _Checks:
         if not self.busy:
             return
         assert self.conn is not None and self.process is not None
+        self._join_sender()
         try:
+            if not self.sent:
+                raise OSError("not sent")
             ok, value = self.conn.recv()
         except (EOFError, OSError):
             raise self._gone() from None
@@ -546,12 +560,18 @@ class _Checks:
             f"{self.process.exitcode} before the program was verified; nothing written"
         )
 
+    def _join_sender(self) -> None:
+        if self.sender is not None:
+            self.sender.join()
+            self.sender = None
+
     def close(self) -> None:
         """Stop the worker (at once when a check is still running: the post has failed)."""
         if self.process is None or self.conn is None:
             return
         if self.busy:
             self.process.terminate()
+            self._join_sender()  # its write fails once the worker is gone
         else:
             with contextlib.suppress(OSError):
                 self.conn.send(None)
