@@ -775,6 +775,9 @@ def post(
 ) -> PostResult:
     """Post a toolpath for a machine and check the program against the CL data.
 
+    The whole job is planned at once, in this process. Long jobs post faster and in bounded
+    memory in pieces: :func:`urdfpost.stream.post_stream`.
+
     Parameters
     ----------
     toolpath : Toolpath
