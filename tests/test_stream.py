@@ -269,6 +269,140 @@ def test_a_worker_that_dies_is_an_error(tmp_path: Path) -> None:
         checks.close()
 
 
+def assert_same_figures(got: Verification, whole: Verification, *, worst: bool) -> None:
+    """The figures of a check in pieces and of the whole check agree.
+
+    The counts, lines and steps exactly. The largest deviations to rounding: each piece
+    refines its blocks' samples down to the largest deviation at its own rows, which may be
+    smaller than the whole's, so the samples (and their last bits) may differ. The mean to 1%:
+    the join rows count twice. The worst CL line where one block stands out (``worst``).
+    """
+    assert got.max_tip_deviation == pytest.approx(whole.max_tip_deviation, rel=1e-9)
+    assert got.max_orientation_deviation_deg == pytest.approx(
+        whole.max_orientation_deviation_deg, rel=1e-9
+    )
+    assert got.mean_tip_deviation == pytest.approx(whole.mean_tip_deviation, rel=0.01)
+    if worst:
+        assert got.worst_cl_line == whole.worst_cl_line
+    loose = {
+        "max_tip_deviation": 0.0,
+        "max_orientation_deviation_deg": 0.0,
+        "mean_tip_deviation": 0.0,
+        "compared": 0,
+        "worst_cl_line": None,
+    }
+    assert replace(got, **loose) == replace(whole, **loose)
+
+
+def _damaged(text: str) -> str:
+    """The program with three blocks moved 0.5 mm in X and thirty lines taken out."""
+    lines = text.splitlines(keepends=True)
+    moved = 0
+    for k in range(len(lines) // 7, len(lines), len(lines) // 4):
+        line = lines[k]
+        word = re.search(r"X([-+]?\d+\.\d+)", line)
+        if word:
+            value = float(word.group(1)) + 0.5
+            lines[k] = line[: word.start(1)] + f"{value:+.3f}".lstrip("+") + line[word.end(1) :]
+            moved += 1
+    assert moved >= 3
+    del lines[len(lines) // 2 : len(lines) // 2 + 30]
+    return "".join(lines)
+
+
+@pytest.mark.parametrize(
+    ("controller", "tcp", "damage", "text_piece"),
+    [
+        ("heidenhain", False, False, 1 << 20),
+        ("fanuc", False, True, 20_000),
+        ("siemens", True, True, 7_000),
+        ("linuxcnc", True, False, 50_000),
+    ],
+)
+def test_verify_in_pieces_is_the_whole_verify(
+    tmp_path: Path, raster: Toolpath, controller: str, tcp: bool, damage: bool, text_piece: int
+) -> None:
+    """Read and checked in pieces (the text and the CL data cut anywhere), a program gets the
+    figures of the whole check: reached and missed points, blocks, the worst deviations and
+    where, the rotary steps, the notes; only the mean counts the join rows twice."""
+    from urdfpost.dialects import dialect_for
+    from urdfpost.stream import program_texts, verify_stream
+    from urdfpost.tolerances import Tolerances
+    from urdfpost.verify import verify
+
+    m = load_machine("dmu50")
+    events = with_events(raster).events  # (an insert is read back only knowing its text)
+    job = replace(raster, events=tuple(e for e in events if e.kind != "insert"))
+    result = post(job, m, PostOptions(controller=controller, tcp=tcp, strategy="recursive"))
+    text = _damaged(result.text) if damage else result.text
+    path = tmp_path / "prog.nc"
+    path.write_text(text, encoding="utf-8")
+    tol = Tolerances.for_units("mm")
+    length = result.program.tool_length
+    program = dialect_for(controller).read(text, path=str(path))
+    whole = verify(program, m, job, tool_length=length, tol=tol)
+    got, header = verify_stream(
+        path, toolpath_pieces(job, 613), m, controller, tol=tol, tool_length=length,
+        piece_points=900, texts=program_texts(path, text_piece),
+    )  # fmt: skip
+    assert got.compared > whole.compared  # pieces were joined (each join row counted twice)
+    assert got.ok is whole.ok is (not damage)
+    if damage:
+        assert whole.missed_lines and whole.max_tip_deviation > 0.4
+    assert_same_figures(got, whole, worst=damage)
+    assert (header.tcp, header.units, header.name) == (program.tcp, program.units, program.name)
+
+
+def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
+    """A program with rewinds (a C axis limited to two turns, a spiral of four): the pieces
+    are never cut inside one, and the figures are those of the whole check."""
+    from urdfpost.dialects import dialect_for
+    from urdfpost.stream import verify_stream
+    from urdfpost.tolerances import Tolerances
+    from urdfpost.verify import verify
+
+    m = load_machine("gantry-ca")
+    n = 3000
+    az = np.radians(np.linspace(0.0, 360.0 * 4.2, n))
+    t = np.radians(30.0)
+    axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
+    tip = np.stack([40 * np.cos(az), 40 * np.sin(az), np.linspace(0, -6, n)], axis=1)
+    job = Toolpath.from_points(tip, axis, feed=800.0, source="spiral")
+    result = post(job, m, PostOptions(controller="fanuc", tcp=False, strategy="recursive"))
+    assert result.report["rewinds"]
+    path = tmp_path / "spiral.nc"
+    path.write_text(result.text, encoding="utf-8")
+    tol = Tolerances.for_units("mm")
+    length = result.program.tool_length
+    program = dialect_for("fanuc").read(result.text)
+    whole = verify(program, m, job, tool_length=length, tol=tol)
+    got, _ = verify_stream(path, toolpath_pieces(job, 500), m, "fanuc", tol=tol,
+                           tool_length=length, piece_points=300)  # fmt: skip
+    assert got.compared > whole.compared and got.ok and whole.ok
+    assert any("rewind moves" in x for x in whole.notes)
+    assert_same_figures(got, whole, worst=False)
+
+
+def test_cli_verifies_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``urdfpost verify --piece-points N`` prints what the whole check prints."""
+    from urdfpost.cli import main
+
+    dome = str(ROOT / "examples" / "dome.apt")
+    prog = tmp_path / "dome.h"
+    assert main(["post", dome, "-m", "dmu50", "-q", "-o", str(prog)]) == 0
+    capsys.readouterr()
+    common = ["verify", str(prog), "--cl", dome, "-m", "dmu50", "--angle-tolerance", "2"]
+    assert main([*common, "--piece-points", "0"]) == 0
+    whole = capsys.readouterr().out
+    assert main([*common, "--piece-points", "60"]) == 0
+    pieces = capsys.readouterr().out
+    assert "301/301 CL points reached" in whole
+    # the same line but for the mean deviation
+    strip = re.compile(r"mean \d+\.\d+")
+    assert strip.sub("mean", pieces) == strip.sub("mean", whole)
+    assert main([*common, "--piece-points", "1"]) == 1
+
+
 def test_pieces_reassemble_the_toolpath(raster: Toolpath) -> None:
     job = with_events(raster)
     pieces = list(toolpath_pieces(job, 777))
@@ -326,10 +460,21 @@ def test_merge_counts_the_joins_once() -> None:
     assert merged.missed_lines == [40] and not merged.ok
     assert merged.max_tip_deviation == 0.004 and merged.worst_cl_line == 44
     assert merged.mean_tip_deviation == pytest.approx((0.001 * 120 + 0.002 * 60) / 180)
-    assert merged.max_rotary_step_deg == {"B": 0.004, "C": 1.0} and merged.notes == ["a"]
+    assert merged.max_rotary_step_deg == {"B": 0.004, "C": 1.0}
+    # the notes once each, the counting ones counted over the whole
+    assert merged.notes == ["a", "1 CL points not reached, first at line 40"]
     # a point missed at the join is one point
     twice = merge_verifications([part(10, 12, [9], 0.0, 1), part(5, 6, [9], 0.0, 1)])
     assert twice.missed_lines == [9] and twice.reached == 13
+    rewinds = [
+        replace(part(10, 12, [], 0.0, 1), notes=[f"{k} rewind moves are not compared with "
+                                                 "the CL path", "a"])
+        for k in (3, 4)
+    ]  # fmt: skip
+    assert merge_verifications(rewinds).notes == [
+        "7 rewind moves are not compared with the CL path",
+        "a",
+    ]
 
 
 @pytest.mark.parametrize("single", [False, True])

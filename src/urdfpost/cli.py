@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from urdfpost import __version__
+from urdfpost._files import give_mode
 from urdfpost.errors import UrdfpostError
 
 log = logging.getLogger("urdfpost")
@@ -52,6 +53,7 @@ def _write_atomic(files: dict[Path, str]) -> None:
                 f.write(text)
         for path, tmp in temps.items():
             try:
+                give_mode(tmp, path)
                 os.replace(tmp, path)
             except OSError as e:
                 raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
@@ -288,6 +290,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ve.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
     ve.add_argument("--report", help="write a JSON report here")
+    ve.add_argument(
+        "--piece-points",
+        type=int,
+        metavar="N",
+        help="read and check in pieces of about N CL points (bounded memory for long jobs; "
+        "the same figures, but for the mean deviation); 0: never. Default: pieces of "
+        f"{_PIECE_POINTS} points when the CL file or the program is over {_STREAM_BYTES >> 20} MB",
+    )
 
     co = sub.add_parser("compare", help="post a CL file with several singularity strategies")
     co.add_argument("cl", help="CL file")
@@ -466,12 +476,25 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
     machine = load_machine(args.machine)
     dialect = dialect_for(args.controller, None if args.controller else args.program)
-    try:
-        text = Path(args.program).read_text(encoding="utf-8", errors="replace")
-    except OSError as e:
-        raise UrdfpostError(f"{args.program}: cannot read: {e}") from e
-    program = dialect.read(text, path=args.program)
-    toolpath = _read_cl(args, machine)
+    pieces = args.piece_points
+    if pieces is None:
+        sizes = [Path(f).stat().st_size for f in (args.cl, args.program) if Path(f).is_file()]
+        pieces = _PIECE_POINTS if max(sizes, default=0) > _STREAM_BYTES else 0
+    if pieces < 0 or pieces == 1:
+        raise UrdfpostError(f"--piece-points: expected 0 or at least 2, got {pieces}")
+    if pieces:  # the program's header (units) from its first piece of text
+        from urdfpost.stream import program_texts
+
+        head = next(program_texts(args.program, 1 << 16), "")
+        program = dialect.read(head, path=args.program)
+        toolpath, chunks = _read_cl_pieces(args, machine, pieces)
+    else:
+        try:
+            text = Path(args.program).read_text(encoding="utf-8", errors="replace")
+        except OSError as e:
+            raise UrdfpostError(f"{args.program}: cannot read: {e}") from e
+        program = dialect.read(text, path=args.program)
+        toolpath, chunks = _read_cl(args, machine), None
     scale = MM_PER_INCH if program.units == "inch" else 1.0
     tol = Tolerances.for_units(program.units, args.tolerance)
     tool_length = (
@@ -481,9 +504,33 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if args.angle_tolerance > 0:
         from urdfpost.pipeline import ball_radius, bent_tolerances
 
-        pivot = ball_radius(toolpath)
+        pivot = ball_radius(toolpath)  # (the first cutter: the first piece has it)
         tol = bent_tolerances(tol, args.angle_tolerance, pivot)
-    check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
+    if chunks is not None:
+        from dataclasses import replace
+
+        from urdfpost.stream import verify_stream
+
+        warnings: list[str] = []
+
+        def collected(pieces: Iterator[Any]) -> Iterator[Any]:
+            for piece in pieces:  # every piece's reader warnings, in order
+                warnings.extend(piece.warnings)
+                yield piece
+
+        check, program = verify_stream(
+            args.program,
+            collected(chunks),
+            machine,
+            dialect.name,
+            tol=tol,
+            tool_length=tool_length,
+            pivot=pivot,
+            piece_points=pieces,
+        )
+        toolpath = replace(toolpath, warnings=tuple(warnings))
+    else:
+        check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
     _show_warnings(toolpath.warnings)
     if args.report:
         report = make_report(toolpath, machine, program, check, dialect.name)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from urdfpost._files import give_mode
 from urdfpost.singularity.detector import Span
 from urdfpost.singularity.metrics import Metrics
 
@@ -136,7 +137,7 @@ def plot_comparison(
     try:
         with os.fdopen(fd, "wb") as handle:
             fig.savefig(handle, format="png", dpi=110, metadata={"Software": None})
-        os.chmod(tmp, 0o644)  # mkstemp makes it private; a plot is an ordinary file
+        give_mode(tmp, target)  # mkstemp makes it private; a plot is an ordinary file
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
