@@ -28,7 +28,10 @@ column is the peak after the imports, before the work) do not pollute each other
     of :data:`urdfpost.stream.PIECE_POINTS` CL points, each verified in a worker process while
     the next is planned: the two cores share the work); the worker's peak memory is shown
     beside the post's. Then the fastest control in machine coordinates at 10M points as well
-    (``--stream-sizes``): the peak memory must not grow with the job.
+    (``--stream-sizes``): the peak memory must not grow with the job;
+(h) ``urdfpost verify`` of the program of (b) for the fastest control (posted once and kept
+    beside the CL file), whole and in pieces (:func:`urdfpost.stream.verify_stream`); in
+    pieces at 10M too.
 
 Printed ratios: post over floor, numerical over closed-form IK per point, and the growth of
 time with size. Nothing here is a test: speed is never checked in the suite.
@@ -37,6 +40,7 @@ time with size. Nothing here is a test: speed is never checked in the suite.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import re
@@ -291,6 +295,64 @@ def measure_numerical_ik(path: str) -> dict[str, Any]:
     }
 
 
+def _program_of(path: str, control: str) -> Path:
+    """The program of CL file ``path`` for ``control`` in machine coordinates, posted once (by
+    ``urdfpost post``, in pieces) and kept beside it."""
+    program = Path(path).with_suffix(f".{control}.nc")
+    if not program.exists():
+        cmd = [sys.executable, "-m", "urdfpost", "post", path, "-m", MACHINE, "-c", control]
+        subprocess.run([*cmd, "--no-tcp", "-q", "-o", str(program)], check=True)
+    return program
+
+
+def measure_verify(path: str, control: str, pieces: bool) -> dict[str, Any]:
+    """``urdfpost verify`` of the program of (b) against its CL file: whole (the program and
+    the CL data read at once) or in pieces (:func:`urdfpost.stream.verify_stream`)."""
+    from urdfpost import load_machine, read_cl
+    from urdfpost.dialects import dialect_for
+    from urdfpost.pipeline import ball_radius, bent_tolerances
+    from urdfpost.readers import read_cl_chunks
+    from urdfpost.stream import PIECE_POINTS, verify_stream
+    from urdfpost.tolerances import Tolerances
+    from urdfpost.verify import verify
+
+    program_path = _program_of(path, control)
+    machine = load_machine(MACHINE)
+    dialect = dialect_for(control)
+    length = machine.settings.tool_length
+    base = _peak_mb()
+    t = time.perf_counter()
+    if pieces:
+        chunks = read_cl_chunks(path, max_points=PIECE_POINTS)
+        first = next(chunks)
+        pivot = ball_radius(first)
+        tol = bent_tolerances(Tolerances.for_units("mm"), 2.0, pivot)
+        v, _ = verify_stream(
+            program_path,
+            itertools.chain([first], chunks),
+            machine,
+            control,
+            tol=tol,
+            tool_length=length,
+            pivot=pivot,
+        )
+    else:
+        program = dialect.read(program_path.read_text(encoding="utf-8"), path=str(program_path))
+        toolpath = read_cl(path)
+        pivot = ball_radius(toolpath)
+        tol = bent_tolerances(Tolerances.for_units("mm"), 2.0, pivot)
+        v = verify(program, machine, toolpath, tool_length=length, tol=tol, pivot=pivot)
+    dt = time.perf_counter() - t
+    return {
+        "seconds": dt,
+        "points": v.cl_points,
+        "blocks": v.blocks,
+        "max_dev_mm": v.max_tip_deviation,
+        "ok": v.ok,
+        "base_mb": base,
+    }
+
+
 def measure_dialects(path: str) -> dict[str, Any]:
     """Write + read back time of one machine-coordinate program in every control."""
     from urdfpost import PostOptions, load_machine, post, read_cl
@@ -326,6 +388,8 @@ def child(kind: str, path: str, control: str, tcp: bool) -> None:
         out = measure_numerical_ik(path)
     elif kind == "dialects":
         out = measure_dialects(path)
+    elif kind in ("verify", "verify-pieces"):
+        out = measure_verify(path, control, kind == "verify-pieces")
     else:
         raise ValueError(kind)
     out["peak_mb"] = _peak_mb()
@@ -479,6 +543,16 @@ def main(argv: list[str] | None = None) -> int:
                     res[key] = r = run_child("stream", path, args.timeout, control, tcp)
                     label = f"(g) in pieces, {'TCP' if tcp else 'machine'} {control}"
                     print_row(label, r, n, _stream_note(r, res["floor"]))
+            for kind in ("verify", "verify-pieces"):
+                res[f"{kind} {fast}"] = r = run_child(kind, path, args.timeout, fast)
+                label = f"(h) urdfpost verify, {'in pieces' if kind != 'verify' else 'whole'}"
+                note = ""
+                if "error" not in r:
+                    note = (
+                        f"{fast}, machine coordinates; {r['blocks']} blocks, "
+                        f"max dev {r['max_dev_mm']:.4f} mm, verified {r['ok']}"
+                    )
+                print_row(label, r, n, note)
         res["ik"] = run_child("ik", path, args.timeout)
         print_row("(f) closed-form IK, all branches", res["ik"], n)
         res["pin"] = r = run_child("pin", path, args.timeout)
@@ -511,6 +585,10 @@ def main(argv: list[str] | None = None) -> int:
             print_row(f"{n}", r, n, _stream_note(r, None))
             if "error" not in r:
                 peaks[n] = r
+            if n not in results:  # and its program checked again, in pieces
+                v = run_child("verify-pieces", ensure_file(n), args.timeout, fast)
+                note = "" if "error" in v else f"max dev {v['max_dev_mm']:.4f} mm, ok {v['ok']}"
+                print_row(f"{n}: (h) verify in pieces", v, n, note)
         if len(peaks) > 1:  # the two largest jobs
             a, b = sorted(peaks)[-2:]
 

@@ -43,3 +43,17 @@ def test_a_replaced_file_keeps_its_mode(tmp_path: Path, pieces: str) -> None:
     out.chmod(0o640)
     assert main(["post", DOME, "-m", "dmu50", "-q", "-o", str(out), "--piece-points", pieces]) == 0
     assert mode(out) == 0o640 and out.read_text() != "old\n"
+
+
+def test_python_dash_m_runs_the_command_line() -> None:
+    """``python -m urdfpost`` is the ``urdfpost`` command (for environments without the
+    script on the path, and for the benchmarks)."""
+    import subprocess
+    import sys
+
+    from urdfpost import __version__
+
+    done = subprocess.run(
+        [sys.executable, "-m", "urdfpost", "--version"], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 0 and done.stdout.strip() == f"urdfpost {__version__}"
