@@ -519,3 +519,21 @@ def test_cli_rejects_a_piece_of_one_point(
     assert main(args) == 1
     assert "--piece-points: expected 0 or at least 2, got 1" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_cli_checks_collisions_in_pieces(tmp_path: Path) -> None:
+    """With a stock mesh, every move of a streamed post is checked for collisions (the world
+    built once, before the worker is forked), as in the whole post."""
+    from urdfpost.cli import main
+
+    dome, stock = str(ROOT / "examples" / "dome.apt"), str(ROOT / "examples" / "dome.stl")
+    reports = {}
+    for pieces in ("0", "100"):
+        report = tmp_path / f"r{pieces}.json"
+        args = ["post", dome, "-m", "dmu50", "--stock", stock, "-q", "--piece-points", pieces]
+        assert main([*args, "-o", str(tmp_path / f"p{pieces}.h"), "--report", str(report)]) == 0
+        reports[pieces] = json.loads(report.read_text())["collisions"]
+    whole, streamed = reports["0"], reports["100"]
+    assert whole["checked"] and streamed["checked"]
+    assert streamed["moves"] == whole["moves"] > 300
+    assert streamed["min_clearance"] == pytest.approx(whole["min_clearance"], abs=1e-6)
