@@ -629,9 +629,11 @@ def post_stream(
         Called with the number of CL points just posted.
     parallel : bool, optional
         Verify each piece in a worker process while the next one is planned; default on Linux
-        when the machine has more than one core and the job more than one piece. (Elsewhere
-        the worker is spawned: the calling script needs the ``if __name__ == "__main__"``
-        guard of :mod:`multiprocessing`.)
+        when the machine has more than one core and the job more than one piece. On Linux the
+        worker is forked: from an application with other threads running (which a fork does
+        not carry over, locks they hold included) pass False. Elsewhere it is spawned: the
+        calling script needs the ``if __name__ == "__main__"`` guard of
+        :mod:`multiprocessing`.
 
     Returns
     -------
