@@ -468,7 +468,7 @@ def test_merge_counts_the_joins_once() -> None:
     assert twice.missed_lines == [9] and twice.reached == 13
     rewinds = [
         replace(part(10, 12, [], 0.0, 1), notes=[f"{k} rewind moves are not compared with "
-                                                 "the CL path", "a"])
+                                                 "the CL path", "a"], rewind_moves=k)
         for k in (3, 4)
     ]  # fmt: skip
     assert merge_verifications(rewinds).notes == [

@@ -951,18 +951,24 @@ def check_program(
         Against the strategy's path (None when it did not bend the tool axis).
     """
     plan: Plan = figures["plan"]
-    reference: Toolpath = figures["reference"]
-    bent = reference is not plan.toolpath or plan.bent
     return check_against(
         program,
         machine,
         toolpath,
-        reference if bent else None,
+        intended_path(figures),
         plan.lifts,
         figures["strategy"],
         tol,
         tool_length,
     )
+
+
+def intended_path(figures: dict[str, Any]) -> Toolpath | None:
+    """The path a plan's strategy intended, from :func:`build_program`'s figures, where it
+    bent the tool axis or moved the path; None where the CL data is the path."""
+    plan: Plan = figures["plan"]
+    reference: Toolpath = figures["reference"]
+    return reference if reference is not plan.toolpath or plan.bent else None
 
 
 def check_against(

@@ -49,7 +49,6 @@ import logging
 import multiprocessing
 import os
 import pickle
-import re
 import sys
 import tempfile
 import threading
@@ -72,6 +71,7 @@ from urdfpost.pipeline import (
     build_program,
     check_against,
     check_collisions,
+    intended_path,
     make_problem,
     make_report,
     strategy_name,
@@ -80,7 +80,7 @@ from urdfpost.program import Blocks, Insert, Move, MoveTable, Program
 from urdfpost.singularity.strategies import STRATEGIES, Plan, tool_axis_of
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
-from urdfpost.verify import Verification
+from urdfpost.verify import Verification, missed_note, rewind_note
 
 log = logging.getLogger(__name__)
 
@@ -281,10 +281,6 @@ def _kept(plan: Plan, point: int, at: int, *, settled: bool) -> _Cut:
 # -- merging the figures -------------------------------------------------------------------------
 
 
-_REWIND_NOTE = re.compile(r"(\d+) rewind moves are not compared with the CL path")
-_MISSED_NOTE = re.compile(r"\d+ CL points not reached, first at line -?\d+")
-
-
 def merge_verifications(parts: list[Verification]) -> Verification:
     """One verification of the pieces' checks of a streamed program.
 
@@ -309,17 +305,16 @@ def merge_verifications(parts: list[Verification]) -> Verification:
             steps[k] = max(steps.get(k, 0.0), x)
     # the pieces' notes once each; those that count something, counted over the whole
     notes: list[str] = []
-    rewinds = 0
+    rewinds = sum(v.rewind_moves for v in parts)
     for v in parts:
-        for x in v.notes:
-            if (m := _REWIND_NOTE.fullmatch(x)) is not None:
-                rewinds += int(m.group(1))
-            elif not _MISSED_NOTE.fullmatch(x) and x not in notes:
-                notes.append(x)
+        counted = {rewind_note(v.rewind_moves)} | (
+            {missed_note(v.missed_lines)} if v.missed_lines else set()
+        )
+        notes += [x for x in v.notes if x not in counted and x not in notes]
     if rewinds:
-        notes.insert(0, f"{rewinds} rewind moves are not compared with the CL path")
+        notes.insert(0, rewind_note(rewinds))
     if missed:
-        notes.append(f"{len(missed)} CL points not reached, first at line {missed[0]}")
+        notes.append(missed_note(missed))
     return replace(
         first,
         ok=all(v.ok for v in parts),
@@ -334,6 +329,7 @@ def merge_verifications(parts: list[Verification]) -> Verification:
         worst_cl_line=worst.worst_cl_line,
         notes=notes,
         compared=compared,
+        rewind_moves=rewinds,
     )
 
 
@@ -408,14 +404,12 @@ class _Job:
     def of(cls, text: str, program: Program, piece: Toolpath, found: dict[str, Any]) -> _Job:
         """The job of a piece posted as ``program`` (written as ``text``), with the figures
         ``found`` of :func:`build_program`."""
-        plan: Plan = found["plan"]
-        reference = found["reference"]
         return cls(
             text=text,
             inserts=[b.text for b in program.parts if isinstance(b, Insert)],
             piece=piece,
-            reference=reference if reference is not plan.toolpath or plan.bent else None,
-            lifts=plan.lifts,
+            reference=intended_path(found),
+            lifts=found["plan"].lifts,
             strategy=found["strategy"],
             tool_length=program.tool_length,
         )
@@ -802,19 +796,21 @@ TEXT_PIECE = 8 << 20
 
 
 def program_texts(path: str | os.PathLike[str], size: int = TEXT_PIECE) -> Iterator[str]:
-    """The text of a program file in pieces of about ``size`` characters, cut at line ends.
+    """The text of a program file in pieces of about ``size`` characters, cut at line ends
+    (as the CL readers read theirs: :func:`urdfpost.readers._stream.text_pieces`).
 
     Raises
     ------
     UrdfpostError
         The file cannot be read.
     """
+    from urdfpost.errors import CLDataError
+    from urdfpost.readers._stream import text_pieces
+
     try:
-        with open(path, encoding="utf-8", errors="replace", newline="") as handle:
-            while text := handle.read(size):
-                yield text + handle.readline()  # to the end of its last line
-    except OSError as e:
-        raise UrdfpostError(f"{path}: cannot read: {e}") from e
+        yield from text_pieces(str(path), size)
+    except CLDataError as e:  # (said of a CL file there)
+        raise UrdfpostError(f"{path}: {e.detail}") from e
 
 
 def _joined_programs(head: Program | None, tail: Program) -> Program:

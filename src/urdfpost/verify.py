@@ -79,6 +79,9 @@ class Verification:
     compared : int
         How many deviations the mean is over (kept out of :meth:`as_dict`; merging the
         verifications of the pieces of a streamed post weighs their means by it).
+    rewind_moves : int
+        Moves of rewinds, not compared with the CL path (:func:`rewind_note`; kept out of
+        :meth:`as_dict` too).
     """
 
     ok: bool
@@ -96,11 +99,12 @@ class Verification:
     tcp: bool
     notes: list[str] = field(default_factory=list)
     compared: int = 0
+    rewind_moves: int = 0
 
     def as_dict(self) -> dict:
         """Plain data for JSON reports."""
         out = asdict(self)
-        del out["compared"]
+        del out["compared"], out["rewind_moves"]
         return out
 
     def summary(self, units: str = "mm") -> str:
@@ -117,6 +121,16 @@ class Verification:
             f"{self.max_orientation_deviation_deg:.4f} deg (tolerance "
             f"{self.orientation_tolerance_deg:.3f}); largest rotary step {steps or 'none'} deg"
         )
+
+
+def rewind_note(moves: int) -> str:
+    """The note of a verification that left ``moves`` rewind moves out."""
+    return f"{moves} rewind moves are not compared with the CL path"
+
+
+def missed_note(lines: list[int]) -> str:
+    """The note of a verification that missed the CL points of ``lines`` (not empty)."""
+    return f"{len(lines)} CL points not reached, first at line {lines[0]}"
 
 
 def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.ndarray]:
@@ -874,7 +888,7 @@ def verify_checks(
     rewind = rewind_moves(program)
     if rewind.any():
         rapid = rapid | rewind
-        notes.append(f"{int(rewind.sum())} rewind moves are not compared with the CL path")
+        notes.append(rewind_note(int(rewind.sum())))
     if len(values) == 0 or not all(len(c.toolpath) for c in checks):
         if len(values) and len(checks) > 1:  # compare those with CL points on their own
             return [verify_checks(program, machine, [c], tool_length)[0] for c in checks]
@@ -906,7 +920,10 @@ def verify_checks(
         feeds, [part.levels(c.tol) for c, part in zip(checks, parts, strict=True)]
     )
     return [
-        part.verification(program, c, deviation, blocks, steps, notes)
+        replace(
+            part.verification(program, c, deviation, blocks, steps, notes),
+            rewind_moves=int(rewind.sum()),
+        )
         for c, part, deviation in zip(checks, parts, deviations, strict=True)
     ]
 
@@ -1050,9 +1067,7 @@ class _Comparison:
         ok = not missed_lines and max_tip <= tol.tip and max_ori <= tol.orientation
         notes = list(notes)
         if missed_lines:
-            notes.append(
-                f"{len(missed_lines)} CL points not reached, first at line {missed_lines[0]}"
-            )
+            notes.append(missed_note(missed_lines))
         return Verification(
             ok=bool(ok),
             cl_points=len(toolpath),
