@@ -15,13 +15,17 @@ import sys
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from urdfpost import __version__
 from urdfpost._files import give_mode
 from urdfpost.errors import UrdfpostError
+
+if TYPE_CHECKING:
+    from urdfpost.pipeline import PostResult
+    from urdfpost.stream import StreamResult
 
 log = logging.getLogger("urdfpost")
 
@@ -423,6 +427,8 @@ def _cmd_post(args: argparse.Namespace) -> int:
         file=sys.stderr,
         leave=False,
     ) as bar:
+        files: dict[Path, str] = {}
+        result: PostResult | StreamResult
         if chunks is not None:
             from urdfpost.stream import post_stream
 
@@ -436,9 +442,10 @@ def _cmd_post(args: argparse.Namespace) -> int:
                 parallel=False if args.single_process else None,
             )
         else:
-            result = post(toolpath, machine, options, progress=bar.update)
+            whole = post(toolpath, machine, options, progress=bar.update)
+            files[out] = whole.text
+            result = whole
     _show_warnings(result.report["warnings"])
-    files = {} if chunks is not None else {out: result.text}
     if args.report:
         files[Path(args.report)] = json.dumps(result.report, indent=2) + "\n"
     _write_atomic(files)

@@ -25,6 +25,7 @@ from urdfpost.program import (
     REWIND_BEGIN,
     REWIND_END,
     Block,
+    Blocks,
     Comment,
     Coolant,
     Home,
@@ -634,6 +635,7 @@ def build_program(
         problem = make_problem(toolpath, machine, options, tol)
     continued = piece is not None and piece.start is not None
     if continued:
+        assert piece is not None
         problem = replace(problem, start=piece.start)
     tool_length = problem.tool_length
     if plan is None:
@@ -759,7 +761,7 @@ def build_program(
         rotary=frozenset(a.name for a in machine.rotary),
         units=units,
         tcp=options.tcp,
-        blocks=body,
+        blocks=Blocks(body),
         tool_length=tool_length,
         continuous=frozenset(a.name for a in machine.rotary if a.continuous),
     )

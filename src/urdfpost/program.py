@@ -33,7 +33,7 @@ import math
 import operator
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, overload
+from typing import Any, cast, overload
 
 import numpy as np
 
@@ -316,8 +316,8 @@ class Blocks(Sequence[Block]):
     def __getitem__(self, index: slice) -> tuple[Block, ...]: ...
 
     def __getitem__(self, index: int | slice) -> Block | tuple[Block, ...]:
-        if self._plain:
-            return self._parts[index]
+        if self._plain:  # every part is a block
+            return cast("Block | tuple[Block, ...]", self._parts[index])
         if isinstance(index, slice):
             return tuple(self)[index]
         n = len(self)

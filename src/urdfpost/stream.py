@@ -511,7 +511,9 @@ class _Checks:
             return
         # a fork carries the machine over as it is and does not import the caller's main
         # module again (which a script without a main guard would not survive)
-        context = multiprocessing.get_context("fork" if _FORK else "spawn")
+        context = (
+            multiprocessing.get_context("fork") if _FORK else multiprocessing.get_context("spawn")
+        )
         self.conn, child = context.Pipe()
         self.process = context.Process(target=_serve, args=(child, *args), daemon=True)
         self.process.start()

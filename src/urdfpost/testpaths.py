@@ -38,6 +38,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from urdfpost.toolpath import Event, Motion, Toolpath
 
@@ -86,7 +87,10 @@ def _assemble(
     Toolpath
         Lines numbered as :func:`to_apt` writes them.
     """
-    tips, axes, feeds, kinds = [], [], [], []
+    tips: list[ArrayLike] = []
+    axes: list[ArrayLike] = []
+    feeds: list[ArrayLike] = []
+    kinds: list[ArrayLike] = []
     events = [Event(0, "partno", 0, {"text": name.upper()})]
     cutter = {"diameter": cutter_diameter, "corner_radius": cutter_diameter / 2.0}
     events.append(Event(0, "cutter", 0, dict(cutter)))

@@ -147,7 +147,7 @@ class ProgramBuilder:
         self.tool: int | None = None
         self.rpm = 0.0
         self.spindle_state: tuple[str, float] = ("off", 0.0)
-        self._speed_change: Block | None = None
+        self._speed_change: Block | _ReadMove | _ReadMoves | None = None
         self.continuous = False
         self.work_offset: str | None = None
         self.ended = False
@@ -560,11 +560,11 @@ def _classify(spec: DialectSpec, builder: ProgramBuilder, tokens: list[_Token]) 
                 raise builder.error(f"G{token.text}: {hint}; this reader understands {known}")
             block.g_actions.append((code, spec.g_codes[code]))
         elif token.address == "M":
-            code = _integer(builder, "M", token.text)
-            if code not in spec.m_codes:
+            m_code = _integer(builder, "M", token.text)
+            if m_code not in spec.m_codes:
                 known = " ".join(f"M{c}" for c in spec.m_codes)
-                raise builder.error(f"unknown M-code M{code}; this reader understands {known}")
-            block.m_actions.append(spec.m_codes[code])
+                raise builder.error(f"unknown M-code M{m_code}; this reader understands {known}")
+            block.m_actions.append(spec.m_codes[m_code])
         elif token.address in block.words:
             raise builder.error(f"two {token.address} words in one block")
         else:
@@ -612,9 +612,11 @@ def parse_gcode_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> No
 def _program_number_line(
     spec: DialectSpec, builder: ProgramBuilder, tokens: list[_Token], comments: list[str]
 ) -> None:
+    word = tokens[0]
     if not spec.program_number_line or len(tokens) != 1 or builder.code_seen:
         raise builder.error("unexpected O word; expected a program number line before any code")
-    number = _integer(builder, "O", tokens[0].text)
+    assert isinstance(word, _Word)  # the caller saw an O word first
+    number = _integer(builder, "O", word.text)
     builder.name = comments[0] if comments else f"O{number}"
     for comment in comments[1:]:
         builder.comment(comment)
@@ -897,16 +899,16 @@ class ProgramReader:
         while start < len(text):
             end = text.find("\n", start + _BULK_PIECE) + 1 or len(text)
             piece = text[start:end]
-            lines = _bulk.motion_lines(piece, grammar)
-            plain = lines.plain.copy()
+            motion = _bulk.motion_lines(piece, grammar)
+            plain = motion.plain.copy()
             if trusted:
-                plain &= ~_trusted_lines(piece, lines, trusted, spec.block_numbers_mandatory)
+                plain &= ~_trusted_lines(piece, motion, trusted, spec.block_numbers_mandatory)
             edges = [0, *(np.flatnonzero(np.diff(plain)) + 1).tolist(), plain.shape[0]]
             for row, stop in itertools.pairwise(edges):
                 bulk = bool(plain[row]) and stop - row >= BULK_MIN_LINES
-                if not (bulk and builder.moves(lines, slice(row, stop), number + row)):
+                if not (bulk and builder.moves(motion, slice(row, stop), number + row)):
                     for r in range(row, stop):
-                        read_line(number + r, piece[lines.starts[r] : lines.ends[r]])
+                        read_line(number + r, piece[motion.starts[r] : motion.ends[r]])
             number += plain.shape[0]
             start = end
         self.lines_read = number - 1

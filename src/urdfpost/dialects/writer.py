@@ -435,9 +435,10 @@ class ProgramWriter:
             values = feed[feed_rows] / self.feed_scale
             if not np.isfinite(values).all():
                 return False
-            feed_scaled = _bulk.scaled_integers(values, self.feed_format.decimals)
-            if feed_scaled is None or (feed_scaled <= 0).any():
+            feed_ints = _bulk.scaled_integers(values, self.feed_format.decimals)
+            if feed_ints is None or (feed_ints <= 0).any():
                 return False
+            feed_scaled = feed_ints
         last_feed = None
         if modal.feed is not None:
             last_feed = _scaled_from_text(modal.feed, self.feed_format.decimals)

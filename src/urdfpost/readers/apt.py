@@ -345,7 +345,8 @@ def _goto_blocks(text: str) -> Iterator[tuple[int, int]]:
     ``text`` has ``\\n`` line breaks only. ``start`` is the start of the block's first line,
     ``end`` the position after its last line break (or the end of the text).
     """
-    others = (m.end() for m in _NOT_GOTO_NEXT.finditer(text))  # starts of the other lines
+    # the starts of the other lines
+    others: Iterator[int] = (m.end() for m in _NOT_GOTO_NEXT.finditer(text))
     if not text.startswith("GOTO/"):
         others = itertools.chain([0], others)
     block = 0

@@ -649,7 +649,9 @@ def _span_rows(
 ) -> tuple[np.ndarray, np.ndarray, list, int | None]:
     """Rows of one span between exact anchors; the worst point beyond the angle tolerance."""
     machine, tol = problem.machine, problem.tol
-    params, rots, pieces = [], [], []
+    params: list[np.ndarray] = []
+    rots: list[np.ndarray] = []
+    pieces: list[tuple[float, float, Callable[[np.ndarray], np.ndarray]]] = []
     worst, worst_dev = None, problem.angle_tolerance
     for a, b in itertools.pairwise(anchors):
         t1a, t1b = rot_exact[a, 0], rot_exact[b, 0]
