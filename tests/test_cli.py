@@ -562,6 +562,58 @@ def test_subprocess_post_and_verify(tmp_path: Path) -> None:
     assert files(tmp_path) == {"part.apt", "part.ngc"}
 
 
+@pytest.mark.parametrize(
+    "argv", [["machine", "show", "dmu50"], ["machines"], ["testpath", "sweep-0"]]
+)
+def test_output_into_a_closed_pipe_stops_quietly(tmp_path: Path, argv: list[str]) -> None:
+    """``urdfpost machine show dmu50 | head -1``: the reader has gone, so the write fails with
+    EPIPE; the command stops with the code of a tool killed by SIGPIPE, and no traceback."""
+    import os
+
+    read, write = os.pipe()
+    os.close(read)  # the reader is gone before the first byte
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "urdfpost", *argv],
+            stdout=write,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=120,
+            cwd=tmp_path,
+        )
+    finally:
+        os.close(write)
+    assert proc.stderr == ""
+    assert proc.returncode == 141
+
+
+def test_reports_are_strict_json(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A path through the exact pole has an exactly singular span (condition number without
+    bound): its ``max_kappa`` is written as null, never as the ``Infinity`` that strict JSON
+    parsers refuse; ``verify`` and ``compare`` reports too."""
+    monkeypatch.chdir(tmp_path)
+    cl, out = tmp_path / "s0.apt", tmp_path / "s0.h"
+    assert main(["testpath", "sweep-0", "-o", str(cl)]) == 0
+    assert main(["post", str(cl), "-m", "dmu50", "-o", str(out), "--report", "p.json"]) == 0
+    # the program's strategy bent the tool axis by up to 2.5 deg and widened the tip tolerance
+    check = ["--angle-tolerance", "2.5", "--tolerance", "0.04", "--report", "v.json"]
+    assert main(["verify", str(out), "-m", "dmu50", "--cl", str(cl), *check]) == 0
+    assert main(["compare", str(cl), "-m", "dmu50", "--report", "c.json"]) == 0
+
+    def refuse(token: str) -> None:
+        raise AssertionError(f"non-standard JSON token {token}")
+
+    reports = {
+        name: json.loads(Path(name).read_text(), parse_constant=refuse)
+        for name in ("p.json", "v.json", "c.json")
+    }
+    spans = reports["p.json"]["strategy"]["spans"]
+    assert any(span["max_kappa"] is None for span in spans), spans
+    assert any(span["max_kappa"] is None for span in reports["c.json"]["spans"])
+
+
 def test_console_script_version() -> None:
     exe = shutil.which("urdfpost")
     if exe is None:

@@ -8,9 +8,9 @@ written to a temporary file and renamed, so a failed run leaves no half-written 
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
+import signal
 import sys
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
@@ -22,6 +22,7 @@ import numpy as np
 from urdfpost import __version__
 from urdfpost._files import give_mode
 from urdfpost.errors import UrdfpostError
+from urdfpost.reports import report_json
 
 if TYPE_CHECKING:
     from urdfpost.pipeline import PostResult
@@ -447,7 +448,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
             result = whole
     _show_warnings(result.report["warnings"])
     if args.report:
-        files[Path(args.report)] = json.dumps(result.report, indent=2) + "\n"
+        files[Path(args.report)] = report_json(result.report)
     _write_atomic(files)
     mode = "TCP" if args.tcp else "machine coordinates"
     print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
@@ -541,7 +542,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     _show_warnings(toolpath.warnings)
     if args.report:
         report = make_report(toolpath, machine, program, check, dialect.name)
-        _write_atomic({Path(args.report): json.dumps(report, indent=2) + "\n"})
+        _write_atomic({Path(args.report): report_json(report)})
     print(f"{args.program}: {check.summary(program.units)}")
     if check.missed_lines:
         shown = ", ".join(str(x) for x in check.missed_lines[:10])
@@ -590,7 +591,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     )
     files: dict[Path, str] = {}
     if args.report:
-        files[Path(args.report)] = json.dumps(result.as_dict(), indent=2) + "\n"
+        files[Path(args.report)] = report_json(result.as_dict())
     _write_atomic(files)
     if args.plot:
         from urdfpost.singularity.plot import plot_comparison
@@ -727,11 +728,26 @@ COMMANDS = {
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
+    try:
+        return _run(argv)
+    except BrokenPipeError:
+        # the reader went away (``urdfpost machine show dmu50 | head -1``): stop quietly with
+        # the code of a Unix tool killed by SIGPIPE; output files are complete before anything
+        # is printed. Python flushes stdout again at exit: point it at /dev/null first.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        return 128 + signal.SIGPIPE
+
+
+def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     restore = _setup_logging(args.verbose)
     try:
-        return COMMANDS[args.command](args)
+        code = COMMANDS[args.command](args)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+        return code
     except UrdfpostError as e:
         print(f"urdfpost: {e}", file=sys.stderr)
         return 1

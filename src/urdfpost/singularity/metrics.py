@@ -45,6 +45,7 @@ from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
 from urdfpost.program import Program
+from urdfpost.reports import json_ready
 from urdfpost.singularity.detector import conditioning
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
@@ -195,22 +196,8 @@ class Metrics:
 
     def as_dict(self) -> dict[str, Any]:
         """Plain JSON-ready data (no arrays; ``inf`` and NaN become ``None``)."""
-
-        def clean(x: Any) -> Any:
-            if isinstance(x, dict):
-                return {k: clean(v) for k, v in x.items()}
-            if isinstance(x, (list, tuple)):
-                return [clean(v) for v in x]
-            if isinstance(x, (float, np.floating)):
-                return float(x) if math.isfinite(x) else None
-            if isinstance(x, np.integer):
-                return int(x)
-            if isinstance(x, np.bool_):
-                return bool(x)
-            return x
-
         return {
-            name: clean(getattr(self, name))
+            name: json_ready(getattr(self, name))
             for name in self.__dataclass_fields__
             if name != "profile"
         }
