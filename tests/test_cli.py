@@ -257,6 +257,20 @@ def test_version(capsys: pytest.CaptureFixture[str]) -> None:
         pytest.param(["post", "{cl}", "-m", "dmu50", "-c", "haas"], id="unknown controller"),
         pytest.param(["post", "{cl}", "-m", "dmu50", "--units", "cm"], id="unknown units"),
         pytest.param(["verify", "{cl}", "-m", "dmu50"], id="verify without --cl"),
+        pytest.param(
+            ["verify", "{cl}", "-m", "dmu50", "--cl", "{cl}", "--angle-tolerance", "nan"],
+            id="verify nan angle tolerance",
+        ),
+        pytest.param(
+            ["verify", "{cl}", "-m", "dmu50", "--cl", "{cl}", "--angle-tolerance", "-5"],
+            id="verify negative angle tolerance",
+        ),
+        pytest.param(
+            ["post", "{cl}", "-m", "dmu50", "--angle-tolerance", "nan"], id="post nan angle"
+        ),
+        pytest.param(
+            ["post", "{cl}", "-m", "dmu50", "--angle-tolerance", "-5"], id="post -5 angle"
+        ),
         pytest.param(["frobnicate"], id="unknown command"),
         pytest.param([], id="no command"),
     ],

@@ -113,7 +113,7 @@ def _read_cl_pieces(
     return first, itertools.chain([first], chunks)
 
 
-def _length(value: str) -> float:
+def _non_negative(value: str) -> float:
     try:
         v = float(value)
     except ValueError as e:
@@ -124,7 +124,7 @@ def _length(value: str) -> float:
 
 
 def _positive(value: str) -> float:
-    v = _length(value)
+    v = _non_negative(value)
     if v == 0:
         raise argparse.ArgumentTypeError("expected a positive number, got 0")
     return v
@@ -163,7 +163,7 @@ def _strategy_arguments(p: argparse.ArgumentParser, single: bool) -> None:
     )
     p.add_argument(
         "--lift",
-        type=_length,
+        type=_non_negative,
         default=0.0,
         help="lift along the tool axis inside singular spans, program units (spline; default 0)",
     )
@@ -234,7 +234,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="units of the CL data when the file does not say (default mm)",
     )
     po.add_argument(
-        "--tool-length", type=_length, help="tool length, gauge point to tip, in program units"
+        "--tool-length",
+        type=_non_negative,
+        help="tool length, gauge point to tip, in program units",
     )
     po.add_argument(
         "--tolerance",
@@ -280,13 +282,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ve.add_argument(
         "--tool-length",
-        type=_length,
+        type=_non_negative,
         help="tool length in program units (machine-coordinate programs)",
     )
     ve.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
     ve.add_argument(
         "--angle-tolerance",
-        type=float,
+        type=_non_negative,
         default=0.0,
         metavar="DEG",
         help="tool-axis bending the program's strategy was allowed, degrees (default 0: the "
@@ -321,7 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="machine axis positions instead of TCP",
     )
     co.add_argument("--units", choices=("mm", "inch"), help="units of the CL data if not given")
-    co.add_argument("--tool-length", type=_length, help="tool length in program units")
+    co.add_argument("--tool-length", type=_non_negative, help="tool length in program units")
     co.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
     co.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+")
     _strategy_arguments(co, single=False)
