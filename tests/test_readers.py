@@ -1010,3 +1010,42 @@ def test_scan_records_stops_at_fini():
     scan = apt_module.scan_records(["GOTO/1,2,3", "FINI", "", "GOTO/4,5,6", "$$ x"], "src.apt")
     assert [r.word for r in scan.records] == ["GOTO", "FINI"]
     assert scan.after_fini == [4, 5]
+
+
+# -- free text and continuations (the hostile test run) ---------------------------------------
+
+PRICE = "UNITS/MM\nMULTAX/ON\nFEDRAT/MMPM,1000\nGOTO/0,0,10\nPPRINT PRICE IN US$\n{gotos}FINI\n"
+
+
+@pytest.mark.parametrize("gotos", [1, 40])  # record by record; a run long enough for bulk
+def test_a_dollar_in_pprint_text_is_text(gotos, monkeypatch, tmp_path):
+    """``PPRINT PRICE IN US$`` ends with a ``$`` that is text: the GOTO after it is a point,
+    not the comment's continuation, read whole, streamed, with and without bulk runs."""
+    text = PRICE.format(gotos="".join(f"GOTO/{k + 1},0,10\n" for k in range(gotos)))
+    for tp in read_both(text, monkeypatch):
+        assert len(tp) == gotos + 1
+        assert [e.data["text"] for e in tp.events if e.kind == "comment"] == ["PRICE IN US$"]
+    path = tmp_path / "price.apt"
+    path.write_text(text)
+    from urdfpost.readers import read_cl_chunks
+
+    streamed = list(read_cl_chunks(path, max_points=7))
+    assert sum(len(tp) for tp in streamed) == gotos + 1
+
+
+def test_double_dollar_in_pprint_is_text():
+    tp = apt("PPRINT COST $$ 5\nGOTO/1,0,0")
+    assert [e.data["text"] for e in tp.events if e.kind == "comment"] == ["COST $$ 5"]
+
+
+@pytest.mark.parametrize("gotos", [1, 40])
+def test_a_continuation_never_swallows_a_motion_record(gotos, monkeypatch):
+    """A record whose last line ends with ``$`` followed by a GOTO: an error at the record
+    (never the GOTO read as part of it and lost)."""
+    text = "UNITS/MM\nFEDRAT/MMPM,$\n" + "".join(f"GOTO/{k},0,10\n" for k in range(gotos))
+    for got in read_both(text, monkeypatch):
+        assert isinstance(got, tuple), got
+        kind, message, line = got
+        assert kind is CLDataError
+        assert line == 2
+        assert "got the motion record at line 3" in message

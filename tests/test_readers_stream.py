@@ -99,12 +99,18 @@ def check_file(path: Path, max_points: int, text_piece: int, **kwargs) -> list[T
 
 def simple_records(text: str) -> list[tuple[int, str, list[str] | None]]:
     """(line, word, args) of the logical records up to FINI: ``$`` continues a record, ``$$``
-    starts a comment (whole-line comments are left out)."""
+    starts a comment (whole-line comments are left out); free text (PPRINT, PARTNO, INSERT) is
+    one line, ``$`` and ``$$`` in it are text; a motion record never continues another."""
     records, pending, start = [], None, 0
     for number, raw in enumerate(re.split(r"\r\n|\r|\n", text), start=1):
         stripped = raw.strip()
         if not stripped or (pending is None and stripped.startswith("$$")):
             continue
+        if pending is None and re.match(r"(PPRINT|PARTNO|INSERT)(?![A-Za-z0-9_])", stripped, re.I):
+            records.append((number, stripped[:6].upper().rstrip(), None))
+            continue
+        if pending is not None and re.match(r"(GOTO|FROM|GODLTA|CIRCLE)[ \t]*/", stripped, re.I):
+            raise ValueError(f"line {number}: a motion record continues the record at {start}")
         code = stripped.partition("$$")[0].rstrip()
         continued = code.endswith("$")
         code = code[:-1] if continued else code
@@ -315,7 +321,7 @@ _record = st.one_of(
     _other.map(lambda x: [x]),
     _continued(),
     _arc(),
-    # a record continued onto a line of GOTO run (which then is not a GOTO record)
+    # a line ending with "$" before a GOTO run: text in free-text records, else an error
     st.tuples(st.sampled_from(["PPRINT note $", "FEDRAT/ $", "INSERT X$"]), st.lists(_goto)).map(
         lambda v: [v[0], *v[1]]
     ),

@@ -103,6 +103,8 @@ _LISTING_LINE = re.compile(
     r"|[-=]{3,}\s*$)",
     re.IGNORECASE,
 )
+#: Lines that start a motion record: never the continuation of another record.
+_MOTION_START = re.compile(r"(GOTO|FROM|GODLTA|CIRCLE)[ \t]*/", re.I)
 #: Records whose whole text after the keyword is free text.
 _TEXT_RECORD = re.compile(r"(PPRINT|PARTNO|INSERT)(?![A-Za-z0-9_])[ \t]*/?(.*)", re.I | re.S)
 #: ``WORD[ WORD]/args`` or a bare ``WORD``.
@@ -268,6 +270,17 @@ class _Scanner:
             if stripped.startswith("$$"):
                 scan.records.append(Record(number, "$$", None, stripped, stripped[2:].strip()))
                 continue
+            if self.pending is None and _TEXT_RECORD.match(stripped):
+                # free text is one line: a "$" or "$$" in it is text, not a continuation
+                scan.records.append(parse_record(stripped, number))
+                continue
+            if self.pending is not None and _MOTION_START.match(stripped):
+                raise CLDataError(
+                    self.source,
+                    self.start,
+                    "expected the continuation of this record (its last line ends with '$'), "
+                    f"got the motion record at line {number}",
+                )
             code, sep, _ = stripped.partition("$$")
             scan.trailing_comments += bool(sep)
             code = code.rstrip()
