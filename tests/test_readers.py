@@ -1049,3 +1049,62 @@ def test_a_continuation_never_swallows_a_motion_record(gotos, monkeypatch):
         assert kind is CLDataError
         assert line == 2
         assert "got the motion record at line 3" in message
+
+
+# -- encodings: byte-order marks and NUL bytes -------------------------------------------------
+
+ENCODED = "PARTNO BRACKET\nUNITS/INCHES\nMULTAX/ON\nFEDRAT/IPM,10\nGOTO/1,0,1,0,0,1\nGOTO/2,0,1\n"
+
+
+def read_whole_and_streamed(path: Path) -> list[object]:
+    """read_cl and read_cl_chunks (small pieces) of ``path``: toolpaths, or the error."""
+    from urdfpost.readers import read_cl_chunks
+
+    out: list[object] = []
+    for read in (lambda: [read_cl(path)], lambda: list(read_cl_chunks(path, max_points=1))):
+        try:
+            out.append(read())
+        except CLDataError as exc:
+            out.append((exc.line, str(exc)))
+    return out
+
+
+@pytest.mark.parametrize(
+    ("mark", "codec"),
+    [
+        (b"\xef\xbb\xbf", "utf-8"),
+        (b"\xff\xfe", "utf-16-le"),
+        (b"\xfe\xff", "utf-16-be"),
+        (b"\xff\xfe\x00\x00", "utf-32-le"),
+    ],
+)
+@pytest.mark.parametrize("newline", ["\n", "\r\n"])
+def test_a_byte_order_mark_is_decoded(tmp_path, mark, codec, newline):
+    """A byte-order mark before ``PARTNO`` or ``UNITS/INCHES`` is not part of the record: the
+    name is the name, and inch values are read as inches, whole and streamed."""
+    path = tmp_path / "marked.apt"
+    path.write_bytes(mark + ENCODED.replace("\n", newline).encode(codec))
+    for got in read_whole_and_streamed(path):
+        assert isinstance(got, list), got
+        assert all(tp.units == "inch" for tp in got)
+        np.testing.assert_allclose(np.concatenate([tp.tip for tp in got])[:, 0], [25.4, 50.8])
+        names = [e.data["text"] for e in got[0].events if e.kind == "partno"]
+        assert names == ["BRACKET"]
+        assert not any(tp.warnings for tp in got)
+
+
+@pytest.mark.parametrize(
+    ("data", "line"),
+    [
+        (ENCODED.encode("utf-16-le"), 1),  # UTF-16 saved without a mark
+        (ENCODED.encode() + b"GOTO/3,0\x001\n", 7),
+        (ENCODED.replace("\n", "\r").encode() + b"\x00\x01\x02", 7),
+    ],
+)
+def test_a_nul_byte_is_an_encoding_error_at_its_line(tmp_path, data, line):
+    path = tmp_path / "wide.apt"
+    path.write_bytes(data)
+    for got in read_whole_and_streamed(path):
+        assert isinstance(got, tuple), got
+        assert got[0] == line
+        assert "NUL byte: expected text in ASCII or UTF-8" in got[1]

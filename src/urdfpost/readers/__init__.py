@@ -23,6 +23,7 @@ from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Toolpath
 
 from ._common import normalise_units
+from ._encoding import HEAD_BYTES, check_text, encoding_of
 from ._stream import STREAM_READERS, check_chord_tolerance, detect_file_format
 from .apt import detect_apt, read_apt_text
 from .plain import read_plain_text
@@ -109,7 +110,8 @@ def read_cl(
     units: str | None = None,
     chord_tolerance: float = 0.001,
 ) -> Toolpath:
-    """Read a CL file (UTF-8; undecodable bytes are replaced).
+    """Read a CL file (UTF-8, or UTF-16/32 with a byte-order mark; undecodable bytes are
+    replaced, a NUL byte is an error).
 
     Parameters
     ----------
@@ -125,10 +127,13 @@ def read_cl(
     """
     source = os.fspath(path)
     try:
-        with open(source, encoding="utf-8", errors="replace", newline="") as handle:
-            text = handle.read()
+        with open(source, "rb") as handle:
+            data = handle.read()
     except OSError as exc:
         raise CLDataError(source, 0, f"cannot read: {exc.strerror or exc}") from exc
+    codec, mark = encoding_of(data[:HEAD_BYTES])
+    text = check_text(str(memoryview(data)[mark:], codec, "replace"), source)
+    del data
     return read_cl_text(
         text, source=source, format=format, units=units, chord_tolerance=chord_tolerance
     )

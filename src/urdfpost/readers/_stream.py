@@ -26,6 +26,7 @@ from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Toolpath
 
 from ._common import ToolpathBuilder, normalise_units
+from ._encoding import HEAD_BYTES, check_text, encoding_of
 from .apt import (
     _LISTING_LINE,
     APT_LINE,
@@ -61,7 +62,9 @@ _PLAIN_GOTO_LINES = re.compile(r"(?:^[ \t]*[Gg][Oo][Tt][Oo][ \t]*/[^$Pp\n]*(?:\n
 
 
 def text_pieces(source: str, size: int) -> Iterator[str]:
-    """The text of a file (UTF-8; undecodable bytes replaced) in pieces cut at line breaks.
+    """The text of a file in pieces cut at line breaks, decoded as
+    :func:`~urdfpost.readers.read_cl` decodes it (UTF-8, or UTF-16/32 with a byte-order mark;
+    undecodable bytes replaced; a NUL byte is an error at its line).
 
     Parameters
     ----------
@@ -92,8 +95,18 @@ def text_pieces(source: str, size: int) -> Iterator[str]:
     except OSError as exc:
         raise CLDataError(source, 0, f"cannot read: {exc.strerror or exc}") from exc
     with handle:
+        try:
+            codec, mark = encoding_of(handle.read(HEAD_BYTES))
+            handle.seek(mark)
+        except OSError as exc:
+            raise CLDataError(source, 0, f"cannot read: {exc.strerror or exc}") from exc
+        if codec != "utf-8":
+            handle.close()
+            yield from _wide_text_pieces(source, codec, size)
+            return
         buffer = bytearray(size)
         filled = 0  # bytes of the buffer read and not yet handed out
+        offset = mark  # of the buffer's start in the file
         while True:
             if filled == len(buffer):  # a line longer than the buffer: make room
                 buffer.extend(bytes(len(buffer)))
@@ -111,15 +124,56 @@ def text_pieces(source: str, size: int) -> Iterator[str]:
                 continue
             with memoryview(buffer) as view:
                 text = str(view[:cut], "utf-8", "replace")
+            if "\x00" in text:
+                check_text(text, source, _line_at(source, offset))
             buffer[: filled - cut] = buffer[cut:filled]
             filled -= cut
+            offset += cut
             if text:
                 yield text
             del text  # hold no reference to the piece while the caller works on it
         with memoryview(buffer) as view:
             text = str(view[:filled], "utf-8", "replace")
+        if "\x00" in text:
+            check_text(text, source, _line_at(source, offset))
         if text:
             yield text
+
+
+def _line_at(source: str, offset: int) -> int:
+    """Number of the line that starts at byte ``offset`` of a UTF-8 file (for a message)."""
+    with open(source, "rb") as handle:
+        head = handle.read(offset)
+    return head.count(b"\n") + head.count(b"\r") - head.count(b"\r\n") + 1
+
+
+def _wide_text_pieces(source: str, codec: str, size: int) -> Iterator[str]:
+    """:func:`text_pieces` of a UTF-16 or UTF-32 file (it has a byte-order mark)."""
+    try:
+        handle = open(source, encoding=codec, errors="replace", newline="")
+    except OSError as exc:  # pragma: no cover - it was just opened
+        raise CLDataError(source, 0, f"cannot read: {exc.strerror or exc}") from exc
+    with handle:
+        rest, line = "", 1
+        while True:
+            try:
+                got = handle.read(size)
+            except OSError as exc:
+                raise CLDataError(source, 0, f"cannot read: {exc.strerror or exc}") from exc
+            if line == 1 and not rest:
+                got = got.removeprefix("\ufeff")
+            if not got:
+                break
+            rest += got
+            cut = max(rest.rfind("\n"), rest.rfind("\r", 0, len(rest) - 1)) + 1
+            if not cut:
+                continue
+            text, rest = rest[:cut], rest[cut:]
+            check_text(text, source, line)
+            line += text.count("\n") + text.count("\r") - text.count("\r\n")
+            yield text
+        if rest:
+            yield check_text(rest, source, line)
 
 
 def _line_count(text: str) -> int:
