@@ -1108,3 +1108,15 @@ def test_a_nul_byte_is_an_encoding_error_at_its_line(tmp_path, data, line):
         assert isinstance(got, tuple), got
         assert got[0] == line
         assert "NUL byte: expected text in ASCII or UTF-8" in got[1]
+
+
+@pytest.mark.parametrize("rule", ["--------", "========", "  ----------  "])
+def test_a_rule_line_is_no_evidence_of_nx(rule):
+    """A bare separator line in an APT file is skipped and does not make the file NX CLSF:
+    the CIRCLE keeps the APT sense (a 90-degree arc stays one)."""
+    arc = "GOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n"
+    plain, ruled = apt(arc), apt(rule + "\n" + arc)
+    np.testing.assert_array_equal(plain.tip, ruled.tip)
+    angles = np.degrees(np.arctan2(ruled.tip[:, 1], ruled.tip[:, 0]))
+    assert angles[-1] == pytest.approx(90.0)
+    assert np.all(np.diff(angles) > 0)  # counter-clockwise, the short way

@@ -28,7 +28,6 @@ from urdfpost.toolpath import Toolpath
 from ._common import ToolpathBuilder, normalise_units
 from ._encoding import HEAD_BYTES, check_text, encoding_of
 from .apt import (
-    _LISTING_LINE,
     APT_LINE,
     GotoRun,
     Record,
@@ -39,6 +38,7 @@ from .apt import (
     is_nx_record,
     normalise_breaks,
     scan_piece,
+    skipped_line,
 )
 from .plain import PlainReader
 
@@ -360,7 +360,7 @@ def _after_fini(lines: Iterable[str], first: int) -> tuple[int, int]:
     number, count = 0, 0
     for k, raw in enumerate(lines, start=first):
         stripped = raw.strip()
-        if stripped and not _LISTING_LINE.match(stripped):
+        if stripped and not skipped_line(stripped):
             number, count = number or k, count + 1
     return number, count
 

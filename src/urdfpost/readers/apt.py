@@ -93,16 +93,26 @@ __all__ = [
     "scan_piece",
     "scan_records",
     "scan_text",
+    "skipped_line",
 ]
 
 #: NX "Information listing" header and "Tool Path Listing" trailer lines.
 _LISTING_LINE = re.compile(
     r"(?:information listing created by\b"
     r"|(?:date|current work part|node name)\s*[:\t]"
-    r"|tool path listing has \d+ lines\b"
-    r"|[-=]{3,}\s*$)",
+    r"|tool path listing has \d+ lines\b)",
     re.IGNORECASE,
 )
+#: A rule of dashes or equals signs (NX listings have them, and so do hand-edited APT files):
+#: skipped, and no evidence of the dialect.
+_SEPARATOR_LINE = re.compile(r"[-=]{3,}\s*$")
+
+
+def skipped_line(stripped: str) -> bool:
+    """Whether a stripped line outside any record is listing text or a rule: no CL data."""
+    return bool(_LISTING_LINE.match(stripped) or _SEPARATOR_LINE.match(stripped))
+
+
 #: Lines that start a motion record: never the continuation of another record.
 _MOTION_START = re.compile(r"(GOTO|FROM|GODLTA|CIRCLE)[ \t]*/", re.I)
 #: Records whose whole text after the keyword is free text.
@@ -267,6 +277,8 @@ class _Scanner:
             if self.pending is None and _LISTING_LINE.match(stripped):
                 scan.listing_lines += 1
                 continue
+            if self.pending is None and _SEPARATOR_LINE.match(stripped):
+                continue
             if stripped.startswith("$$"):
                 scan.records.append(Record(number, "$$", None, stripped, stripped[2:].strip()))
                 continue
@@ -311,7 +323,7 @@ class _Scanner:
         self.scan.after_fini = [
             self.fini + 1 + k
             for k, rest in enumerate(lines)
-            if rest.strip() and not _LISTING_LINE.match(rest.strip())
+            if rest.strip() and not skipped_line(rest.strip())
         ]
 
     def finish(self) -> _Scan:
