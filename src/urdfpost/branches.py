@@ -732,8 +732,8 @@ class _Plan:
         diff = self._diff(i, state)
         size = np.abs(diff)
         cost = REWIND_COST + _total([size[..., a] for a in range(size.shape[2])])
-        k = np.arange(len(cost))
-        cost[k, k] = np.inf
+        diag = np.arange(len(cost))
+        cost[diag, diag] = np.inf
         for ki, k in self.exclude.rewinds.get(i, ()):
             cost[ki, k] = np.inf
         return diff, cost
@@ -788,7 +788,7 @@ def _min_arg(
 
 def _viterbi(
     p: _Plan, block: int | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Least-cost candidates over the whole path, with rewinds where needed.
 
     The recursion over the points, ``cost_i[k] = min_s cost_{i-1}[s] + step_i[s, k]`` (then the
@@ -822,6 +822,9 @@ def _viterbi(
         Candidate it arrives with (differs at rewinds).
     rot_leave, rot_arrive : ndarray, shape (n, r), rad
         The actual (unwrapped) angles.
+    settled : int
+        The last point whose choice no later CL points could change (-1: none; see
+        :func:`_follow_back`).
     """
     n, n_cand, _ = p.values.shape
     usable = p.usable()
@@ -880,8 +883,8 @@ def _viterbi(
 def _sequential(
     p: _Plan,
     usable: np.ndarray,
-    lo: int,
-    hi: int,
+    lo: int | np.integer,
+    hi: int | np.integer,
     cost: np.ndarray,
     state: np.ndarray,
     back: np.ndarray,
@@ -1194,8 +1197,8 @@ def _angles_along(
         if known.all():
             continue
         seq[:, a] = seq[np.maximum.accumulate(np.where(known, np.arange(len(seq)), 0)), a]
-    for a in np.flatnonzero(p.cont):
-        col = seq[:, a]
+    for c in np.flatnonzero(p.cont):
+        col = seq[:, c]
         col[1:] = col[0] + np.cumsum(_wrap(np.diff(col)))
     if into is None or out is None:
         return seq, seq.copy()
@@ -1291,6 +1294,7 @@ def _exclude_colliding_states(
             for k in np.flatnonzero(p.branch == b):
                 if p.ok[i, k]:
                     p.exclude.state[i, k] = True
+                    # (the pair of a configuration that hits is never None)
                     p.exclude.why[(int(i), int(k))] = pair  # type: ignore[assignment]
 
 
@@ -1395,9 +1399,9 @@ def _exclusion_notes(p: _Plan, chosen: np.ndarray, arrive_k: np.ndarray) -> list
             f"collides ({a} with {b}) through line {int(p.lines[end])}; took "
             f"{_label(p.machine, p.values[i, int(chosen[i])])}"
         )
-    for (i, _kp, _k), (a, b) in p.exclude.move_why.items():
+    for (at, _kp, _k), (a, b) in p.exclude.move_why.items():
         notes.append(
-            f"{p.source}:{int(p.lines[i])}: a move there collides ({a} with {b}); re-planned"
+            f"{p.source}:{int(p.lines[at])}: a move there collides ({a} with {b}); re-planned"
         )
     return notes
 

@@ -19,6 +19,7 @@ import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import overload
 
 import numpy as np
 
@@ -26,7 +27,6 @@ from urdfpost.kinematics.forward import (
     ROWS,
     Chain,
     Scratch,
-    Vec,
     chain_of,
     cos_sin_along,
     interpolation_bounds,
@@ -87,8 +87,12 @@ def chunks(n: int, samples: int) -> list[slice]:
 
 # -- errors on vectors kept as coordinate triples --------------------------------------------
 
+VecArrays = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""A vector per block or sample as its x, y, z coordinate arrays, all of one shape (the
+:data:`urdfpost.kinematics.forward.Vec` of arrays only: no coordinate is a constant float)."""
 
-def coords(a: np.ndarray) -> Vec:
+
+def coords(a: np.ndarray) -> VecArrays:
     """Rows of an (n, 3) array as three contiguous coordinate arrays of shape (n,)."""
     x, y, z = np.ascontiguousarray(np.asarray(a, dtype=float).T)
     return x, y, z
@@ -98,8 +102,8 @@ def coords(a: np.ndarray) -> Vec:
 class Segments:
     """Straight segments from ``a`` to ``a + d``, one per block (coordinate arrays (n,), mm)."""
 
-    a: Vec
-    d: Vec
+    a: VecArrays
+    d: VecArrays
     inv_dd: np.ndarray  # 1 / |d|^2, 0 for a segment of zero length
 
     @classmethod
@@ -110,22 +114,21 @@ class Segments:
         return cls(coords(p0), coords(d), np.divide(1.0, dd, out=np.zeros_like(dd), where=dd > 0))
 
     @classmethod
-    def of_coords(cls, p0: Vec, p1: Vec) -> Segments:
+    def of_coords(cls, p0: VecArrays, p1: VecArrays) -> Segments:
         """Segments from points ``p0`` to ``p1``, coordinate arrays of shape (n,)."""
         d = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
         dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
         return cls(p0, d, np.divide(1.0, dd, out=np.zeros_like(dd), where=dd > 0))
 
     def take(self, index: np.ndarray | slice) -> Segments:
+        (ax, ay, az), (dx, dy, dz) = self.a, self.d
         return Segments(
-            tuple(c[index] for c in self.a),  # type: ignore[arg-type]
-            tuple(c[index] for c in self.d),  # type: ignore[arg-type]
-            self.inv_dd[index],
+            (ax[index], ay[index], az[index]), (dx[index], dy[index], dz[index]), self.inv_dd[index]
         )
 
     def distance2(
         self,
-        p: Vec,
+        p: VecArrays,
         outside: list[np.ndarray] | None = None,
         scratch: Scratch | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -133,7 +136,7 @@ class Segments:
 
         Parameters
         ----------
-        p : Vec
+        p : VecArrays
             Coordinate arrays of shape (..., n): points of each block.
         outside : list, optional
             When given, how far the projection parameter falls outside [0, 1] (0 inside) is
@@ -166,7 +169,7 @@ class Segments:
         if outside is not None:
             raw -= s
             outside.append(np.abs(raw, out=raw))
-        dist2 = None
+        dist2: np.ndarray | None = None
         for i in range(3):  # w turns into the offset from the closest point, in place
             np.multiply(s, d[i], out=part)
             w[i] -= part
@@ -175,6 +178,7 @@ class Segments:
                 dist2 = w[i]
             else:
                 dist2 += w[i]
+        assert dist2 is not None  # set in the loop's first pass
         return dist2, s
 
 
@@ -183,8 +187,8 @@ class Arcs:
     """Great-circle arcs of unit vectors from ``v0`` towards ``v1``, one per block: the slerp
     ``cos(t omega) v0 + sin(t omega) normal``."""
 
-    v0: Vec
-    normal: Vec  # unit, normal to v0 in the plane of v0 and v1 (zero when they are parallel)
+    v0: VecArrays
+    normal: VecArrays  # unit, normal to v0 in the plane of v0 and v1 (zero when they are parallel)
     omega: np.ndarray  # angle from v0 to v1, rad
 
     @classmethod
@@ -197,7 +201,7 @@ class Arcs:
         return cls(coords(v0), coords(normal), np.arctan2(sin, dot))
 
     @classmethod
-    def of_coords(cls, v0: Vec, v1: Vec) -> Arcs:
+    def of_coords(cls, v0: VecArrays, v1: VecArrays) -> Arcs:
         """Arcs from unit vectors ``v0`` to ``v1``, coordinate arrays of shape (n,)."""
         dot = v0[0] * v1[0] + v0[1] * v1[1] + v0[2] * v1[2]
         across = [v1[i] - dot * v0[i] for i in range(3)]
@@ -207,15 +211,14 @@ class Arcs:
         return cls(v0, normal, np.arctan2(sin, dot))
 
     def take(self, index: np.ndarray | slice) -> Arcs:
+        (vx, vy, vz), (nx, ny, nz) = self.v0, self.normal
         return Arcs(
-            tuple(c[index] for c in self.v0),  # type: ignore[arg-type]
-            tuple(c[index] for c in self.normal),  # type: ignore[arg-type]
-            self.omega[index],
+            (vx[index], vy[index], vz[index]), (nx[index], ny[index], nz[index]), self.omega[index]
         )
 
     def chord2(
         self,
-        v: Vec,
+        v: VecArrays,
         cos: np.ndarray | float,
         sin: np.ndarray | float,
         scratch: Scratch | None = None,
@@ -224,10 +227,10 @@ class Arcs:
 
         Parameters
         ----------
-        v : Vec
+        v : VecArrays
             Coordinate arrays of shape (..., n).
-        cos, sin : ndarray, shape (..., n)
-            Of ``t * omega`` at each of them.
+        cos, sin : ndarray, shape (..., n), or float
+            Of ``t * omega`` at each of them (a float: the same at every one).
         scratch : Scratch, optional
             Started for the shape of the result: it and the temporaries are taken from it.
 
@@ -285,8 +288,17 @@ def cos_sin(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return cos, sin
 
 
-def angle_from_chord2(chord2: np.ndarray) -> np.ndarray:
-    """Angle between unit vectors from their squared chord, rad (as :func:`angle_between`)."""
+@overload
+def angle_from_chord2(chord2: float) -> np.float64: ...
+
+
+@overload
+def angle_from_chord2(chord2: np.ndarray) -> np.ndarray: ...
+
+
+def angle_from_chord2(chord2: np.ndarray | float) -> np.ndarray | np.float64:
+    """Angle between unit vectors from their squared chord, rad (as :func:`angle_between`); a
+    numpy float for a float."""
     chord2 = np.asarray(chord2, dtype=float)
     return 2.0 * np.arctan2(np.sqrt(chord2), np.sqrt(np.maximum(4.0 - chord2, 0.0)))
 

@@ -20,11 +20,12 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from urdfpost.errors import DialectError
-from urdfpost.kinematics.forward import Vec, interpolation_bounds, tip_and_axis_along
+from urdfpost.kinematics.forward import interpolation_bounds, tip_and_axis_along
 from urdfpost.linearize import (
     Arcs,
     RowPoses,
     Segments,
+    VecArrays,
     angle_between,
     angle_from_chord2,
     chunks,
@@ -232,12 +233,12 @@ _PAIRS = 1 << 20
 _UNKNOWN = -2
 
 
-def _distance(tip: Vec, cl_tip: Vec, rows: np.ndarray, js: np.ndarray) -> np.ndarray:
+def _distance(tip: VecArrays, cl_tip: VecArrays, rows: np.ndarray, js: np.ndarray) -> np.ndarray:
     """Distances of program rows from CL points (as ``np.linalg.norm`` computes them).
 
     Parameters
     ----------
-    tip, cl_tip : Vec
+    tip, cl_tip : VecArrays
         Coordinate arrays of the program rows' and the CL points' tips, mm.
     rows : ndarray, shape (k, w), int
     js : ndarray, shape (k, 1), int
@@ -256,9 +257,9 @@ def _distance(tip: Vec, cl_tip: Vec, rows: np.ndarray, js: np.ndarray) -> np.nda
 
 
 def _first_reaching(
-    cl_tip: Vec,
+    cl_tip: VecArrays,
     cl_axis: np.ndarray,
-    tip: Vec,
+    tip: VecArrays,
     axis: np.ndarray,
     tol: Tolerances,
     js: np.ndarray,
@@ -301,7 +302,7 @@ def _first_reaching(
     return out
 
 
-def _walk(cl_tip: Vec, tip: Vec, js: np.ndarray, k: np.ndarray) -> np.ndarray:
+def _walk(cl_tip: VecArrays, tip: VecArrays, js: np.ndarray, k: np.ndarray) -> np.ndarray:
     """Rows ``k`` moved on while the next row is strictly nearer to CL points ``js`` (distances
     computed as the search computes them), a few rows at a time and then more."""
     n = len(tip[0])
@@ -372,14 +373,14 @@ def _match(
     n_cl = len(cl_tip)
     out = np.full(n_cl, -1)
     ptr, j0, size = 0, 0, 1024
-    cl_tip, tip = coords(cl_tip), coords(tip)  # type: ignore[assignment]
+    cl_xyz, xyz = coords(cl_tip), coords(tip)
 
     def evaluate(i: np.ndarray, start: np.ndarray, windows: tuple[int, ...]) -> None:
         """Results of points i from the given starts: first row reaching, and walked on."""
-        hit = _first_reaching(cl_tip, cl_axis, tip, axis, tol, js[i], start, windows)
+        hit = _first_reaching(cl_xyz, cl_axis, xyz, axis, tol, js[i], start, windows)
         first[i], done_for[i] = hit, start
         ok = hit >= 0
-        hit[ok] = _walk(cl_tip, tip, js[i][ok], hit[ok])
+        hit[ok] = _walk(cl_xyz, xyz, js[i][ok], hit[ok])
         m[i] = hit
 
     def holds(i: np.ndarray | int, start: np.ndarray | int) -> np.ndarray | bool:
@@ -432,7 +433,7 @@ def _match(
     return out
 
 
-def _sampled_once(rows: np.ndarray) -> Vec:
+def _sampled_once(rows: np.ndarray) -> VecArrays:
     """Rows of an (n, 3) array as coordinate arrays of shape (1, n): one sample of n blocks."""
     x, y, z = coords(rows)
     return x[None], y[None], z[None]
@@ -447,14 +448,14 @@ class _Polyline:
 
     Attributes
     ----------
-    tip : Vec
+    tip : VecArrays
         Coordinate arrays of the CL points, shape (n,), mm.
-    axis : Vec
+    axis : VecArrays
         Of the CL tool axes (unit).
     """
 
-    tip: Vec
-    axis: Vec
+    tip: VecArrays
+    axis: VecArrays
 
     @classmethod
     def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
@@ -468,14 +469,11 @@ class _Polyline:
         """The segments of the tips (mm) and the arcs of the axes (slerp) from CL points
         ``index`` to the next ones, shape (k,)."""
         nxt = np.minimum(index + 1, len(self) - 1)
+        (px, py, pz), (ax, ay, az) = self.tip, self.axis
         segments = Segments.of_coords(
-            tuple(c[index] for c in self.tip),  # type: ignore[arg-type]
-            tuple(c[nxt] for c in self.tip),  # type: ignore[arg-type]
+            (px[index], py[index], pz[index]), (px[nxt], py[nxt], pz[nxt])
         )
-        arcs = Arcs.of_coords(
-            tuple(c[index] for c in self.axis),  # type: ignore[arg-type]
-            tuple(c[nxt] for c in self.axis),  # type: ignore[arg-type]
-        )
+        arcs = Arcs.of_coords((ax[index], ay[index], az[index]), (ax[nxt], ay[nxt], az[nxt]))
         return segments, arcs
 
 
@@ -490,8 +488,8 @@ class _FirstSpan:
 
 
 def _span_deviation(
-    points: Vec,
-    axes: Vec,
+    points: VecArrays,
+    axes: VecArrays,
     polyline: _Polyline,
     ja: np.ndarray,
     jb: np.ndarray,
@@ -502,7 +500,7 @@ def _span_deviation(
 
     Parameters
     ----------
-    points, axes : Vec
+    points, axes : VecArrays
         Coordinate arrays of shape (s, n): s samples of n blocks.
     polyline : _Polyline
     ja, jb : ndarray, shape (n,), int
@@ -530,8 +528,8 @@ def _span_deviation(
         seg, arc = polyline.take(a)
         outside: list[np.ndarray] | None = [] if off == 0 and first is not None else None
         d2, u = seg.distance2(pts, outside)
-        if outside:
-            first.append(_FirstSpan(seg, arc, outside[0]))  # type: ignore[union-attr]
+        if outside and first is not None:  # (outside is only ever filled when first is given)
+            first.append(_FirstSpan(seg, arc, outside[0]))
         c2 = arc.chord2(axs, *cos_sin(u * arc.omega))
         if off == 0:
             dist2, chord2 = d2, c2
@@ -562,7 +560,7 @@ class _Blocks:
     pivot: float
     valid: np.ndarray | None = None
 
-    def along(self, blocks: np.ndarray, t: np.ndarray) -> tuple[Vec | None, Vec]:
+    def along(self, blocks: np.ndarray, t: np.ndarray) -> tuple[VecArrays | None, VecArrays]:
         """Tool tip (None in TCP programs) and axis along blocks at parameters t, the
         coordinate arrays of shape (s, k) of :func:`tip_and_axis_along`.
 
@@ -576,7 +574,7 @@ class _Blocks:
         blocks: np.ndarray,
         t: np.ndarray,
         first: list[_FirstSpan] | None = None,
-        along: tuple[Vec | None, Vec] | None = None,
+        along: tuple[VecArrays | None, VecArrays] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Squared distance and chord (:func:`_span_deviation`) of blocks at parameters t.
 
@@ -599,13 +597,15 @@ class _Blocks:
             lin = list(self.machine.linear_columns)
             p0, dp = q0[:, lin], q1[:, lin] - q0[:, lin]
             tt = t[:, None] if t.ndim == 1 else t
-            p = tuple(p0[:, i] + tt * dp[:, i] + self.pivot * axis[i] for i in range(3))
+            x, y, z = (p0[:, i] + tt * dp[:, i] + self.pivot * axis[i] for i in range(3))
+            p = (x, y, z)
         elif self.pivot:
-            p = tuple(tip[i] + self.pivot * axis[i] for i in range(3))
+            x, y, z = (tip[i] + self.pivot * axis[i] for i in range(3))
+            p = (x, y, z)
         else:
             p = tip
         return _span_deviation(
-            p,  # type: ignore[arg-type]
+            p,
             axis,
             self.polyline,
             self.ja[blocks],
