@@ -732,3 +732,83 @@ def test_cl_file_without_motion_posts_an_empty_program_with_a_warning(
     assert "empty.apt: no motion records; the program has no moves" in err
     text = out.read_text(encoding="ascii")
     assert "BEGIN PGM EMPTY MM" in text and " L " not in text
+
+
+# -- output paths: never an input, links followed, devices written, all outputs or none -------
+
+
+@pytest.mark.parametrize("streamed", [False, True])
+@pytest.mark.parametrize(
+    ("output", "report", "fragment"),
+    [
+        ("part.apt", None, "the program (-o) would overwrite the CL file"),
+        ("hard.apt", None, "the program (-o) would overwrite the CL file"),  # a hard link
+        ("link.h", None, "the program (-o) would overwrite the CL file"),  # a symlink to it
+        ("part.h", "part.apt", "the report (--report) would overwrite the CL file"),
+        ("part.h", "part.h", "the report (--report) would overwrite the program (-o)"),
+        ("part.h", "missing/part.json", "cannot write: no such folder"),
+        ("part.h", "folder", "cannot write: it is a folder"),
+        ("folder", None, "cannot write: it is a folder"),
+    ],
+)
+def test_an_output_that_is_an_input_or_another_output_is_refused(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    streamed: bool,
+    output: str,
+    report: str | None,
+    fragment: str,
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    cl = write(tmp_path, "part.apt", TINY)
+    (tmp_path / "hard.apt").hardlink_to(cl)
+    (tmp_path / "link.h").symlink_to("part.apt")
+    (tmp_path / "folder").mkdir()
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    argv = ["post", "part.apt", "-m", "dmu50", "-c", "heidenhain", "-o", output, "-q"]
+    argv += ["--report", report] if report else []
+    argv += ["--piece-points", "2"] if streamed else []
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert fragment in err and err.count("\n") == 1, err
+    after = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert after == before  # nothing written, nothing replaced, nothing left
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*before, "folder"])
+
+
+@pytest.mark.parametrize("streamed", [False, True])
+def test_outputs_follow_links_and_write_devices_and_fifos(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], streamed: bool
+) -> None:
+    """``-o`` on a symlink writes its target (the link stays); ``-o /dev/null`` and a FIFO are
+    written, never replaced by a regular file."""
+    import os
+    import stat
+    import threading
+
+    cl = write(tmp_path, "part.apt", TINY)
+    more = ["--piece-points", "2"] if streamed else []
+    target = tmp_path / "real.h"
+    target.write_text("old program\n")
+    link = tmp_path / "link.h"
+    link.symlink_to(target.name)
+    assert main(["post", str(cl), "-m", "dmu50", "-o", str(link), "-q", *more]) == 0
+    assert link.is_symlink() and target.read_text().startswith("0 BEGIN PGM")
+
+    devnull = os.stat(os.devnull)
+    out = ["post", str(cl), "-m", "dmu50", "-c", "heidenhain", "-q", *more]
+    assert main([*out, "-o", os.devnull, "--report", os.devnull]) == 0
+    after = os.stat(os.devnull)
+    assert stat.S_ISCHR(after.st_mode) and after.st_ino == devnull.st_ino
+
+    fifo = tmp_path / "pipe.h"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()))
+    reader.start()
+    assert main([*out, "-o", str(fifo)]) == 0
+    reader.join(timeout=60)
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert got and got[0].decode() == target.read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.h", "part.apt", "pipe.h", "real.h"]

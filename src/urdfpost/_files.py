@@ -3,7 +3,14 @@
 from __future__ import annotations
 
 import os
+import shutil
 import stat
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from urdfpost.errors import UrdfpostError
 
 
 def give_mode(tmp: str | os.PathLike[str], target: str | os.PathLike[str]) -> None:
@@ -20,3 +27,190 @@ def give_mode(tmp: str | os.PathLike[str], target: str | os.PathLike[str]) -> No
         os.umask(mask)
         mode = 0o666 & ~mask
     os.chmod(tmp, mode)
+
+
+@dataclass(frozen=True)
+class Target:
+    """Where an output file goes.
+
+    Attributes
+    ----------
+    named : Path
+        The path as given.
+    real : Path
+        The file the bytes go to: symbolic links followed (the link stays a link, its target
+        gets the new text).
+    regular : bool
+        Whether ``real`` is a regular file or does not exist yet: written through a temporary
+        file beside it and renamed into place. False for a character device or a FIFO
+        (``/dev/null``, ``/dev/stdout``, a named pipe): written directly, never replaced.
+    """
+
+    named: Path
+    real: Path
+    regular: bool
+
+
+def output_target(path: str | os.PathLike[str]) -> Target:
+    """Check that ``path`` can be written, as ``cp`` checks it, and say how.
+
+    Raises
+    ------
+    UrdfpostError
+        ``PATH: cannot write: REASON`` for a missing folder, a folder, a file or folder that
+        this user may not write (as root, a read-only file is written, as ``cp`` does), or
+        another kind of file (a socket).
+    """
+    named = Path(path)
+    real = Path(os.path.realpath(named))
+
+    def refuse(reason: str) -> UrdfpostError:
+        return UrdfpostError(f"{named}: cannot write: {reason}")
+
+    try:
+        st = os.stat(real)
+    except FileNotFoundError:
+        folder = real.parent
+        if not folder.is_dir():
+            raise refuse(f"no such folder {folder}") from None
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise refuse(f"permission denied in {folder}") from None
+        return Target(named, real, True)
+    except OSError as e:
+        raise refuse(e.strerror or str(e)) from e
+    if stat.S_ISDIR(st.st_mode):
+        raise refuse("it is a folder")
+    if not (stat.S_ISREG(st.st_mode) or stat.S_ISCHR(st.st_mode) or stat.S_ISFIFO(st.st_mode)):
+        raise refuse("not a regular file, a device or a FIFO")
+    if not os.access(real, os.W_OK):
+        raise refuse("permission denied (a read-only file)")
+    regular = stat.S_ISREG(st.st_mode)
+    if regular and not os.access(real.parent, os.W_OK | os.X_OK):
+        raise refuse(f"permission denied in {real.parent} (the file is replaced through a copy)")
+    return Target(named, real, regular)
+
+
+def _identity(path: Path) -> tuple[object, ...]:
+    """What makes two paths the same file: device and inode when it exists, else the path."""
+    real = os.path.realpath(path)
+    try:
+        st = os.stat(real)
+    except OSError:
+        return ("path", real)
+    return ("inode", st.st_dev, st.st_ino)
+
+
+def check_distinct(
+    outputs: Mapping[str, str | os.PathLike[str]], inputs: Mapping[str, str | os.PathLike[str]]
+) -> None:
+    """Refuse an output that is one of the inputs or another output (links and hard links
+    followed), before anything is written.
+
+    Parameters
+    ----------
+    outputs, inputs : mapping of str to path
+        What each file is for (``"the program (-o)"``, ``"the CL file"``) and its path.
+        Character devices (``/dev/null``) may be named more than once.
+
+    Raises
+    ------
+    UrdfpostError
+        Naming both roles.
+    """
+    seen: dict[tuple[object, ...], str] = {}
+    for role, path in inputs.items():
+        seen.setdefault(_identity(Path(path)), role)
+    for role, path in outputs.items():
+        key = _identity(Path(path))
+        if key in seen:
+            try:
+                device = stat.S_ISCHR(os.stat(path).st_mode)
+            except OSError:
+                device = False
+            if not (device and seen[key] not in inputs):
+                raise UrdfpostError(
+                    f"{path}: {role} would overwrite {seen[key]}: expected another file"
+                )
+        seen[key] = role
+
+
+def write_texts(
+    files: Mapping[Path, str],
+    inputs: Mapping[str, str | os.PathLike[str]] | None = None,
+    roles: Mapping[Path, str] | None = None,
+    staged: Mapping[Path, Path] | None = None,
+) -> None:
+    """Write all of ``files`` or none of them.
+
+    Every target is checked first (:func:`output_target`, :func:`check_distinct` against the
+    ``inputs``); then each regular file is written to a temporary file beside it, and only
+    when all are written are they renamed into place (devices and FIFOs are written last,
+    directly). Nothing is left behind when any of them cannot be written.
+
+    Parameters
+    ----------
+    files : mapping of path to str
+        Text of each output.
+    inputs : mapping of str to path, optional
+        The job's input files by role, which no output may be.
+    roles : mapping of path to str, optional
+        What each output is, for messages (default ``"the output"``).
+    staged : mapping of path to path, optional
+        Outputs already written in full to a temporary file (a streamed program): moved into
+        place with the others (or copied, onto a device), the temporary file removed.
+
+    Raises
+    ------
+    UrdfpostError
+        Naming the file that could not be written.
+    """
+    staged = dict(staged or {})
+    names = {Path(p): (roles or {}).get(p, "the output") for p in [*files, *staged]}
+    targets = {path: output_target(path) for path in names}
+    outputs: dict[str, Path] = {}
+    for p, role in names.items():
+        outputs[role if role not in outputs else f"{role} {p}"] = p
+    check_distinct(outputs, inputs or {})
+    temps: dict[Path, Path] = {Path(p): Path(t) for p, t in staged.items()}
+    made: list[Path] = []
+    try:
+        for path, text in files.items():
+            target = targets[Path(path)]
+            if not target.regular:
+                continue
+            try:
+                fd, name = tempfile.mkstemp(
+                    prefix=f".{target.real.name}.", suffix=".tmp", dir=target.real.parent
+                )
+            except OSError as e:
+                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+            made.append(Path(name))
+            temps[Path(path)] = Path(name)
+            try:
+                with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+                    f.write(text)
+            except OSError as e:
+                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+        for path, tmp in temps.items():
+            target = targets[path]
+            try:
+                if target.regular:
+                    give_mode(tmp, target.real)
+                    os.replace(tmp, target.real)
+                else:
+                    with open(tmp, "rb") as src, open(target.real, "wb") as dst:
+                        shutil.copyfileobj(src, dst)
+            except OSError as e:
+                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+        for path, text in files.items():
+            target = targets[Path(path)]
+            if target.regular:
+                continue
+            try:
+                with open(target.real, "w", encoding="utf-8", newline="\n") as f:
+                    f.write(text)
+            except OSError as e:
+                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+    finally:
+        for tmp in [*made, *temps.values()]:
+            tmp.unlink(missing_ok=True)

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from urdfpost import __version__
-from urdfpost._files import give_mode
+from urdfpost._files import check_distinct, output_target, write_texts
 from urdfpost.errors import UrdfpostError
 from urdfpost.reports import report_json
 
@@ -35,36 +35,20 @@ _PIECE_POINTS = 100_000  # (urdfpost.stream.PIECE_POINTS, not imported at start-
 _STREAM_BYTES = 16 << 20  # CL files larger than this are posted in pieces by default
 
 
-def _write_atomic(files: dict[Path, str]) -> None:
-    """Write every file through a temporary file in its folder, then rename them all.
+def _write_atomic(
+    files: dict[Path, str],
+    inputs: dict[str, Any] | None = None,
+    roles: dict[Path, str] | None = None,
+    staged: dict[Path, Path] | None = None,
+) -> None:
+    """Write all the files or none (:func:`urdfpost._files.write_texts`): none of them may be
+    one of the ``inputs`` (role: path, ``None`` for an input not given) or another output."""
+    write_texts(files, _given(inputs or {}), roles, staged)
 
-    Nothing is left behind when any of them cannot be written.
 
-    Raises
-    ------
-    UrdfpostError
-        Naming the file that could not be written.
-    """
-    temps: dict[Path, str] = {}
-    try:
-        for path, text in files.items():
-            folder = path.parent if str(path.parent) else Path(".")
-            try:
-                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-            except OSError as e:
-                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
-            temps[path] = tmp
-            with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-                f.write(text)
-        for path, tmp in temps.items():
-            try:
-                give_mode(tmp, path)
-                os.replace(tmp, path)
-            except OSError as e:
-                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
-    finally:
-        for tmp in temps.values():
-            Path(tmp).unlink(missing_ok=True)
+def _given(inputs: dict[str, Any]) -> dict[str, Any]:
+    """The inputs that were given (an option left out is None)."""
+    return {role: path for role, path in inputs.items() if path is not None}
 
 
 def _read_cl(args: argparse.Namespace, machine: Any) -> Any:
@@ -422,6 +406,16 @@ def _cmd_post(args: argparse.Namespace) -> int:
         holder_length=args.holder_length,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
+    inputs = {
+        "the CL file": args.cl,
+        "the stock mesh": args.stock,
+        "the machine file": machine.path,
+    }
+    outputs = _given({"the program (-o)": out, "the report (--report)": args.report})
+    check_distinct(outputs, _given(inputs))  # before any work: all or nothing
+    targets = [output_target(path) for path in outputs.values()]
+    roles = {Path(path): role for role, path in outputs.items()}
+    staged: dict[Path, Path] = {}
     with tqdm(
         total=None if chunks is not None else len(toolpath),
         unit="pt",
@@ -435,15 +429,26 @@ def _cmd_post(args: argparse.Namespace) -> int:
         if chunks is not None:
             from urdfpost.stream import post_stream
 
-            result = post_stream(
-                chunks,
-                machine,
-                out,
-                options,
-                piece_points=pieces,
-                progress=bar.update,
-                parallel=False if args.single_process else None,
-            )
+            # streamed into a hidden file beside the program (in the temporary folder for a
+            # device), moved into place with the report
+            target = targets[0]
+            folder = target.real.parent if target.regular else Path(tempfile.gettempdir())
+            fd, stage = tempfile.mkstemp(prefix=f".{target.real.name}.", suffix=".part", dir=folder)
+            os.close(fd)
+            staged[out] = Path(stage)
+            try:
+                result = post_stream(
+                    chunks,
+                    machine,
+                    Path(stage),
+                    options,
+                    piece_points=pieces,
+                    progress=bar.update,
+                    parallel=False if args.single_process else None,
+                )
+            except BaseException:
+                Path(stage).unlink(missing_ok=True)
+                raise
         else:
             whole = post(toolpath, machine, options, progress=bar.update)
             files[out] = whole.text
@@ -451,7 +456,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
     _show_warnings(result.report["warnings"])
     if args.report:
         files[Path(args.report)] = report_json(result.report)
-    _write_atomic(files)
+    _write_atomic(files, inputs, roles, staged)
     mode = "TCP" if args.tcp else "machine coordinates"
     print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
     strat = result.report["strategy"]
@@ -544,7 +549,9 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     _show_warnings(toolpath.warnings)
     if args.report:
         report = make_report(toolpath, machine, program, check, dialect.name)
-        _write_atomic({Path(args.report): report_json(report)})
+        inputs = {"the program": args.program, "the CL file": args.cl}
+        roles = {Path(args.report): "the report (--report)"}
+        _write_atomic({Path(args.report): report_json(report)}, inputs, roles)
     print(f"{args.program}: {check.summary(program.units)}")
     if check.missed_lines:
         shown = ", ".join(str(x) for x in check.missed_lines[:10])
@@ -592,9 +599,16 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         progress=lambda n: logging.getLogger("urdfpost").info("strategy %s", n),
     )
     files: dict[Path, str] = {}
+    inputs = {"the CL file": args.cl, "the machine file": machine.path}
+    roles: dict[Path, str] = {}
     if args.report:
         files[Path(args.report)] = report_json(result.as_dict())
-    _write_atomic(files)
+        roles[Path(args.report)] = "the report (--report)"
+    if args.plot:
+        output_target(args.plot)
+        outputs = {"the plot (--plot)": args.plot} | {r: p for p, r in roles.items()}
+        check_distinct(outputs, _given(inputs))
+    _write_atomic(files, inputs, roles)
     if args.plot:
         from urdfpost.singularity.plot import plot_comparison
 
@@ -629,7 +643,7 @@ def _cmd_testpath(args: argparse.Namespace) -> int:
     if args.name not in PATHS:
         raise UrdfpostError(f"unknown test path {args.name!r}; expected one of {', '.join(PATHS)}")
     out = Path(args.output or f"{args.name}.apt")
-    _write_atomic({out: to_apt(PATHS[args.name]())})
+    _write_atomic({out: to_apt(PATHS[args.name]())}, roles={out: "the CL file (-o)"})
     print(f"wrote {out}")
     return 0
 
