@@ -812,3 +812,22 @@ def test_outputs_follow_links_and_write_devices_and_fifos(
     assert stat.S_ISFIFO(os.stat(fifo).st_mode)
     assert got and got[0].decode() == target.read_text()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link.h", "part.apt", "pipe.h", "real.h"]
+
+
+@pytest.mark.parametrize("streamed", [False, True])
+def test_a_full_disk_is_a_clear_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], streamed: bool
+) -> None:
+    """Writing to ``/dev/full`` fails with ENOSPC: one ``cannot write`` line, exit 1, nothing
+    left behind, and the report that was to go with the program not written either."""
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full on this system")
+    cl = write(tmp_path, "part.apt", TINY)
+    argv = ["post", str(cl), "-m", "dmu50", "-c", "heidenhain", "-o", "/dev/full", "-q"]
+    argv += ["--report", str(tmp_path / "r.json")]
+    argv += ["--piece-points", "2"] if streamed else []
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("urdfpost: /dev/full: cannot write: No space left on device"), err
+    assert "Traceback" not in err
+    assert files(tmp_path) == {"part.apt"}

@@ -143,9 +143,9 @@ def write_texts(
     """Write all of ``files`` or none of them.
 
     Every target is checked first (:func:`output_target`, :func:`check_distinct` against the
-    ``inputs``); then each regular file is written to a temporary file beside it, and only
-    when all are written are they renamed into place (devices and FIFOs are written last,
-    directly). Nothing is left behind when any of them cannot be written.
+    ``inputs``); then each regular file is written to a temporary file beside it, devices and
+    FIFOs are written directly, and only when all that succeeded are the regular files renamed
+    into place. Nothing is left behind when any of them cannot be written.
 
     Parameters
     ----------
@@ -191,26 +191,31 @@ def write_texts(
                     f.write(text)
             except OSError as e:
                 raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+        # devices and FIFOs next (what cannot be taken back, before any file is replaced)
         for path, tmp in temps.items():
-            target = targets[path]
-            try:
-                if target.regular:
-                    give_mode(tmp, target.real)
-                    os.replace(tmp, target.real)
-                else:
-                    with open(tmp, "rb") as src, open(target.real, "wb") as dst:
+            if not targets[path].regular:
+                try:
+                    with open(tmp, "rb") as src, open(targets[path].real, "wb") as dst:
                         shutil.copyfileobj(src, dst)
-            except OSError as e:
-                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+                except OSError as e:
+                    raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
         for path, text in files.items():
             target = targets[Path(path)]
+            if not target.regular:
+                try:
+                    with open(target.real, "w", encoding="utf-8", newline="\n") as f:
+                        f.write(text)
+                except OSError as e:
+                    raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+        # then every regular file moves into place
+        for path, tmp in temps.items():
+            target = targets[path]
             if target.regular:
-                continue
-            try:
-                with open(target.real, "w", encoding="utf-8", newline="\n") as f:
-                    f.write(text)
-            except OSError as e:
-                raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+                try:
+                    give_mode(tmp, target.real)
+                    os.replace(tmp, target.real)
+                except OSError as e:
+                    raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
     finally:
         for tmp in [*made, *temps.values()]:
             tmp.unlink(missing_ok=True)

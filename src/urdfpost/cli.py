@@ -446,6 +446,9 @@ def _cmd_post(args: argparse.Namespace) -> int:
                     progress=bar.update,
                     parallel=False if args.single_process else None,
                 )
+            except OSError as e:  # the disk filled up, the folder went away
+                Path(stage).unlink(missing_ok=True)
+                raise UrdfpostError(f"{out}: cannot write: {e.strerror or e}") from e
             except BaseException:
                 Path(stage).unlink(missing_ok=True)
                 raise
