@@ -91,7 +91,7 @@ def _import_fcl() -> Any:
 def _import_trimesh() -> Any:
     try:
         import trimesh
-    except ImportError as e:  # pragma: no cover - yourdfpy depends on trimesh
+    except ImportError as e:  # pragma: no cover - a declared dependency
         raise CollisionError("reading meshes needs trimesh: pip install trimesh") from e
     return trimesh
 
@@ -855,6 +855,34 @@ class CollisionWorld:
     tool_length: float
     stock_mesh: trimesh.Trimesh | None
 
+    # set by build() and the _setup_* helpers it calls; FCL and Pinocchio objects are untyped
+    _fcl: Any  # the fcl module
+    _geometries: list[Any]  # per body: its FCL geometry
+    _bodies: tuple[Body, ...]
+    _stock: int  # index of the stock body, -1 if none
+    _objects: list[Any]  # per body: its fcl.CollisionObject
+    _index: dict[int, int]  # id of an FCL geometry -> body index
+    _crequest: Any  # fcl.CollisionRequest
+    _drequest: Any  # fcl.DistanceRequest
+    _box_center: np.ndarray  # (b, 3): per body, centre of its box in its own frame, mm
+    _box_half: np.ndarray  # (b, 3): per body, half sizes of that box, mm
+    _excluded: set[tuple[int, int]]  # body pairs (i < j) touching at home
+    _pairs: np.ndarray  # (p, 2), int: body pairs checked
+    _levers: np.ndarray  # (m,): per axis, see levers
+    _pin: Any  # the pinocchio module
+    _data: Any  # pinocchio.Data
+    _neutral: np.ndarray  # (nq,)
+    _pin_index: tuple[tuple[int, int], ...]  # per axis: (idx_q, nq)
+    _moving: list[int]  # bodies that move relative to the workpiece
+    _moving_pos: dict[int, int]  # body index -> position in _moving
+    _frames: list[int]  # Pinocchio frame ids: the workpiece, then the moving bodies' links
+    _moving_link: np.ndarray  # (k,), int: per moving body, its link among _frames[1:]
+    _moving_local: np.ndarray  # (k, 4, 4): per moving body, its placement in its link
+    _fixed_transform: dict[int, np.ndarray]  # bodies rigid with the workpiece: placement
+    _manager_pairs: list[tuple[Any, Any]]  # broad-phase managers collided with each other
+    _moving_managers: list[Any]  # managers holding a moving body
+    _twins: dict[int, Any]  # primitive body -> fcl.CollisionObject of its triangulated twin
+
     @classmethod
     def build(
         cls,
@@ -928,7 +956,7 @@ class CollisionWorld:
 
         self._setup_kinematics(paths["workpiece"])
         self._setup_managers(frozenset(paths["workpiece"]))
-        self._excluded: set[tuple[int, int]] = set()
+        self._excluded = set()
         self._exclude_touching_at_home(home_contact)
         self._pairs = np.array(
             [
@@ -974,7 +1002,7 @@ class CollisionWorld:
         data = self._data
         pin.forwardKinematics(model, data, self._pin_q(self.machine.home[None, :])[0])
         w_inv = np.linalg.inv(pin.updateFramePlacement(model, data, frame["workpiece"]).homogeneous)
-        self._fixed_transform: dict[int, np.ndarray] = {}
+        self._fixed_transform = {}
         for i, b in enumerate(bodies):
             if i not in self._moving_pos:
                 t = w_inv @ pin.updateFramePlacement(model, data, frame[b.link]).homogeneous
@@ -1041,7 +1069,7 @@ class CollisionWorld:
         """Triangulated twins of the primitives paired with a mesh, for distances."""
         fcl = self._fcl
         meshes = {i for i, g in enumerate(self._geometries) if isinstance(g, fcl.BVHModel)}
-        self._twins: dict[int, Any] = {}
+        self._twins = {}
         for pair in self._pairs:
             for a, b in (pair, pair[::-1]):
                 a, b = int(a), int(b)
@@ -1303,8 +1331,8 @@ class CollisionWorld:
                 pairs[start + k] = self._first_pair()
                 hit[start + k] = pairs[start + k] is not None
             inside = self._inside_stock(transforms, ~hit[rows])
-            for k in np.flatnonzero(inside >= 0):
-                hit[start + k], pairs[start + k] = True, (int(inside[k]), self._stock)
+            for k_in in np.flatnonzero(inside >= 0):
+                hit[start + k_in], pairs[start + k_in] = True, (int(inside[k_in]), self._stock)
             if clearance:
                 bounds = self._lower_bounds(transforms, near_pairs)
                 for k in range(transforms.shape[0]):
@@ -1417,11 +1445,11 @@ class CollisionWorld:
                 if pair is not None:
                     hit[mv[r]], at[mv[r]], pairs[mv[r]] = True, tt[r], self._names(pair)
             inside = self._inside_stock(transforms, np.ones(len(mv), dtype=bool))
-            for r in np.flatnonzero(inside >= 0):
-                m = mv[r]
-                if not hit[m] or tt[r] < at[m]:
-                    hit[m], at[m] = True, tt[r]
-                    pairs[m] = self._names((int(inside[r]), self._stock))
+            for r_in in np.flatnonzero(inside >= 0):
+                m = mv[r_in]
+                if not hit[m] or tt[r_in] < at[m]:
+                    hit[m], at[m] = True, tt[r_in]
+                    pairs[m] = self._names((int(inside[r_in]), self._stock))
         end_hit = ~hit & ends.hit[1:]
         hit[end_hit] = True
         at[end_hit] = 1.0

@@ -30,6 +30,7 @@ import math
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, cast, overload
 
 import numpy as np
 
@@ -156,6 +157,11 @@ vector per configuration. The helpers skip exact zeros and unit factors of the c
 machine whose axes lie along the coordinate axes costs only the products it needs (a turn about
 Z is four products and two sums per vector)."""
 
+Constant = tuple[float, float, float]
+"""A constant vector as three floats (the :data:`Vec` of a vector the joints have not moved)."""
+
+Arrays = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""A vector per configuration as three coordinate arrays (a :data:`Vec` with no constants)."""
 
 New = Callable[[], np.ndarray] | None
 """Where the chain helpers put the arrays they compute: None for new arrays, else a function
@@ -166,6 +172,12 @@ def _zero(x: Coord) -> bool:
     return isinstance(x, float) and x == 0.0
 
 
+@overload
+def _binary(op: np.ufunc, a: np.ndarray, b: Coord, new: New) -> np.ndarray: ...
+@overload
+def _binary(op: np.ufunc, a: Coord, b: np.ndarray, new: New) -> np.ndarray: ...
+@overload
+def _binary(op: np.ufunc, a: Coord, b: Coord, new: New) -> Coord: ...
 def _binary(op: np.ufunc, a: Coord, b: Coord, new: New) -> Coord:
     """``op(a, b)``, into an array from ``new`` when there is one and the result is an array."""
     if new is None or (isinstance(a, float) and isinstance(b, float)):
@@ -210,9 +222,12 @@ def _norm(v: Vec, new: New = None) -> Coord:
     return np.sqrt(square, out=new())
 
 
-def _plane(c: Coord, s: Coord, u: Coord, v: Coord, new: New = None) -> tuple[Coord, Coord]:
+def _plane(
+    c: np.ndarray, s: np.ndarray, u: Coord, v: Coord, new: New = None
+) -> tuple[Coord, Coord]:
     """``(c u - s v, s u + c v)``: the turn of (u, v) in its plane, with as few new arrays as
-    the zeros allow (numpy's element-wise work costs about twice as much into a new array)."""
+    the zeros allow (numpy's element-wise work costs about twice as much into a new array).
+    ``c``, ``s``: a cosine and sine, one per configuration."""
     if _zero(v):
         return _times(c, u, new), _times(s, u, new)
     if _zero(u):
@@ -230,7 +245,7 @@ def _plane(c: Coord, s: Coord, u: Coord, v: Coord, new: New = None) -> tuple[Coo
 
 
 def _turn(
-    w: tuple[float, float, float], cos: Coord, sin: Coord, x: Vec, new: New = None
+    w: Constant, cos: np.ndarray, sin: np.ndarray, x: Vec, new: New = None
 ) -> tuple[Vec, Vec]:
     """``x`` turned about the unit direction ``w`` (Rodrigues), and the part of ``x`` across ``w``.
 
@@ -242,7 +257,9 @@ def _turn(
         if abs(w[k]) == 1.0:
             a, b = (k + 1) % 3, (k + 2) % 3  # (a, b, k) right-handed
             out: list[Coord] = [0.0, 0.0, 0.0]
-            out[a], out[b] = _plane(cos, _times(w[k], sin, new), x[a], x[b], new)
+            # w[k] is +-1, so _times gives sin or its negation: an array
+            signed_sin = cast(np.ndarray, _times(w[k], sin, new))
+            out[a], out[b] = _plane(cos, signed_sin, x[a], x[b], new)
             out[k] = x[k]
             across: list[Coord] = [0.0, 0.0, 0.0]
             across[a], across[b] = x[a], x[b]
@@ -273,8 +290,8 @@ class _Joint:
 
     column: int
     rotary: bool
-    direction: tuple[float, float, float]
-    pivot: tuple[float, float, float]
+    direction: Constant
+    pivot: Constant
 
 
 def _joints_from_tool(machine: Machine) -> tuple[_Joint, ...]:
@@ -408,8 +425,8 @@ def _scratch_new(scratch: Scratch | None, shape: tuple[int, ...]) -> New:
 
 def _carry(
     joints: tuple[_Joint, ...],
-    linear: dict[int, Coord],
-    trig: dict[int, tuple[Coord, Coord]],
+    linear: dict[int, np.ndarray],
+    trig: dict[int, tuple[np.ndarray, np.ndarray]],
     point: Vec | None,
     vectors: list[Vec],
     radii: bool = False,
@@ -445,9 +462,9 @@ def _carry(
     for j in joints:
         if not j.rotary:
             if point is not None:
-                v = linear[j.column]
+                value = linear[j.column]
                 point = tuple(  # type: ignore[assignment]
-                    _sum(point[i], _times(j.direction[i], v, new), new=new) for i in range(3)
+                    _sum(point[i], _times(j.direction[i], value, new), new=new) for i in range(3)
                 )
             continue
         cos, sin = trig[j.column]
@@ -467,12 +484,12 @@ def _carry(
     return point, vectors, reach, swing
 
 
-def _trig(machine: Machine | Chain, q: np.ndarray) -> dict[int, tuple[Coord, Coord]]:
+def _trig(machine: Machine | Chain, q: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     cols = machine.rotary_columns
     return {c: (np.cos(q[:, c]), np.sin(q[:, c])) for c in cols}
 
 
-def _vec(a: np.ndarray) -> Vec:
+def _vec(a: np.ndarray) -> Constant:
     """A constant 3-vector as three floats."""
     return float(a[0]), float(a[1]), float(a[2])
 
@@ -485,7 +502,7 @@ def _rows(v: Vec, n: int) -> np.ndarray:
     return out
 
 
-def _tool_point(machine: Machine | Chain, offset: float) -> Vec:
+def _tool_point(machine: Machine | Chain, offset: float) -> Constant:
     """Point ``offset`` mm along the tool axis from the gauge point, at home."""
     home = machine.home_tool_in_work
     return _vec(home[:3, 3] + offset * home[:3, 2])
@@ -512,7 +529,7 @@ def tool_in_work(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
     q = _as_q(machine, q)
     n = q.shape[0]
     home = machine.home_tool_in_work
-    columns = [_vec(home[:3, c]) for c in range(3)]
+    columns: list[Vec] = [_vec(home[:3, c]) for c in range(3)]
     linear = {c: q[:, c] for c in machine.linear_columns}
     gauge, cols, _, _ = _carry(
         _joints_from_tool(machine), linear, _trig(machine, q), _tool_point(machine, 0.0), columns
@@ -634,16 +651,16 @@ def axis_and_joint_directions(
         for b in rotary[i - 1 :: -1] if i else ():
             cos_sin = trig[b.column]
             if w is None:
-                w = _rotate_constant(b.direction, a.direction, cos_sin)  # type: ignore[arg-type]
+                w = _rotate_constant(b.direction, a.direction, cos_sin)
             else:
-                w = _rotate_about(np.array(b.direction), q[:, b.column], w, cos_sin)  # type: ignore[arg-type]
+                w = _rotate_about(np.array(b.direction), q[:, b.column], w, cos_sin)
         directions.append(np.broadcast_to(np.array(a.direction), (n, 3)) if w is None else w)
     return axis, directions
 
 
 def _rotate_constant(
-    k: tuple[float, float, float],
-    v: tuple[float, float, float],
+    k: Constant,
+    v: Constant,
     cos_sin: tuple[np.ndarray, np.ndarray],
 ) -> np.ndarray:
     """:func:`_rotate_about` of one constant vector ``v``: its products with ``k`` are the
@@ -669,7 +686,7 @@ def _rotate_constant(
     return out
 
 
-def _axis_carried(chain: Chain, trig: dict[int, tuple[Coord, Coord]]) -> Vec:
+def _axis_carried(chain: Chain, trig: dict[int, tuple[np.ndarray, np.ndarray]]) -> Vec:
     """The tool axis carried through the joints, given the cosines and sines of the rotary
     values (the same values as :func:`_tip_and_axis_carried` gives it)."""
     _, (axis,), _, _ = _carry(chain.joints, {}, trig, None, [_vec(chain.home_tool_axis)])
@@ -758,7 +775,7 @@ def tip_and_axis_along(
     *,
     with_tip: bool = True,
     scratch: Scratch | None = None,
-) -> tuple[Vec | None, Vec]:
+) -> tuple[Arrays | None, Arrays]:
     """Tool tip and axis along straight joint-space moves ``q0 + t (q1 - q0)`` (vectorised).
 
     What a control without tool-centre-point control does between two blocks. With ``t`` one
@@ -781,9 +798,9 @@ def tip_and_axis_along(
 
     Returns
     -------
-    tip : Vec, mm, or None
+    tip : Arrays, mm, or None
         The x, y and z coordinates, each an array of shape (s, n): sample, move.
-    axis : Vec
+    axis : Arrays
         Likewise.
     """
     chain = chain_of(machine)
@@ -819,7 +836,7 @@ def tip_and_axis_along(
         chain.joints, linear, trig, point, [_vec(chain.home_tool_axis)], new=new
     )
 
-    def full(v: Vec) -> Vec:  # coordinates no joint moved are still constants
+    def full(v: Vec) -> Arrays:  # coordinates no joint moved are still constants
         x, y, z = (c if isinstance(c, np.ndarray) else np.full(shape, c) for c in v)
         return x, y, z
 
@@ -968,6 +985,8 @@ def tool_in_work_pin(machine: Machine, q: np.ndarray) -> np.ndarray:
     import pinocchio as pin
 
     q = _as_q(machine, q)
+    model: Any  # pinocchio.Model and pinocchio.Data (pinocchio is untyped)
+    data: Any
     model, data = machine.model, machine._pin_data
     fw, ft = machine._frame_ids
     out = np.empty((q.shape[0], 4, 4))
@@ -1006,6 +1025,8 @@ def jacobian_pin(machine: Machine, q: np.ndarray, tool_length: float = 0.0) -> n
     import pinocchio as pin
 
     q = _as_q(machine, q)
+    model: Any  # pinocchio.Model and pinocchio.Data (pinocchio is untyped)
+    data: Any
     model, data = machine.model, machine._pin_data
     fw, ft = machine._frame_ids
     lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED

@@ -45,6 +45,7 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import overload
 
 import numpy as np
 
@@ -60,6 +61,12 @@ Coord = np.ndarray | float
 Vec = tuple[Coord, Coord, Coord]
 """A vector as its x, y, z coordinates: floats for one constant vector, arrays of shape (k,)
 for one vector per point (the two mix freely in the helpers below)."""
+
+Constant = tuple[float, float, float]
+"""A constant vector: three floats (the machine's directions and points)."""
+
+Arrays = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""One vector per point: three coordinate arrays of shape (k,)."""
 
 
 class IKStatus(IntEnum):
@@ -104,13 +111,13 @@ class RotarySolutions:
 # -- vectors as coordinate triples ---------------------------------------------------------------
 
 
-def _vec(a: np.ndarray) -> Vec:
+def _vec(a: np.ndarray) -> Constant:
     """A constant 3-vector as three floats."""
     x, y, z = a.tolist()
     return x, y, z
 
 
-def _coords(a: np.ndarray) -> Vec:
+def _coords(a: np.ndarray) -> Arrays:
     """Rows of an (k, 3) array as three contiguous coordinate arrays."""
     x, y, z = np.ascontiguousarray(a.T)
     return x, y, z
@@ -120,18 +127,38 @@ def _add(a: Vec, b: Vec) -> Vec:
     return a[0] + b[0], a[1] + b[1], a[2] + b[2]
 
 
+@overload
+def _sub(a: Constant, b: Constant) -> Constant: ...
+@overload
+def _sub(a: Vec, b: Vec) -> Vec: ...
 def _sub(a: Vec, b: Vec) -> Vec:
     return a[0] - b[0], a[1] - b[1], a[2] - b[2]
 
 
+@overload
+def _scale(s: float, a: Constant) -> Constant: ...
+@overload
+def _scale(s: Coord, a: Vec) -> Vec: ...
 def _scale(s: Coord, a: Vec) -> Vec:
     return s * a[0], s * a[1], s * a[2]
 
 
+@overload
+def _dot(a: Constant, b: Constant) -> float: ...
+@overload
+def _dot(a: Vec, b: Arrays) -> np.ndarray: ...
+@overload
+def _dot(a: Arrays, b: Vec) -> np.ndarray: ...
+@overload
+def _dot(a: Vec, b: Vec) -> Coord: ...
 def _dot(a: Vec, b: Vec) -> Coord:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
+@overload
+def _cross(a: Constant, b: Constant) -> Constant: ...
+@overload
+def _cross(a: Vec, b: Vec) -> Vec: ...
 def _cross(a: Vec, b: Vec) -> Vec:
     return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
 
@@ -147,21 +174,21 @@ def _turn(k: Vec, cos: Coord, sin: Coord, p: Vec) -> Vec:
     )
 
 
-def _unit(a: Vec) -> Vec:
+def _unit(a: Constant) -> Constant:
     """A constant vector scaled to length 1."""
     norm = math.sqrt(_dot(a, a))
     return a[0] / norm, a[1] / norm, a[2] / norm
 
 
-def _frame(k: Vec) -> tuple[Vec, Vec]:
+def _frame(k: Constant) -> tuple[Constant, Constant]:
     """Unit vectors e1, e2 with (e1, e2, k) orthonormal and right-handed (e1 x e2 = k)."""
     smallest = min(range(3), key=lambda i: abs(k[i]))
-    helper = tuple(float(i == smallest) for i in range(3))
-    e1 = _unit(_cross(k, helper))
+    hx, hy, hz = (float(i == smallest) for i in range(3))
+    e1 = _unit(_cross(k, (hx, hy, hz)))
     return e1, _cross(k, e1)
 
 
-def _angle_between(a: Vec, b: Vec) -> float:
+def _angle_between(a: Constant, b: Constant) -> float:
     """Angle between two constant vectors, rad, accurate near 0 and pi."""
     c = _cross(a, b)
     return math.atan2(math.sqrt(_dot(c, c)), _dot(a, b))
@@ -200,15 +227,15 @@ class _Chain:
         Tool axis at home.
     """
 
-    lines: tuple[tuple[Vec, Vec], ...]
+    lines: tuple[tuple[Constant, Constant], ...]
     lead: int
-    columns: tuple[tuple[Vec, int], ...]
-    gauge: Vec
-    axis: Vec
+    columns: tuple[tuple[Constant, int], ...]
+    gauge: Constant
+    axis: Constant
 
     @classmethod
     def of(cls, machine: Machine) -> _Chain:
-        lines: list[tuple[Vec, Vec]] = []
+        lines: list[tuple[Constant, Constant]] = []
         before: dict[str, int] = {}
         for a in sorted(machine.axes, key=lambda a: a.chain_index):
             if a.rotary:
@@ -248,10 +275,10 @@ class _Tilt:
         ``sin(psi) sin(phi)``: half the width of the band in ``k1 . v``.
     """
 
-    e1: Vec
-    e2: Vec
-    k1: Vec
-    home_axis: Vec
+    e1: Constant
+    e2: Constant
+    k1: Constant
+    home_axis: Constant
     swing: tuple[float, ...] = ()
     cos_base: float = 1.0
     sin_base: float = 0.0
@@ -311,7 +338,7 @@ class _RotaryBlock:
     turns: tuple[tuple[tuple[np.ndarray, np.ndarray], ...], ...]
 
 
-def _rotary_block(tilt: _Tilt, r: int, v: Vec, tol: Tolerances) -> _RotaryBlock:
+def _rotary_block(tilt: _Tilt, r: int, v: Arrays, tol: Tolerances) -> _RotaryBlock:
     """Rotary solutions for the tool axes ``v`` (coordinate arrays of shape (k,))."""
     v1, v2, v3 = _dot(tilt.e1, v), _dot(tilt.e2, v), _dot(tilt.k1, v)
     if r == 1:
@@ -319,7 +346,9 @@ def _rotary_block(tilt: _Tilt, r: int, v: Vec, tol: Tolerances) -> _RotaryBlock:
     return _two_rotaries(tilt, v1, v2, v3, tol)
 
 
-def _turn_between(u1: Coord, u2: Coord, v1: np.ndarray, v2: np.ndarray) -> tuple[np.ndarray, ...]:
+def _turn_between(
+    u1: Coord, u2: Coord, v1: np.ndarray, v2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Angle about k1 from u to v (step 2), with its cos and sin, from their e1, e2 parts."""
     cross, dot = u1 * v2 - u2 * v1, u1 * v1 + u2 * v2
     rho = np.sqrt(cross * cross + dot * dot)
@@ -430,8 +459,8 @@ def solve_rotary(
 
 def _linear_block(
     chain: _Chain,
-    turns: tuple[tuple[Coord, Coord], ...],
-    tip: Vec,
+    turns: tuple[tuple[np.ndarray, np.ndarray], ...],
+    tip: Arrays,
     tool_length: float,
 ) -> Vec:
     """Linear axis values (NC order) putting the tip on ``tip`` with the rotary ``turns``.
@@ -446,16 +475,17 @@ def _linear_block(
     """
     lead = chain.lead
     # undo the rotary axes between the workpiece and the linear axes on the tip ...
-    p = tip
+    p: Vec = tip
     for (k, c), (cos, sin) in zip(chain.lines[:lead], turns[:lead], strict=True):
         p = _add(c, _turn(k, cos, -sin, _sub(p, c)))
     # ... and apply those between the linear axes and the tool to the tool tip at home
-    g = _sub(chain.gauge, _scale(tool_length, chain.axis))
+    g: Vec = _sub(chain.gauge, _scale(tool_length, chain.axis))
     for (k, c), (cos, sin) in reversed(list(zip(chain.lines[lead:], turns[lead:], strict=True))):
         g = _add(c, _turn(k, cos, sin, _sub(g, c)))
     # the linear axes now move p - g along their directions (constant unless a rotary axis
     # sits between two of them along the chain)
     columns = []
+    d: Vec  # a constant direction, turned by the rotary axes in between
     for d, before in chain.columns:
         for j in reversed(range(lead, before)):
             d = _turn(chain.lines[j][0], *turns[j], d)
