@@ -254,8 +254,9 @@ def _turn(
     the plane of the other two.
     """
     for k in range(3):
-        if abs(w[k]) == 1.0:
-            a, b = (k + 1) % 3, (k + 2) % 3  # (a, b, k) right-handed
+        a, b = (k + 1) % 3, (k + 2) % 3  # (a, b, k) right-handed
+        # exactly along axis k: (0, 1e-9, 1) is a unit vector whose 1e-9 still turns x
+        if abs(w[k]) == 1.0 and w[a] == 0.0 and w[b] == 0.0:
             out: list[Coord] = [0.0, 0.0, 0.0]
             # w[k] is +-1, so _times gives sin or its negation: an array
             signed_sin = cast(np.ndarray, _times(w[k], sin, new))
