@@ -206,9 +206,9 @@ def _candidates(
     limited = [j for j in range(r) if lo[j] > -np.inf or hi[j] < np.inf]  # (others: all within)
     for sl in _chunks(n, values[0].size):  # temporaries in cache
         out = values[sl]
-        for w, shift in enumerate(shifts):
+        for w in range(len(shifts)):
             for j in range(r):
-                np.add(angles[sl, :, j], shift[j], out=out[:, :, w, j])
+                np.add(angles[sl, :, j], shifts[w, j], out=out[:, :, w, j])
         out = out.reshape(len(out), -1, r)
         for j in limited:
             v = out[:, :, j]
