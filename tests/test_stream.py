@@ -401,7 +401,7 @@ def test_cli_verifies_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[st
     # the same line but for the mean deviation
     strip = re.compile(r"mean \d+\.\d+")
     assert strip.sub("mean", pieces) == strip.sub("mean", whole)
-    assert main([*common, "--piece-points", "1"]) == 1
+    # (a piece of one point is a usage error: test_cli_rejects_a_bad_piece_size_as_a_usage_error)
 
 
 def test_pieces_reassemble_the_toolpath(raster: Toolpath) -> None:
@@ -509,16 +509,24 @@ def test_cli_posts_in_pieces(
     assert "301/301 CL points reached" in capsys.readouterr().out
 
 
-def test_cli_rejects_a_piece_of_one_point(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize("command", ["post", "verify"])
+@pytest.mark.parametrize(("value", "said"), [("1", "got 1"), ("-3", "got -3"), ("x", "'x'")])
+def test_cli_rejects_a_bad_piece_size_as_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str, value: str, said: str
 ) -> None:
+    """A piece of one point, a negative or non-numeric count: usage errors (exit 2), for both
+    commands, before anything is read."""
     from urdfpost.cli import main
 
     out = tmp_path / "x.h"
     dome = str(ROOT / "examples" / "dome.apt")
-    args = ["post", dome, "--machine", "dmu50", "-o", str(out), "--piece-points", "1"]
-    assert main(args) == 1
-    assert "--piece-points: expected 0 or at least 2, got 1" in capsys.readouterr().err
+    args = [command, dome if command == "post" else str(out), "--machine", "dmu50"]
+    args += ["-o", str(out)] if command == "post" else ["--cl", dome]
+    with pytest.raises(SystemExit) as exc:
+        main([*args, "--piece-points", value])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--piece-points" in err and said in err, err
     assert not out.exists()
 
 

@@ -114,6 +114,16 @@ def _positive(value: str) -> float:
     return v
 
 
+def _piece_points(value: str) -> int:
+    try:
+        n = int(value)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {value!r}") from e
+    if n < 0 or n == 1:
+        raise argparse.ArgumentTypeError(f"expected 0 or at least 2, got {n}")
+    return n
+
+
 def _prefer(value: str) -> Any:
     from urdfpost.branches import Preference
 
@@ -235,7 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     po.add_argument("--report", help="write a JSON report here")
     po.add_argument(
         "--piece-points",
-        type=int,
+        type=_piece_points,
         metavar="N",
         help="post in pieces of about N CL points, read, written and verified one at a time "
         "(bounded memory for long jobs; each piece verified in a second process while the next "
@@ -283,7 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     ve.add_argument("--report", help="write a JSON report here")
     ve.add_argument(
         "--piece-points",
-        type=int,
+        type=_piece_points,
         metavar="N",
         help="read and check in pieces of about N CL points (bounded memory for long jobs; "
         "the same figures, but for the mean deviation); 0: never. Default: pieces of "
@@ -374,8 +384,6 @@ def _cmd_post(args: argparse.Namespace) -> int:
     if pieces is None:
         size = Path(args.cl).stat().st_size if Path(args.cl).is_file() else 0
         pieces = _PIECE_POINTS if size > _STREAM_BYTES else 0
-    if pieces < 0 or pieces == 1:
-        raise UrdfpostError(f"--piece-points: expected 0 or at least 2, got {pieces}")
     if pieces:
         toolpath, chunks = _read_cl_pieces(args, machine, pieces)
     else:
@@ -498,8 +506,6 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if pieces is None:
         sizes = [Path(f).stat().st_size for f in (args.cl, args.program) if Path(f).is_file()]
         pieces = _PIECE_POINTS if max(sizes, default=0) > _STREAM_BYTES else 0
-    if pieces < 0 or pieces == 1:
-        raise UrdfpostError(f"--piece-points: expected 0 or at least 2, got {pieces}")
     if pieces:  # the program's header (units) from its first piece of text
         from urdfpost.stream import program_texts
 
