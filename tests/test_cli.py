@@ -831,3 +831,17 @@ def test_a_full_disk_is_a_clear_error(
     assert err.startswith("urdfpost: /dev/full: cannot write: No space left on device"), err
     assert "Traceback" not in err
     assert files(tmp_path) == {"part.apt"}
+
+
+@pytest.mark.parametrize("command", ["post", "compare"])
+def test_prefer_of_an_axis_the_machine_lacks_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """``--prefer A+`` on a B/C machine was silently ignored."""
+    cl = write(tmp_path, "part.apt", TINY)
+    argv = [command, str(cl), "-m", "dmu50", "--prefer", "A+"]
+    argv += ["-o", str(tmp_path / "part.h")] if command == "post" else []
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--prefer A: machine dmu50 has no rotary axis A; expected one of" in err, err
+    assert files(tmp_path) == {"part.apt"}

@@ -114,6 +114,21 @@ def _positive(value: str) -> float:
     return v
 
 
+class UsageError(UrdfpostError):
+    """An option that does not fit the machine named with it: a usage error (exit 2)."""
+
+
+def _check_prefer(prefer: Any, machine: Any) -> Any:
+    """``--prefer`` when it names a rotary axis of ``machine``."""
+    names = [axis.name for axis in machine.rotary]
+    if prefer is not None and prefer.axis not in names:
+        raise UsageError(
+            f"--prefer {prefer.axis}: machine {machine.name} has no rotary axis {prefer.axis}; "
+            f"expected one of {', '.join(names)}"
+        )
+    return prefer
+
+
 def _piece_points(value: str) -> int:
     try:
         n = int(value)
@@ -399,7 +414,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         units=units,
         tool_length=None if args.tool_length is None else args.tool_length * scale,
         tolerance=args.tolerance,
-        prefer=args.prefer,
+        prefer=_check_prefer(args.prefer, machine),
         block_numbers=args.block_numbers,
         program_name=args.name,
         strategy=args.strategy,
@@ -595,7 +610,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         units=units,
         tool_length=None if args.tool_length is None else args.tool_length * scale,
         tolerance=args.tolerance,
-        prefer=args.prefer,
+        prefer=_check_prefer(args.prefer, machine),
         angle_tolerance=args.angle_tolerance,
         planner=args.planner,
         lift=args.lift,
@@ -773,6 +788,9 @@ def _run(argv: Sequence[str] | None) -> int:
         code = COMMANDS[args.command](args)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return code
+    except UsageError as e:
+        print(f"urdfpost: error: {e}", file=sys.stderr)
+        return 2
     except UrdfpostError as e:
         print(f"urdfpost: {e}", file=sys.stderr)
         return 1
