@@ -845,3 +845,15 @@ def test_prefer_of_an_axis_the_machine_lacks_is_a_usage_error(
     err = capsys.readouterr().err
     assert "--prefer A: machine dmu50 has no rotary axis A; expected one of" in err, err
     assert files(tmp_path) == {"part.apt"}
+
+
+def test_testpath_to_standard_output(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``-o -`` is standard output (it wrote a file named ``-``)."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["testpath", "sweep-1", "-o", "-"]) == 0
+    text = capsys.readouterr().out
+    assert main(["testpath", "sweep-1", "-o", "file.apt"]) == 0
+    assert text == (tmp_path / "file.apt").read_text()
+    assert files(tmp_path) == {"file.apt"}

@@ -342,7 +342,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     tp = sub.add_parser("testpath", help="write a shipped singular test path as APT")
     tp.add_argument("name", help="path name (see --list)", nargs="?")
-    tp.add_argument("-o", "--output", help="APT file (default NAME.apt)")
+    tp.add_argument("-o", "--output", help="APT file (default NAME.apt; - for standard output)")
     tp.add_argument("--list", action="store_true", help="list the shipped paths")
 
     sub.add_parser("machines", help="list the machines urdfpost knows by name")
@@ -666,6 +666,9 @@ def _cmd_testpath(args: argparse.Namespace) -> int:
         return 0
     if args.name not in PATHS:
         raise UrdfpostError(f"unknown test path {args.name!r}; expected one of {', '.join(PATHS)}")
+    if args.output == "-":  # the usual name for standard output
+        sys.stdout.write(to_apt(PATHS[args.name]()))
+        return 0
     out = Path(args.output or f"{args.name}.apt")
     _write_atomic({out: to_apt(PATHS[args.name]())}, roles={out: "the CL file (-o)"})
     print(f"wrote {out}")
