@@ -117,21 +117,22 @@ def check_distinct(
     UrdfpostError
         Naming both roles.
     """
-    seen: dict[tuple[object, ...], str] = {}
-    for role, path in inputs.items():
-        seen.setdefault(_identity(Path(path)), role)
+    given = {_identity(Path(path)): role for role, path in inputs.items()}
+    seen = dict(given)
     for role, path in outputs.items():
         key = _identity(Path(path))
-        if key in seen:
-            try:
-                device = stat.S_ISCHR(os.stat(path).st_mode)
-            except OSError:
-                device = False
-            if not (device and seen[key] not in inputs):
-                raise UrdfpostError(
-                    f"{path}: {role} would overwrite {seen[key]}: expected another file"
-                )
+        if key in seen and (key in given or not _is_device(Path(path))):
+            raise UrdfpostError(
+                f"{path}: {role} would overwrite {seen[key]}: expected another file"
+            )
         seen[key] = role
+
+
+def _is_device(path: Path) -> bool:
+    try:
+        return stat.S_ISCHR(os.stat(path).st_mode)
+    except OSError:
+        return False
 
 
 def write_texts(

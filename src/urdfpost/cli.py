@@ -35,17 +35,6 @@ _PIECE_POINTS = 100_000  # (urdfpost.stream.PIECE_POINTS, not imported at start-
 _STREAM_BYTES = 16 << 20  # CL files larger than this are posted in pieces by default
 
 
-def _write_atomic(
-    files: dict[Path, str],
-    inputs: dict[str, Any] | None = None,
-    roles: dict[Path, str] | None = None,
-    staged: dict[Path, Path] | None = None,
-) -> None:
-    """Write all the files or none (:func:`urdfpost._files.write_texts`): none of them may be
-    one of the ``inputs`` (role: path, ``None`` for an input not given) or another output."""
-    write_texts(files, _given(inputs or {}), roles, staged)
-
-
 def _given(inputs: dict[str, Any]) -> dict[str, Any]:
     """The inputs that were given (an option left out is None)."""
     return {role: path for role, path in inputs.items() if path is not None}
@@ -469,11 +458,10 @@ def _cmd_post(args: argparse.Namespace) -> int:
                     progress=bar.update,
                     parallel=False if args.single_process else None,
                 )
-            except OSError as e:  # the disk filled up, the folder went away
+            except BaseException as e:
                 Path(stage).unlink(missing_ok=True)
-                raise UrdfpostError(f"{out}: cannot write: {e.strerror or e}") from e
-            except BaseException:
-                Path(stage).unlink(missing_ok=True)
+                if isinstance(e, OSError):  # the disk filled up, the folder went away
+                    raise UrdfpostError(f"{out}: cannot write: {e.strerror or e}") from e
                 raise
         else:
             whole = post(toolpath, machine, options, progress=bar.update)
@@ -482,7 +470,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
     _show_warnings(result.report["warnings"])
     if args.report:
         files[Path(args.report)] = report_json(result.report)
-    _write_atomic(files, inputs, roles, staged)
+    write_texts(files, _given(inputs), roles, staged)
     mode = "TCP" if args.tcp else "machine coordinates"
     print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
     strat = result.report["strategy"]
@@ -575,7 +563,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         report = make_report(toolpath, machine, program, check, dialect.name)
         inputs = {"the program": args.program, "the CL file": args.cl}
         roles = {Path(args.report): "the report (--report)"}
-        _write_atomic({Path(args.report): report_json(report)}, inputs, roles)
+        write_texts({Path(args.report): report_json(report)}, _given(inputs), roles)
     print(f"{args.program}: {check.summary(program.units)}")
     if check.missed_lines:
         shown = ", ".join(str(x) for x in check.missed_lines[:10])
@@ -632,7 +620,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         output_target(args.plot)
         outputs = {"the plot (--plot)": args.plot} | {r: p for p, r in roles.items()}
         check_distinct(outputs, _given(inputs))
-    _write_atomic(files, inputs, roles)
+    write_texts(files, _given(inputs), roles)
     if args.plot:
         from urdfpost.singularity.plot import plot_comparison
 
@@ -670,7 +658,7 @@ def _cmd_testpath(args: argparse.Namespace) -> int:
         sys.stdout.write(to_apt(PATHS[args.name]()))
         return 0
     out = Path(args.output or f"{args.name}.apt")
-    _write_atomic({out: to_apt(PATHS[args.name]())}, roles={out: "the CL file (-o)"})
+    write_texts({out: to_apt(PATHS[args.name]())}, roles={out: "the CL file (-o)"})
     print(f"wrote {out}")
     return 0
 
