@@ -24,13 +24,13 @@ column is the peak after the imports, before the work) do not pollute each other
     write it without a closed-form solver; a sample of points, extrapolated to the file;
 (f) ``closed-form IK``: :func:`urdfpost.kinematics.inverse.inverse` over all points of the file;
 (g) ``in pieces``: (b) and (c) as ``urdfpost post`` runs them on large files
-    (:func:`urdfpost.stream.post_stream` over :func:`urdfpost.readers.read_cl_chunks`, pieces
-    of :data:`urdfpost.stream.PIECE_POINTS` CL points, each verified in a worker process while
+    (:func:`urdfpost.post.stream.post_stream` over :func:`urdfpost.readers.read_cl_chunks`, pieces
+    of :data:`urdfpost.post.stream.PIECE_POINTS` CL points, each verified in a worker process while
     the next is planned: the two cores share the work); the worker's peak memory is shown
     beside the post's. Then the fastest control in machine coordinates at 10M points as well
     (``--stream-sizes``): the peak memory must not grow with the job;
 (h) ``urdfpost verify`` of the program of (b) for the fastest control (posted once and kept
-    beside the CL file), whole and in pieces (:func:`urdfpost.stream.verify_stream`); in
+    beside the CL file), whole and in pieces (:func:`urdfpost.post.stream.verify_stream`); in
     pieces at 10M too.
 
 Printed ratios: post over floor, numerical over closed-form IK per point, and the growth of
@@ -106,14 +106,14 @@ def measure_post(path: str, control: str, tcp: bool) -> dict[str, Any]:
 
 
 def measure_stream(path: str, control: str, tcp: bool) -> dict[str, Any]:
-    """The post of (b)/(c) in pieces (:func:`urdfpost.stream.post_stream`, the file read with
+    """The post of (b)/(c) in pieces (:func:`urdfpost.post.stream.post_stream`, the file read with
     :func:`urdfpost.readers.read_cl_chunks`, each piece verified in a worker process while the
     next is planned), the program written to a temporary file."""
     import tempfile
 
     from urdfpost import PostOptions, load_machine
+    from urdfpost.post.stream import PIECE_POINTS, post_stream
     from urdfpost.readers import read_cl_chunks
-    from urdfpost.stream import PIECE_POINTS, post_stream
 
     machine = load_machine(MACHINE)
     base = _peak_mb()
@@ -307,12 +307,12 @@ def _program_of(path: str, control: str) -> Path:
 
 def measure_verify(path: str, control: str, pieces: bool) -> dict[str, Any]:
     """``urdfpost verify`` of the program of (b) against its CL file: whole (the program and
-    the CL data read at once) or in pieces (:func:`urdfpost.stream.verify_stream`)."""
+    the CL data read at once) or in pieces (:func:`urdfpost.post.stream.verify_stream`)."""
     from urdfpost import load_machine, read_cl
     from urdfpost.dialects import dialect_for
-    from urdfpost.pipeline import ball_radius, bent_tolerances
+    from urdfpost.post.pipeline import ball_radius, bent_tolerances
+    from urdfpost.post.stream import PIECE_POINTS, verify_stream
     from urdfpost.readers import read_cl_chunks
-    from urdfpost.stream import PIECE_POINTS, verify_stream
     from urdfpost.tolerances import Tolerances
     from urdfpost.verify import verify
 

@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from urdfpost import UnreachableError, load_machine
-from urdfpost.branches import TWO_PI, Preference, _wrap, select
 from urdfpost.kinematics import IKStatus, tip_and_axis, tip_and_axis_pin
+from urdfpost.planning.branches import TWO_PI, Preference, _wrap, select
 
 
 def tilt_path(tilt_deg: np.ndarray, azimuth_deg: np.ndarray, z: float = 10.0) -> tuple:

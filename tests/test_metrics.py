@@ -11,20 +11,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from urdfpost.dialects import dialect_for
-from urdfpost.kinematics.forward import tip_and_axis
-from urdfpost.machine import Machine, load_machine
-from urdfpost.pipeline import PostOptions, PostResult, post
-from urdfpost.program import Move, Program, Tcp
-from urdfpost.singularity.detector import Span
-from urdfpost.singularity.metrics import (
+from urdfpost.analysis.metrics import (
     Metrics,
     block_times,
     cl_path_position,
     measure,
 )
-from urdfpost.singularity.plot import plot_comparison
-from urdfpost.testpaths import great_circle_sweep, hemisphere_raster
+from urdfpost.analysis.plot import plot_comparison
+from urdfpost.analysis.testpaths import great_circle_sweep, hemisphere_raster
+from urdfpost.dialects import dialect_for
+from urdfpost.kinematics.forward import tip_and_axis
+from urdfpost.machine import Machine, load_machine
+from urdfpost.planning.singularity import Span
+from urdfpost.post.pipeline import PostOptions, PostResult, post
+from urdfpost.program import Move, Program, Tcp
 from urdfpost.toolpath import Motion, Toolpath
 from urdfpost.verify import program_joints
 

@@ -11,14 +11,14 @@ import pytest
 import trimesh
 
 from urdfpost import load_machine
-from urdfpost.branches import Preference, select
+from urdfpost.analysis.testpaths import PATHS
 from urdfpost.cli import main
 from urdfpost.dialects import dialect_for
 from urdfpost.errors import CollisionError, UnreachableError
 from urdfpost.kinematics import tip_and_axis_pin
-from urdfpost.pipeline import PostOptions, post
+from urdfpost.planning.branches import Preference, select
+from urdfpost.post.pipeline import PostOptions, post
 from urdfpost.program import Comment, Move, rewind_moves
-from urdfpost.testpaths import PATHS
 from urdfpost.toolpath import Event, Motion, Toolpath
 from urdfpost.verify import program_joints
 

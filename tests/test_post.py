@@ -28,7 +28,7 @@ from urdfpost import load_machine
 from urdfpost.dialects import DIALECTS
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.machine import Machine
-from urdfpost.pipeline import PostOptions, PostResult, post
+from urdfpost.post.pipeline import PostOptions, PostResult, post
 from urdfpost.program import Program
 from urdfpost.readers import read_cl, read_cl_text
 from urdfpost.toolpath import Toolpath

@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 
 from urdfpost import load_machine, read_cl
-from urdfpost import pipeline as pipeline_module
 from urdfpost.dialects import DIALECTS
-from urdfpost.pipeline import (
+from urdfpost.post import pipeline as pipeline_module
+from urdfpost.post.pipeline import (
     _LIFT,
     _RETURN,
     _TURN,

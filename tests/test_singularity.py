@@ -8,20 +8,20 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from urdfpost.analysis.compare import compare, table
+from urdfpost.analysis.testpaths import great_circle_sweep, hemisphere_raster, nutating_edge
 from urdfpost.errors import MachineDefinitionError
 from urdfpost.kinematics.forward import jacobian_pin, tip_and_axis
 from urdfpost.machine import load_machine, machine_from_urdf
-from urdfpost.pipeline import PostOptions, build_program, check_program, post
-from urdfpost.singularity.compare import compare, table
-from urdfpost.singularity.detector import conditioning, detect, orientation_jacobian
-from urdfpost.singularity.strategies import (
+from urdfpost.planning.singularity import conditioning, detect, orientation_jacobian
+from urdfpost.planning.strategies import (
     DEFAULT_STRATEGY,
     STRATEGIES,
     Problem,
     exact_selection,
     split_at_pole_crossings,
 )
-from urdfpost.testpaths import great_circle_sweep, hemisphere_raster, nutating_edge
+from urdfpost.post.pipeline import PostOptions, build_program, check_program, post
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 

@@ -28,7 +28,7 @@ from urdfpost.kinematics.forward import (
     tip_axis_and_reach,
 )
 from urdfpost.machine import Machine, list_machines, load_machine
-from urdfpost.singularity.detector import (
+from urdfpost.planning.singularity import (
     conditioning,
     detect,
     feed_runs,

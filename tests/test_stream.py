@@ -1,4 +1,4 @@
-"""The streamed post (urdfpost.stream): pieces joined into the program a whole post writes."""
+"""The streamed post (urdfpost.post.stream): pieces joined into the program a whole post writes."""
 
 from __future__ import annotations
 
@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from urdfpost import load_machine
-from urdfpost.branches import select
 from urdfpost.errors import ToleranceError, UnreachableError
-from urdfpost.pipeline import PostOptions, post
+from urdfpost.planning.branches import select
+from urdfpost.post.pipeline import PostOptions, post
+from urdfpost.post.stream import merge_verifications, post_stream, toolpath_pieces, toolpath_slice
 from urdfpost.readers import read_cl
-from urdfpost.stream import merge_verifications, post_stream, toolpath_pieces, toolpath_slice
 from urdfpost.toolpath import Event, Toolpath
 from urdfpost.verify import Verification
 
@@ -193,7 +193,7 @@ def test_piece_that_misses_its_tolerance_writes_nothing(
     """A piece that fails its check after others were written (its CL points moved 0.1 mm
     before they are checked, in this process or in the worker): the old file stays, and no
     temporary file is left."""
-    import urdfpost.stream as stream_module
+    import urdfpost.post.stream as stream_module
 
     real = stream_module._Checks.submit
     jobs = []
@@ -225,7 +225,7 @@ def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> Non
     """An error in the verification worker (here a program line the reader rejects) is raised
     where the post runs, as the same error with its file and line."""
     from urdfpost.errors import ProgramParseError
-    from urdfpost.stream import _Checks, _Job
+    from urdfpost.post.stream import _Checks, _Job
     from urdfpost.tolerances import Tolerances
 
     checks = _Checks(
@@ -250,7 +250,7 @@ def test_a_worker_that_dies_is_an_error(tmp_path: Path) -> None:
     import signal
 
     from urdfpost.errors import UrdfpostError
-    from urdfpost.stream import _Checks, _Job
+    from urdfpost.post.stream import _Checks, _Job
     from urdfpost.tolerances import Tolerances
 
     checks = _Checks(
@@ -327,7 +327,7 @@ def test_verify_in_pieces_is_the_whole_verify(
     figures of the whole check: reached and missed points, blocks, the worst deviations and
     where, the rotary steps, the notes; only the mean counts the join rows twice."""
     from urdfpost.dialects import dialect_for
-    from urdfpost.stream import program_texts, verify_stream
+    from urdfpost.post.stream import program_texts, verify_stream
     from urdfpost.tolerances import Tolerances
     from urdfpost.verify import verify
 
@@ -358,7 +358,7 @@ def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
     """A program with rewinds (a C axis limited to two turns, a spiral of four): the pieces
     are never cut inside one, and the figures are those of the whole check."""
     from urdfpost.dialects import dialect_for
-    from urdfpost.stream import verify_stream
+    from urdfpost.post.stream import verify_stream
     from urdfpost.tolerances import Tolerances
     from urdfpost.verify import verify
 

@@ -8,17 +8,17 @@ import math
 import numpy as np
 import pytest
 
-from urdfpost.linearize import slerp
-from urdfpost.machine import Machine, load_machine
-from urdfpost.pipeline import PostOptions, post
-from urdfpost.readers import read_cl_text
-from urdfpost.testpaths import (
+from urdfpost.analysis.testpaths import (
     PATHS,
     great_circle_sweep,
     hemisphere_raster,
     nutating_edge,
     to_apt,
 )
+from urdfpost.linearize import slerp
+from urdfpost.machine import Machine, load_machine
+from urdfpost.post.pipeline import PostOptions, post
+from urdfpost.readers import read_cl_text
 from urdfpost.toolpath import Event, Motion, Toolpath
 
 Z = np.array([0.0, 0.0, 1.0])

@@ -28,7 +28,7 @@ from urdfpost.linearize import (
     cos_sin,
 )
 from urdfpost.machine import Machine
-from urdfpost.pipeline import PostOptions, PostResult, build_program, post
+from urdfpost.post.pipeline import PostOptions, PostResult, build_program, post
 from urdfpost.program import Move, Program, Tcp, ToolChange
 from urdfpost.readers import read_cl
 from urdfpost.tolerances import Tolerances

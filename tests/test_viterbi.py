@@ -15,10 +15,19 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from urdfpost import branches, load_machine
-from urdfpost.branches import JUMP, REWIND_COST, TWO_PI, _Plan, _raise_dead_end, _wrap, select
+from urdfpost import load_machine
+from urdfpost.analysis.testpaths import PATHS
 from urdfpost.errors import UnreachableError
-from urdfpost.testpaths import PATHS
+from urdfpost.planning import branches
+from urdfpost.planning.branches import (
+    JUMP,
+    REWIND_COST,
+    TWO_PI,
+    _Plan,
+    _raise_dead_end,
+    _wrap,
+    select,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 MACHINES = ("dmu50", "gantry-ca", "dmu50-nutating", "umc750", "monoblock", "xyzac-trt")
@@ -269,7 +278,7 @@ def test_collision_exclusions(compared: Compared, tmp_path: Path) -> None:
     """Excluded moves are planned point by point; the re-plans agree too."""
     from test_planning import machine_with_fixtures, tilted_line
 
-    from urdfpost.pipeline import PostOptions, post
+    from urdfpost.post.pipeline import PostOptions, post
 
     m = load_machine(machine_with_fixtures(tmp_path, (+1,)))
     result = post(

@@ -31,7 +31,7 @@ from urdfpost.machine import Machine, list_machines, load_machine
 
 def __getattr__(name: str):
     if name in ("post", "PostOptions", "PostResult"):
-        from urdfpost import pipeline
+        from urdfpost.post import pipeline
 
         return getattr(pipeline, name)
     if name == "read_cl":

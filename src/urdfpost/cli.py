@@ -25,13 +25,13 @@ from urdfpost.errors import UrdfpostError
 from urdfpost.reports import report_json
 
 if TYPE_CHECKING:
-    from urdfpost.pipeline import PostResult
-    from urdfpost.stream import StreamResult
+    from urdfpost.post.pipeline import PostResult
+    from urdfpost.post.stream import StreamResult
 
 log = logging.getLogger("urdfpost")
 
 MAX_WARNINGS_SHOWN = 20
-_PIECE_POINTS = 100_000  # (urdfpost.stream.PIECE_POINTS, not imported at start-up)
+_PIECE_POINTS = 100_000  # (urdfpost.post.stream.PIECE_POINTS, not imported at start-up)
 _STREAM_BYTES = 16 << 20  # CL files larger than this are posted in pieces by default
 
 
@@ -129,7 +129,7 @@ def _piece_points(value: str) -> int:
 
 
 def _prefer(value: str) -> Any:
-    from urdfpost.branches import Preference
+    from urdfpost.planning.branches import Preference
 
     try:
         return Preference.parse(value)
@@ -138,7 +138,7 @@ def _prefer(value: str) -> Any:
 
 
 def _strategy_arguments(p: argparse.ArgumentParser, single: bool) -> None:
-    from urdfpost.singularity.strategies import DEFAULT_STRATEGY, STRATEGIES
+    from urdfpost.planning.strategies import DEFAULT_STRATEGY, STRATEGIES
 
     if single:
         p.add_argument(
@@ -377,7 +377,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
 
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
-    from urdfpost.pipeline import PostOptions, post
+    from urdfpost.post.pipeline import PostOptions, post
     from urdfpost.tolerances import MM_PER_INCH
 
     # no monitor thread: a streamed post forks its verification worker, best from one thread
@@ -439,7 +439,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         files: dict[Path, str] = {}
         result: PostResult | StreamResult
         if chunks is not None:
-            from urdfpost.stream import post_stream
+            from urdfpost.post.stream import post_stream
 
             # streamed into a hidden file beside the program (in the temporary folder for a
             # device), moved into place with the report
@@ -499,7 +499,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
 def _cmd_verify(args: argparse.Namespace) -> int:
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
-    from urdfpost.pipeline import make_report
+    from urdfpost.post.pipeline import make_report
     from urdfpost.tolerances import MM_PER_INCH, Tolerances
     from urdfpost.verify import verify
 
@@ -510,7 +510,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         sizes = [Path(f).stat().st_size for f in (args.cl, args.program) if Path(f).is_file()]
         pieces = _PIECE_POINTS if max(sizes, default=0) > _STREAM_BYTES else 0
     if pieces:  # the program's header (units) from its first piece of text
-        from urdfpost.stream import program_texts
+        from urdfpost.post.stream import program_texts
 
         head = next(program_texts(args.program, 1 << 16), "")
         program = dialect.read(head, path=args.program)
@@ -529,14 +529,14 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     )
     pivot = 0.0
     if args.angle_tolerance > 0:
-        from urdfpost.pipeline import ball_radius, bent_tolerances
+        from urdfpost.post.pipeline import ball_radius, bent_tolerances
 
         pivot = ball_radius(toolpath)  # (the first cutter: the first piece has it)
         tol = bent_tolerances(tol, args.angle_tolerance, pivot)
     if chunks is not None:
         from dataclasses import replace
 
-        from urdfpost.stream import verify_stream
+        from urdfpost.post.stream import verify_stream
 
         warnings: list[str] = []
 
@@ -574,10 +574,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
+    from urdfpost.analysis.compare import compare, table
     from urdfpost.machine import load_machine
-    from urdfpost.pipeline import PostOptions
-    from urdfpost.singularity.compare import compare, table
-    from urdfpost.singularity.strategies import STRATEGIES
+    from urdfpost.planning.strategies import STRATEGIES
+    from urdfpost.post.pipeline import PostOptions
     from urdfpost.tolerances import MM_PER_INCH
 
     machine = load_machine(args.machine)
@@ -622,7 +622,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         check_distinct(outputs, _given(inputs))
     write_texts(files, _given(inputs), roles)
     if args.plot:
-        from urdfpost.singularity.plot import plot_comparison
+        from urdfpost.analysis.plot import plot_comparison
 
         plot_comparison(
             [(o.strategy, o.metrics) for o in result.outcomes if o.metrics is not None],
@@ -645,7 +645,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_testpath(args: argparse.Namespace) -> int:
-    from urdfpost.testpaths import PATHS, to_apt
+    from urdfpost.analysis.testpaths import PATHS, to_apt
 
     if args.list or not args.name:
         for name, make in PATHS.items():

@@ -58,7 +58,7 @@ class Tolerances:
         refined around the worst sample by golden-section search).
     singular_sigma : float
         A CL point whose orientation Jacobian has a smallest singular value below this is
-        singular (see :mod:`urdfpost.singularity.detector`). sin(2 deg) = 0.0349: for an
+        singular (see :mod:`urdfpost.planning.singularity`). sin(2 deg) = 0.0349: for an
         orthogonal two-axis machine the tool axis lies within 2 degrees of the pole, where the
         first rotary axis turns at least 29 times faster than the tool axis does.
     swing_limit : float

@@ -621,7 +621,7 @@ def axis_and_joint_directions(
 ) -> tuple[np.ndarray, list[np.ndarray]]:
     """Tool axis and the directions of the rotary joints, in the workpiece frame (vectorised).
 
-    What the orientation Jacobian (:func:`urdfpost.singularity.detector.orientation_jacobian`)
+    What the orientation Jacobian (:func:`urdfpost.planning.singularity.orientation_jacobian`)
     is made of; the cosine and sine of each rotary value serve both. Meant for a few thousand
     rows at a time (:func:`row_chunks`).
 

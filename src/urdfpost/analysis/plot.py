@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from urdfpost._files import give_mode
-from urdfpost.singularity.detector import Span
-from urdfpost.singularity.metrics import Metrics
+from urdfpost.analysis.metrics import Metrics
+from urdfpost.planning.singularity import Span
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +56,7 @@ def plot_comparison(
     spans : sequence of Span
         Singular spans of the CL data, drawn from ``cl_s[first]`` to ``cl_s[last]``.
     cl_s : ndarray, shape (n,), mm
-        Path position of each CL point (:func:`urdfpost.singularity.metrics.cl_path_position`).
+        Path position of each CL point (:func:`urdfpost.analysis.metrics.cl_path_position`).
     path : Path or str
         PNG file to write (replaced atomically).
     title : str

@@ -54,7 +54,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.branches import DEFAULT_RETRACT, Preference, Selection, select
 from urdfpost.kinematics.forward import cross, rotate
 from urdfpost.kinematics.inverse import (
     IKStatus,
@@ -63,7 +62,8 @@ from urdfpost.kinematics.inverse import (
 )
 from urdfpost.linearize import angle_between, nearest_solution, slerp
 from urdfpost.machine import Machine
-from urdfpost.singularity.detector import Span, detect, feed_runs
+from urdfpost.planning.branches import DEFAULT_RETRACT, Preference, Selection, select
+from urdfpost.planning.singularity import Span, detect, feed_runs
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
 
@@ -145,7 +145,7 @@ class Plan:
     notes : list of str
     settled : int or None
         The last point of ``toolpath`` whose branch choice no CL points after the path could
-        change (:attr:`urdfpost.branches.Selection.settled`); None: not known.
+        change (:attr:`urdfpost.planning.branches.Selection.settled`); None: not known.
     """
 
     toolpath: Toolpath

@@ -320,7 +320,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
             home[key] = value * (M_TO_MM if key in ("X", "Y", "Z") else 1.0)
     strategy = el.get("strategy")
     if strategy is not None:
-        from urdfpost.singularity.strategies import STRATEGIES
+        from urdfpost.planning.strategies import STRATEGIES
 
         if strategy not in STRATEGIES:
             raise MachineDefinitionError(

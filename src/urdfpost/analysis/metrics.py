@@ -27,7 +27,7 @@ Axis kinematics
 Accuracy and conditioning
     Tool-tip and tool-axis deviation come from :func:`urdfpost.verify.verify` (between blocks, as
     the control interpolates); the conditioning of the orientation Jacobian
-    (:func:`urdfpost.singularity.detector.conditioning`) is taken at every end of a feed block.
+    (:func:`urdfpost.planning.singularity.conditioning`) is taken at every end of a feed block.
 
 Angles are reported in degrees and lengths in mm, whatever the program units.
 """
@@ -44,9 +44,9 @@ import numpy as np
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
+from urdfpost.planning.singularity import conditioning
 from urdfpost.program import Program
 from urdfpost.reports import json_ready
-from urdfpost.singularity.detector import conditioning
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verify import program_joints, verify
@@ -313,8 +313,8 @@ def measure(
     Examples
     --------
     >>> from urdfpost.machine import load_machine
-    >>> from urdfpost.pipeline import PostOptions, post
-    >>> from urdfpost.testpaths import great_circle_sweep
+    >>> from urdfpost.post.pipeline import PostOptions, post
+    >>> from urdfpost.analysis.testpaths import great_circle_sweep
     >>> tp = great_circle_sweep(5.0)
     >>> dmu50 = load_machine("dmu50")
     >>> m = measure(post(tp, dmu50, PostOptions(strategy="none")).program, dmu50, tp)

@@ -704,7 +704,7 @@ def _stock_shape(fcl: Any, mesh: trimesh.Trimesh) -> _Shape:
 
 def _axes_above(machine: Machine) -> dict[str, list[str]]:
     """Per link: the machine axes between the root and the link, from the root."""
-    from urdfpost import urdf
+    from urdfpost.machine import urdf
 
     doc = urdf.parse_urdf(machine.urdf_text, machine.path)
     by_child = {j.child: j for j in doc.joints.values()}

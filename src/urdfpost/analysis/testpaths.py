@@ -22,7 +22,7 @@ The paths and their closed-form facts (``../shared/docs/singularity-research.md`
 
 Examples
 --------
->>> from urdfpost.testpaths import PATHS, to_apt
+>>> from urdfpost.analysis.testpaths import PATHS, to_apt
 >>> tp = PATHS["sweep-1"]()
 >>> len(tp), tp.source
 (43, '<great-circle sweep 1 deg>')

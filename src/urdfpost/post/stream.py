@@ -13,11 +13,11 @@ How the pieces join:
   move on both sides, no CL event there, no singular span or lift within a point of it, the
   tool axis away from the poles and as programmed (not bent by the strategy), and one program
   row there. The next window starts at that point, which takes the angles the piece before
-  chose exactly (``fixed_start`` of :func:`urdfpost.branches.select`), so the joint path is
+  chose exactly (``fixed_start`` of :func:`urdfpost.planning.branches.select`), so the joint path is
   continuous and no rewind or branch switch appears at a cut. The branch choice at a cut is
   the best one over the window, which sees ``lookahead`` points past it. Where the best paths
   into every candidate still possible at the window's end agree up to the cut (the survivors
-  of the branch planner have met: :attr:`urdfpost.branches.Selection.settled`), no CL points
+  of the branch planner have met: :attr:`urdfpost.planning.branches.Selection.settled`), no CL points
   after the window can change it, and the choice is the one a plan of the whole job makes;
   such a cut is preferred (in the second half of the piece). Where there is none, as when
   both branches stay within travel all along, the choice rests on the lookahead: a travel
@@ -65,7 +65,8 @@ from urdfpost._files import give_mode
 from urdfpost.errors import ToleranceError, UrdfpostError
 from urdfpost.linearize import angle_between
 from urdfpost.machine import Machine
-from urdfpost.pipeline import (
+from urdfpost.planning.strategies import STRATEGIES, Plan, tool_axis_of
+from urdfpost.post.pipeline import (
     Continuation,
     PostOptions,
     build_program,
@@ -77,7 +78,6 @@ from urdfpost.pipeline import (
     strategy_name,
 )
 from urdfpost.program import Blocks, Insert, Move, MoveTable, Program
-from urdfpost.singularity.strategies import STRATEGIES, Plan, tool_axis_of
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
 from urdfpost.verify import Verification, missed_note, rewind_note
@@ -108,7 +108,7 @@ class StreamResult:
     verification : Verification
         Of the whole program read back, against the CL data (the pieces' checks merged).
     report : dict
-        As :func:`urdfpost.pipeline.post` reports, with ``streamed`` figures (pieces, piece
+        As :func:`urdfpost.post.pipeline.post` reports, with ``streamed`` figures (pieces, piece
         size, lookahead).
     """
 
@@ -638,7 +638,7 @@ def post_stream(
     Raises
     ------
     UnreachableError, CollisionError, ToleranceError, UrdfpostError
-        As :func:`urdfpost.pipeline.post`; nothing is written then.
+        As :func:`urdfpost.post.pipeline.post`; nothing is written then.
     ValueError
         ``piece_points`` under 2 or ``lookahead`` under 1.
     """

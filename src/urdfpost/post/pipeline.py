@@ -1,7 +1,7 @@
 """Posting: CL toolpath to a checked NC program, with no files opened.
 
 ``post(toolpath, machine, options)`` runs the whole chain: solution choice per point
-(:mod:`urdfpost.branches`), subdivision of feed moves until the nonlinear error is within
+(:mod:`urdfpost.planning.branches`), subdivision of feed moves until the nonlinear error is within
 tolerance (:mod:`urdfpost.linearize`), the controller-neutral program (:mod:`urdfpost.program`),
 its text in the chosen dialect, and the verification of that text read back through the machine
 (:mod:`urdfpost.verify`). A program that misses its tolerance is an error.
@@ -17,10 +17,21 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from urdfpost.branches import DEFAULT_RETRACT, Preference, rewind_rows
 from urdfpost.errors import CollisionError, ToleranceError, UrdfpostError
 from urdfpost.linearize import angle_between, subdivide
 from urdfpost.machine import Machine
+from urdfpost.planning.branches import DEFAULT_RETRACT, Preference, rewind_rows
+from urdfpost.planning.singularity import joined_runs
+from urdfpost.planning.strategies import (
+    DEFAULT_STRATEGY,
+    STRATEGIES,
+    Plan,
+    Problem,
+    entry_mask,
+    midpoint_solver,
+    realise,
+    tool_axis_of,
+)
 from urdfpost.program import (
     REWIND_BEGIN,
     REWIND_END,
@@ -36,17 +47,6 @@ from urdfpost.program import (
     Stop,
     Tcp,
     ToolChange,
-)
-from urdfpost.singularity.detector import joined_runs
-from urdfpost.singularity.strategies import (
-    DEFAULT_STRATEGY,
-    STRATEGIES,
-    Plan,
-    Problem,
-    entry_mask,
-    midpoint_solver,
-    realise,
-    tool_axis_of,
 )
 from urdfpost.tolerances import MM_PER_INCH, Tolerances
 from urdfpost.toolpath import Event, Motion, Toolpath
@@ -82,8 +82,8 @@ class PostOptions:
     program_name : str or None
         Default: the CL PARTNO, else "URDFPOST".
     strategy : str or None
-        Singularity strategy (:data:`urdfpost.singularity.strategies.STRATEGIES`); default the
-        machine file's, else :data:`~urdfpost.singularity.strategies.DEFAULT_STRATEGY`.
+        Singularity strategy (:data:`urdfpost.planning.strategies.STRATEGIES`); default the
+        machine file's, else :data:`~urdfpost.planning.strategies.DEFAULT_STRATEGY`.
     angle_tolerance : float
         How far a strategy may bend the tool axis from the programmed one, degrees.
     planner : str
@@ -778,7 +778,7 @@ def post(
     """Post a toolpath for a machine and check the program against the CL data.
 
     The whole job is planned at once, in this process. Long jobs post faster and in bounded
-    memory in pieces: :func:`urdfpost.stream.post_stream`.
+    memory in pieces: :func:`urdfpost.post.stream.post_stream`.
 
     Parameters
     ----------

@@ -28,7 +28,7 @@ import numpy as np
 from urdfpost.errors import MachineDefinitionError
 
 if TYPE_CHECKING:
-    from urdfpost.urdf import Chain
+    from urdfpost.machine.urdf import Chain
 
 log = logging.getLogger(__name__)
 
@@ -273,7 +273,7 @@ def shipped_machine_dir() -> Path:
     spec = importlib.util.find_spec("urdfpost.robots")
     if spec is not None and spec.submodule_search_locations:
         return Path(next(iter(spec.submodule_search_locations)))
-    return Path(__file__).resolve().parents[2] / "robots" / "urdf"  # source tree
+    return Path(__file__).resolve().parents[3] / "robots" / "urdf"  # source tree
 
 
 def list_machines() -> dict[str, Path]:
@@ -333,7 +333,7 @@ def load_machine(name_or_path: str | os.PathLike[str]) -> Machine:
 
 def machine_from_urdf(text: str, source: str = "<string>", name: str = "machine") -> Machine:
     """Build a :class:`Machine` from URDF text (see :func:`load_machine`)."""
-    from urdfpost import urdf
+    from urdfpost.machine import urdf
 
     doc = urdf.parse_urdf(text, source)
     chain = urdf.check_chain(doc, source)
@@ -344,7 +344,7 @@ def machine_from_urdf(text: str, source: str = "<string>", name: str = "machine"
 def _build(text: str, source: str, name: str, chain: Chain, settings: Settings) -> Machine:
     import pinocchio as pin
 
-    from urdfpost import urdf
+    from urdfpost.machine import urdf
 
     try:
         model = pin.buildModelFromXML(text)

@@ -2,7 +2,7 @@
 
 Every strategy is posted as ``urdfpost post`` would post it (program text written in the
 dialect and read back), checked the same way, and measured by
-:func:`urdfpost.singularity.metrics.measure`. A strategy whose program misses its tolerance is
+:func:`urdfpost.analysis.metrics.measure`. A strategy whose program misses its tolerance is
 still measured: the comparison shows how far it misses.
 """
 
@@ -15,13 +15,13 @@ from typing import Any
 
 import numpy as np
 
+from urdfpost.analysis.metrics import Metrics, cl_path_position, measure
 from urdfpost.errors import UrdfpostError
 from urdfpost.machine import Machine
-from urdfpost.pipeline import PostOptions, bent_tolerances, build_program, check_program
+from urdfpost.planning.singularity import Span
+from urdfpost.planning.strategies import STRATEGIES
+from urdfpost.post.pipeline import PostOptions, bent_tolerances, build_program, check_program
 from urdfpost.program import Insert
-from urdfpost.singularity.detector import Span
-from urdfpost.singularity.metrics import Metrics, cl_path_position, measure
-from urdfpost.singularity.strategies import STRATEGIES
 from urdfpost.tolerances import MM_PER_INCH, Tolerances
 from urdfpost.toolpath import Toolpath
 
@@ -124,7 +124,7 @@ def compare(
     toolpath : Toolpath
     machine : Machine
     strategies : sequence of str
-        Names from :data:`~urdfpost.singularity.strategies.STRATEGIES`.
+        Names from :data:`~urdfpost.planning.strategies.STRATEGIES`.
     options : PostOptions, optional
         Everything but the strategy.
     progress : callable, optional

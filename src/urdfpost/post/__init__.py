@@ -1,0 +1,1 @@
+"""Posting: CL data in, a verified NC program out."""
