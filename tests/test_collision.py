@@ -13,7 +13,8 @@ import trimesh
 from urdfpost.collision import JOB_BODIES, CollisionWorld, ToolBody
 from urdfpost.errors import CollisionError, UrdfpostError
 from urdfpost.kinematics import inverse
-from urdfpost.machine import M_TO_MM, Machine, list_machines, load_machine, machine_from_urdf
+from urdfpost.machine import Machine, list_machines, load_machine, machine_from_urdf
+from urdfpost.units import M_TO_MM
 
 TOOL_LENGTH = 100.0  # mm; default tool: 10 mm cutter 20 mm long, 40 x 60 mm holder
 

@@ -16,8 +16,8 @@ import urdfpost.readers.apt as apt_module
 from urdfpost.errors import CLDataError
 from urdfpost.readers import READERS, detect_format, read_cl, read_cl_text
 from urdfpost.readers._geometry import max_arc_step
-from urdfpost.tolerances import MM_PER_INCH
 from urdfpost.toolpath import Motion
+from urdfpost.units import MM_PER_INCH
 
 DATA = Path(__file__).parent / "data" / "cl"
 REAL = Path(__file__).parents[1].parent / "shared" / "testdata" / "cl"

@@ -26,8 +26,8 @@ import urdfpost.readers.apt as apt_module
 from urdfpost.errors import CLDataError
 from urdfpost.readers import READERS, read_cl, read_cl_chunks
 from urdfpost.readers._stream import STREAM_READERS, text_pieces
-from urdfpost.tolerances import MM_PER_INCH
 from urdfpost.toolpath import Toolpath
+from urdfpost.units import MM_PER_INCH
 
 DATA = Path(__file__).parent / "data" / "cl"
 DATA_FILES = sorted(p.name for p in DATA.iterdir() if p.is_file())

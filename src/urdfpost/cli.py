@@ -23,6 +23,7 @@ from urdfpost import __version__
 from urdfpost._files import check_distinct, output_target, write_texts
 from urdfpost.errors import UrdfpostError
 from urdfpost.reports import report_json
+from urdfpost.units import mm_per_unit
 
 if TYPE_CHECKING:
     from urdfpost.post.pipeline import PostResult
@@ -378,7 +379,6 @@ def _cmd_post(args: argparse.Namespace) -> int:
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
     from urdfpost.post.pipeline import PostOptions, post
-    from urdfpost.tolerances import MM_PER_INCH
 
     # no monitor thread: a streamed post forks its verification worker, best from one thread
     tqdm.monitor_interval = 0
@@ -393,7 +393,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
     else:
         toolpath, chunks = _read_cl(args, machine), None
     units = toolpath.units
-    scale = MM_PER_INCH if units == "inch" else 1.0
+    scale = mm_per_unit(units)
     dialect = dialect_for(
         args.controller or (None if args.output else machine.settings.controller), args.output
     )
@@ -500,7 +500,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
     from urdfpost.post.pipeline import make_report
-    from urdfpost.tolerances import MM_PER_INCH, Tolerances
+    from urdfpost.tolerances import Tolerances
     from urdfpost.verify import verify
 
     machine = load_machine(args.machine)
@@ -522,7 +522,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             raise UrdfpostError(f"{args.program}: cannot read: {e}") from e
         program = dialect.read(text, path=args.program)
         toolpath, chunks = _read_cl(args, machine), None
-    scale = MM_PER_INCH if program.units == "inch" else 1.0
+    scale = mm_per_unit(program.units)
     tol = Tolerances.for_units(program.units, args.tolerance)
     tool_length = (
         machine.settings.tool_length if args.tool_length is None else args.tool_length * scale
@@ -578,7 +578,6 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from urdfpost.machine import load_machine
     from urdfpost.planning.strategies import STRATEGIES
     from urdfpost.post.pipeline import PostOptions
-    from urdfpost.tolerances import MM_PER_INCH
 
     machine = load_machine(args.machine)
     names = list(STRATEGIES) if args.strategies == "all" else args.strategies.split(",")
@@ -591,7 +590,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         )
     toolpath = _read_cl(args, machine)
     units = toolpath.units
-    scale = MM_PER_INCH if units == "inch" else 1.0
+    scale = mm_per_unit(units)
     options = PostOptions(
         controller=args.controller,
         tcp=args.tcp,

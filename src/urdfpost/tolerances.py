@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-MM_PER_INCH = 25.4
+from urdfpost.units import mm_per_unit
 
 
 @dataclass(frozen=True)
@@ -111,7 +111,7 @@ class Tolerances:
         Tolerances
             With ``tip`` converted to mm.
         """
-        scale = MM_PER_INCH if units == "inch" else 1.0
+        scale = mm_per_unit(units)
         if tip is None:
             tip = 0.0004 if units == "inch" else 0.01
         return cls(tip=tip * scale)

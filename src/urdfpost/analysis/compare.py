@@ -22,8 +22,9 @@ from urdfpost.planning.singularity import Span
 from urdfpost.planning.strategies import STRATEGIES
 from urdfpost.post.pipeline import PostOptions, bent_tolerances, build_program, check_program
 from urdfpost.program import Insert
-from urdfpost.tolerances import MM_PER_INCH, Tolerances
+from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
+from urdfpost.units import mm_per_unit
 
 log = logging.getLogger(__name__)
 
@@ -202,7 +203,7 @@ def table(comparison: Comparison, units: str = "mm") -> str:
     would demand, peak acceleration and jerk, estimated time and slow-down, tip and
     orientation deviation from the CL data, smallest conditioning, lifts.
     """
-    scale = MM_PER_INCH if units == "inch" else 1.0
+    scale = mm_per_unit(units)
     first = None
     for o in comparison.outcomes:
         if o.metrics and o.metrics.max_step_deg:

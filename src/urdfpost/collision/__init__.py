@@ -46,7 +46,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from urdfpost.errors import CollisionError
-from urdfpost.machine import M_TO_MM, Machine
+from urdfpost.machine import Machine
+from urdfpost.units import M_TO_MM
 
 if TYPE_CHECKING:
     import trimesh

@@ -8,7 +8,7 @@ from urdfpost.dialects.reader import ProgramReader, read_program
 from urdfpost.dialects.spec import ROTARY_ADDRESSES, DialectSpec
 from urdfpost.dialects.writer import ProgramWriter, program_writer, write_program
 from urdfpost.program import Program
-from urdfpost.tolerances import MM_PER_INCH
+from urdfpost.units import mm_per_unit
 
 
 class Dialect:
@@ -148,4 +148,4 @@ class Dialect:
         if address in ROTARY_ADDRESSES:
             return self.spec.rotary.resolution
         fmt = self.spec.linear_inch if inch else self.spec.linear_mm
-        return fmt.resolution * (MM_PER_INCH if inch else 1.0)
+        return fmt.resolution * mm_per_unit("inch" if inch else "mm")

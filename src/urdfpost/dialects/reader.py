@@ -57,7 +57,7 @@ from urdfpost.program import (
     Tcp,
     ToolChange,
 )
-from urdfpost.tolerances import MM_PER_INCH
+from urdfpost.units import mm_per_unit
 
 NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)\Z")
 
@@ -193,7 +193,7 @@ class ProgramBuilder:
     def set_units(self, units: str, feeds: bool = True) -> None:
         """Switch units of lengths (and feeds); the first units seen are the program's."""
         self.units = self.units or units
-        self.linear_scale = MM_PER_INCH if units == "inch" else 1.0
+        self.linear_scale = mm_per_unit(units)
         if feeds:
             self.feed_scale = self.spec.feed_inch_unit if units == "inch" else 1.0
 

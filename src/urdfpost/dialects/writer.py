@@ -46,7 +46,7 @@ from urdfpost.program import (
     Tcp,
     ToolChange,
 )
-from urdfpost.tolerances import MM_PER_INCH
+from urdfpost.units import mm_per_unit
 
 logger = logging.getLogger(__name__)
 
@@ -122,7 +122,7 @@ class ProgramWriter:
             "number": program_number if program_number is not None else _number(spec, program),
             "unit_code": spec.unit_code(program.units),
         }
-        self.scale = MM_PER_INCH if program.units == "inch" else 1.0
+        self.scale = mm_per_unit(program.units)
         self.feed_scale = spec.feed_inch_unit if program.units == "inch" else 1.0
         self.linear = spec.linear_inch if program.units == "inch" else spec.linear_mm
         self.feed_format = spec.feed_inch if program.units == "inch" else spec.feed_mm

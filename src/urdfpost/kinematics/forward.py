@@ -34,7 +34,8 @@ from typing import Any, cast, overload
 
 import numpy as np
 
-from urdfpost.machine import M_TO_MM, Machine
+from urdfpost.machine import Machine
+from urdfpost.units import M_TO_MM
 
 
 def skew(k: np.ndarray) -> np.ndarray:

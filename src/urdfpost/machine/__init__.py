@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from urdfpost.errors import MachineDefinitionError
+from urdfpost.units import M_TO_MM
 
 if TYPE_CHECKING:
     from urdfpost.machine.urdf import Chain
@@ -35,7 +36,7 @@ log = logging.getLogger(__name__)
 NC_ADDRESSES = ("X", "Y", "Z", "A", "B", "C")
 MOVING_TYPES = ("prismatic", "revolute", "continuous")
 ROTARY_TYPES = ("revolute", "continuous")
-M_TO_MM = 1000.0
+
 CONTROLLERS = ("heidenhain", "siemens", "fanuc", "linuxcnc")
 
 

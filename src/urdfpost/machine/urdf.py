@@ -271,7 +271,8 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         For an unknown controller or units, a preference or home naming a missing axis, or a
         value that is not a number.
     """
-    from urdfpost.machine import CONTROLLERS, M_TO_MM, Settings
+    from urdfpost.machine import CONTROLLERS, Settings
+    from urdfpost.units import M_TO_MM
 
     axis_names = [j.name for j in joints]
     rotary_names = [j.name for j in joints if j.type != "prismatic"]

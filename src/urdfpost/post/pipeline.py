@@ -48,8 +48,9 @@ from urdfpost.program import (
     Tcp,
     ToolChange,
 )
-from urdfpost.tolerances import MM_PER_INCH, Tolerances
+from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Event, Motion, Toolpath
+from urdfpost.units import mm_per_unit
 from urdfpost.verify import Check, Verification, verify, verify_checks
 
 if TYPE_CHECKING:
@@ -358,7 +359,7 @@ def make_problem(
 ) -> Problem:
     """The strategy input for a post."""
     units = options.units or toolpath.units
-    scale = MM_PER_INCH if units == "inch" else 1.0
+    scale = mm_per_unit(units)
     tool_length = (
         machine.settings.tool_length if options.tool_length is None else options.tool_length
     )
@@ -391,7 +392,7 @@ def collision_world(
     from urdfpost.collision import CollisionWorld, ToolBody, load_mesh
 
     units = options.units or toolpath.units
-    scale = MM_PER_INCH if units == "inch" else 1.0
+    scale = mm_per_unit(units)
     cutters = [
         e.data for e in toolpath.events if e.kind in ("cutter", "tool") and e.data.get("diameter")
     ]
@@ -741,7 +742,7 @@ def build_program(
     figures["world"] = problem.collision
 
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
-    scale = MM_PER_INCH if units == "inch" else 1.0
+    scale = mm_per_unit(units)
     rewind_feed = None if options.rewind_feed is None else options.rewind_feed * scale
     comments = [r["comment"] for r in figures.get("rewinds", [])]
     body = _program_body(
@@ -886,7 +887,7 @@ def check_collisions(figures: dict[str, Any], toolpath: Toolpath, units: str) ->
     if len(cl_rows) > CLEARANCE_POINTS:
         cl_rows = cl_rows[np.linspace(0, len(cl_rows) - 1, CLEARANCE_POINTS).round().astype(int)]
     near = world.check(q[cl_rows], clearance=True, clearance_of=JOB_BODIES)
-    scale = MM_PER_INCH if units == "inch" else 1.0
+    scale = mm_per_unit(units)
     k = int(np.nanargmin(near.clearance)) if len(cl_rows) else 0
     return {
         "checked": True,
@@ -1033,7 +1034,7 @@ def make_report(
     figures: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Report figures: lengths in program units, angles in degrees."""
-    scale = MM_PER_INCH if program.units == "inch" else 1.0
+    scale = mm_per_unit(program.units)
     return {
         "machine": machine.name,
         "controller": controller,

@@ -17,7 +17,8 @@ How the pieces join:
   continuous and no rewind or branch switch appears at a cut. The branch choice at a cut is
   the best one over the window, which sees ``lookahead`` points past it. Where the best paths
   into every candidate still possible at the window's end agree up to the cut (the survivors
-  of the branch planner have met: :attr:`urdfpost.planning.branches.Selection.settled`), no CL points
+  of the branch planner have met:
+  :attr:`urdfpost.planning.branches.Selection.settled`), no CL points
   after the window can change it, and the choice is the one a plan of the whole job makes;
   such a cut is preferred (in the second half of the piece). Where there is none, as when
   both branches stay within travel all along, the choice rests on the lookahead: a travel

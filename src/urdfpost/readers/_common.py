@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from urdfpost.errors import CLDataError
-from urdfpost.tolerances import MM_PER_INCH
 from urdfpost.toolpath import Event, Motion, Toolpath
+from urdfpost.units import mm_per_unit
 
 #: A decimal number as CAM systems write them (``1``, ``-1.5``, ``.5``, ``1.2E-3``); ``nan`` and
 #: ``inf`` are accepted as numbers so that the check of their role gives the clearer message.
@@ -61,7 +61,7 @@ def normalise_units(units: str | None) -> str:
 
 def scale_of(units: str) -> float:
     """Millimetres per unit of length of ``units`` ("mm" or "inch")."""
-    return MM_PER_INCH if units == "inch" else 1.0
+    return mm_per_unit(units)
 
 
 def parse_number(token: str, *, source: str, line: int, what: str) -> float:

@@ -59,8 +59,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from urdfpost.errors import CLDataError
-from urdfpost.tolerances import MM_PER_INCH
 from urdfpost.toolpath import Motion, Toolpath
+from urdfpost.units import MM_PER_INCH
 
 from ._common import (
     AXIS_LENGTH_SLACK,
