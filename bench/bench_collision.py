@@ -23,7 +23,8 @@ import trimesh
 from urdfpost.collision import JOB_BODIES, CollisionWorld, ToolBody
 from urdfpost.kinematics import inverse
 from urdfpost.machine import load_machine
-from urdfpost.post.pipeline import PostOptions, post
+from urdfpost.posting.options import PostOptions
+from urdfpost.posting.whole import post
 from urdfpost.toolpath import Event, Motion, Toolpath
 
 TOOL_LENGTH = 100.0  # mm

@@ -6,16 +6,21 @@ example only).
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from urdfpost import PostOptions, load_machine, post, read_cl
-from urdfpost.kinematics import inverse, tip_and_axis, tip_and_axis_pin
-
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))  # the Pinocchio reference: tests/oracles.py
+
+from oracles import tip_and_axis_pin  # noqa: E402
+
+from urdfpost import PostOptions, load_machine, post, read_cl  # noqa: E402
+from urdfpost.kinematics import inverse, tip_and_axis  # noqa: E402
+
 SHARED = ROOT.parent / "shared" / "testdata" / "cl"
 
 

@@ -24,13 +24,13 @@ column is the peak after the imports, before the work) do not pollute each other
     write it without a closed-form solver; a sample of points, extrapolated to the file;
 (f) ``closed-form IK``: :func:`urdfpost.kinematics.inverse.inverse` over all points of the file;
 (g) ``in pieces``: (b) and (c) as ``urdfpost post`` runs them on large files
-    (:func:`urdfpost.post.stream.post_stream` over :func:`urdfpost.readers.read_cl_chunks`, pieces
-    of :data:`urdfpost.post.stream.PIECE_POINTS` CL points, each verified in a worker process while
+    (:func:`urdfpost.posting.stream.post_stream` over :func:`urdfpost.readers.read_cl_chunks`, pieces
+    of :data:`urdfpost.posting.PIECE_POINTS` CL points, each verified in a worker process while
     the next is planned: the two cores share the work); the worker's peak memory is shown
     beside the post's. Then the fastest control in machine coordinates at 10M points as well
     (``--stream-sizes``): the peak memory must not grow with the job;
 (h) ``urdfpost verify`` of the program of (b) for the fastest control (posted once and kept
-    beside the CL file), whole and in pieces (:func:`urdfpost.post.stream.verify_stream`); in
+    beside the CL file), whole and in pieces (:func:`urdfpost.posting.readback.verify_stream`); in
     pieces at 10M too.
 
 Printed ratios: post over floor, numerical over closed-form IK per point, and the growth of
@@ -55,6 +55,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))  # oracles.py
 
 from make_large_cl import ensure_file  # noqa: E402
 
@@ -106,13 +107,14 @@ def measure_post(path: str, control: str, tcp: bool) -> dict[str, Any]:
 
 
 def measure_stream(path: str, control: str, tcp: bool) -> dict[str, Any]:
-    """The post of (b)/(c) in pieces (:func:`urdfpost.post.stream.post_stream`, the file read with
+    """The post of (b)/(c) in pieces (:func:`urdfpost.posting.stream.post_stream`, the file read with
     :func:`urdfpost.readers.read_cl_chunks`, each piece verified in a worker process while the
     next is planned), the program written to a temporary file."""
     import tempfile
 
     from urdfpost import PostOptions, load_machine
-    from urdfpost.post.stream import PIECE_POINTS, post_stream
+    from urdfpost.posting import PIECE_POINTS
+    from urdfpost.posting.stream import post_stream
     from urdfpost.readers import read_cl_chunks
 
     machine = load_machine(MACHINE)
@@ -264,8 +266,9 @@ def numerical_ik(
 
 
 def measure_numerical_ik(path: str) -> dict[str, Any]:
+    from oracles import tip_and_axis_pin  # tests/oracles.py
+
     from urdfpost import load_machine, read_cl
-    from urdfpost.kinematics import tip_and_axis_pin
 
     machine = load_machine(MACHINE)
     toolpath = read_cl(path)
@@ -307,11 +310,13 @@ def _program_of(path: str, control: str) -> Path:
 
 def measure_verify(path: str, control: str, pieces: bool) -> dict[str, Any]:
     """``urdfpost verify`` of the program of (b) against its CL file: whole (the program and
-    the CL data read at once) or in pieces (:func:`urdfpost.post.stream.verify_stream`)."""
+    the CL data read at once) or in pieces (:func:`urdfpost.posting.readback.verify_stream`)."""
     from urdfpost import load_machine, read_cl
     from urdfpost.dialects import dialect_for
-    from urdfpost.post.pipeline import ball_radius, bent_tolerances
-    from urdfpost.post.stream import PIECE_POINTS, verify_stream
+    from urdfpost.posting import PIECE_POINTS
+    from urdfpost.posting.check import bent_tolerances
+    from urdfpost.posting.piece import ball_radius
+    from urdfpost.posting.readback import verify_stream
     from urdfpost.readers import read_cl_chunks
     from urdfpost.tolerances import Tolerances
     from urdfpost.verify import verify

@@ -10,20 +10,20 @@ from pathlib import Path
 import numpy as np
 
 from urdfpost import PostOptions, load_machine, post, read_cl
-from urdfpost.kinematics import inverse, tip_and_axis_pin
+from urdfpost.kinematics import inverse, tip_and_axis
 
 HERE = Path(__file__).parent
 
 machine = load_machine("dmu50")  # a shipped machine, or a path to any URDF
 print(f"{machine.name}: {machine.family}, axes {' '.join(machine.axis_names)}")
 
-# every inverse-kinematics branch of one pose, checked with Pinocchio's forward kinematics
+# every inverse-kinematics branch of one pose, checked with the forward kinematics
 tip = np.array([[10.0, -5.0, 20.0]])
 axis = np.array([[0.3, 0.2, 0.9]]) / np.linalg.norm([0.3, 0.2, 0.9])
 ik = inverse(machine, tip, axis, tool_length=100.0)
 for b in np.flatnonzero(ik.valid[0]):
     q = ik.q[0, b]
-    got_tip, got_axis = tip_and_axis_pin(machine, q, tool_length=100.0)
+    got_tip, got_axis = tip_and_axis(machine, q, tool_length=100.0)
     print(
         f"branch {b}: {np.round(q, 3)}  tip error {np.linalg.norm(got_tip - tip):.1e} mm, "
         f"axis error {np.linalg.norm(got_axis - axis):.1e}"

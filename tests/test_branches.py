@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from oracles import tip_and_axis_pin
 
 from urdfpost import UnreachableError, load_machine
-from urdfpost.kinematics import IKStatus, tip_and_axis, tip_and_axis_pin
-from urdfpost.planning.branches import TWO_PI, Preference, _wrap, select
+from urdfpost.kinematics import IKStatus, tip_and_axis
+from urdfpost.planning.branches import TWO_PI, Preference, select
+from urdfpost.planning.branches.rules import _wrap
 
 
 def tilt_path(tilt_deg: np.ndarray, azimuth_deg: np.ndarray, z: float = 10.0) -> tuple:

@@ -11,9 +11,9 @@ import pytest
 import trimesh
 
 from urdfpost.collision import JOB_BODIES, CollisionWorld, ToolBody
-from urdfpost.errors import CollisionError, UrdfpostError
+from urdfpost.errors import GeometryError, UrdfpostError
 from urdfpost.kinematics import inverse
-from urdfpost.machine import Machine, list_machines, load_machine, machine_from_urdf
+from urdfpost.machine import Box, Machine, list_machines, load_machine, machine_from_urdf
 from urdfpost.units import M_TO_MM
 
 TOOL_LENGTH = 100.0  # mm; default tool: 10 mm cutter 20 mm long, 40 x 60 mm holder
@@ -103,7 +103,7 @@ def test_short_tool_shortens_the_holder_and_zero_length_has_no_tool() -> None:
     ],
 )
 def test_nonsensical_tool_sizes(sizes: dict[str, float], message: str) -> None:
-    with pytest.raises(CollisionError, match=message):
+    with pytest.raises(GeometryError, match=message):
         ToolBody(**sizes)
 
 
@@ -350,7 +350,7 @@ def test_no_body_point_moves_more_than_the_step_between_samples(name: str) -> No
 
 def test_missing_or_unreadable_stock_names_the_file(dmu50: Machine, tmp_path: Path) -> None:
     missing = tmp_path / "no_such_part.stl"
-    with pytest.raises(CollisionError, match=r"no_such_part\.stl: stock file not found"):
+    with pytest.raises(GeometryError, match=r"no_such_part\.stl: stock file not found"):
         CollisionWorld.build(dmu50, ToolBody(), TOOL_LENGTH, missing)
     garbage = tmp_path / "garbage.stl"
     garbage.write_bytes(b"solid nothing\nendsolid nothing\n")
@@ -378,6 +378,48 @@ MESH_FIXTURE = """
 </robot>"""
 
 
+def test_machine_shapes_are_data_in_mm(dmu50: Machine) -> None:
+    shapes = {s.name: s for s in dmu50.shapes}
+    plate = shapes["fixture_plate"]
+    assert plate.link == "fixture"
+    assert isinstance(plate.geometry, Box)
+    assert plate.where.startswith(f"{dmu50.path}:") and "link 'fixture' <collision>" in plate.where
+    world = CollisionWorld.build(dmu50, ToolBody(), TOOL_LENGTH)
+    body = next(b for b in world.bodies if b.name == "fixture_plate")
+    np.testing.assert_array_equal(body.local, plate.origin)
+    assert body.hull.max(axis=0) == pytest.approx(plate.geometry.size / 2)
+    assert len(dmu50.shapes) == sum(b.kind == "machine" for b in world.bodies)
+
+
+AT_ODD = r"^odd\.urdf:\d+: link 'odd' <collision>: "
+
+
+@pytest.mark.parametrize(
+    ("element", "message"),
+    [
+        ("<capsule radius='0.01' length='0.1'/>", AT_ODD + "unknown shape <capsule>: expected box"),
+        ("<box size='0.1 0.1'/>", AT_ODD + r"<box size>: '0\.1 0\.1': expected 3 numbers"),
+        ("<sphere radius='0'/>", AT_ODD + "<sphere> has zero size"),
+        ("<mesh filename='meshes/gone.stl'/>", r"^odd\.urdf: mesh 'meshes/gone\.stl' not found"),
+    ],
+)
+def test_unreadable_collision_shape_is_said_when_checks_are_asked_for(
+    dmu50: Machine, element: str, message: str
+) -> None:
+    text = dmu50.urdf_text.replace(
+        "</robot>",
+        f'<link name="odd"><collision><geometry>{element}</geometry></collision></link>'
+        '<joint name="odd_mount" type="fixed"><parent link="c_table"/><child link="odd"/>'
+        "</joint></robot>",
+    )
+    machine = machine_from_urdf(text, source="odd.urdf", name="dmu50-odd")  # still loads
+    assert machine.family == dmu50.family
+    with pytest.raises(GeometryError, match=message):
+        machine.shapes  # noqa: B018
+    with pytest.raises(GeometryError, match=message):
+        CollisionWorld.build(machine, ToolBody(), TOOL_LENGTH)
+
+
 def test_mesh_collision_geometry_from_a_package_path(dmu50: Machine, tmp_path: Path) -> None:
     (tmp_path / "shop" / "meshes").mkdir(parents=True)
     # a 40 mm cube (mesh in mm, scaled to metres) centred 100 mm along workpiece +X
@@ -395,5 +437,5 @@ def test_mesh_collision_geometry_from_a_package_path(dmu50: Machine, tmp_path: P
     assert result.clearance[1] == pytest.approx(5.0, abs=1e-3)
 
     urdf_path.write_text(dmu50.urdf_text.replace("</robot>", MESH_FIXTURE.format(file="gone.stl")))
-    with pytest.raises(CollisionError, match=r"mesh 'package://shop/meshes/gone\.stl' not found"):
+    with pytest.raises(GeometryError, match=r"mesh 'package://shop/meshes/gone\.stl' not found"):
         CollisionWorld.build(load_machine(urdf_path), ToolBody(), TOOL_LENGTH)

@@ -16,6 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import urdfpost.dialects as dialects_module
 import urdfpost.dialects.reader as reader_module
 import urdfpost.dialects.writer as writer_module
 from urdfpost.dialects import DIALECTS, Dialect, dialect_for
@@ -566,6 +567,87 @@ def test_unknown_controller_lists_known() -> None:
         dialect_for(path="prog.txt")
     with pytest.raises(DialectError, match="no control given"):
         dialect_for()
+
+
+def test_dialects_order() -> None:
+    assert list(DIALECTS) == ["heidenhain", "siemens", "fanuc", "linuxcnc"]
+    assert all(name == dialect.name for name, dialect in DIALECTS.items())
+
+
+#: The example of the urdfpost.dialects docstring: a control is one module.
+_MAZAK = """
+import dataclasses
+
+from urdfpost.dialects import fanuc
+
+RANK = 4
+
+SPEC = dataclasses.replace(fanuc.SPEC, name="mazak", extensions=(".eia",))
+"""
+
+
+def control_package(root: Path, name: str, **modules: str) -> tuple[str, list[str]]:
+    """A package ``name`` under ``root`` with the given modules: its name and path."""
+    package = root / name
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    for module, text in modules.items():
+        (package / f"{module}.py").write_text(text)
+    return name, [str(package)]
+
+
+def test_a_control_is_one_module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(tmp_path))
+    fanuc = "from urdfpost.dialects.fanuc import SPEC\nRANK = 9\n"
+    unranked = "import dataclasses\nfrom urdfpost.dialects.siemens import SPEC as S\n"
+    name, path = control_package(
+        tmp_path,
+        "controls_a",
+        mazak=_MAZAK,
+        zz=unranked + 'SPEC = dataclasses.replace(S, name="zz", extensions=(".zz",))\n',
+        aa=unranked + 'SPEC = dataclasses.replace(S, name="aa", extensions=(".aa",))\n',
+        fanuc=fanuc,
+        helper="X = 1\n",
+        _private=unranked + "SPEC = S\n",
+    )
+    found = dialects_module._discover(name, path)
+    assert list(found) == ["mazak", "fanuc", "aa", "zz"]  # by RANK, then unranked by name
+    monkeypatch.setattr(dialects_module, "DIALECTS", found)
+    mazak = dialect_for(path="part.EIA")
+    assert mazak.name == "mazak" and dialect_for("Mazak") is mazak
+    program = sample_mm(INSERTS["fanuc"])
+    assert mazak.write(program) == DIALECTS["fanuc"].write(program)
+
+
+@pytest.mark.parametrize(
+    ("package", "modules", "message"),
+    [
+        (
+            "controls_b",
+            {
+                "one": "from urdfpost.dialects.fanuc import SPEC\n",
+                "two": "from urdfpost.dialects.fanuc import SPEC\n",
+            },
+            r"controls_b\.two: control 'fanuc' is declared twice",
+        ),
+        (
+            "controls_c",
+            {"one": "from urdfpost.dialects.fanuc import SPEC\nRANK = '1'\n"},
+            r"controls_c\.one: expected an int RANK, got '1'",
+        ),
+    ],
+)
+def test_control_discovery_errors(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    package: str,
+    modules: dict[str, str],
+    message: str,
+) -> None:
+    monkeypatch.syspath_prepend(str(tmp_path))
+    name, path = control_package(tmp_path, package, **modules)
+    with pytest.raises(TypeError, match=message):
+        dialects_module._discover(name, path)
 
 
 # -- parse errors ----------------------------------------------------------------------------

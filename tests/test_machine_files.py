@@ -9,19 +9,14 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles import tip_and_axis_pin
 from test_kinematics import axis_angle_error, check_round_trip
 from urdfgen import J, simple_urdf
 
+from urdfpost.dialects import DIALECTS
 from urdfpost.errors import MachineDefinitionError
-from urdfpost.kinematics import assemble, solve_rotary, tip_and_axis_pin
-from urdfpost.machine import (
-    CONTROLLERS,
-    Machine,
-    Settings,
-    list_machines,
-    load_machine,
-    machine_from_urdf,
-)
+from urdfpost.kinematics import assemble, solve_rotary
+from urdfpost.machine import Machine, Settings, list_machines, load_machine, machine_from_urdf
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted((ROOT / "robots" / "urdf").glob("*.urdf"))
@@ -77,7 +72,7 @@ def test_shipped_machine_structure(path):
     np.testing.assert_allclose(h[:3, :3] @ h[:3, :3].T, np.eye(3), atol=1e-12)
     # settings are sane: controller and units known, preference on a rotary axis, home in travel
     s = m.settings
-    assert s.controller in CONTROLLERS
+    assert s.controller in DIALECTS
     assert s.units in ("mm", "inch")
     assert s.tool_length >= 0
     if s.prefer is not None:
@@ -463,6 +458,25 @@ def test_settings_parsed(tmp_path):
     assert s.description == "A test machine"
     m = load_machine(path)
     np.testing.assert_allclose(m.home, [100.0, 0.0, -200.0, 0.5, 0.0])
+
+
+def test_settings_say_where_they_are_and_keep_the_strategy_as_written(tmp_path):
+    """The strategy name is checked by the post (against its strategies), not at load: the
+    settings keep it with the file and line of the <urdfpost> element for that message."""
+    path = tmp_path / "strategy.urdf"
+    text = with_settings('<urdfpost strategy="no-such-strategy"/>')
+    path.write_text(text, encoding="utf-8")
+    s = load_machine(path).settings
+    assert s.strategy == "no-such-strategy"
+    line = next(i for i, ln in enumerate(text.splitlines(), 1) if "<urdfpost" in ln)
+    assert s.where == f"{path}:{line}"
+
+
+@pytest.mark.parametrize("controller", sorted(DIALECTS))
+def test_every_dialect_is_a_machine_controller(tmp_path, controller):
+    path = tmp_path / "controller.urdf"
+    path.write_text(with_settings(f'<urdfpost controller="{controller}"/>'), encoding="utf-8")
+    assert load_machine(path).settings.controller == controller
 
 
 def test_off_chain_joints_ignored(tmp_path):

@@ -23,7 +23,8 @@ from urdfpost.dialects import dialect_for
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.machine import Machine, load_machine
 from urdfpost.planning.singularity import Span
-from urdfpost.post.pipeline import PostOptions, PostResult, post
+from urdfpost.posting.options import PostOptions
+from urdfpost.posting.whole import PostResult, post
 from urdfpost.program import Move, Program, Tcp
 from urdfpost.toolpath import Motion, Toolpath
 from urdfpost.verify import program_joints

@@ -9,15 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from oracles import tip_and_axis_pin
 
 from urdfpost import load_machine
 from urdfpost.analysis.testpaths import PATHS
 from urdfpost.cli import main
 from urdfpost.dialects import dialect_for
 from urdfpost.errors import CollisionError, UnreachableError
-from urdfpost.kinematics import tip_and_axis_pin
 from urdfpost.planning.branches import Preference, select
-from urdfpost.post.pipeline import PostOptions, post
+from urdfpost.posting.options import PostOptions
+from urdfpost.posting.whole import post
 from urdfpost.program import Comment, Move, rewind_moves
 from urdfpost.toolpath import Event, Motion, Toolpath
 from urdfpost.verify import program_joints
@@ -102,17 +103,17 @@ def test_preferred_branch_hits_a_tall_fixture_and_the_clear_one_is_taken(tmp_pat
     # without collision checks the preference (A+) wins and the motor housing is in the fixture
     plain = post(tp, m, PostOptions(prefer=Preference("A", +1), strategy="recursive"))
     assert np.all(program_joints(m, plain.program)[0][:, a] > 0)
-    assert plain.report["collisions"] == {"checked": False}
+    assert plain.report.as_json()["collisions"] == {"checked": False}
     checked = post(
         tp, m, PostOptions(prefer=Preference("A", +1), strategy="recursive", collisions=True)
     )
     values, _ = program_joints(m, checked.program)
     assert np.all(values[:, a] < 0)
     assert checked.verification.ok
-    why = [w for w in checked.report["warnings"] if "collides" in w]
+    why = [w for w in checked.report.as_json()["warnings"] if "collides" in w]
     assert why and "job.apt:10" in why[0] and "c_motor with tall_fixture_plus" in why[0]
-    assert checked.report["collisions"]["checked"]
-    assert checked.report["collisions"]["min_clearance"] > 0
+    assert checked.report.as_json()["collisions"]["checked"]
+    assert checked.report.as_json()["collisions"]["min_clearance"] > 0
 
 
 def test_every_branch_colliding_is_an_error_naming_the_line_and_bodies(tmp_path: Path) -> None:
@@ -181,7 +182,7 @@ def test_c_running_out_of_travel_rewinds_in_every_dialect(control: str, tcp: boo
     m = load_machine("gantry-ca")
     tp = spiral()
     result = post(tp, m, PostOptions(controller=control, tcp=tcp, strategy="recursive"))
-    rewinds = result.report["rewinds"]
+    rewinds = result.report.as_json()["rewinds"]
     assert len(rewinds) == 1
     line = rewinds[0]["cl_line"]
     assert line in tp.line
@@ -216,7 +217,7 @@ def test_rewind_feed_and_retract_are_configurable() -> None:
     marked = np.flatnonzero(rewind_moves(result.program))
     assert all(not moves[k].rapid for k in marked)
     assert moves[marked[0]].feed == pytest.approx(3000.0)
-    assert result.report["rewinds"][0]["retract_mm"] == pytest.approx(20.0)
+    assert result.report.as_json()["rewinds"][0]["retract_mm"] == pytest.approx(20.0)
     assert result.verification.ok
 
 
@@ -224,7 +225,7 @@ def test_no_rewind_when_travel_suffices() -> None:
     """One and a half turns fit in C's 720 degrees, though not from where the preferred start
     (C nearest 0) would begin: the planner starts where the whole path fits."""
     result = post(spiral(turns=1.5), load_machine("gantry-ca"), PostOptions(strategy="recursive"))
-    assert result.report["rewinds"] == []
+    assert result.report.as_json()["rewinds"] == []
     assert not rewind_moves(result.program).any()
     moves = [b for b in result.program.blocks if isinstance(b, Move)]
     assert sum(b.rapid for b in moves) == 1  # the approach only

@@ -28,7 +28,8 @@ from urdfpost import load_machine
 from urdfpost.dialects import DIALECTS
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.machine import Machine
-from urdfpost.post.pipeline import PostOptions, PostResult, post
+from urdfpost.posting.options import PostOptions
+from urdfpost.posting.whole import PostResult, post
 from urdfpost.program import Program
 from urdfpost.readers import read_cl, read_cl_text
 from urdfpost.toolpath import Toolpath
@@ -262,7 +263,7 @@ def test_golden_program(machine_name: str, controller: str, mode: str) -> None:
     assert v.missed_lines == []
     assert v.max_tip_deviation <= v.tip_tolerance == 0.01
     assert v.max_orientation_deviation_deg <= 0.5
-    r = result.report
+    r = result.report.as_json()
     assert r["machine"] == machine_name
     assert r["controller"] == controller
     assert r["tcp"] is MODES[mode]
@@ -405,7 +406,7 @@ def _check_real(tp: Toolpath, result: PostResult, tcp: bool) -> None:
     assert v.max_tip_deviation <= INCH_TOL_MM
     assert v.tip_tolerance == pytest.approx(INCH_TOL_MM)
     assert v.max_orientation_deviation_deg <= 0.5
-    r = result.report
+    r = result.report.as_json()
     assert r["units"] == "inch"
     assert r["controller"] == "fanuc"
     assert r["max_tip_deviation"] <= 0.0004
@@ -443,7 +444,7 @@ def test_nx_ballmill_umc750(tcp: bool) -> None:
     assert len(tp) == 348
     _check_real(tp, result, tcp)
     # the file has no tool change: tool 1 is assumed, with a warning naming the file
-    assert any("no tool change" in w for w in result.report["warnings"])
+    assert any("no tool change" in w for w in result.report.as_json()["warnings"])
 
 
 @pytest.mark.slow
@@ -488,7 +489,7 @@ def test_inch_cl_gives_inch_program_and_report(controller: str, tcp: bool) -> No
     assert not has_line(lines, UNITS_LINE[controller]["mm"])
     back = readback(result, controller)
     assert back.units == "inch"
-    r, v = result.report, result.verification
+    r, v = result.report.as_json(), result.verification
     assert v.ok
     assert r["units"] == "inch"
     assert r["tip_tolerance"] == pytest.approx(0.0004)
@@ -509,8 +510,8 @@ def test_units_option_writes_a_mm_job_in_inch() -> None:
         job(), machine("dmu50"), PostOptions(strategy="recursive", controller="fanuc", units="inch")
     )
     assert has_line(result.text.splitlines(), r"^G20$")
-    assert result.report["units"] == "inch"
-    assert result.report["tip_tolerance"] == pytest.approx(0.0004)
+    assert result.report.as_json()["units"] == "inch"
+    assert result.report.as_json()["tip_tolerance"] == pytest.approx(0.0004)
     assert result.verification.ok
     # -18 mm written as inch
     assert "X-0.7087 Y-0.1575 Z0.1436" in result.text
@@ -551,3 +552,16 @@ def test_pole_crossing_between_cl_points_machine_coordinates(machine_name: str) 
     assert v.ok
     assert v.reached == v.cl_points == 2
     assert v.max_tip_deviation <= 0.01
+
+
+def test_the_package_api_is_the_functions_of_the_readme() -> None:
+    """``from urdfpost import post`` is the post function (not a subpackage of that name),
+    whatever modules were imported before."""
+    import urdfpost
+    import urdfpost.posting.stream  # noqa: F401 (a submodule imported first)
+    from urdfpost import PostOptions, PostResult, post, read_cl, verify
+
+    assert callable(post) and post.__name__ == "post"
+    assert urdfpost.post is post
+    assert PostOptions.__name__ == "PostOptions" and PostResult.__name__ == "PostResult"
+    assert callable(read_cl) and callable(verify)

@@ -19,18 +19,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+import urdfpost.posting.piece as piece_module
 from urdfpost import load_machine, read_cl
 from urdfpost.dialects import DIALECTS
-from urdfpost.post import pipeline as pipeline_module
-from urdfpost.post.pipeline import (
-    _LIFT,
-    _RETURN,
-    _TURN,
-    PostOptions,
-    _event_blocks,
-    build_program,
-    post,
-)
+from urdfpost.posting.body import LIFT, RETURN, TURN, Rows, _event_blocks, program_body
+from urdfpost.posting.options import PostOptions, resolve
+from urdfpost.posting.piece import post_piece
+from urdfpost.posting.report import PieceFigures
+from urdfpost.posting.whole import post
 from urdfpost.program import (
     REWIND_BEGIN,
     REWIND_END,
@@ -46,7 +42,6 @@ from urdfpost.program import (
     ToolChange,
     rewind_moves,
 )
-from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Event, Motion, Toolpath
 from urdfpost.verify import program_joints, verify
 
@@ -63,7 +58,7 @@ def reference_blocks(
     units: str,
     rows: list[tuple[np.ndarray, np.ndarray, int, int]],
     events: list[Event],
-    rewinds: list[dict[str, Any]],
+    rewinds: tuple[Any, ...],
 ) -> list[Block]:
     """The body as the old loop of ``build_program`` made it (one Move per row)."""
     n = len(toolpath)
@@ -86,8 +81,8 @@ def reference_blocks(
         while ev < len(events) and events[ev].index <= g:
             blocks.extend(_event_blocks(events[ev], tcp_state, options.tcp))
             ev += 1
-        if kind == _LIFT:
-            blocks.append(Comment(next(rewind_iter)["comment"]))
+        if kind == LIFT:
+            blocks.append(Comment(next(rewind_iter).comment))
         position = np.where([a in rotary for a in axes], np.degrees(q), q)
         if options.tcp:
             position[lin_cols] = tip
@@ -97,7 +92,7 @@ def reference_blocks(
         turning = g == arrived
         rapid = bool(toolpath.motion[g] == Motion.RAPID) and not turning
         f = next_feed[g] if turning else toolpath.feed[g]
-        if kind in (_LIFT, _TURN):
+        if kind in (LIFT, TURN):
             rapid, f = rewind_feed is None, np.nan if rewind_feed is None else rewind_feed
         feed = float(f) if np.isfinite(f) else None
         blocks.append(
@@ -108,7 +103,7 @@ def reference_blocks(
                 cl_line=int(toolpath.line[g]) if code >= 0 else None,
             )
         )
-        if kind == _RETURN:
+        if kind == RETURN:
             blocks.append(Comment(REWIND_END))
         if code >= 0:
             arrived = g
@@ -121,19 +116,19 @@ def reference_blocks(
 
 def build_both(
     monkeypatch: pytest.MonkeyPatch, toolpath: Toolpath, machine: Any, options: PostOptions
-) -> tuple[Program, list[Block], dict[str, Any]]:
+) -> tuple[Program, list[Block], PieceFigures]:
     """``build_program``'s program, and the reference body made from the same rows."""
     seen: dict[str, Any] = {}
-    real = pipeline_module._program_body
+    real = piece_module.program_body
 
     def capture(tp, m, tcp, rows, events, comments, rewind_feed, **piece):
         seen.update(toolpath=tp, rows=rows, events=list(events))
         return real(tp, m, tcp, rows, events, comments, rewind_feed, **piece)
 
-    monkeypatch.setattr(pipeline_module, "_program_body", capture)
+    monkeypatch.setattr(piece_module, "program_body", capture)
     units = options.units or toolpath.units
-    tol = Tolerances.for_units(units, options.tolerance)
-    program, figures = build_program(toolpath, machine, options, tol)
+    posted = post_piece(toolpath, resolve(options, machine, toolpath.units))
+    program, figures = posted.program, posted.figures
     r = seen["rows"]
     rows = [
         (
@@ -151,7 +146,7 @@ def build_both(
         units,
         rows,
         seen["events"],
-        figures.get("rewinds", []),
+        figures.rewinds,
     )
     return program, reference, figures
 
@@ -254,7 +249,7 @@ def test_build_program_equals_the_per_move_loop(
     reference_program = replace(program, blocks=tuple(reference))
     np.testing.assert_array_equal(rewind_moves(program), rewind_moves(reference_program))
     if job.startswith("spiral") and "strategy" not in extra:
-        assert rewind_moves(program).sum() == 3 * len(figures["rewinds"]) > 0
+        assert rewind_moves(program).sum() == 3 * len(figures.rewinds) > 0
 
 
 def test_the_cases_cover_turns_rewinds_events_and_inserted_rows(monkeypatch) -> None:
@@ -264,15 +259,15 @@ def test_the_cases_cover_turns_rewinds_events_and_inserted_rows(monkeypatch) -> 
     for tcp in (True, False):
         options = PostOptions(strategy="recursive", tcp=tcp)
         _, reference, figures = build_both(monkeypatch, with_events(spiral()), gantry, options)
-        assert figures["rewinds"] and any(isinstance(b, Insert) for b in reference)
+        assert figures.rewinds and any(isinstance(b, Insert) for b in reference)
         if tcp:
             assert sum(isinstance(b, Tcp) and b.on for b in reference) == 3
         else:
-            assert figures["inserted_blocks"] > 0
+            assert figures.inserted_blocks > 0
     _, _, figures = build_both(
         monkeypatch, read_cl(ROOT / "examples" / "dome.apt"), dmu50, PostOptions()
     )
-    assert figures["pole_turns"] > 0
+    assert figures.pole_turns > 0
 
 
 def test_no_rows() -> None:
@@ -282,8 +277,8 @@ def test_no_rows() -> None:
     tp = replace(tp, **none, events=(Event(0, "comment", 1, {"text": "nothing"}),))
     machine = load_machine("dmu50")
     for tcp in (True, False):
-        rows = pipeline_module._Rows.empty(len(machine.axis_names))
-        body = pipeline_module._program_body(tp, machine, tcp, rows, list(tp.events), [], None)
+        rows = Rows.empty(len(machine.axis_names))
+        body = program_body(tp, machine, tcp, rows, list(tp.events), [], None)
         options = PostOptions(tcp=tcp)
         assert body == reference_blocks(tp, machine, options, "mm", [], list(tp.events), [])
         assert body == [Comment("nothing")]

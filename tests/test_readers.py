@@ -12,9 +12,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import urdfpost.readers as readers_module
 import urdfpost.readers.apt as apt_module
 from urdfpost.errors import CLDataError
-from urdfpost.readers import READERS, detect_format, read_cl, read_cl_text
+from urdfpost.readers import FORMATS, Format, detect_format, read_cl, read_cl_chunks, read_cl_text
 from urdfpost.readers._geometry import max_arc_step
 from urdfpost.toolpath import Motion
 from urdfpost.units import MM_PER_INCH
@@ -57,8 +58,88 @@ def goto_values(code: str) -> list[float]:
 # -- API ---------------------------------------------------------------------------------------
 
 
-def test_readers_registry():
-    assert set(READERS) == {"apt", "plain"}
+def test_formats_registry():
+    assert list(FORMATS) == ["apt", "plain"]
+    assert all(name == entry.name for name, entry in FORMATS.items())
+    assert [name for name, entry in FORMATS.items() if entry.fallback] == ["plain"]
+    assert FORMATS["apt"].read_text is apt_module.read_apt_text
+    assert FORMATS["apt"].arcs and not FORMATS["plain"].arcs
+
+
+_PLAIN = "from urdfpost.readers.plain import FORMAT\n"
+_CSV_FORMAT = """
+from urdfpost.readers import read_plain_text
+from urdfpost.readers._format import Format
+
+
+def read_csv_text(text, *, source="<string>", units=None, chord_tolerance=0.001):
+    return read_plain_text(text.replace(";", " "), source=source, units=units)
+
+
+def read_csv_stream(source, *, max_points, units, chord_tolerance, text_piece):
+    with open(source) as handle:
+        yield read_csv_text(handle.read(), source=source, units=units)
+
+
+FORMAT = Format("csv", "x;y;z points", read_csv_text, read_csv_stream)
+"""
+
+
+def format_package(root: Path, name: str, **modules: str) -> tuple[str, list[str]]:
+    """A package ``name`` under ``root`` with the given modules: its name and path."""
+    package = root / name
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    for module, text in modules.items():
+        (package / f"{module}.py").write_text(text)
+    return name, [str(package)]
+
+
+def test_a_format_is_one_module(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(tmp_path))
+    name, path = format_package(
+        tmp_path, "cl_formats", zcsv=_CSV_FORMAT, plain=_PLAIN, _helper="X = 1\n"
+    )
+    found = readers_module._discover(name, path)
+    assert list(found) == ["csv", "plain"]  # by name; _helper is no format
+    monkeypatch.setattr(readers_module, "FORMATS", found)
+    toolpath = read_cl_text("1;2;3\n4;5;6\n", format="CSV")
+    assert toolpath.tip.tolist() == [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
+    assert detect_format("GOTO/1,2,3\n") == "plain"  # no APT without its module
+    cl = tmp_path / "a.csv"
+    cl.write_text("1;2;3\n")
+    assert [len(p) for p in read_cl_chunks(cl, max_points=5, format="csv")] == [1]
+    with pytest.raises(ValueError, match=r"format: expected one of csv, plain, got 'apt'"):
+        read_cl_text("GOTO/1,2,3\n", format="apt")
+
+
+@pytest.mark.parametrize(
+    ("package", "modules", "message"),
+    [
+        ("cl_bad1", {"plain": _PLAIN, "csv": "X = 1\n"}, r"cl_bad1\.csv: expected a module-level"),
+        (
+            "cl_bad2",
+            {"plain": _PLAIN, "plain2": _PLAIN},
+            r"plain2: format 'plain' is declared",
+        ),
+        (
+            "cl_bad3",
+            {"apt": "from urdfpost.readers.apt import FORMAT\n"},
+            r"cl_bad3: expected one fallback format, got \[\]",
+        ),
+    ],
+)
+def test_format_discovery_errors(tmp_path, monkeypatch, package, modules, message):
+    monkeypatch.syspath_prepend(str(tmp_path))
+    name, path = format_package(tmp_path, package, **modules)
+    with pytest.raises(TypeError, match=message):
+        readers_module._discover(name, path)
+
+
+def test_format_entries_are_frozen():
+    with pytest.raises(AttributeError):
+        FORMATS["apt"].name = "x"  # type: ignore[misc]
+    assert isinstance(FORMATS["plain"], Format)
 
 
 @pytest.mark.parametrize(

@@ -21,11 +21,10 @@ from conftest import shared_cl
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import urdfpost.readers._stream as stream_module
 import urdfpost.readers.apt as apt_module
 from urdfpost.errors import CLDataError
-from urdfpost.readers import READERS, read_cl, read_cl_chunks
-from urdfpost.readers._stream import STREAM_READERS, text_pieces
+from urdfpost.readers import FORMATS, detect_file_format, detect_format, read_cl, read_cl_chunks
+from urdfpost.readers._stream import text_pieces
 from urdfpost.toolpath import Toolpath
 from urdfpost.units import MM_PER_INCH
 
@@ -175,7 +174,21 @@ def assert_multiaxis_flags(
 
 
 def test_every_format_streams():
-    assert set(STREAM_READERS) == set(READERS)
+    # every format that can be detected has a data file, so test_data_files streams it
+    detected = {detect_format((DATA / name).read_text()) for name in DATA_FILES}
+    assert {n for n, f in FORMATS.items() if f.detect or f.fallback} <= detected
+    assert all(callable(f.read_stream) for f in FORMATS.values())
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["1 2 3\rGOTO/1,2,3\r", "1 2 3\r$$ x\n", "1 2 3\n4 5 6\r\n  goto / 1, 2, 3\n", "1 2 3\n" * 40],
+)
+@pytest.mark.parametrize("text_piece", [1, 3, 7, 1 << 23])
+def test_file_format_is_the_text_format(tmp_path, text, text_piece):
+    path = tmp_path / "cl.txt"
+    path.write_bytes(text.encode())
+    assert detect_file_format(str(path), text_piece) == detect_format(text)
 
 
 def test_data_files_are_there():
@@ -363,9 +376,9 @@ def test_generated_apt(tmp_path_factory, text, max_points, text_piece, bulk_piec
     path.write_bytes(text.encode())
     with pytest.MonkeyPatch.context() as monkeypatch:
         monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 3)
-        monkeypatch.setattr(stream_module, "_BULK_PIECE", bulk_piece)
+        monkeypatch.setattr(apt_module, "_STREAM_PART", bulk_piece)
         # the quick pre-scan finds what the whole-file scan finds (or its error)
-        facts = outcome(lambda: stream_module._apt_facts(str(path), text_piece))
+        facts = outcome(lambda: apt_module._apt_facts(str(path), text_piece))
         assert facts == whole_file_facts(text, str(path))
         pieces = check_file(path, max_points, text_piece, format="apt", chord_tolerance=0.05)
         if pieces is not None:
@@ -393,7 +406,7 @@ def test_generated_apt(tmp_path_factory, text, max_points, text_piece, bulk_piec
 def test_prescan_finds_what_the_whole_scan_finds(tmp_path, text, facts, text_piece):
     path = tmp_path / "facts.apt"
     path.write_text(text)
-    found = outcome(lambda: stream_module._apt_facts(str(path), text_piece))
+    found = outcome(lambda: apt_module._apt_facts(str(path), text_piece))
     assert found == whole_file_facts(text, str(path))
     if facts[0] == "CLDataError":
         assert (found[0], found[2]) == facts

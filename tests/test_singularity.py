@@ -7,11 +7,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from oracles import jacobian_pin
 
 from urdfpost.analysis.compare import compare, table
 from urdfpost.analysis.testpaths import great_circle_sweep, hemisphere_raster, nutating_edge
 from urdfpost.errors import MachineDefinitionError
-from urdfpost.kinematics.forward import jacobian_pin, tip_and_axis
+from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.machine import load_machine, machine_from_urdf
 from urdfpost.planning.singularity import conditioning, detect, orientation_jacobian
 from urdfpost.planning.strategies import (
@@ -21,7 +22,10 @@ from urdfpost.planning.strategies import (
     exact_selection,
     split_at_pole_crossings,
 )
-from urdfpost.post.pipeline import PostOptions, build_program, check_program, post
+from urdfpost.posting.check import check_piece
+from urdfpost.posting.options import PostOptions, resolve
+from urdfpost.posting.piece import post_piece
+from urdfpost.posting.whole import post
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 
@@ -177,7 +181,7 @@ def test_branch_flip_bends_a_near_miss_through_the_pole() -> None:
     flipped = post(great_circle_sweep(0.1), m, PostOptions(strategy="branch-flip"))
     assert first_axis_travel_deg(exact, m) > 170.0
     assert first_axis_travel_deg(flipped, m) < 10.0
-    assert flipped.report["strategy"]["bent"]
+    assert flipped.report.as_json()["strategy"]["bent"]
     assert flipped.verification.max_orientation_deviation_deg <= 0.1 + 0.5
 
 
@@ -197,8 +201,7 @@ def test_linear_runs_the_first_axis_linearly_across_the_span() -> None:
     m = load_machine("gantry-ca")
     tp = flat(great_circle_sweep(1.0))
     options = PostOptions(strategy="linear")
-    _, fig = build_program(tp, m, options, Tolerances())
-    plan = fig["plan"]
+    plan = post_piece(tp, resolve(options, m, tp.units)).plan
     span = plan.spans[0]
     inside = (plan.param >= span.first) & (plan.param <= span.last)
     c = plan.rotary[inside, 0]
@@ -210,8 +213,7 @@ def test_linear_runs_the_first_axis_linearly_across_the_span() -> None:
 def test_spline_has_no_rate_step_at_the_span_ends() -> None:
     m = load_machine("gantry-ca")
     tp = flat(great_circle_sweep(1.0))
-    _, fig = build_program(tp, m, PostOptions(strategy="spline"), Tolerances())
-    plan = fig["plan"]
+    plan = post_piece(tp, resolve(PostOptions(strategy="spline"), m, tp.units)).plan
     span = plan.spans[0]
     s = plan.param
     c = plan.rotary[:, 0]
@@ -230,7 +232,7 @@ def test_spline_lift_is_counted_and_leaves_the_path_only_inside_the_span() -> No
     m = load_machine("gantry-ca")
     tp = flat(great_circle_sweep(1.0))
     result = post(tp, m, PostOptions(strategy="spline", lift=1.0))
-    assert result.report["strategy"]["lifts"] == 1
+    assert result.report.as_json()["strategy"]["lifts"] == 1
     assert "lifted" in " ".join(result.verification.notes)
 
 
@@ -251,12 +253,13 @@ def test_every_strategy_keeps_the_tool_tip_within_tolerance(
     tol = Tolerances()
     for tp in map(flat, paths):
         options = PostOptions(strategy=name, tcp=tcp)
-        program, figures = build_program(tp, m, options, tol)
+        posted = post_piece(tp, resolve(options, m, tp.units))
+        program = posted.program
         from urdfpost.dialects import dialect_for
 
         dialect = dialect_for(m.settings.controller)
         readback = dialect.read(dialect.write(program))
-        cl, intended = check_program(readback, m, tp, figures, tol, program.tool_length)
+        cl, intended = check_piece(readback, m, posted.target, tol)
         assert cl.reached == len(tp)
         assert cl.max_tip_deviation <= tol.tip, (name, tp.source)
         if intended is not None:
@@ -271,7 +274,7 @@ def test_ball_end_tool_pivots_about_the_ball_centre() -> None:
     m = load_machine("gantry-ca")
     tp = great_circle_sweep(0.1)  # ball end, 3 mm radius
     result = post(tp, m, PostOptions(strategy="cone"))
-    assert result.report["strategy"]["pivot_mm"] == pytest.approx(3.0)
+    assert result.report.as_json()["strategy"]["pivot_mm"] == pytest.approx(3.0)
     check = result.verification
     assert check.ok
     tol = Tolerances()
@@ -284,10 +287,16 @@ def test_machine_file_names_the_default_strategy(tmp_path) -> None:
     m = machine_from_urdf(with_default, source="gantry.urdf", name="g")
     assert m.settings.strategy == "branch-flip"
     result = post(great_circle_sweep(0.1), m, PostOptions())
-    assert result.report["strategy"]["name"] == "branch-flip"
+    assert result.report.as_json()["strategy"]["name"] == "branch-flip"
+    # an unknown name is refused where the post's settings are resolved (the machine layer
+    # knows no strategies), naming the machine file and the line of its <urdfpost> element
     bad = text.replace("<urdfpost ", '<urdfpost strategy="zigzag" ', 1)
-    with pytest.raises(MachineDefinitionError, match=r"strategy=.zigzag.*expected one of"):
-        machine_from_urdf(bad, source="gantry.urdf", name="g")
+    m = machine_from_urdf(bad, source="gantry.urdf", name="g")
+    line = bad[: bad.index("<urdfpost ")].count("\n") + 1
+    with pytest.raises(MachineDefinitionError, match=rf"^gantry.urdf:{line}: .*strategy=.zigzag.*"):
+        post(great_circle_sweep(0.1), m, PostOptions())
+    # a strategy named in the options wins over the machine file's
+    assert post(great_circle_sweep(0.1), m, PostOptions(strategy="none")).report.strategy
 
 
 def test_compare_table_lists_every_strategy() -> None:

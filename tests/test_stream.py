@@ -1,4 +1,4 @@
-"""The streamed post (urdfpost.post.stream): pieces joined into the program a whole post writes."""
+"""The streamed post (urdfpost.posting.stream): pieces joined into the program a whole post writes."""
 
 from __future__ import annotations
 
@@ -15,10 +15,12 @@ import pytest
 from urdfpost import load_machine
 from urdfpost.errors import ToleranceError, UnreachableError
 from urdfpost.planning.branches import select
-from urdfpost.post.pipeline import PostOptions, post
-from urdfpost.post.stream import merge_verifications, post_stream, toolpath_pieces, toolpath_slice
+from urdfpost.posting.options import PostOptions
+from urdfpost.posting.readback import merge_verifications
+from urdfpost.posting.stream import post_stream
+from urdfpost.posting.whole import post
 from urdfpost.readers import read_cl
-from urdfpost.toolpath import Event, Toolpath
+from urdfpost.toolpath import Event, Toolpath, toolpath_pieces, toolpath_slice
 from urdfpost.verify import Verification
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -85,7 +87,7 @@ def test_streamed_program_is_the_whole_post(
     options = PostOptions(controller=controller, tcp=tcp)
     whole = post(job, load_machine("dmu50"), options)
     text, result = streamed_text(tmp_path, job, options, piece_points=pieces, lookahead=lookahead)
-    assert result.report["streamed"]["pieces"] > 2
+    assert result.report.as_json()["streamed"]["pieces"] > 2
     assert_same_text(text, whole.text)
     v, w = result.verification, whole.verification
     assert v.ok and (v.cl_points, v.reached, v.blocks) == (w.cl_points, w.reached, w.blocks)
@@ -95,10 +97,13 @@ def test_streamed_program_is_the_whole_post(
     # the mean counts the deviations at each join twice: close, not equal
     assert v.mean_tip_deviation == pytest.approx(w.mean_tip_deviation, rel=0.01)
     for key in ("branch_switches", "pole_points", "inserted_blocks"):
-        assert result.report[key] == whole.report[key], key
+        assert result.report.as_json()[key] == whole.report.as_json()[key], key
     # the singular spans numbered along the whole job (their conditioning figures come from
     # arrays of another length: equal to rounding)
-    spans, want = result.report["strategy"]["spans"], whole.report["strategy"]["spans"]
+    spans, want = (
+        result.report.as_json()["strategy"]["spans"],
+        whole.report.as_json()["strategy"]["spans"],
+    )
     assert spans and len(spans) == len(want)
     for got, expected in zip(spans, want, strict=True):
         assert got.keys() == expected.keys()
@@ -144,11 +149,11 @@ def test_worker_and_serial_checks_agree(tmp_path: Path, raster: Toolpath) -> Non
     }
     assert_same_text(got[True][0], got[False][0])
     assert got[True][1].verification == got[False][1].verification
-    reports = {k: dict(v[1].report) for k, v in got.items()}
+    reports = {k: v[1].report.as_json() for k, v in got.items()}
     assert reports[True].pop("streamed")["worker"] is True
     assert reports[False].pop("streamed")["worker"] is False
     assert reports[True] == reports[False]
-    assert got[True][1].report["streamed"]["pieces"] > 4
+    assert got[True][1].report.as_json()["streamed"]["pieces"] > 4
 
 
 def test_joins_that_rest_on_the_lookahead_are_reported(tmp_path: Path) -> None:
@@ -168,10 +173,10 @@ def test_joins_that_rest_on_the_lookahead_are_reported(tmp_path: Path) -> None:
     options = PostOptions(controller="heidenhain", tcp=False)
     result = post_stream(toolpath_pieces(job, 700), m, out, options, piece_points=800,
                          lookahead=100)  # fmt: skip
-    streamed = result.report["streamed"]
+    streamed = result.report.as_json()["streamed"]
     assert streamed["pieces"] >= 3 and result.verification.ok
     assert streamed["unsettled_joins"] == [int(job.line[800])]  # the first join, at the target
-    (warning,) = [w for w in result.report["warnings"] if "lookahead" in w]
+    (warning,) = [w for w in result.report.as_json()["warnings"] if "lookahead" in w]
     assert warning.startswith("twofold: at ") and "--piece-points 0" in warning
 
 
@@ -193,20 +198,20 @@ def test_piece_that_misses_its_tolerance_writes_nothing(
     """A piece that fails its check after others were written (its CL points moved 0.1 mm
     before they are checked, in this process or in the worker): the old file stays, and no
     temporary file is left."""
-    import urdfpost.post.stream as stream_module
+    from urdfpost.posting.worker import Checks
 
-    real = stream_module._Checks.submit
+    real = Checks.submit
     jobs = []
 
     def second_moved(self, job):
         jobs.append(1)
         if len(jobs) == 2:
-            job = replace(
-                job, piece=replace(job.piece, tip=job.piece.tip + np.array([0.0, 0.1, 0.0]))
-            )
+            cl = job.target.cl
+            moved = replace(cl, tip=cl.tip + np.array([0.0, 0.1, 0.0]))
+            job = replace(job, target=replace(job.target, cl=moved))
         real(self, job)
 
-    monkeypatch.setattr(stream_module._Checks, "submit", second_moved)
+    monkeypatch.setattr(Checks, "submit", second_moved)
     out = tmp_path / "out.nc"
     out.write_text("old program\n")
     options = PostOptions(controller="heidenhain", tcp=False)
@@ -225,16 +230,17 @@ def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> Non
     """An error in the verification worker (here a program line the reader rejects) is raised
     where the post runs, as the same error with its file and line."""
     from urdfpost.errors import ProgramParseError
-    from urdfpost.post.stream import _Checks, _Job
+    from urdfpost.posting.check import CheckTarget
+    from urdfpost.posting.worker import Checks, PieceJob
     from urdfpost.tolerances import Tolerances
 
-    checks = _Checks(
+    checks = Checks(
         load_machine("dmu50"), "heidenhain", "prog.h", Tolerances.for_units("mm"), "mm", True
     )
     try:
         piece = toolpath_slice(read_cl(ROOT / "examples/dome.apt"), 0, 2)
-        checks.submit(_Job(text="0 BEGIN PGM X MM\nL X1 Y\n", inserts=[], piece=piece,
-                           reference=None, lifts=0, strategy={}, tool_length=0.0))  # fmt: skip
+        target = CheckTarget(piece, None, 0, 0.0, 2.0, 0.0)
+        checks.submit(PieceJob(text="0 BEGIN PGM X MM\nL X1 Y\n", inserts=[], target=target))
         with pytest.raises(ProgramParseError) as err:
             checks.finish()
         assert (err.value.path, err.value.line) == ("prog.h", 2)
@@ -250,10 +256,11 @@ def test_a_worker_that_dies_is_an_error(tmp_path: Path) -> None:
     import signal
 
     from urdfpost.errors import UrdfpostError
-    from urdfpost.post.stream import _Checks, _Job
+    from urdfpost.posting.check import CheckTarget
+    from urdfpost.posting.worker import Checks, PieceJob
     from urdfpost.tolerances import Tolerances
 
-    checks = _Checks(
+    checks = Checks(
         load_machine("dmu50"), "heidenhain", "prog.h", Tolerances.for_units("mm"), "mm", True
     )
     try:
@@ -261,8 +268,7 @@ def test_a_worker_that_dies_is_an_error(tmp_path: Path) -> None:
         os.kill(checks.process.pid, signal.SIGKILL)
         checks.process.join()
         piece = toolpath_slice(read_cl(ROOT / "examples/dome.apt"), 0, 2)
-        job = _Job(text="", inserts=[], piece=piece, reference=None, lifts=0, strategy={},
-                   tool_length=0.0)  # fmt: skip
+        job = PieceJob(text="", inserts=[], target=CheckTarget(piece, None, 0, 0.0, 2.0, 0.0))
         with pytest.raises(UrdfpostError, match=r"verification worker .* exit code -9"):
             checks.submit(job)
             checks.finish()
@@ -327,7 +333,7 @@ def test_verify_in_pieces_is_the_whole_verify(
     figures of the whole check: reached and missed points, blocks, the worst deviations and
     where, the rotary steps, the notes; only the mean counts the join rows twice."""
     from urdfpost.dialects import dialect_for
-    from urdfpost.post.stream import program_texts, verify_stream
+    from urdfpost.posting.readback import program_texts, verify_stream
     from urdfpost.tolerances import Tolerances
     from urdfpost.verify import verify
 
@@ -358,7 +364,7 @@ def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
     """A program with rewinds (a C axis limited to two turns, a spiral of four): the pieces
     are never cut inside one, and the figures are those of the whole check."""
     from urdfpost.dialects import dialect_for
-    from urdfpost.post.stream import verify_stream
+    from urdfpost.posting.readback import verify_stream
     from urdfpost.tolerances import Tolerances
     from urdfpost.verify import verify
 
@@ -370,7 +376,7 @@ def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
     tip = np.stack([40 * np.cos(az), 40 * np.sin(az), np.linspace(0, -6, n)], axis=1)
     job = Toolpath.from_points(tip, axis, feed=800.0, source="spiral")
     result = post(job, m, PostOptions(controller="fanuc", tcp=False, strategy="recursive"))
-    assert result.report["rewinds"]
+    assert result.report.as_json()["rewinds"]
     path = tmp_path / "spiral.nc"
     path.write_text(result.text, encoding="utf-8")
     tol = Tolerances.for_units("mm")

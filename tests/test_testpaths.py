@@ -15,9 +15,10 @@ from urdfpost.analysis.testpaths import (
     nutating_edge,
     to_apt,
 )
-from urdfpost.linearize import slerp
+from urdfpost.geometry import slerp
 from urdfpost.machine import Machine, load_machine
-from urdfpost.post.pipeline import PostOptions, post
+from urdfpost.posting.options import PostOptions
+from urdfpost.posting.whole import post
 from urdfpost.readers import read_cl_text
 from urdfpost.toolpath import Event, Motion, Toolpath
 

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from urdfpost.planning.strategies import _reachable, _rounding, _tube
+from urdfpost.planning.strategies.cone import _reachable, _rounding, _tube
 
 
 def reachable_reference(lo: np.ndarray, hi: np.ndarray, step: np.ndarray):

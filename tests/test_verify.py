@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import json
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -14,26 +15,24 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import urdfpost.linearize as linearize_module
-import urdfpost.verify as verify_module
+import urdfpost.verify.measure as verify_module
 from urdfpost import load_machine
 from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
+from urdfpost.geometry import Arcs, Segments, angle_between, cos_sin
 from urdfpost.kinematics.forward import tip_and_axis, tip_and_axis_along
-from urdfpost.linearize import (
-    Arcs,
-    RowPoses,
-    Segments,
-    _error_bounds,
-    angle_between,
-    cos_sin,
-)
+from urdfpost.linearize import RowPoses, _error_bounds
 from urdfpost.machine import Machine
-from urdfpost.post.pipeline import PostOptions, PostResult, build_program, post
+from urdfpost.posting.options import PostOptions, resolve
+from urdfpost.posting.piece import post_piece
+from urdfpost.posting.whole import PostResult, post
 from urdfpost.program import Move, Program, Tcp, ToolChange
 from urdfpost.readers import read_cl
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verify import Verification, _Blocks, _match, _Polyline, _row_poses, verify
+from urdfpost.verify import Verification, match_points, verify
+from urdfpost.verify.match import _row_poses
+from urdfpost.verify.measure import _Blocks, _Polyline
 
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"
@@ -228,11 +227,12 @@ def test_machine_coordinates_are_subdivided_until_within_tolerance() -> None:
     m, tp = machine("dmu50"), dome()
     options = PostOptions(strategy="recursive", controller="heidenhain", tcp=False)
     default = Tolerances.for_units("mm")
-    coarse, coarse_fig = build_program(tp, m, options, Tolerances.for_units("mm", 1000.0))
-    fine, fine_fig = build_program(tp, m, options, default)
-    assert coarse_fig["inserted_blocks"] == 0
-    assert fine_fig["inserted_blocks"] > 100
-    assert len(fine.moves()) == len(coarse.moves()) + fine_fig["inserted_blocks"]
+    coarse_post = post_piece(tp, resolve(replace(options, tolerance=1000.0), m, tp.units))
+    fine_post = post_piece(tp, resolve(options, m, tp.units))
+    coarse, fine = coarse_post.program, fine_post.program
+    assert coarse_post.figures.inserted_blocks == 0
+    assert fine_post.figures.inserted_blocks > 100
+    assert len(fine.moves()) == len(coarse.moves()) + fine_post.figures.inserted_blocks
     # the CL points alone, joined by straight lines in machine axes, miss the path
     v_coarse = verify(coarse, m, tp, tol=default)
     assert v_coarse.reached == len(tp)  # every end point is right ...
@@ -474,7 +474,7 @@ def test_matching_is_the_sequential_search(
     p = {"repeat": repeat, "dense": dense, "insert": insert, "drop": drop, "off": off, "turn": turn}
     cl_tip, cl_axis, tip, axis = _cl_and_program(np.random.default_rng(seed), n_cl, p)
     tol = Tolerances()
-    got = _match(cl_tip, cl_axis, tip, axis, tol)
+    got = match_points(cl_tip, cl_axis, tip, axis, tol)
     np.testing.assert_array_equal(got, _match_sequential(cl_tip, cl_axis, tip, axis, tol))
 
 
@@ -483,7 +483,7 @@ def test_matching_a_program_that_reaches_nothing() -> None:
     cl_tip = np.cumsum(rng.normal(0, 0.3, (3000, 3)), axis=0)
     cl_axis = np.tile([0.0, 0.0, 1.0], (3000, 1))
     tip = cl_tip + 1.0  # every point off by more than the tolerance
-    got = _match(cl_tip, cl_axis, tip, cl_axis, Tolerances())
+    got = match_points(cl_tip, cl_axis, tip, cl_axis, Tolerances())
     assert (got == -1).all()
 
 
@@ -603,10 +603,10 @@ def test_refining_where_it_matters_is_refining_everywhere(
     m, tp = machine("dmu50"), dome()
     options = PostOptions(strategy=strategy, controller="heidenhain", tcp=tcp)
     tol = Tolerances.for_units("mm")
-    program, _ = build_program(tp, m, options, tol)
+    program = post_piece(tp, resolve(options, m, tp.units)).program
     checks = [verify(program, m, tp, tol=tol, pivot=pivot) for pivot in (0.0, 3.0)]
     _refine_everywhere(monkeypatch)
-    program_all, _ = build_program(tp, m, options, tol)
+    program_all = post_piece(tp, resolve(options, m, tp.units)).program
     assert program_all == program
     for pivot, check in zip((0.0, 3.0), checks, strict=True):
         everywhere = verify(program, m, tp, tol=tol, pivot=pivot)

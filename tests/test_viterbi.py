@@ -18,16 +18,10 @@ from hypothesis import strategies as st
 from urdfpost import load_machine
 from urdfpost.analysis.testpaths import PATHS
 from urdfpost.errors import UnreachableError
-from urdfpost.planning import branches
-from urdfpost.planning.branches import (
-    JUMP,
-    REWIND_COST,
-    TWO_PI,
-    _Plan,
-    _raise_dead_end,
-    _wrap,
-    select,
-)
+from urdfpost.planning.branches import JUMP, REWIND_COST, TWO_PI, Preference, engine, search, select
+from urdfpost.planning.branches.exclusion import _raise_dead_end
+from urdfpost.planning.branches.rules import _wrap
+from urdfpost.planning.branches.state import BranchSearch
 
 ROOT = Path(__file__).resolve().parents[1]
 MACHINES = ("dmu50", "gantry-ca", "dmu50-nutating", "umc750", "monoblock", "xyzac-trt")
@@ -36,13 +30,13 @@ MACHINES = ("dmu50", "gantry-ca", "dmu50-nutating", "umc750", "monoblock", "xyza
 # -- the reference: the recursion point by point -----------------------------------------------
 
 
-def _ref_diff(p: _Plan, i: int, state: np.ndarray) -> np.ndarray:
+def _ref_diff(p: BranchSearch, i: int, state: np.ndarray) -> np.ndarray:
     diff = p.values[i][None, :, :] - state[:, None, :]
     diff[:, :, p.cont] = _wrap(diff[:, :, p.cont])
     return np.nan_to_num(diff, nan=0.0)
 
 
-def _ref_steps(p: _Plan, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _ref_steps(p: BranchSearch, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     diff = _ref_diff(p, i, state)
     cont = p.cont
     size = np.abs(diff)
@@ -58,7 +52,7 @@ def _ref_steps(p: _Plan, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndar
     return diff, cost
 
 
-def _ref_rewind_steps(p: _Plan, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _ref_rewind_steps(p: BranchSearch, i: int, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     diff = _ref_diff(p, i, state)
     cost = REWIND_COST + np.abs(diff).sum(axis=2)
     np.fill_diagonal(cost, np.inf)
@@ -67,7 +61,7 @@ def _ref_rewind_steps(p: _Plan, i: int, state: np.ndarray) -> tuple[np.ndarray, 
     return diff, cost
 
 
-def reference(p: _Plan, block: int | None = None):
+def reference(p: BranchSearch, block: int | None = None):
     n, n_cand, r = p.values.shape
     usable = p.usable()
     state = p.values[0].copy()
@@ -116,7 +110,7 @@ def reference(p: _Plan, block: int | None = None):
     return chosen, arrive, leave_hist[idx, chosen], arrive_hist[idx, arrive]
 
 
-def walk(p: _Plan, chosen: np.ndarray, arrive: np.ndarray):
+def walk(p: BranchSearch, chosen: np.ndarray, arrive: np.ndarray):
     """Cost of a path of candidates by the reference's steps, and its actual angles (leave,
     arrive), shapes (n, r)."""
     n = len(chosen)
@@ -154,9 +148,9 @@ class Compared:
         self.rewinds = 0
         self.held = 0
         self.same = 0
-        self.original = branches._viterbi
+        self.original = engine._viterbi
 
-    def __call__(self, p: _Plan, block: int | None = None):
+    def __call__(self, p: BranchSearch, block: int | None = None):
         self.calls += 1
         self.held += int(np.isnan(p.values).any(axis=2).any(axis=1).sum())
         try:
@@ -188,7 +182,7 @@ class Compared:
 @pytest.fixture
 def compared(monkeypatch: pytest.MonkeyPatch) -> Compared:
     c = Compared()
-    monkeypatch.setattr(branches, "_viterbi", c)
+    monkeypatch.setattr(search, "_viterbi", c)
     return c
 
 
@@ -264,13 +258,13 @@ def test_random_walks(name: str, seed: int, n: int, pole_every: int, entries: in
     entry[rng.integers(0, n, entries)] = True
     cutting = rng.random(n) > 0.1
     c = Compared(blocks=(None, 3, 7))
-    original, branches._viterbi = branches._viterbi, c
+    original, search._viterbi = search._viterbi, c
     try:
         select(m, tip, axis, tool_length=m.settings.tool_length, entry=entry, cutting=cutting)
     except UnreachableError:
         pass
     finally:
-        branches._viterbi = original
+        search._viterbi = original
     assert c.calls <= 1  # none when a point is out of reach before planning
 
 
@@ -278,12 +272,11 @@ def test_collision_exclusions(compared: Compared, tmp_path: Path) -> None:
     """Excluded moves are planned point by point; the re-plans agree too."""
     from test_planning import machine_with_fixtures, tilted_line
 
-    from urdfpost.post.pipeline import PostOptions, post
+    from urdfpost.posting.options import PostOptions
+    from urdfpost.posting.whole import post
 
     m = load_machine(machine_with_fixtures(tmp_path, (+1,)))
-    result = post(
-        tilted_line(), m, PostOptions(prefer=branches.Preference("A", +1), collisions=True)
-    )
+    result = post(tilted_line(), m, PostOptions(prefer=Preference("A", +1), collisions=True))
     assert result.verification.ok
     assert compared.calls >= 1
 
@@ -293,7 +286,7 @@ def test_without_the_step_cache(
     compared: Compared, monkeypatch: pytest.MonkeyPatch, path: str
 ) -> None:
     """Step matrices computed per block step (what paths too long for the cache get)."""
-    monkeypatch.setattr(branches, "_CACHE_BYTES", 0)
+    monkeypatch.setattr(engine, "_CACHE_BYTES", 0)
     m = load_machine("gantry-ca")
     tp = PATHS[path]()
     select(m, tp.tip, tp.axis, tool_length=m.settings.tool_length, lines=tp.line)
@@ -347,7 +340,7 @@ def test_settled_point_of_random_maps(
     alive = rng.random(n_cand) < 0.7
     alive[rng.integers(0, n_cand)] = True
     k_end = int(rng.choice(np.flatnonzero(alive)))
-    *_, settled = branches._follow_back(k_end, back, rback, block, alive)
+    *_, settled = engine._follow_back(k_end, back, rback, block, alive)
     assert settled == _settled_by_walking(back, rback, alive)
 
 

@@ -30,10 +30,14 @@ from urdfpost.machine import Machine, list_machines, load_machine
 
 
 def __getattr__(name: str):
-    if name in ("post", "PostOptions", "PostResult"):
-        from urdfpost.post import pipeline
+    if name in ("post", "PostResult"):
+        from urdfpost.posting import whole
 
-        return getattr(pipeline, name)
+        return getattr(whole, name)
+    if name == "PostOptions":
+        from urdfpost.posting.options import PostOptions
+
+        return PostOptions
     if name == "read_cl":
         from urdfpost.readers import read_cl
 

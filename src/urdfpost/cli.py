@@ -22,17 +22,17 @@ import numpy as np
 from urdfpost import __version__
 from urdfpost._files import check_distinct, output_target, write_texts
 from urdfpost.errors import UrdfpostError
+from urdfpost.posting import PIECE_POINTS
 from urdfpost.reports import report_json
 from urdfpost.units import mm_per_unit
 
 if TYPE_CHECKING:
-    from urdfpost.post.pipeline import PostResult
-    from urdfpost.post.stream import StreamResult
+    from urdfpost.posting.stream import StreamResult
+    from urdfpost.posting.whole import PostResult
 
 log = logging.getLogger("urdfpost")
 
 MAX_WARNINGS_SHOWN = 20
-_PIECE_POINTS = 100_000  # (urdfpost.post.stream.PIECE_POINTS, not imported at start-up)
 _STREAM_BYTES = 16 << 20  # CL files larger than this are posted in pieces by default
 
 
@@ -255,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="post in pieces of about N CL points, read, written and verified one at a time "
         "(bounded memory for long jobs; each piece verified in a second process while the next "
         "is planned); 0: never. Default: pieces of "
-        f"{_PIECE_POINTS} points when the CL file is over {_STREAM_BYTES >> 20} MB",
+        f"{PIECE_POINTS} points when the CL file is over {_STREAM_BYTES >> 20} MB",
     )
     po.add_argument(
         "--single-process",
@@ -302,7 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="read and check in pieces of about N CL points (bounded memory for long jobs; "
         "the same figures, but for the mean deviation); 0: never. Default: pieces of "
-        f"{_PIECE_POINTS} points when the CL file or the program is over {_STREAM_BYTES >> 20} MB",
+        f"{PIECE_POINTS} points when the CL file or the program is over {_STREAM_BYTES >> 20} MB",
     )
 
     co = sub.add_parser("compare", help="post a CL file with several singularity strategies")
@@ -378,7 +378,8 @@ def _cmd_post(args: argparse.Namespace) -> int:
 
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
-    from urdfpost.post.pipeline import PostOptions, post
+    from urdfpost.posting.options import PostOptions
+    from urdfpost.posting.whole import post
 
     # no monitor thread: a streamed post forks its verification worker, best from one thread
     tqdm.monitor_interval = 0
@@ -387,7 +388,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
     pieces = args.piece_points
     if pieces is None:
         size = Path(args.cl).stat().st_size if Path(args.cl).is_file() else 0
-        pieces = _PIECE_POINTS if size > _STREAM_BYTES else 0
+        pieces = PIECE_POINTS if size > _STREAM_BYTES else 0
     if pieces:
         toolpath, chunks = _read_cl_pieces(args, machine, pieces)
     else:
@@ -439,7 +440,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         files: dict[Path, str] = {}
         result: PostResult | StreamResult
         if chunks is not None:
-            from urdfpost.post.stream import post_stream
+            from urdfpost.posting.stream import post_stream
 
             # streamed into a hidden file beside the program (in the temporary folder for a
             # device), moved into place with the report
@@ -467,30 +468,29 @@ def _cmd_post(args: argparse.Namespace) -> int:
             whole = post(toolpath, machine, options, progress=bar.update)
             files[out] = whole.text
             result = whole
-    _show_warnings(result.report["warnings"])
+    report = result.report
+    _show_warnings(list(report.warnings))
     if args.report:
-        files[Path(args.report)] = report_json(result.report)
+        files[Path(args.report)] = report_json(report.as_json())
     write_texts(files, _given(inputs), roles, staged)
     mode = "TCP" if args.tcp else "machine coordinates"
     print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
-    strat = result.report["strategy"]
-    kinds = ", ".join(
-        f"{sp['kind']} at CL lines {sp['first_line']}-{sp['last_line']}"
-        for sp in strat["spans"][:5]
-    )
-    more = f" and {len(strat['spans']) - 5} more" if len(strat["spans"]) > 5 else ""
-    print(
-        f"strategy {strat['name']}: {len(strat['spans'])} singular spans"
-        + (f" ({kinds}{more})" if kinds else "")
-    )
-    for r in result.report.get("rewinds", []):
-        print(f"rewind at CL line {r['cl_line']}: {r['comment'].split(': ', 1)[1]}")
-    hits = result.report["collisions"]
-    if hits["checked"]:
+    strat = report.strategy
+    assert strat is not None
+    spans = strat.spans
+    kinds = ", ".join(f"{sp.kind} at CL lines {sp.first_line}-{sp.last_line}" for sp in spans[:5])
+    more = f" and {len(spans) - 5} more" if len(spans) > 5 else ""
+    found = f" ({kinds}{more})" if kinds else ""
+    print(f"strategy {strat.name}: {len(spans)} singular spans{found}")
+    for r in report.rewinds:
+        print(f"rewind at CL line {r.cl_line}: {r.comment.split(': ', 1)[1]}")
+    hits = report.collisions
+    if hits.checked:
+        clearance = (hits.min_clearance or 0.0) / scale
         print(
-            f"collisions: none in {hits['moves']} moves ({hits['samples']} samples, "
-            f"{hits['pairs_checked']} body pairs); clearance {hits['min_clearance']:.3f} {units} "
-            f"({' and '.join(hits['nearest'] or [])}) at CL line {hits['at_cl_line']}"
+            f"collisions: none in {hits.moves} moves ({hits.samples} samples, "
+            f"{hits.pairs_checked} body pairs); clearance {clearance:.3f} {units} "
+            f"({' and '.join(hits.nearest or [])}) at CL line {hits.at_cl_line}"
         )
     print(result.verification.summary(units))
     return 0
@@ -499,7 +499,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
 def _cmd_verify(args: argparse.Namespace) -> int:
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
-    from urdfpost.post.pipeline import make_report
+    from urdfpost.posting.report import Report
     from urdfpost.tolerances import Tolerances
     from urdfpost.verify import verify
 
@@ -508,9 +508,9 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     pieces = args.piece_points
     if pieces is None:
         sizes = [Path(f).stat().st_size for f in (args.cl, args.program) if Path(f).is_file()]
-        pieces = _PIECE_POINTS if max(sizes, default=0) > _STREAM_BYTES else 0
+        pieces = PIECE_POINTS if max(sizes, default=0) > _STREAM_BYTES else 0
     if pieces:  # the program's header (units) from its first piece of text
-        from urdfpost.post.stream import program_texts
+        from urdfpost.posting.readback import program_texts
 
         head = next(program_texts(args.program, 1 << 16), "")
         program = dialect.read(head, path=args.program)
@@ -529,14 +529,15 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     )
     pivot = 0.0
     if args.angle_tolerance > 0:
-        from urdfpost.post.pipeline import ball_radius, bent_tolerances
+        from urdfpost.posting.check import bent_tolerances
+        from urdfpost.posting.piece import ball_radius
 
         pivot = ball_radius(toolpath)  # (the first cutter: the first piece has it)
         tol = bent_tolerances(tol, args.angle_tolerance, pivot)
     if chunks is not None:
         from dataclasses import replace
 
-        from urdfpost.post.stream import verify_stream
+        from urdfpost.posting.readback import verify_stream
 
         warnings: list[str] = []
 
@@ -560,7 +561,15 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
     _show_warnings(toolpath.warnings)
     if args.report:
-        report = make_report(toolpath, machine, program, check, dialect.name)
+        report = Report(
+            machine=machine.name,
+            controller=dialect.name,
+            tcp=program.tcp,
+            units=program.units,
+            verification=check,
+            tool_length_mm=program.tool_length,
+            warnings=tuple(toolpath.warnings),
+        ).as_json()
         inputs = {"the program": args.program, "the CL file": args.cl}
         roles = {Path(args.report): "the report (--report)"}
         write_texts({Path(args.report): report_json(report)}, _given(inputs), roles)
@@ -577,7 +586,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from urdfpost.analysis.compare import compare, table
     from urdfpost.machine import load_machine
     from urdfpost.planning.strategies import STRATEGIES
-    from urdfpost.post.pipeline import PostOptions
+    from urdfpost.posting.options import PostOptions
 
     machine = load_machine(args.machine)
     names = list(STRATEGIES) if args.strategies == "all" else args.strategies.split(",")

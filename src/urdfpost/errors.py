@@ -44,9 +44,14 @@ class UnreachableError(UrdfpostError):
     """A CL point that no inverse-kinematics branch reaches within the machine's travel."""
 
 
-class CollisionError(UrdfpostError):
+class GeometryError(UrdfpostError):
     """Collision geometry that cannot be built: a stock or mesh file that cannot be read, a
     ``<collision>`` element urdfpost does not understand, or tool sizes that make no sense."""
+
+
+class CollisionError(UrdfpostError):
+    """A move that collides: every branch at a CL point, or a move of the program, brings two
+    bodies into contact (the message names the CL line and the bodies)."""
 
 
 class ToleranceError(UrdfpostError):

@@ -8,7 +8,8 @@ and remember the file's units so the program is written in them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
 from enum import IntEnum
 from typing import Any
 
@@ -153,3 +154,62 @@ class Toolpath:
             units=units,
             source=source,
         )
+
+
+def toolpath_slice(toolpath: Toolpath, a: int, b: int, *, first_events: bool = True) -> Toolpath:
+    """Points ``a`` to ``b - 1`` of a toolpath, with their events re-indexed.
+
+    The events before points ``a + 1 .. b - 1`` come along, those before point ``a`` when
+    ``first_events``, and those after the last point when ``b`` is the end. Array views, no
+    copies.
+    """
+    n = len(toolpath)
+    lo = a if first_events else a + 1
+    events = tuple(
+        replace(e, index=e.index - a)
+        for e in toolpath.events
+        if lo <= e.index < b or (b == n and e.index == n)
+    )
+    return replace(
+        toolpath,
+        tip=toolpath.tip[a:b],
+        axis=toolpath.axis[a:b],
+        feed=toolpath.feed[a:b],
+        motion=toolpath.motion[a:b],
+        line=toolpath.line[a:b],
+        events=events,
+    )
+
+
+def toolpath_pieces(toolpath: Toolpath, points: int) -> Iterator[Toolpath]:
+    """A toolpath as consecutive pieces of at most ``points`` points (the form
+    :func:`urdfpost.readers.read_cl_chunks` gives; for jobs already in memory, and tests)."""
+    n = len(toolpath)
+    if n == 0:
+        yield toolpath
+        return
+    for a in range(0, n, points):
+        b = min(a + points, n)
+        piece = toolpath_slice(toolpath, a, b)
+        yield replace(piece, warnings=toolpath.warnings if a == 0 else ())
+
+
+def joined(first: Toolpath, more: list[Toolpath]) -> Toolpath:
+    """Toolpaths appended to ``first`` (events after the last point of one come before the
+    first point of the next)."""
+    parts = [first, *more]
+    offsets = np.cumsum([0, *(len(p) for p in parts)])
+    return replace(
+        more[-1],
+        tip=np.concatenate([p.tip for p in parts]),
+        axis=np.concatenate([p.axis for p in parts]),
+        feed=np.concatenate([p.feed for p in parts]),
+        motion=np.concatenate([p.motion for p in parts]),
+        line=np.concatenate([p.line for p in parts]),
+        events=tuple(
+            replace(e, index=e.index + int(at))
+            for p, at in zip(parts, offsets, strict=False)
+            for e in p.events
+        ),
+        warnings=tuple(w for p in parts for w in p.warnings),
+    )

@@ -20,9 +20,10 @@ from urdfpost.errors import UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.planning.singularity import Span
 from urdfpost.planning.strategies import STRATEGIES
-from urdfpost.post.pipeline import PostOptions, bent_tolerances, build_program, check_program
-from urdfpost.program import Insert
-from urdfpost.tolerances import Tolerances
+from urdfpost.posting.check import bent_tolerances
+from urdfpost.posting.options import PostOptions, resolve
+from urdfpost.posting.piece import post_piece
+from urdfpost.posting.whole import written
 from urdfpost.toolpath import Toolpath
 from urdfpost.units import mm_per_unit
 
@@ -135,60 +136,52 @@ def compare(
     -------
     Comparison
     """
-    from urdfpost.dialects import dialect_for
-
     options = options or PostOptions()
     unknown = [s for s in strategies if s not in STRATEGIES]
     if unknown:
         raise UrdfpostError(
             f"unknown strategies {', '.join(unknown)}; expected names from {', '.join(STRATEGIES)}"
         )
-    units = options.units or toolpath.units
-    tol = Tolerances.for_units(units, options.tolerance)
-    dialect = dialect_for(options.controller or machine.settings.controller)
     outcomes: list[Outcome] = []
     spans: list[Span] | None = None
+    job = resolve(options, machine, toolpath.units)
     for name in strategies:
         if progress:
             progress(name)
-        opts = replace(options, strategy=name)
+        job = replace(job, strategy=name)
         try:
-            program, figures = build_program(toolpath, machine, opts, tol)
+            posted = post_piece(toolpath, job)
         except UrdfpostError as e:
             log.info("strategy %s: %s", name, e)
             outcomes.append(Outcome(name, None, False, str(e), False))
             continue
-        plan = figures["plan"]
+        plan = posted.plan
         if spans is None or name == "recursive":
             spans = _to_cl_indices(plan.spans, plan.toolpath)
-        text = dialect.write(program)
-        inserts = [b.text for b in program.parts if isinstance(b, Insert)]
-        readback = dialect.read(text, path=f"<{dialect.name} program>", verbatim=inserts)
-        cl, intended = check_program(readback, machine, toolpath, figures, tol, program.tool_length)
-        strat = figures["strategy"]
-        measure_tol = tol
+        _, readback, (cl, intended) = written(posted, job)
+        target, measure_tol = posted.target, job.tol
         if plan.bent:
-            measure_tol = bent_tolerances(tol, strat["angle_tolerance_deg"], strat["pivot_mm"])
+            measure_tol = bent_tolerances(job.tol, target.angle_tolerance_deg, target.pivot_mm)
         metrics = measure(
             readback,
             machine,
             toolpath,
-            tool_length=program.tool_length,
+            tool_length=posted.program.tool_length,
             tol=measure_tol,
-            pivot=strat["pivot_mm"] if plan.bent else 0.0,
+            pivot=target.pivot_mm if plan.bent else 0.0,
             lifts=plan.lifts,
         )
         ok = cl.ok and (intended is None or intended.ok)
         error = None
         if not ok:
             bad = intended if intended is not None and not intended.ok else cl
-            error = bad.summary(units)
+            error = bad.summary(job.units)
         outcomes.append(Outcome(name, metrics, bool(ok), error, bool(plan.bent)))
     return Comparison(
         machine=machine.name,
         source=toolpath.source,
         tcp=options.tcp,
-        controller=dialect.name,
+        controller=job.dialect.name,
         outcomes=outcomes,
         spans=spans or [],
         cl_s=cl_path_position(toolpath),

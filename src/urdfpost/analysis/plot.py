@@ -1,7 +1,7 @@
 """Plots of a strategy comparison: rotary angles and speeds along the path, singular spans shaded.
 
 matplotlib is imported when a plot is made (Agg canvas, no pyplot state), so posting never
-needs it.
+needs it; it is the ``plot`` extra (``pip install 'urdfpost[plot]'``).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import numpy as np
 
 from urdfpost._files import give_mode
 from urdfpost.analysis.metrics import Metrics
+from urdfpost.errors import UrdfpostError
 from urdfpost.planning.singularity import Span
 
 log = logging.getLogger(__name__)
@@ -64,18 +65,16 @@ def plot_comparison(
 
     Raises
     ------
-    ImportError
-        When matplotlib is not installed (with how to install it).
+    UrdfpostError
+        When matplotlib is not installed (the message says how to install it).
     ValueError
         When there is nothing to plot, or a result carries no profile.
     """
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
-    except ImportError as e:  # pragma: no cover - matplotlib is a dependency
-        raise ImportError(
-            "plots need matplotlib: pip install matplotlib (or reinstall urdfpost)"
-        ) from e
+    except ImportError as e:  # the test extra installs matplotlib
+        raise UrdfpostError("compare --plot needs matplotlib: pip install 'urdfpost[plot]'") from e
     if not results:
         raise ValueError("plot_comparison: expected at least one result, got none")
     for name, m in results:

@@ -57,6 +57,9 @@ G_CODES = MappingProxyType(
     }
 )
 
+#: Place among the controls (see :mod:`urdfpost.dialects`).
+RANK = 2
+
 SPEC = DialectSpec(
     name="fanuc",
     extensions=(".nc",),

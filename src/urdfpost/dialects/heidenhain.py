@@ -235,6 +235,9 @@ M_CODES = MappingProxyType(
     }
 )
 
+#: Place among the controls (see :mod:`urdfpost.dialects`).
+RANK = 0
+
 SPEC = DialectSpec(
     name="heidenhain",
     extensions=(".h",),

@@ -74,6 +74,9 @@ G_CODES = MappingProxyType(
 
 M_CODES = MappingProxyType({**STANDARD_M_CODES, 428: "tcp_on", 429: "tcp_off"})
 
+#: Place among the controls (see :mod:`urdfpost.dialects`).
+RANK = 3
+
 SPEC = DialectSpec(
     name="linuxcnc",
     extensions=(".ngc",),

@@ -56,6 +56,9 @@ G_CODES = MappingProxyType(
 
 KEYWORDS = MappingProxyType({"TRAORI": "tcp_on", "TRAFOOF": "tcp_off", "SUPA": "machine"})
 
+#: Place among the controls (see :mod:`urdfpost.dialects`).
+RANK = 1
+
 SPEC = DialectSpec(
     name="siemens",
     extensions=(".mpf", ".spf"),

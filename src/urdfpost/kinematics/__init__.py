@@ -1,14 +1,11 @@
 """Forward and inverse kinematics of the tool relative to the workpiece."""
 
 from urdfpost.kinematics.forward import (
-    jacobian_pin,
     linear_directions,
     rotate,
     rotation_about,
     tip_and_axis,
-    tip_and_axis_pin,
     tool_in_work,
-    tool_in_work_pin,
 )
 from urdfpost.kinematics.inverse import (
     IKResult,
@@ -26,14 +23,11 @@ __all__ = [
     "RotarySolutions",
     "assemble",
     "inverse",
-    "jacobian_pin",
     "linear_directions",
     "rotate",
     "rotation_about",
     "solve_linear",
     "solve_rotary",
     "tip_and_axis",
-    "tip_and_axis_pin",
     "tool_in_work",
-    "tool_in_work_pin",
 ]

@@ -10,11 +10,11 @@ Two independent routes to the same numbers:
   :func:`tip_and_axis_along` samples straight joint-space moves (with angle addition for
   evenly spaced samples), and :func:`interpolation_bounds` bounds how fast the tip and the
   axis move and turn along such moves. Subdivision and verification use these;
-- :func:`tool_in_work_pin` and :func:`jacobian_pin` ask Pinocchio, one configuration at a time.
-  The tests hold every vectorised function to them, on every shipped machine and on generated
-  ones.
+- Pinocchio, one configuration at a time: ``tool_in_work_pin``, ``tip_and_axis_pin`` and
+  ``jacobian_pin`` in the tests' ``tests/oracles.py``. The tests hold every vectorised function
+  to them, on every shipped machine and on generated ones.
 
-Callers that go through a long path in chunks derive the machine's :class:`Chain` once (every
+Callers that go through a long path in chunks derive the machine's :class:`PoeChain` once (every
 function that takes a machine also takes its chain) and may hand :func:`tip_and_axis_along` a
 :class:`Scratch`: its temporaries are then the same few arrays for every chunk rather than fresh
 memory each time (the results are the same, bit for bit).
@@ -30,12 +30,11 @@ import math
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, cast, overload
+from typing import cast, overload
 
 import numpy as np
 
 from urdfpost.machine import Machine
-from urdfpost.units import M_TO_MM
 
 
 def skew(k: np.ndarray) -> np.ndarray:
@@ -143,9 +142,9 @@ def _rotate_about(
     return out
 
 
-def _as_q(machine: Machine | Chain, q: np.ndarray) -> np.ndarray:
+def _as_q(machine: Machine | PoeChain, q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float)
-    n_axes = machine.n_axes if isinstance(machine, Chain) else len(machine.axes)
+    n_axes = machine.n_axes if isinstance(machine, PoeChain) else len(machine.axes)
     return q.reshape(-1, n_axes)
 
 
@@ -316,8 +315,9 @@ def _joints_from_tool(machine: Machine) -> tuple[_Joint, ...]:
 
 
 @dataclass(frozen=True)
-class Chain:
-    """What the vectorised kinematics need of a machine, derived once (:func:`chain_of`).
+class PoeChain:
+    """The machine's chain as products of exponentials: what the vectorised kinematics need of
+    a machine, derived once (:func:`chain_of`).
 
     Attributes
     ----------
@@ -343,15 +343,19 @@ class Chain:
         return self.home_tool_in_work[:3, 2].copy()
 
 
-def chain_of(machine: Machine | Chain) -> Chain:
+# the old name, until planning/singularity.py and linearize.py import PoeChain
+Chain = PoeChain
+
+
+def chain_of(machine: Machine | PoeChain) -> PoeChain:
     """The chain of a machine (a chain is its own).
 
     Deriving it takes about a tenth of a millisecond: a caller that goes through a path in
     thousands of chunks derives it once and passes it wherever a machine is asked for.
     """
-    if isinstance(machine, Chain):
+    if isinstance(machine, PoeChain):
         return machine
-    return Chain(
+    return PoeChain(
         joints=_joints_from_tool(machine),
         n_axes=len(machine.axes),
         linear_columns=machine.linear_columns,
@@ -486,7 +490,7 @@ def _carry(
     return point, vectors, reach, swing
 
 
-def _trig(machine: Machine | Chain, q: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+def _trig(machine: Machine | PoeChain, q: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     cols = machine.rotary_columns
     return {c: (np.cos(q[:, c]), np.sin(q[:, c])) for c in cols}
 
@@ -504,7 +508,7 @@ def _rows(v: Vec, n: int) -> np.ndarray:
     return out
 
 
-def _tool_point(machine: Machine | Chain, offset: float) -> Constant:
+def _tool_point(machine: Machine | PoeChain, offset: float) -> Constant:
     """Point ``offset`` mm along the tool axis from the gauge point, at home."""
     home = machine.home_tool_in_work
     return _vec(home[:3, 3] + offset * home[:3, 2])
@@ -587,7 +591,7 @@ def _put_rows(out: np.ndarray, v: Vec) -> None:
 
 
 def tip_and_axis(
-    machine: Machine | Chain, q: np.ndarray, tool_length: float = 0.0
+    machine: Machine | PoeChain, q: np.ndarray, tool_length: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tool tip and tool axis in the workpiece frame (vectorised).
 
@@ -596,7 +600,7 @@ def tip_and_axis(
 
     Parameters
     ----------
-    machine : Machine or Chain
+    machine : Machine or PoeChain
     q : ndarray, shape (n, m), mm / rad
     tool_length : float, mm
         Distance from the gauge point to the tool tip along the tool axis.
@@ -618,7 +622,7 @@ def tip_and_axis(
 
 
 def axis_and_joint_directions(
-    machine: Machine | Chain, q: np.ndarray
+    machine: Machine | PoeChain, q: np.ndarray
 ) -> tuple[np.ndarray, list[np.ndarray]]:
     """Tool axis and the directions of the rotary joints, in the workpiece frame (vectorised).
 
@@ -628,7 +632,7 @@ def axis_and_joint_directions(
 
     Parameters
     ----------
-    machine : Machine or Chain
+    machine : Machine or PoeChain
     q : ndarray, shape (n, m), mm / rad
 
     Returns
@@ -688,7 +692,7 @@ def _rotate_constant(
     return out
 
 
-def _axis_carried(chain: Chain, trig: dict[int, tuple[np.ndarray, np.ndarray]]) -> Vec:
+def _axis_carried(chain: PoeChain, trig: dict[int, tuple[np.ndarray, np.ndarray]]) -> Vec:
     """The tool axis carried through the joints, given the cosines and sines of the rotary
     values (the same values as :func:`_tip_and_axis_carried` gives it)."""
     _, (axis,), _, _ = _carry(chain.joints, {}, trig, None, [_vec(chain.home_tool_axis)])
@@ -696,7 +700,7 @@ def _axis_carried(chain: Chain, trig: dict[int, tuple[np.ndarray, np.ndarray]]) 
 
 
 def _tip_and_axis_carried(
-    machine: Machine | Chain, q: np.ndarray, tool_length: float, radii: bool = False
+    machine: Machine | PoeChain, q: np.ndarray, tool_length: float, radii: bool = False
 ) -> tuple[Vec | None, list[Vec], dict[int, Coord], dict[int, Coord]]:
     """:func:`_carry` of the tip and the tool axis through joint vectors ``q`` (n, m)."""
     chain = chain_of(machine)
@@ -769,7 +773,7 @@ def _evenly_spaced(t: np.ndarray) -> bool:
 
 
 def tip_and_axis_along(
-    machine: Machine | Chain,
+    machine: Machine | PoeChain,
     q0: np.ndarray,
     q1: np.ndarray,
     t: np.ndarray,
@@ -786,7 +790,7 @@ def tip_and_axis_along(
 
     Parameters
     ----------
-    machine : Machine or Chain
+    machine : Machine or PoeChain
     q0, q1 : ndarray, shape (n, m)
         Joint values at the ends of n moves, mm / rad.
     t : ndarray, shape (s,) or (s, n)
@@ -846,7 +850,7 @@ def tip_and_axis_along(
 
 
 def tip_axis_and_reach(
-    machine: Machine | Chain, q: np.ndarray, tool_length: float = 0.0
+    machine: Machine | PoeChain, q: np.ndarray, tool_length: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Tool tip and axis, and how far each rotary axis sees them from itself (vectorised).
 
@@ -854,7 +858,7 @@ def tip_axis_and_reach(
 
     Parameters
     ----------
-    machine : Machine or Chain
+    machine : Machine or PoeChain
     q : ndarray, shape (n, m), mm / rad
     tool_length : float, mm
 
@@ -884,7 +888,7 @@ def tip_axis_and_reach(
 
 
 def interpolation_bounds(
-    machine: Machine | Chain,
+    machine: Machine | PoeChain,
     q0: np.ndarray,
     q1: np.ndarray,
     reach0: np.ndarray,
@@ -918,7 +922,7 @@ def interpolation_bounds(
 
     Parameters
     ----------
-    machine : Machine or Chain
+    machine : Machine or PoeChain
     q0, q1 : ndarray, shape (n, m)
         Joint values at the ends of the moves, mm / rad.
     reach0, reach1, swing0, swing1 : ndarray, shape (n, r)
@@ -969,87 +973,3 @@ def interpolation_bounds(
         np.broadcast_to(x, (n,)).copy()
         for x in (tip_speed, tip_curvature, axis_speed, axis_curvature)
     )  # type: ignore[return-value]
-
-
-def tool_in_work_pin(machine: Machine, q: np.ndarray) -> np.ndarray:
-    """Pose of the tool frame in the workpiece frame, from Pinocchio.
-
-    Parameters
-    ----------
-    machine : Machine
-    q : ndarray, shape (n, m) or (m,), mm / rad
-
-    Returns
-    -------
-    ndarray, shape (n, 4, 4)
-        Homogeneous transforms, translation in mm.
-    """
-    import pinocchio as pin
-
-    q = _as_q(machine, q)
-    model: Any  # pinocchio.Model and pinocchio.Data (pinocchio is untyped)
-    data: Any
-    model, data = machine.model, machine._pin_data
-    fw, ft = machine._frame_ids
-    out = np.empty((q.shape[0], 4, 4))
-    for i, qi in enumerate(q):
-        pin.framesForwardKinematics(model, data, machine.pin_configuration(qi))
-        out[i] = (data.oMf[fw].inverse() * data.oMf[ft]).homogeneous
-    out[:, :3, 3] *= M_TO_MM
-    return out
-
-
-def tip_and_axis_pin(
-    machine: Machine, q: np.ndarray, tool_length: float = 0.0
-) -> tuple[np.ndarray, np.ndarray]:
-    """Tool tip (mm) and axis in the workpiece frame from Pinocchio; see :func:`tip_and_axis`."""
-    t = tool_in_work_pin(machine, q)
-    axis = t[:, :3, 2]
-    return t[:, :3, 3] - tool_length * axis, axis
-
-
-def jacobian_pin(machine: Machine, q: np.ndarray, tool_length: float = 0.0) -> np.ndarray:
-    """Jacobian of the tool tip relative to the workpiece, in the workpiece frame, from Pinocchio.
-
-    Parameters
-    ----------
-    machine : Machine
-    q : ndarray, shape (n, m) or (m,), mm / rad
-    tool_length : float, mm
-        The tip is this far from the gauge point along the tool axis.
-
-    Returns
-    -------
-    ndarray, shape (n, 6, m)
-        Rows 0-2: tip velocity (mm per mm, or mm per rad); rows 3-5: angular velocity of the tool
-        relative to the workpiece (rad per mm, or rad per rad). Columns in ``axis_names`` order.
-    """
-    import pinocchio as pin
-
-    q = _as_q(machine, q)
-    model: Any  # pinocchio.Model and pinocchio.Data (pinocchio is untyped)
-    data: Any
-    model, data = machine.model, machine._pin_data
-    fw, ft = machine._frame_ids
-    lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-    cols = [model.joints[model.getJointId(a.name)].idx_v for a in machine.axes]
-    scale = np.array([1.0 if a.rotary else 1.0 / M_TO_MM for a in machine.axes])
-    out = np.empty((q.shape[0], 6, len(machine.axes)))
-    for i, qi in enumerate(q):
-        qp = machine.pin_configuration(qi)
-        pin.computeJointJacobians(model, data, qp)
-        pin.updateFramePlacements(model, data)
-        j_t = pin.getFrameJacobian(model, data, ft, lwa)[:, cols]
-        j_w = pin.getFrameJacobian(model, data, fw, lwa)[:, cols]
-        o_m_w, o_m_t = data.oMf[fw], data.oMf[ft]
-        r_w = o_m_w.rotation
-        tip = o_m_t.translation - tool_length / M_TO_MM * o_m_t.rotation[:, 2]
-        w_rel = j_t[3:] - j_w[3:]
-        # tip velocity: frame origin velocity plus omega x (tip - origin); relative to the
-        # workpiece frame, which moves with v_w + omega_w x (point - workpiece origin)
-        v_tip = j_t[:3] + skew(tip - o_m_t.translation).T @ j_t[3:]
-        v_work = j_w[:3] + skew(tip - o_m_w.translation).T @ j_w[3:]
-        lin = r_w.T @ (v_tip - v_work) * M_TO_MM
-        ang = r_w.T @ w_rel
-        out[i] = np.vstack([lin, ang]) * scale
-    return out

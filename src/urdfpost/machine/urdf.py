@@ -1,23 +1,27 @@
 """Reading and checking a machine URDF against the urdfpost convention.
 
 Validation happens here, once, before Pinocchio sees the file, so every message can name the
-file, the line and the joint or link at fault.
+file, the line and the joint or link at fault. The functions parse the text
+(:func:`parse_urdf`), find the moving joints between ``workpiece`` and ``tool``
+(:func:`check_chain`), read the ``<urdfpost>`` settings (:func:`parse_settings`) and which axes
+carry each link (:func:`link_axes`); :mod:`urdfpost.machine.load` builds the
+:class:`~urdfpost.machine.model.Machine` from them.
+
+This module is a leaf: it imports from urdfpost only the errors, the units, the machine's data
+classes and the dialect registry (for the controller names).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from lxml import etree
 
+from urdfpost.dialects import DIALECTS
 from urdfpost.errors import MachineDefinitionError
-
-if TYPE_CHECKING:
-    from urdfpost.machine import Machine, Settings
-
-NC_ADDRESSES = ("X", "Y", "Z", "A", "B", "C")
+from urdfpost.machine.model import NC_ADDRESSES, Settings
+from urdfpost.units import M_TO_MM
 
 
 @dataclass(frozen=True)
@@ -37,8 +41,16 @@ class JointSpec:
 
 
 @dataclass(frozen=True)
-class Chain:
-    """Moving joints between ``workpiece`` and ``tool``, ordered from the workpiece."""
+class JointChain:
+    """The moving joints between ``workpiece`` and ``tool`` as the file gives them.
+
+    Attributes
+    ----------
+    joints : tuple of JointSpec
+        Ordered from the workpiece, each with its ``side``.
+    ancestor : str
+        The link where the paths from ``workpiece`` and from ``tool`` to the root meet.
+    """
 
     joints: tuple[JointSpec, ...]
     ancestor: str
@@ -46,7 +58,17 @@ class Chain:
 
 @dataclass(frozen=True)
 class UrdfDoc:
-    """The parts of a URDF that the checks need."""
+    """The parts of a URDF that the checks need.
+
+    Attributes
+    ----------
+    root : lxml.etree._Element
+        The ``<robot>`` element.
+    links : dict of str to int
+        Link name to the line it is defined on, in file order.
+    joints : dict of str to JointSpec
+        Joint name to joint, in file order.
+    """
 
     root: etree._Element
     links: dict[str, int]  # name -> line
@@ -165,12 +187,12 @@ def _path_to_root(doc: UrdfDoc, link: str) -> list[JointSpec]:
     return path
 
 
-def check_chain(doc: UrdfDoc, source: str) -> Chain:
+def check_chain(doc: UrdfDoc, source: str) -> JointChain:
     """Find and check the moving joints between ``workpiece`` and ``tool``.
 
     Returns
     -------
-    Chain
+    JointChain
         Moving joints ordered from the workpiece, each with ``side`` "table" (moves the
         workpiece) or "head" (moves the tool).
 
@@ -255,7 +277,7 @@ def check_chain(doc: UrdfDoc, source: str) -> Chain:
             raise MachineDefinitionError(
                 f"{where}: joint {j.name!r}: velocity limit {j.velocity} must be positive"
             )
-    return Chain(joints=tuple(moving), ancestor=common)
+    return JointChain(joints=tuple(moving), ancestor=common)
 
 
 def _sided(j: JointSpec, side: str) -> JointSpec:
@@ -268,12 +290,11 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
     Raises
     ------
     MachineDefinitionError
-        For an unknown controller or units, a preference or home naming a missing axis, or a
-        value that is not a number.
+        For an unknown controller (one not in :data:`urdfpost.dialects.DIALECTS`) or units, a
+        preference or home naming a missing axis, or a value that is not a number. The
+        ``strategy`` name is not checked here: :attr:`Settings.where` lets the post report an
+        unknown one against the file.
     """
-    from urdfpost.machine import CONTROLLERS, Settings
-    from urdfpost.units import M_TO_MM
-
     axis_names = [j.name for j in joints]
     rotary_names = [j.name for j in joints if j.type != "prismatic"]
     el = doc.root.find("urdfpost")
@@ -281,9 +302,9 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         return Settings()
     where = _where(source, el.sourceline)
     controller = el.get("controller", "heidenhain")
-    if controller not in CONTROLLERS:
+    if controller not in DIALECTS:
         raise MachineDefinitionError(
-            f"{where}: <urdfpost controller={controller!r}>: expected one of {CONTROLLERS}"
+            f"{where}: <urdfpost controller={controller!r}>: expected one of {tuple(DIALECTS)}"
         )
     units = el.get("units", "mm")
     if units not in ("mm", "inch"):
@@ -320,14 +341,6 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
                 )
             home[key] = value * (M_TO_MM if key in ("X", "Y", "Z") else 1.0)
     strategy = el.get("strategy")
-    if strategy is not None:
-        from urdfpost.planning.strategies import STRATEGIES
-
-        if strategy not in STRATEGIES:
-            raise MachineDefinitionError(
-                f"{where}: <urdfpost strategy={strategy!r}>: expected one of "
-                f"{', '.join(STRATEGIES)}"
-            )
     desc_el = el.find("description")
     description = " ".join((desc_el.text or "").split()) if desc_el is not None else ""
     return Settings(
@@ -338,37 +351,36 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         home=home,
         description=description,
         strategy=strategy,
+        where=where,
     )
 
 
-def check_geometry(machine: Machine, source: str) -> None:
-    """Checks that need the numbers: independent linear axes, usable rotary axes.
+def link_axes(doc: UrdfDoc, axis_names: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
+    """Per link: the machine axes between the root link and it, from the root.
 
-    Raises
-    ------
-    MachineDefinitionError
-        When two rotary axes are parallel, when the second rotary axis is parallel to the
-        tool axis (it would not change the orientation), or when the linear axes do not span
-        space.
+    Parameters
+    ----------
+    doc : UrdfDoc
+    axis_names : tuple of str
+        The machine's axes (the moving joints of the chain).
+
+    Returns
+    -------
+    dict of str to tuple of str
+        For every link, in file order.
     """
-    lin = np.array([a.direction for a in machine.linear])
-    if abs(np.linalg.det(lin)) < 1e-6:
-        names = ", ".join(a.name for a in machine.linear)
-        raise MachineDefinitionError(
-            f"{source}: linear axes {names} do not span space (their directions are coplanar)"
-        )
-    rot = machine.rotary
-    v0 = machine.home_tool_axis
-    if len(rot) == 2:
-        k1, k2 = rot[0].direction, rot[1].direction
-        if np.linalg.norm(np.cross(k1, k2)) < 1e-6:
-            raise MachineDefinitionError(
-                f"{source}: rotary joints {rot[0].name!r} and {rot[1].name!r} are parallel: "
-                "no five-axis orientation is possible"
-            )
-    last = rot[-1]
-    if len(rot) == 2 and np.linalg.norm(np.cross(last.direction, v0)) < 1e-6:
-        raise MachineDefinitionError(
-            f"{source}: rotary joint {last.name!r} is parallel to the tool axis at home, so it "
-            "cannot change the tool orientation"
-        )
+    by_child = {j.child: j for j in doc.joints.values()}
+    names = set(axis_names)
+    paths = {}
+    for link in doc.links:
+        path, at, seen = [], link, {link}
+        while at in by_child:
+            j = by_child[at]
+            if j.name in names:
+                path.append(j.name)
+            at = j.parent
+            if at in seen:  # a loop off the chain (Pinocchio refuses the file)
+                break
+            seen.add(at)
+        paths[link] = tuple(path[::-1])
+    return paths

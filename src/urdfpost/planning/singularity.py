@@ -18,7 +18,7 @@ import numpy as np
 
 from urdfpost.kinematics.forward import (
     ROWS,
-    Chain,
+    PoeChain,
     axis_and_joint_directions,
     chain_of,
     row_chunks,
@@ -30,7 +30,7 @@ from urdfpost.toolpath import Motion, Toolpath
 log = logging.getLogger(__name__)
 
 
-def orientation_jacobian(machine: Machine | Chain, q: np.ndarray) -> np.ndarray:
+def orientation_jacobian(machine: Machine | PoeChain, q: np.ndarray) -> np.ndarray:
     """Jacobian of the tool-axis vector with respect to the rotary joints (vectorised).
 
     Column j is ``omega_j(q) x v``, where ``omega_j`` is the direction of rotary joint j in the
@@ -40,7 +40,7 @@ def orientation_jacobian(machine: Machine | Chain, q: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    machine : Machine or Chain
+    machine : Machine or PoeChain
     q : ndarray, shape (n, m) or (m,), mm / rad
 
     Returns
@@ -56,7 +56,7 @@ def orientation_jacobian(machine: Machine | Chain, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def _jacobian_into(out: np.ndarray, chain: Chain, q: np.ndarray) -> np.ndarray:
+def _jacobian_into(out: np.ndarray, chain: PoeChain, q: np.ndarray) -> np.ndarray:
     """:func:`orientation_jacobian` of a few thousand rows ``q`` into ``out`` (k, 3, r); returns
     the tool axis (k, 3)."""
     v, directions = axis_and_joint_directions(chain, q)
@@ -93,7 +93,7 @@ def _conditioning_of(j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _conditioning_and_axis(
-    machine: Machine | Chain, q: np.ndarray
+    machine: Machine | PoeChain, q: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`conditioning` and the tool axis (n, 3), a few thousand rows at a time (the
     Jacobians of one chunk stay in the CPU cache and are not kept)."""
@@ -110,7 +110,7 @@ def _conditioning_and_axis(
     return sigma, kappa, axis
 
 
-def conditioning(machine: Machine | Chain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def conditioning(machine: Machine | PoeChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Smallest singular value and condition number of the orientation Jacobian.
 
     For a machine with one rotary axis the Jacobian is a single column; its norm is both the
@@ -118,7 +118,7 @@ def conditioning(machine: Machine | Chain, q: np.ndarray) -> tuple[np.ndarray, n
 
     Parameters
     ----------
-    machine : Machine or Chain
+    machine : Machine or PoeChain
     q : ndarray, shape (n, m) or (m,), mm / rad
 
     Returns

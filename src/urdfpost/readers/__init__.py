@@ -1,6 +1,6 @@
 """Cutter-location (CL) data readers.
 
-Two formats:
+Two formats, one module each:
 
 - ``"apt"``: APT-family records (generic APT, CATIA, Creo, Siemens NX CLSF listings), see
   :mod:`urdfpost.readers.apt` for the records understood and the events emitted;
@@ -10,28 +10,63 @@ Every reader returns a :class:`~urdfpost.toolpath.Toolpath` in millimetres in th
 and remembers the file's units. Files are opened only here. :func:`read_cl` reads a whole file at
 once; :func:`read_cl_chunks` reads it in pieces (for files too large to hold in memory) and
 hands out the same toolpath as consecutive pieces.
+
+:data:`FORMATS` maps each format's name to its :class:`Format`: its whole-file reader, its
+streaming reader and how it is detected. It is built when the package is imported from the
+package's modules: every module whose name does not start with ``_`` is a format and declares
+one ``FORMAT``; the formats are in the order of their names (the order of messages and of
+detection).
+
+Adding a format takes one new file, ``readers/<name>.py``, that declares ``FORMAT``::
+
+    # src/urdfpost/readers/csv.py: comma-separated points, x,y,z,i,j,k per line
+    from ._format import Format
+
+    def read_csv_text(text, *, source="<string>", units=None, chord_tolerance=0.001):
+        ...  # -> Toolpath (build it with _common.ToolpathBuilder)
+
+    def read_csv_stream(source, *, max_points, units, chord_tolerance, text_piece):
+        ...  # -> Iterator[Toolpath]: read_csv_text's toolpath in pieces (see _stream)
+
+    FORMAT = Format(
+        name="csv",
+        description="comma-separated x,y,z,i,j,k points",
+        read_text=read_csv_text,
+        read_stream=read_csv_stream,
+        detect=None,  # or detect(text, line_start) -> bool, to be recognised
+    )
+
+``read_cl(path, format="csv")`` then reads it, and ``read_cl_chunks`` too. A format with a
+``detect`` function is chosen for text it recognises (detectors are tried in the order of
+:data:`FORMATS`); text that none recognises is of the one format marked ``fallback`` (plain).
 """
 
 from __future__ import annotations
 
+import importlib
 import logging
 import operator
 import os
-from collections.abc import Callable, Iterator
+import pkgutil
+from collections.abc import Iterator, Mapping
+from types import MappingProxyType
 
 from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Toolpath
 
 from ._common import normalise_units
 from ._encoding import HEAD_BYTES, check_text, encoding_of
-from ._stream import STREAM_READERS, check_chord_tolerance, detect_file_format
-from .apt import detect_apt, read_apt_text
+from ._format import Format
+from ._stream import check_chord_tolerance, text_pieces
+from .apt import read_apt_text
 from .plain import read_plain_text
 
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "READERS",
+    "FORMATS",
+    "Format",
+    "detect_file_format",
     "detect_format",
     "read_apt_text",
     "read_cl",
@@ -40,8 +75,66 @@ __all__ = [
     "read_plain_text",
 ]
 
-#: Reader of each format: ``reader(text, *, source, units, chord_tolerance) -> Toolpath``.
-READERS: dict[str, Callable[..., Toolpath]] = {"apt": read_apt_text, "plain": read_plain_text}
+
+def _discover(package: str, path: list[str]) -> Mapping[str, Format]:
+    """The ``FORMAT`` of every public module of a package, by name.
+
+    Parameters
+    ----------
+    package : str
+        The package's name (``__name__``).
+    path : list of str
+        Its ``__path__``.
+
+    Returns
+    -------
+    mapping of str to Format
+        Read-only, in the order of the names.
+
+    Raises
+    ------
+    TypeError
+        A public module without a ``FORMAT``, two formats of one name, or not exactly one
+        fallback format.
+    """
+    found: dict[str, Format] = {}
+    for info in pkgutil.iter_modules(path):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{package}.{info.name}")
+        entry = getattr(module, "FORMAT", None)
+        if not isinstance(entry, Format):
+            raise TypeError(
+                f"{module.__name__}: expected a module-level FORMAT = Format(...) (a helper "
+                f"module's name starts with '_'), got {entry!r}"
+            )
+        if entry.name in found:
+            raise TypeError(f"{module.__name__}: format {entry.name!r} is declared twice")
+        found[entry.name] = entry
+    fallbacks = [name for name, entry in found.items() if entry.fallback]
+    if len(fallbacks) != 1:
+        raise TypeError(f"{package}: expected one fallback format, got {fallbacks}")
+    return MappingProxyType(dict(sorted(found.items())))
+
+
+#: Every CL format by name (sorted), found in this package's modules (see the docstring).
+FORMATS: Mapping[str, Format] = _discover(__name__, __path__)
+
+_FALLBACK = next(name for name, entry in FORMATS.items() if entry.fallback)
+
+
+def _format_named(name: str) -> Format:
+    """The format of a name given by a caller (any case).
+
+    Raises
+    ------
+    ValueError
+        For an unknown name; the message lists the known ones.
+    """
+    try:
+        return FORMATS[name.lower()]
+    except KeyError:
+        raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {name!r}") from None
 
 
 def detect_format(text: str) -> str:
@@ -50,10 +143,38 @@ def detect_format(text: str) -> str:
     Returns
     -------
     str
-        "apt" when any line looks like an APT/CLSF record (``WORD/...``, or a ``$$`` comment),
-        else "plain".
+        The first format of :data:`FORMATS` whose detector recognises the text, else the
+        fallback: "apt" when any line looks like an APT/CLSF record (``WORD/...``, or a ``$$``
+        comment), else "plain".
     """
-    return "apt" if detect_apt(text) else "plain"
+    for name, entry in FORMATS.items():
+        if entry.detect is not None and entry.detect(text, True):
+            return name
+    return _FALLBACK
+
+
+def detect_file_format(source: str, size: int = 1 << 23) -> str:
+    """:func:`detect_format` of a file, read in pieces of about ``size`` bytes until it is known.
+
+    A format is known when it is recognised in a piece and no format before it in
+    :data:`FORMATS` can still be (an APT file is known at its first record); a file that only
+    the fallback format fits is read to the end.
+
+    Raises
+    ------
+    CLDataError
+        When the file cannot be read.
+    """
+    detecting = [(name, entry.detect) for name, entry in FORMATS.items() if entry.detect]
+    seen: set[str] = set()
+    line_start = True  # whether the piece starts where the whole text has a "^" (after LF)
+    for piece in text_pieces(source, size):
+        # a line's match ends before its line's break, so it lies in one piece
+        seen.update(name for name, detect in detecting if detect(piece, line_start))
+        if detecting and detecting[0][0] in seen:  # no format before it to wait for
+            return detecting[0][0]
+        line_start = piece.endswith("\n")
+    return next((name for name, _ in detecting if name in seen), _FALLBACK)
 
 
 def read_cl_text(
@@ -73,7 +194,7 @@ def read_cl_text(
     source : str
         Name used in messages and warnings.
     format : str, optional
-        A key of :data:`READERS`; detected with :func:`detect_format` when omitted.
+        A key of :data:`FORMATS` (any case); detected with :func:`detect_format` when omitted.
     units : str, optional
         "mm" or "inch": the units of the values when the file does not say (default "mm").
         A file that says (``UNITS/``, ``IPM``/``MMPM``) wins.
@@ -94,13 +215,9 @@ def read_cl_text(
     if format is None:
         format = detect_format(text)
         logger.debug("%s: detected format %s", source, format)
-    try:
-        reader = READERS[format.lower()]
-    except KeyError:
-        raise ValueError(
-            f"format: expected one of {', '.join(sorted(READERS))}, got {format!r}"
-        ) from None
-    return reader(text, source=source, units=units, chord_tolerance=chord_tolerance)
+    return _format_named(format).read_text(
+        text, source=source, units=units, chord_tolerance=chord_tolerance
+    )
 
 
 def read_cl(
@@ -190,8 +307,8 @@ def read_cl_chunks(
     ------
     ValueError
         At the call, before the file is read: ``max_points`` below 1, an unknown format or
-        units name, a chord tolerance that is not positive (for an APT format given; for a
-        detected one, at the first piece).
+        units name, a chord tolerance that is not positive (for a format given that has arcs,
+        such as APT; for a detected one, at the first piece).
     CLDataError
         The error :func:`read_cl` raises, with the same file, line and message, when the
         iteration reaches it: pieces before the bad record may have been handed out already.
@@ -209,12 +326,9 @@ def read_cl_chunks(
     max_points = _check_count(max_points, "max_points", "point")
     text_piece = _check_count(_text_piece, "_text_piece", "character")
     if format is not None:
-        if format.lower() not in STREAM_READERS:
-            raise ValueError(
-                f"format: expected one of {', '.join(sorted(READERS))}, got {format!r}"
-            )
-        format = format.lower()
-        if format == "apt":
+        entry = _format_named(format)
+        format = entry.name
+        if entry.arcs:
             check_chord_tolerance(chord_tolerance)
     normalise_units(units)
     return _read_chunks(
@@ -257,7 +371,7 @@ def _read_chunks(
     if format is None:
         format = detect_file_format(source, text_piece)
         logger.debug("%s: detected format %s", source, format)
-    yield from STREAM_READERS[format](
+    yield from FORMATS[format].read_stream(
         source,
         max_points=max_points,
         units=units,

@@ -10,9 +10,12 @@ A file is read in three steps:
 3. :class:`_AptInterpreter` walks the records with the modal state (tool axis, feed, spindle,
    coordinate frame, pending ``RAPID``/``CIRCLE``) and fills a toolpath builder.
 
-Steps 1 and 3 keep their state between calls, so that :func:`~urdfpost.readers.read_cl_chunks`
-can feed them a file piece by piece (:func:`scan_piece`, :meth:`_AptInterpreter.step`) after a
-quick pass for step 2.
+Steps 1 and 3 keep their state between calls, so that :func:`read_apt_stream` (the reader of
+:func:`~urdfpost.readers.read_cl_chunks`) can feed them a file piece by piece
+(:func:`scan_piece`, :meth:`_AptInterpreter.step`) after a quick pass for step 2
+(:func:`_apt_facts`: what the reader needs from the whole file before it can interpret the
+first record, the file's units, NX dialect, a continued record cut off by the end of the file,
+from a pre-scan that passes over the runs of plain GOTO lines without parsing them).
 
 Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records. Step 1 finds such runs
 (:func:`scan_text`) and reads their numbers in bulk with numpy into a :class:`GotoRun`; step 3
@@ -73,7 +76,18 @@ from ._common import (
     scale_of,
     unit_vector,
 )
+from ._format import Format
 from ._geometry import IDENTITY, ArcTooFineError, Frame, interpolate_arc
+from ._stream import (
+    KEEP,
+    check_chord_tolerance,
+    hand_out,
+    iter_lines,
+    last_pieces,
+    line_count,
+    split_parts,
+    text_pieces,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -82,6 +96,7 @@ RADIUS_MISMATCH_WARN = 0.005
 four decimals in inch round by up to 0.0013 mm per coordinate, so less is only rounding."""
 
 __all__ = [
+    "FORMAT",
     "GotoRun",
     "Record",
     "declared_units",
@@ -89,6 +104,7 @@ __all__ = [
     "feed_units",
     "is_nx_record",
     "normalise_breaks",
+    "read_apt_stream",
     "read_apt_text",
     "scan_piece",
     "scan_records",
@@ -549,9 +565,13 @@ def scan_piece(
     return None
 
 
-def detect_apt(text: str) -> bool:
-    """Whether any line of ``text`` looks like an APT/CLSF record (``WORD/...`` or ``$$``)."""
-    return APT_LINE.search(text) is not None
+def detect_apt(text: str, line_start: bool = True) -> bool:
+    """Whether any line of ``text`` looks like an APT/CLSF record (``WORD/...`` or ``$$``).
+
+    ``line_start`` False: ``text`` is a piece of a file that follows a lone CR, where the whole
+    text's ``^`` does not match (see :class:`~urdfpost.readers._format.Detector`).
+    """
+    return APT_LINE.search(text, 0 if line_start else 1) is not None
 
 
 def _file_units(records: Sequence[Record | GotoRun]) -> str | None:
@@ -1287,3 +1307,186 @@ def read_apt_text(
             f"{len(scan.after_fini)} non-blank line(s) after FINI ignored",
         )
     return interpreter.builder.build(units=file_units, multiaxis=interpreter.multiaxis)
+
+
+# -- a file in pieces ------------------------------------------------------------------------------
+
+#: Characters of text scanned into records at a time, and of the runs of GOTO lines read in
+#: bulk: bounds the records held and the parser's temporary copies (4 bytes a character) to a
+#: few times this, whatever the text piece.
+_STREAM_PART = 1 << 18
+#: Characters a GOTO line needs before it may be passed over by the pre-scan: one that holds
+#: none of them cannot continue onto the next line, start a comment or name feed units.
+_NOTABLE = ("$", "P", "p")
+#: Blocks of lines the pre-scan passes over: GOTO records (any case and blanks) with none of
+#: :data:`_NOTABLE`, which can say nothing of the file's units or dialect.
+_PLAIN_GOTO_LINES = re.compile(r"(?:^[ \t]*[Gg][Oo][Tt][Oo][ \t]*/[^$Pp\n]*(?:\n|\Z))+", re.M)
+
+
+def _apt_parts(source: str, text_piece: int) -> Iterator[str]:
+    """The text of a file with ``\\n`` line breaks, in parts of about :data:`_STREAM_PART`
+    characters (longer for a longer line) cut after line breaks; no reference kept to the
+    earlier ones."""
+    for piece in text_pieces(source, text_piece):
+        text = normalise_breaks(piece)
+        del piece
+        yield from split_parts(text, _STREAM_PART)
+        del text
+
+
+def _apt_facts(source: str, size: int) -> tuple[str | None, bool]:
+    """What an APT file says of itself before FINI: declared units and NX dialect.
+
+    The records are those of :func:`~urdfpost.readers.apt.scan_text`, except that blocks of
+    :data:`_PLAIN_GOTO_LINES` are passed over (as one record each they could only be GOTO
+    records with no feed-unit keyword).
+
+    Returns
+    -------
+    units : str or None
+        As ``_file_units`` of the whole file: the first UNITS record, else the first feed-unit
+        keyword, else None.
+    nx : bool
+        Whether the file has NX listing lines or NX-only records.
+
+    Raises
+    ------
+    CLDataError
+        When the file ends inside a continued record (as the whole-file reader raises it,
+        before any record is interpreted).
+    """
+    scanner = _Scanner(source)
+    declared: str | None = None
+    in_feeds: str | None = None
+    nx = False
+    line = 1
+    for text in _apt_parts(source, size):
+        count = line_count(text)
+        if not (scanner.pending is None and _only_plain_gotos(text, count)):
+            _prescan_piece(scanner, text, line)
+        for record in scanner.scan.records:
+            declared = declared or declared_units(record)
+            in_feeds = in_feeds or feed_units(record)
+            nx = nx or is_nx_record(record)
+        scanner.scan.records.clear()
+        if scanner.fini:
+            break
+        line += count
+        del text
+    scan = scanner.finish()
+    return declared or in_feeds, nx or scan.listing_lines > 0
+
+
+def _only_plain_gotos(text: str, count: int) -> bool:
+    """Whether all ``count`` lines of ``text`` start with ``GOTO/`` and none holds any of
+    :data:`_NOTABLE` (a quick test for most of a large file)."""
+    return (
+        text.startswith("GOTO/")
+        and text.count("\nGOTO/") == count - 1
+        and not any(c in text for c in _NOTABLE)
+    )
+
+
+def _prescan_piece(scanner: _Scanner, text: str, line: int) -> None:
+    """Scan the lines of ``text`` (``\\n`` breaks; its first line is ``line``) into
+    ``scanner``, passing over the blocks of :data:`_PLAIN_GOTO_LINES`."""
+    pos = 0
+    for block in _PLAIN_GOTO_LINES.finditer(text):
+        start, end = block.span()
+        if start > pos:
+            lines = text[pos : start - 1].split("\n")
+            scanner.feed(lines, line)
+            if scanner.fini:
+                return
+            line += len(lines)
+        if scanner.pending is not None:  # its first line ends a continued record
+            first_end = text.find("\n", start, end)
+            scanner.feed([text[start : end if first_end < 0 else first_end]], line)
+            if scanner.fini:
+                return
+        line += text.count("\n", start, end) + (text[end - 1] != "\n")
+        pos = end
+    if pos < len(text):
+        scanner.feed(text[pos:].split("\n"), line)
+
+
+def _after_fini(lines: Iterable[str], first: int) -> tuple[int, int]:
+    """The lines after FINI that the whole-file reader warns about: the first one's number
+    (0 for none) and how many there are; ``lines`` are numbered from ``first``."""
+    number, count = 0, 0
+    for k, raw in enumerate(lines, start=first):
+        stripped = raw.strip()
+        if stripped and not skipped_line(stripped):
+            number, count = number or k, count + 1
+    return number, count
+
+
+def _first_point_of(record: Record | GotoRun, before: int, after: int) -> int:
+    """Index of the first point made by ``record``, which added points ``before:after``.
+
+    The points of an arc but its last are made by the CIRCLE record; the GOTO that ends it
+    makes the last one. A record that makes no point gives the index of the next one.
+    """
+    if isinstance(record, GotoRun):  # one point per record, but the first may end an arc
+        return after - len(record)
+    return max(before, after - 1)
+
+
+def read_apt_stream(
+    source: str, *, max_points: int, units: str | None, chord_tolerance: float, text_piece: int
+) -> Iterator[Toolpath]:
+    """:func:`read_apt_text` of a file, in pieces (``FORMAT.read_stream``)."""
+    fallback = normalise_units(units)
+    check_chord_tolerance(chord_tolerance)
+    declared, nx = _apt_facts(source, text_piece)
+    file_units = declared or fallback
+    logger.debug("%s: units %s, dialect %s", source, file_units, "NX CLSF" if nx else "APT")
+    interpreter = _AptInterpreter(source, file_units, chord_tolerance, nx)
+    builder = interpreter.builder
+    scanner = _Scanner(source)
+    multiaxis_from: int | None = None
+    after, count_after = 0, 0  # first line after FINI to warn about, and how many
+    line = 1
+    parts = _apt_parts(source, text_piece)
+    for part in parts:
+        rest = scan_piece(scanner, part, line, _STREAM_PART)
+        records, scanner.scan.records = scanner.scan.records, []
+        line += part.count("\n")
+        del part  # the records hold what they need of it
+        for record in records:
+            before = len(builder)
+            interpreter.step(record)
+            if multiaxis_from is None and interpreter.multiaxis:
+                multiaxis_from = _first_point_of(record, before, len(builder))
+            if builder.held > max_points + KEEP - 1:
+                yield from hand_out(builder, max_points, file_units, multiaxis_from, KEEP - 1)
+        del records
+        if rest is not None:  # FINI: the rest of the file is only looked at for the warning
+            after, count_after = _after_fini(rest, scanner.fini + 1)
+            for part in parts:
+                number, count = _after_fini(iter_lines(part), line)
+                after, count_after = after or number, count_after + count
+                line += part.count("\n")
+            break
+    scanner.finish()  # the pre-scan found any record left open by the end of the file
+    interpreter.finish()
+    if after:
+        builder.warn(after, f"{count_after} non-blank line(s) after FINI ignored")
+    logger.debug(
+        "%s: %d points, %d listing lines skipped, %d trailing $$ comments ignored",
+        source,
+        len(builder),
+        scanner.scan.listing_lines,
+        scanner.scan.trailing_comments,
+    )
+    yield from last_pieces(builder, max_points, file_units, multiaxis_from, interpreter.multiaxis)
+
+
+FORMAT = Format(
+    name="apt",
+    description="APT-family records (generic APT, CATIA, Creo, Siemens NX CLSF listings)",
+    read_text=read_apt_text,
+    read_stream=read_apt_stream,
+    detect=detect_apt,
+    arcs=True,
+)

@@ -4,14 +4,17 @@ Values are separated by blanks or commas. Three values keep the previous tool ax
 (0, 0, 1)). Text after ``#`` or ``;`` is a comment (a "comment" event). Blank lines are
 ignored. Every point is a feed move with no programmed feed (NaN); the file has no units, so
 the caller's ``units`` (default "mm") apply.
+
+It is the format of text in which no other format is detected (``FORMAT.fallback``).
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 
 from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Motion, Toolpath
@@ -24,11 +27,13 @@ from ._common import (
     scale_of,
     unit_vector,
 )
-from .apt import split_lines
+from ._format import Format
+from ._stream import KEEP, hand_out, iter_lines, last_pieces, line_count, text_pieces
+from .apt import normalise_breaks, split_lines
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["PlainReader", "read_plain_text"]
+__all__ = ["FORMAT", "PlainReader", "read_plain_stream", "read_plain_text"]
 
 _SEPARATOR = re.compile(r"\s*,\s*|\s+")
 _COMMENT = re.compile(r"[#;]")
@@ -160,3 +165,34 @@ def _values(code: str, source: str, line: int) -> list[float]:
                 source, line, f"expected a finite number for the {ordinal(k)} value, got '{value}'"
             )
     return values
+
+
+def read_plain_stream(
+    source: str, *, max_points: int, units: str | None, chord_tolerance: float, text_piece: int
+) -> Iterator[Toolpath]:
+    """:func:`read_plain_text` of a file, in pieces."""
+    del chord_tolerance  # no arcs, as in read_plain_text
+    reader = PlainReader(source, units)
+    builder, file_units = reader.builder, reader.units
+    line = 1
+    for piece in text_pieces(source, text_piece):
+        text = normalise_breaks(piece)
+        del piece
+        count = line_count(text)
+        lines = iter_lines(text)
+        for first in range(line, line + count, max_points):  # a line makes at most one point
+            reader.feed(itertools.islice(lines, max_points), first)
+            yield from hand_out(builder, max_points, file_units, reader.multiaxis_from, KEEP - 1)
+        line += count
+        del text, lines
+    logger.debug("%s: %d points, units %s", source, len(builder), file_units)
+    yield from last_pieces(builder, max_points, file_units, reader.multiaxis_from, reader.multiaxis)
+
+
+FORMAT = Format(
+    name="plain",
+    description="one x y z [i j k] point per line",
+    read_text=read_plain_text,
+    read_stream=read_plain_stream,
+    fallback=True,
+)

@@ -1,0 +1,936 @@
+"""The collision world: FCL scene of a machine, its tool and the stock, and its queries.
+
+A :class:`CollisionWorld` is built once per machine, tool and stock, and then asked about many
+joint vectors: :meth:`CollisionWorld.check` for configurations, :meth:`CollisionWorld.check_moves`
+for the straight joint-space moves between them. Geometry is built once; per configuration only
+the transforms of the bodies that move relative to the workpiece are updated.
+
+Bodies, and the side of the kinematic chain each belongs to (derived from the URDF tree, no
+machine names):
+
+- every ``<collision>`` element of every link (box, cylinder, sphere, mesh). A link is on the
+  **head** side when a moving joint of the chain that carries the tool lies between it and the
+  root, on the **table** side when one that carries the workpiece does, and in the **static**
+  frame when neither does (bed, column, trunnion housing);
+- the tool on the head side (:class:`ToolBody`): the cutting part from the tip, the shank above
+  it and the holder, which ends at the gauge point;
+- the stock (or part) mesh in the workpiece frame, on the workpiece's side.
+
+Pairs checked: every body against every body of another side, and the stock against bodies of
+its own side that move relative to it, except the cutting part against the stock (that is
+cutting) and machine shapes that already touch at the home pose. ``docs/collisions.md`` lists the
+pairs and the limits.
+
+Everything is placed in the workpiece frame, mm. Joint vectors ``q`` have one column per axis in
+``machine.axis_names`` order (mm for linear axes, rad for rotary axes), as everywhere in urdfpost.
+
+Examples
+--------
+>>> from urdfpost.machine import load_machine
+>>> machine = load_machine("dmu50")
+>>> world = CollisionWorld.build(machine, ToolBody(diameter=10.0), tool_length=100.0)
+>>> bool(world.check(machine.home).hit[0])
+False
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from urdfpost.collision.fcl_shapes import (
+    MACHINE,
+    STOCK,
+    Shape,
+    _import_fcl,
+    machine_shapes,
+    stock_shape,
+    tool_shapes,
+    twin,
+)
+from urdfpost.collision.mesh import load_mesh, points_inside
+from urdfpost.collision.tool import CUTTER, HOLDER, SHANK, ToolBody
+from urdfpost.machine import Machine
+from urdfpost.units import M_TO_MM
+
+if TYPE_CHECKING:
+    import trimesh
+
+log = logging.getLogger(__name__)
+
+HEAD, TABLE, STATIC = "head", "table", "static"
+"""Sides of the kinematic chain a body moves with."""
+
+HOME_CONTACT_MM = 0.01
+"""Machine shapes closer than this at the home pose (mm) are taken as touching by design (a slide
+on its bed, a cradle in its trunnion) and not checked against each other. 0.01 mm: far below any
+modelled clearance, above the rounding of FCL's distance between touching faces."""
+
+JOB_BODIES = (CUTTER, SHANK, HOLDER, STOCK)
+"""Kinds of the bodies that come with the job (``clearance_of=JOB_BODIES``)."""
+
+DEFAULT_STEP_MM = 1.0
+"""Default largest displacement (mm) of any body point between two samples of a move."""
+
+DEFAULT_STEP_DEG = 1.0
+"""Default largest rotary axis change (degrees) between two samples of a move."""
+
+_CHUNK = 2048  # configurations whose transforms are computed at once (memory bound)
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """One rigid collision shape.
+
+    Attributes
+    ----------
+    name : str
+        The ``<collision name>`` (``link/name`` if the name is taken, the link name if there
+        is none), or ``cutter``, ``shank``, ``holder``, ``stock``.
+    kind : str
+        ``machine``, ``cutter``, ``shank``, ``holder`` or ``stock``.
+    link : str
+        URDF link it moves with.
+    side : str
+        ``head``, ``table`` or ``static``.
+    axes : frozenset of str
+        Machine axes between the root link and ``link``: bodies with equal sets never move
+        relative to each other.
+    local : ndarray, shape (4, 4)
+        Placement of the shape in the link frame, translation in mm.
+    center : ndarray, shape (3,)
+        Centre of a sphere enclosing the shape, in the shape's own frame, mm.
+    radius : float
+        Radius of that sphere, mm.
+    hull : ndarray, shape (k, 3)
+        Points in the shape's own frame, mm: the shape lies within ``pad`` of their convex hull.
+    pad : float
+        mm.
+    """
+
+    name: str
+    kind: str
+    link: str
+    side: str
+    axes: frozenset[str]
+    local: np.ndarray
+    center: np.ndarray
+    radius: float
+    hull: np.ndarray
+    pad: float
+
+
+@dataclass(frozen=True, eq=False)
+class CollisionResult:
+    """Collisions of single configurations.
+
+    Attributes
+    ----------
+    hit : ndarray, shape (n,), bool
+        Whether configuration i collides.
+    pairs : list of (str, str) or None
+        Body names of the first colliding pair found per configuration (tool and head first),
+        None where clear.
+    clearance : ndarray, shape (n,), mm, or None
+        Smallest distance over the checked pairs, 0 where colliding; None unless asked for.
+    nearest : list of (str, str) or None, or None
+        The pair at that distance; None unless clearance was asked for.
+    """
+
+    hit: np.ndarray
+    pairs: list[tuple[str, str] | None]
+    clearance: np.ndarray | None = None
+    nearest: list[tuple[str, str] | None] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class MoveCollisionResult:
+    """Collisions of the straight joint-space moves between consecutive configurations.
+
+    Attributes
+    ----------
+    hit : ndarray, shape (n - 1,), bool
+        Whether move i (from configuration i to i + 1, both ends included) collides.
+    pairs : list of (str, str) or None
+        Body names of the first colliding pair along each move, None where clear.
+    at : ndarray, shape (n - 1,)
+        Fraction of the move (0 = start, 1 = end) of the first colliding sample, NaN where
+        clear.
+    samples : ndarray, shape (n - 1,), int
+        Number of intervals each move was cut into (``samples + 1`` configurations checked,
+        fewer when a collision ends the scan).
+    """
+
+    hit: np.ndarray
+    pairs: list[tuple[str, str] | None]
+    at: np.ndarray
+    samples: np.ndarray
+
+
+@dataclass
+class _Query:
+    """Mutable state handed to the FCL broad-phase callback."""
+
+    fcl: Any
+    index: dict[int, int]  # id of an FCL geometry -> body index
+    excluded: set[tuple[int, int]]
+    request: Any
+    pair: tuple[int, int] | None = None
+
+
+def _collide_callback(o1: Any, o2: Any, query: _Query) -> bool:
+    """Narrow phase of one broad-phase candidate pair; True (stop) on a counted collision."""
+    fcl = query.fcl
+    result = fcl.CollisionResult()
+    if not fcl.collide(o1, o2, query.request, result):
+        return False
+    c = result.contacts[0]
+    i, j = query.index[id(c.o1)], query.index[id(c.o2)]
+    key = (min(i, j), max(i, j))
+    if key in query.excluded:
+        return False
+    query.pair = key
+    return True
+
+
+def _side(machine: Machine, path: Sequence[str]) -> str:
+    """Side of a link with these machine axes above it."""
+    sides = {machine.axis(a).side for a in path}
+    return HEAD if HEAD in sides else TABLE if TABLE in sides else STATIC
+
+
+def _bodies_of(
+    machine: Machine, shapes: list[Shape], paths: Mapping[str, Sequence[str]]
+) -> tuple[list[Body], list[Any]]:
+    """Bodies in reporting order (tool, head, stock, table, static) and their FCL geometries.
+
+    Machine shapes are named by their ``<collision name>``, by ``link/name`` when the name is
+    used twice or by a tool or stock body, and by the link name when they have none.
+    """
+    rank = {CUTTER: 0, SHANK: 1, HOLDER: 2, HEAD: 3, STOCK: 4, TABLE: 5, STATIC: 6}
+    shapes = sorted(
+        shapes,
+        key=lambda s: rank[s.kind if s.kind != MACHINE else _side(machine, paths[s.link])],
+    )
+    taken = {s.kind for s in shapes if s.kind != MACHINE}
+    counts: dict[str, int] = {}
+    for s in shapes:
+        if s.kind == MACHINE:
+            counts[s.name or s.link] = counts.get(s.name or s.link, 0) + 1
+    bodies, seen = [], set()
+    for s in shapes:
+        name = s.kind
+        if s.kind == MACHINE:
+            name = s.name or s.link
+            if name in taken or counts[name] > 1:
+                name = f"{s.link}/{name}"
+            base, k = name, 1
+            while name in seen:
+                k += 1
+                name = f"{base}#{k}"
+        seen.add(name)
+        bodies.append(
+            Body(
+                name=name,
+                kind=s.kind,
+                link=s.link,
+                side=_side(machine, paths[s.link]),
+                axes=frozenset(paths[s.link]),
+                local=s.local,
+                center=s.center,
+                radius=s.radius,
+                hull=s.hull,
+                pad=s.pad,
+            )
+        )
+    return bodies, [s.geometry for s in shapes]
+
+
+def _levers(machine: Machine, bodies: list[Body], paths: Mapping[str, Sequence[str]]) -> np.ndarray:
+    """Per axis: the largest distance of any body point from a rotary axis, mm (1 if linear).
+
+    Bounded over every configuration within travel, at the neutral pose: for a body moved by
+    the axis directly (no machine axis between them), the largest distance of its hull from
+    the axis line; otherwise the distance from the axis line to the next axis' pivot, plus the
+    distances between the pivots further down (rigid), plus the largest travel of every linear
+    axis on the way, plus the largest distance of the hull from the last pivot.
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        In ``machine.axis_names`` order.
+    """
+    import pinocchio as pin
+
+    model = machine.model
+    data = model.createData()  # type: ignore[attr-defined]
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    pin.updateFramePlacements(model, data)
+    pivot, direction = {}, {}
+    for a in machine.axes:
+        jid = model.getJointId(a.name)  # type: ignore[attr-defined]
+        pivot[a.name] = np.asarray(data.oMi[jid].translation) * M_TO_MM
+        motion = np.asarray(data.joints[jid].S).reshape(6)  # joint frame, linear part first
+        direction[a.name] = data.oMi[jid].rotation @ motion[3:]
+
+    def from_line(name: str, x: np.ndarray) -> np.ndarray:
+        d = x - pivot[name]
+        return np.linalg.norm(d - np.outer(d @ direction[name], direction[name]), axis=1)
+
+    levers = {a.name: 1.0 for a in machine.axes}
+    for b in bodies:
+        t = data.oMf[model.getFrameId(b.link, pin.FrameType.BODY)].homogeneous.copy()  # type: ignore[attr-defined]
+        t[:3, 3] *= M_TO_MM
+        t = t @ b.local
+        hull = b.hull @ t[:3, :3].T + t[:3, 3]
+        path = paths[b.link]
+        for k, name in enumerate(path):
+            if not machine.axis(name).rotary:
+                continue
+            below = path[k + 1 :]
+            if not below:
+                reach = float(from_line(name, hull).max())
+            else:
+                p = pivot[below[0]]
+                reach = float(from_line(name, p[None, :])[0])
+                for nxt in below[1:]:
+                    reach += float(np.linalg.norm(pivot[nxt] - p))
+                    p = pivot[nxt]
+                for nxt in below:
+                    a = machine.axis(nxt)
+                    if not a.rotary:
+                        reach += max(abs(a.lower), abs(a.upper))
+                reach += float(np.linalg.norm(hull - p, axis=1).max())
+            levers[name] = max(levers[name], reach + b.pad)
+    return np.array([levers[a.name] for a in machine.axes])
+
+
+# -- the world ----------------------------------------------------------------------------
+
+
+class CollisionWorld:
+    """FCL scene of one machine, tool and stock; build it with :meth:`build`.
+
+    The world holds FCL objects whose transforms it sets on every query, so one world serves
+    one thread at a time. Geometry is never rebuilt after :meth:`build`.
+
+    Attributes
+    ----------
+    machine : Machine
+    tool_length : float
+        Gauge point to tip, mm.
+    stock_mesh : trimesh.Trimesh or None
+        The stock in the workpiece frame, mm.
+    """
+
+    machine: Machine
+    tool_length: float
+    stock_mesh: trimesh.Trimesh | None
+
+    # set by build() and the _setup_* helpers it calls; FCL and Pinocchio objects are untyped
+    _fcl: Any  # the fcl module
+    _geometries: list[Any]  # per body: its FCL geometry
+    _bodies: tuple[Body, ...]
+    _stock: int  # index of the stock body, -1 if none
+    _objects: list[Any]  # per body: its fcl.CollisionObject
+    _index: dict[int, int]  # id of an FCL geometry -> body index
+    _crequest: Any  # fcl.CollisionRequest
+    _drequest: Any  # fcl.DistanceRequest
+    _box_center: np.ndarray  # (b, 3): per body, centre of its box in its own frame, mm
+    _box_half: np.ndarray  # (b, 3): per body, half sizes of that box, mm
+    _excluded: set[tuple[int, int]]  # body pairs (i < j) touching at home
+    _pairs: np.ndarray  # (p, 2), int: body pairs checked
+    _levers: np.ndarray  # (m,): per axis, see levers
+    _pin: Any  # the pinocchio module
+    _data: Any  # pinocchio.Data
+    _neutral: np.ndarray  # (nq,)
+    _pin_index: tuple[tuple[int, int], ...]  # per axis: (idx_q, nq)
+    _moving: list[int]  # bodies that move relative to the workpiece
+    _moving_pos: dict[int, int]  # body index -> position in _moving
+    _frames: list[int]  # Pinocchio frame ids: the workpiece, then the moving bodies' links
+    _moving_link: np.ndarray  # (k,), int: per moving body, its link among _frames[1:]
+    _moving_local: np.ndarray  # (k, 4, 4): per moving body, its placement in its link
+    _fixed_transform: dict[int, np.ndarray]  # bodies rigid with the workpiece: placement
+    _manager_pairs: list[tuple[Any, Any]]  # broad-phase managers collided with each other
+    _moving_managers: list[Any]  # managers holding a moving body
+    _twins: dict[int, Any]  # primitive body -> fcl.CollisionObject of its triangulated twin
+
+    @classmethod
+    def build(
+        cls,
+        machine: Machine,
+        tool: ToolBody | None = None,
+        tool_length: float | None = None,
+        stock: str | os.PathLike[str] | trimesh.Trimesh | None = None,
+        *,
+        home_contact: float = HOME_CONTACT_MM,
+    ) -> CollisionWorld:
+        """Build the bodies, the FCL objects and the broad-phase managers.
+
+        Parameters
+        ----------
+        machine : Machine
+        tool : ToolBody, optional
+            Default ``ToolBody()`` (10 mm flat end mill in a 40 x 60 mm holder).
+        tool_length : float, optional
+            Gauge point to tip, mm; default the machine's ``tool_length`` setting. 0: no tool
+            bodies (the gauge point is programmed).
+        stock : path or trimesh.Trimesh, optional
+            Stock or part mesh in the workpiece frame, mm (STL, OBJ, ... read by trimesh).
+        home_contact : float
+            Machine shapes closer than this at the home pose are not checked against each
+            other, mm (see ``HOME_CONTACT_MM``).
+
+        Returns
+        -------
+        CollisionWorld
+
+        Raises
+        ------
+        GeometryError
+            A stock or mesh file that is missing or unreadable, a ``<collision>`` element that
+            cannot be read, nonsensical tool sizes.
+        """
+        fcl = _import_fcl()
+        self = cls()
+        self.machine = machine
+        self._fcl = fcl
+        self.tool_length = float(
+            machine.settings.tool_length if tool_length is None else tool_length
+        )
+        if not self.tool_length > 0:
+            log.info("tool length 0 (gauge point programmed): no tool bodies are checked")
+        self.stock_mesh = None
+        if stock is not None:
+            mesh = load_mesh(stock) if isinstance(stock, str | os.PathLike) else stock
+            if not mesh.is_watertight:
+                log.warning(
+                    "stock mesh is not closed: only contacts with its surface are found, not "
+                    "a body entirely inside it"
+                )
+            self.stock_mesh = mesh
+
+        shapes = tool_shapes(fcl, tool or ToolBody(), self.tool_length)
+        shapes += machine_shapes(fcl, machine)
+        if self.stock_mesh is not None:
+            shapes.append(stock_shape(fcl, self.stock_mesh))
+        paths = machine.link_axes
+        bodies, self._geometries = _bodies_of(machine, shapes, paths)
+        self._bodies = tuple(bodies)
+        self._stock = next((i for i, b in enumerate(bodies) if b.kind == STOCK), -1)
+        self._objects = [fcl.CollisionObject(g) for g in self._geometries]
+        self._index = {id(g): i for i, g in enumerate(self._geometries)}
+        self._crequest = fcl.CollisionRequest(num_max_contacts=1, enable_contact=False)
+        self._drequest = fcl.DistanceRequest()
+        lo = np.array([b.hull.min(axis=0) - b.pad for b in bodies])
+        hi = np.array([b.hull.max(axis=0) + b.pad for b in bodies])
+        self._box_center, self._box_half = (lo + hi) / 2, (hi - lo) / 2
+
+        self._setup_kinematics(paths["workpiece"])
+        self._setup_managers(frozenset(paths["workpiece"]))
+        self._excluded = set()
+        self._exclude_touching_at_home(home_contact)
+        self._pairs = np.array(
+            [
+                (i, j)
+                for i in range(len(bodies))
+                for j in range(i + 1, len(bodies))
+                if self._rule(bodies[i], bodies[j]) and (i, j) not in self._excluded
+            ],
+            dtype=int,
+        ).reshape(-1, 2)
+        self._setup_twins()
+        self._levers = _levers(machine, bodies, paths)
+        log.debug(
+            "collision world for %s: %d bodies, %d pairs checked, %d excluded",
+            machine.name,
+            len(bodies),
+            len(self._pairs),
+            len(self._excluded),
+        )
+        return self
+
+    def _setup_kinematics(self, work_path: Sequence[str]) -> None:
+        """Frames to place the bodies that move in the workpiece frame; place the others."""
+        import pinocchio as pin
+
+        model, bodies = self.machine.model, self._bodies
+        self._pin = pin
+        self._data = model.createData()  # type: ignore[attr-defined]
+        self._neutral = pin.neutral(model)
+        self._pin_index = self.machine._pin_index
+        work_axes = frozenset(work_path)
+        self._moving = [i for i, b in enumerate(bodies) if b.axes != work_axes]
+        self._moving_pos = {i: k for k, i in enumerate(self._moving)}
+        links = sorted({bodies[i].link for i in self._moving})
+        frame = {
+            lk: model.getFrameId(lk, pin.FrameType.BODY)  # type: ignore[attr-defined]
+            for lk in {b.link for b in bodies} | {"workpiece"}
+        }
+        self._frames = [frame["workpiece"]] + [frame[lk] for lk in links]
+        self._moving_link = np.array([links.index(bodies[i].link) for i in self._moving], int)
+        self._moving_local = np.array([bodies[i].local for i in self._moving]).reshape(-1, 4, 4)
+        # bodies rigid with the workpiece: placed once (at home; any pose gives the same)
+        data = self._data
+        pin.forwardKinematics(model, data, self._pin_q(self.machine.home[None, :])[0])
+        w_inv = np.linalg.inv(pin.updateFramePlacement(model, data, frame["workpiece"]).homogeneous)
+        self._fixed_transform = {}
+        for i, b in enumerate(bodies):
+            if i not in self._moving_pos:
+                t = w_inv @ pin.updateFramePlacement(model, data, frame[b.link]).homogeneous
+                t[:3, 3] *= M_TO_MM
+                self._fixed_transform[i] = t @ b.local
+                self._place(self._objects[i], t @ b.local)
+
+    def _setup_managers(self, work_axes: frozenset[str]) -> None:
+        """One broad-phase manager per class of bodies.
+
+        Bodies of one class (side; cutter, stock or other; rigid with the workpiece or not)
+        have the same partners under :meth:`_rule`, so colliding the right pairs of managers
+        checks exactly the chosen pairs of bodies.
+        """
+        fcl, bodies = self._fcl, self._bodies
+        classes: dict[tuple[str, str, bool], list[int]] = {}
+        for i, b in enumerate(bodies):
+            kind = b.kind if b.kind in (CUTTER, STOCK) else ""
+            classes.setdefault((b.side, kind, b.axes == work_axes), []).append(i)
+        managers = []
+        for members in classes.values():
+            m = fcl.DynamicAABBTreeCollisionManager()
+            m.registerObjects([self._objects[i] for i in members])
+            m.setup()
+            managers.append((m, members))
+        self._manager_pairs = [
+            (ma, mb)
+            for a, (ma, ia) in enumerate(managers)
+            for mb, ib in managers[a + 1 :]
+            if self._rule(bodies[ia[0]], bodies[ib[0]])
+        ]
+        self._moving_managers = [
+            m for m, members in managers if any(i in self._moving_pos for i in members)
+        ]
+
+    def _exclude_touching_at_home(self, home_contact: float) -> None:
+        """Leave out pairs of machine shapes that touch at the home pose; say which."""
+        fcl, bodies = self._fcl, self._bodies
+        self._set_moving(self._moving_transforms(self.machine.home[None, :])[0])
+        for i in range(len(bodies)):
+            for j in range(i + 1, len(bodies)):
+                bi, bj = bodies[i], bodies[j]
+                if bi.kind != MACHINE or bj.kind != MACHINE or not self._rule(bi, bj):
+                    continue
+                oi, oj = self._objects[i], self._objects[j]
+                touching = fcl.collide(oi, oj, self._crequest, fcl.CollisionResult()) or (
+                    fcl.distance(oi, oj, self._drequest) <= home_contact
+                )
+                if touching:
+                    self._excluded.add((i, j))
+                    # neighbours across one axis (a slide on its bed) are expected to touch
+                    neighbours = len(bi.axes ^ bj.axes) == 1
+                    (log.info if neighbours else log.warning)(
+                        "%s: %s (%s) and %s (%s) touch at the home pose: not checked against "
+                        "each other",
+                        self.machine.name,
+                        bi.name,
+                        bi.link,
+                        bj.name,
+                        bj.link,
+                    )
+
+    def _setup_twins(self) -> None:
+        """Triangulated twins of the primitives paired with a mesh, for distances."""
+        fcl = self._fcl
+        meshes = {i for i, g in enumerate(self._geometries) if isinstance(g, fcl.BVHModel)}
+        self._twins = {}
+        for pair in self._pairs:
+            for a, b in (pair, pair[::-1]):
+                a, b = int(a), int(b)
+                if b in meshes and a not in meshes and a not in self._twins:
+                    copy = twin(fcl, self._geometries[a])
+                    if copy is not None:
+                        self._twins[a] = fcl.CollisionObject(copy)
+                        if a in self._fixed_transform:
+                            self._place(self._twins[a], self._fixed_transform[a])
+
+    @staticmethod
+    def _rule(a: Body, b: Body) -> bool:
+        """Whether bodies a and b are checked against each other (before home exclusions)."""
+        if a.axes == b.axes:
+            return False  # rigidly connected
+        kinds = {a.kind, b.kind}
+        if kinds == {CUTTER, STOCK}:
+            return False  # that is cutting
+        return a.side != b.side or STOCK in kinds
+
+    # -- description ---------------------------------------------------------------------
+
+    @property
+    def bodies(self) -> tuple[Body, ...]:
+        """Every body, in reporting order (tool, head, stock, table, static)."""
+        return self._bodies
+
+    @property
+    def excluded(self) -> tuple[tuple[str, str], ...]:
+        """Pairs of machine shapes not checked because they touch at the home pose."""
+        b = self._bodies
+        return tuple((b[i].name, b[j].name) for i, j in sorted(self._excluded))
+
+    @property
+    def levers(self) -> dict[str, float]:
+        """Per axis: largest distance of a body point from a rotary axis (mm), 1 for linear."""
+        return dict(zip(self.machine.axis_names, self._levers.tolist(), strict=True))
+
+    def checked_pairs(self) -> list[tuple[str, str]]:
+        """Every pair of bodies checked against each other, by name."""
+        b = self._bodies
+        return [
+            (b[i].name, b[j].name)
+            for i in range(len(b))
+            for j in range(i + 1, len(b))
+            if self._rule(b[i], b[j]) and (i, j) not in self._excluded
+        ]
+
+    # -- kinematics ----------------------------------------------------------------------
+
+    def _as_q(self, q: np.ndarray) -> np.ndarray:
+        m = len(self.machine.axes)
+        q = np.asarray(q, dtype=float)
+        if q.ndim == 1:
+            q = q[None, :]
+        if q.ndim != 2 or q.shape[1] != m:
+            raise ValueError(
+                f"expected joint vectors of shape (n, {m}) ({' '.join(self.machine.axis_names)}),"
+                f" got {q.shape}"
+            )
+        bad = ~np.isfinite(q).all(axis=1)
+        if bad.any():
+            raise ValueError(f"joint vectors with NaN or inf at rows {np.flatnonzero(bad)[:10]}")
+        return q
+
+    def _pin_q(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio configurations, shape (n, nq)."""
+        qp = np.tile(self._neutral, (q.shape[0], 1))
+        for col, ((idx, nq), a) in enumerate(zip(self._pin_index, self.machine.axes, strict=True)):
+            if nq == 2:
+                qp[:, idx], qp[:, idx + 1] = np.cos(q[:, col]), np.sin(q[:, col])
+            elif a.rotary:
+                qp[:, idx] = q[:, col]
+            else:
+                qp[:, idx] = q[:, col] / M_TO_MM
+        return qp
+
+    def _moving_transforms(self, q: np.ndarray) -> np.ndarray:
+        """Placements of the moving bodies in the workpiece frame, shape (n, k, 4, 4), mm."""
+        pin, model, data = self._pin, self.machine.model, self._data
+        qp = self._pin_q(q)
+        frames = self._frames
+        out = np.empty((q.shape[0], len(frames), 4, 4))
+        for i in range(q.shape[0]):
+            pin.forwardKinematics(model, data, qp[i])
+            for k, f in enumerate(frames):
+                out[i, k] = pin.updateFramePlacement(model, data, f).homogeneous
+        rel = np.linalg.inv(out[:, :1]) @ out[:, 1:]
+        rel[:, :, :3, 3] *= M_TO_MM
+        return rel[:, self._moving_link] @ self._moving_local
+
+    @staticmethod
+    def _place(obj: Any, t: np.ndarray) -> None:
+        obj.setRotation(t[:3, :3])
+        obj.setTranslation(t[:3, 3])
+
+    def _set_moving(self, transforms: np.ndarray) -> None:
+        for k, i in enumerate(self._moving):
+            self._place(self._objects[i], transforms[k])
+        for m in self._moving_managers:
+            m.update()
+
+    # -- queries -------------------------------------------------------------------------
+
+    def _first_pair(self) -> tuple[int, int] | None:
+        query = _Query(self._fcl, self._index, self._excluded, self._crequest)
+        for ma, mb in self._manager_pairs:
+            ma.collide(mb, query, _collide_callback)
+            if query.pair is not None:
+                return query.pair
+        return None
+
+    def _lower_bounds(self, transforms: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """Lower bounds of the distance of each pair, shape (n, p), mm.
+
+        Each body is enclosed in an oriented box (the bounding box of its hull points in its
+        own frame); the bound is the largest gap between the two boxes along any of their six
+        axes (a separating-axis test that measures the gap).
+        """
+        n, bodies = transforms.shape[0], self._bodies
+        rot = np.empty((n, len(bodies), 3, 3))
+        center = np.empty((n, len(bodies), 3))
+        for i, t in self._fixed_transform.items():
+            rot[:, i] = t[:3, :3]
+            center[:, i] = t[:3, :3] @ self._box_center[i] + t[:3, 3]
+        for k, i in enumerate(self._moving):
+            t = transforms[:, k]
+            rot[:, i] = t[:, :3, :3]
+            center[:, i] = t[:, :3, :3] @ self._box_center[i] + t[:, :3, 3]
+        ia, ib = pairs[:, 0], pairs[:, 1]
+        r_a, r_b = rot[:, ia], rot[:, ib]  # (n, p, 3, 3), columns = box axes
+        axes = np.concatenate([r_a, r_b], axis=3)  # (n, p, 3, 6)
+        d = np.abs(np.einsum("npi,npik->npk", center[:, ib] - center[:, ia], axes))
+        half_a = np.abs(np.einsum("npij,npik->npjk", r_a, axes))  # |a_j . u_k|
+        half_b = np.abs(np.einsum("npij,npik->npjk", r_b, axes))
+        reach = np.einsum("pj,npjk->npk", self._box_half[ia], half_a) + np.einsum(
+            "pj,npjk->npk", self._box_half[ib], half_b
+        )
+        return np.maximum((d - reach).max(axis=2), 0.0)
+
+    def _distance(self, i: int, j: int, transforms: np.ndarray) -> float:
+        """Distance between bodies i and j placed by ``transforms`` (moving bodies), mm."""
+        fcl = self._fcl
+        objects = []
+        for a, b in ((i, j), (j, i)):
+            twin = self._twins.get(a)
+            if twin is not None and isinstance(self._geometries[b], fcl.BVHModel):
+                if a in self._moving_pos:
+                    self._place(twin, transforms[self._moving_pos[a]])
+                objects.append(twin)
+            else:
+                objects.append(self._objects[a])
+        return float(fcl.distance(objects[0], objects[1], self._drequest))
+
+    def _nearest(
+        self, transforms: np.ndarray, pairs: np.ndarray, bounds: np.ndarray
+    ) -> tuple[float, tuple[int, int] | None]:
+        """Smallest distance over ``pairs``, visiting them by increasing lower bound."""
+        best, arg = math.inf, None
+        for p in np.argsort(bounds):
+            if bounds[p] >= best:
+                break
+            i, j = int(pairs[p, 0]), int(pairs[p, 1])
+            d = self._distance(i, j, transforms)
+            if d < best:
+                best, arg = max(d, 0.0), (i, j)
+                if best <= 0.0:
+                    break
+        return best, arg
+
+    def _inside_stock(self, transforms: np.ndarray, clear: np.ndarray) -> np.ndarray:
+        """Index of a head-side body entirely inside the (closed) stock, -1 if none.
+
+        Parameters
+        ----------
+        transforms : ndarray, shape (n, k, 4, 4)
+            Moving body placements.
+        clear : ndarray, shape (n,), bool
+            Configurations to test.
+
+        Returns
+        -------
+        ndarray, shape (n,), int
+            Body index.
+        """
+        n = transforms.shape[0]
+        out = np.full(n, -1)
+        mesh = self.stock_mesh
+        if mesh is None or not mesh.is_watertight or not clear.any():
+            return out
+        lo, hi = mesh.bounds
+        for k, i in enumerate(self._moving):
+            b = self._bodies[i]
+            if b.side != HEAD or b.kind == CUTTER:
+                continue
+            c = transforms[:, k, :3, :3] @ b.center + transforms[:, k, :3, 3]
+            within = clear & (out < 0) & np.all((c - b.radius > lo) & (c + b.radius < hi), axis=1)
+            if within.any():
+                rows = np.flatnonzero(within)
+                out[rows[points_inside(mesh, c[rows])]] = i
+        return out
+
+    def _names(self, pair: tuple[int, int] | None) -> tuple[str, str] | None:
+        if pair is None:
+            return None
+        return (self._bodies[pair[0]].name, self._bodies[pair[1]].name)
+
+    def _clearance_pairs(self, clearance_of: Collection[str] | None) -> np.ndarray:
+        if clearance_of is None:
+            return self._pairs
+        wanted = set(clearance_of)
+        b = self._bodies
+        keep = [
+            k
+            for k, (i, j) in enumerate(self._pairs)
+            if wanted & {b[i].name, b[i].kind, b[j].name, b[j].kind}
+        ]
+        return self._pairs[keep]
+
+    def check(
+        self,
+        q: np.ndarray,
+        clearance: bool = False,
+        clearance_of: Collection[str] | None = None,
+    ) -> CollisionResult:
+        """Collisions of single configurations.
+
+        Parameters
+        ----------
+        q : ndarray, shape (n, m) or (m,)
+            Joint vectors, mm / rad, columns in ``machine.axis_names`` order.
+        clearance : bool
+            Also compute the smallest distance over the checked pairs (slower).
+        clearance_of : collection of str, optional
+            Count only pairs with a body of these names or kinds in the clearance, e.g.
+            ``JOB_BODIES`` (tool and stock) to leave out gaps inside the machine.
+
+        Returns
+        -------
+        CollisionResult
+
+        Raises
+        ------
+        ValueError
+            For joint vectors of the wrong shape or with NaN.
+        """
+        q = self._as_q(q)
+        n = q.shape[0]
+        hit = np.zeros(n, dtype=bool)
+        pairs: list[tuple[int, int] | None] = [None] * n
+        dist = np.full(n, np.nan)
+        nearest: list[tuple[int, int] | None] = [None] * n
+        near_pairs = self._clearance_pairs(clearance_of) if clearance else self._pairs[:0]
+        for start in range(0, n, _CHUNK):
+            rows = slice(start, min(start + _CHUNK, n))
+            transforms = self._moving_transforms(q[rows])
+            for k in range(transforms.shape[0]):
+                self._set_moving(transforms[k])
+                pairs[start + k] = self._first_pair()
+                hit[start + k] = pairs[start + k] is not None
+            inside = self._inside_stock(transforms, ~hit[rows])
+            for k_in in np.flatnonzero(inside >= 0):
+                hit[start + k_in], pairs[start + k_in] = True, (int(inside[k_in]), self._stock)
+            if clearance:
+                bounds = self._lower_bounds(transforms, near_pairs)
+                for k in range(transforms.shape[0]):
+                    if hit[start + k]:
+                        dist[start + k], nearest[start + k] = 0.0, pairs[start + k]
+                    else:
+                        self._set_moving(transforms[k])
+                        d, arg = self._nearest(transforms[k], near_pairs, bounds[k])
+                        dist[start + k], nearest[start + k] = d, arg
+        return CollisionResult(
+            hit=hit,
+            pairs=[self._names(p) for p in pairs],
+            clearance=dist if clearance else None,
+            nearest=[self._names(p) for p in nearest] if clearance else None,
+        )
+
+    def sample_counts(
+        self, q: np.ndarray, step_mm: float = DEFAULT_STEP_MM, step_deg: float = DEFAULT_STEP_DEG
+    ) -> np.ndarray:
+        """Number of intervals :meth:`check_moves` cuts each move into.
+
+        The sampling rule: along a straight joint-space move the points of two bodies move,
+        relative to each other, along paths no longer than ``s = sum_j lever_j * |dq_j|``
+        (``lever_j`` = 1 for a linear axis, and for a rotary axis the largest distance of any
+        body point from it, see :attr:`levers`). The move is cut into ``max(ceil(s / step_mm),
+        ceil(max_rotary |dq| / step_deg), 1)`` equal intervals, so between two samples no body
+        point moves more than ``step_mm`` relative to another body, and no rotary axis turns
+        more than ``step_deg``.
+
+        Parameters
+        ----------
+        q : ndarray, shape (n, m)
+            mm / rad.
+        step_mm : float
+            mm.
+        step_deg : float
+            Degrees.
+
+        Returns
+        -------
+        ndarray, shape (n - 1,), int
+        """
+        if not (step_mm > 0 and step_deg > 0):
+            raise ValueError(f"expected positive steps, got {step_mm!r} mm, {step_deg!r} deg")
+        q = self._as_q(q)
+        dq = np.abs(np.diff(q, axis=0))
+        swept = dq @ self._levers
+        rot = [i for i, a in enumerate(self.machine.axes) if a.rotary]
+        turn = dq[:, rot].max(axis=1) if rot else np.zeros(len(dq))
+        n = np.maximum(np.ceil(swept / step_mm), np.ceil(turn / math.radians(step_deg)))
+        return np.maximum(n, 1).astype(int)
+
+    def check_moves(
+        self, q: np.ndarray, step_mm: float = DEFAULT_STEP_MM, step_deg: float = DEFAULT_STEP_DEG
+    ) -> MoveCollisionResult:
+        """Collisions along the straight joint-space moves between consecutive configurations.
+
+        Each move is sampled as :meth:`sample_counts` says (both ends included) and scanned
+        from its start; the scan of a move stops at its first collision. Anywhere on the move,
+        the bodies are within ``step_mm / 2`` (relative displacement of any point) of where
+        they are at the nearest sample, so an overlap that holds a ball of diameter
+        ``step_mm / 2`` is always found; only shallower grazes can fall between samples.
+
+        Parameters
+        ----------
+        q : ndarray, shape (n, m)
+            Joint vectors, mm / rad.
+        step_mm : float
+            Largest displacement of a body point between samples, mm.
+        step_deg : float
+            Largest rotary axis change between samples, degrees.
+
+        Returns
+        -------
+        MoveCollisionResult
+        """
+        q = self._as_q(q)
+        counts = self.sample_counts(q, step_mm, step_deg)
+        ends = self.check(q)
+        n_moves = q.shape[0] - 1
+        hit = np.zeros(n_moves, dtype=bool)
+        at = np.full(n_moves, np.nan)
+        pairs: list[tuple[str, str] | None] = [None] * n_moves
+        start_hit = ends.hit[:-1]
+        hit[start_hit] = True
+        at[start_hit] = 0.0
+        for i in np.flatnonzero(start_hit):
+            pairs[i] = ends.pairs[i]
+        # interior samples of the moves whose start is clear, in order along each move
+        todo = np.flatnonzero(~start_hit & (counts > 1))
+        inner = counts[todo] - 1
+        move = np.repeat(todo, inner)
+        offsets = np.cumsum(inner) - inner
+        k = np.arange(len(move)) - np.repeat(offsets, inner) + 1
+        t = k / counts[move]
+        for lo in range(0, len(move), _CHUNK):
+            sl = slice(lo, lo + _CHUNK)
+            mv, tt = move[sl], t[sl]
+            live = ~hit[mv]
+            if not live.any():
+                continue
+            mv, tt = mv[live], tt[live]
+            qs = q[mv] + tt[:, None] * (q[mv + 1] - q[mv])
+            transforms = self._moving_transforms(qs)
+            for r in range(len(mv)):
+                if hit[mv[r]]:
+                    continue
+                self._set_moving(transforms[r])
+                pair = self._first_pair()
+                if pair is not None:
+                    hit[mv[r]], at[mv[r]], pairs[mv[r]] = True, tt[r], self._names(pair)
+            inside = self._inside_stock(transforms, np.ones(len(mv), dtype=bool))
+            for r_in in np.flatnonzero(inside >= 0):
+                m = mv[r_in]
+                if not hit[m] or tt[r_in] < at[m]:
+                    hit[m], at[m] = True, tt[r_in]
+                    pairs[m] = self._names((int(inside[r_in]), self._stock))
+        end_hit = ~hit & ends.hit[1:]
+        hit[end_hit] = True
+        at[end_hit] = 1.0
+        for i in np.flatnonzero(end_hit):
+            pairs[i] = ends.pairs[i + 1]
+        return MoveCollisionResult(hit=hit, pairs=pairs, at=at, samples=counts)

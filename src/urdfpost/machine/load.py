@@ -1,0 +1,264 @@
+"""Loading a machine: finding its file by name, reading it and building the :class:`Machine`.
+
+A machine file follows the convention in ``docs/machines.md``: a ``workpiece`` link (the CL
+frame), a ``tool`` link (gauge point, +Z toward the spindle), and between them 3 prismatic and 1
+or 2 rotary joints named with their NC addresses. Everything urdfpost needs is derived here at
+load time, with no per-machine code:
+
+- the Pinocchio model (forward kinematics and Jacobians for checking);
+- the chain from workpiece to tool as screws in the workpiece frame at home (product of
+  exponentials), which the vectorised forward and inverse kinematics use;
+- travel limits, velocities and the post settings of the ``<urdfpost>`` extension element;
+- which axes carry each link, and the links' ``<collision>`` shapes (as data).
+
+URDF metres are converted to millimetres here. :mod:`urdfpost.machine.urdf` reads and checks the
+file, :mod:`urdfpost.machine.shapes` its collision shapes, :mod:`urdfpost.machine.model` holds
+the result.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+
+from urdfpost.errors import GeometryError, MachineDefinitionError
+from urdfpost.machine.model import NC_ADDRESSES, ROTARY_TYPES, Axis, Machine, Settings
+from urdfpost.machine.shapes import LinkShape, link_shapes
+from urdfpost.machine.urdf import (
+    JointChain,
+    UrdfDoc,
+    check_chain,
+    link_axes,
+    parse_settings,
+    parse_urdf,
+)
+from urdfpost.units import M_TO_MM
+
+log = logging.getLogger(__name__)
+
+
+def machine_dirs() -> list[Path]:
+    """Folders searched for machines by name: ``$URDFPOST_MACHINES`` then the shipped ones."""
+    dirs = [Path(p) for p in os.environ.get("URDFPOST_MACHINES", "").split(os.pathsep) if p]
+    dirs.append(shipped_machine_dir())
+    return dirs
+
+
+def shipped_machine_dir() -> Path:
+    """Folder of the machines shipped with urdfpost."""
+    spec = importlib.util.find_spec("urdfpost.robots")
+    if spec is not None and spec.submodule_search_locations:
+        return Path(next(iter(spec.submodule_search_locations)))
+    return Path(__file__).resolve().parents[3] / "robots" / "urdf"  # source tree
+
+
+def list_machines() -> dict[str, Path]:
+    """Machines findable by name, ``{name: path}``, first folder wins."""
+    found: dict[str, Path] = {}
+    for d in machine_dirs():
+        if d.is_dir():
+            for p in sorted(d.glob("*.urdf")):
+                found.setdefault(p.stem, p)
+    return found
+
+
+def resolve_machine(name_or_path: str | os.PathLike[str]) -> Path:
+    """Path of a machine given by file path or by name.
+
+    Raises
+    ------
+    MachineDefinitionError
+        When neither a file nor a known machine name matches, listing the known names.
+    """
+    p = Path(name_or_path)
+    if p.is_file():
+        return p
+    known = list_machines()
+    if str(name_or_path) in known:
+        return known[str(name_or_path)]
+    raise MachineDefinitionError(
+        f"{name_or_path}: no such machine file or shipped machine; known machines: "
+        f"{', '.join(sorted(known)) or 'none'}"
+    )
+
+
+def load_machine(name_or_path: str | os.PathLike[str]) -> Machine:
+    """Read and check a machine file.
+
+    Parameters
+    ----------
+    name_or_path : str or path
+        A URDF file, or the name of a machine in :func:`machine_dirs`.
+
+    Returns
+    -------
+    Machine
+
+    Raises
+    ------
+    MachineDefinitionError
+        Naming the file and the joint or link at fault.
+    """
+    path = resolve_machine(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise MachineDefinitionError(f"{path}: cannot read: {e}") from e
+    return machine_from_urdf(text, source=str(path), name=path.stem)
+
+
+def machine_from_urdf(text: str, source: str = "<string>", name: str = "machine") -> Machine:
+    """Build a :class:`Machine` from URDF text (see :func:`load_machine`).
+
+    Parameters
+    ----------
+    text : str
+        The URDF.
+    source : str
+        Where it came from, for messages and for finding mesh files.
+    name : str
+        Machine name.
+
+    Returns
+    -------
+    Machine
+
+    Raises
+    ------
+    MachineDefinitionError
+        Naming the file and the joint or link at fault.
+    """
+    doc = parse_urdf(text, source)
+    chain = check_chain(doc, source)
+    settings = parse_settings(doc, source, chain.joints)
+    return _build(text, source, name, doc, chain, settings)
+
+
+def _shapes_of(doc: UrdfDoc, source: str) -> tuple[LinkShape, ...] | GeometryError:
+    """The links' collision shapes, or the error that says why they cannot be read.
+
+    The error is kept, not raised: the machine still loads and posts without collision checks,
+    and :attr:`Machine.shapes` raises it when collision geometry is asked for.
+    """
+    try:
+        return link_shapes(doc.root, source)
+    except GeometryError as e:
+        log.debug("%s: collision shapes cannot be read: %s", source, e)
+        # the tracebacks would hold on to the parse; the message and its cause are what count
+        e.__traceback__ = None
+        if e.__cause__ is not None:
+            e.__cause__.__traceback__ = None
+        return e
+
+
+def _build(
+    text: str,
+    source: str,
+    name: str,
+    doc: UrdfDoc,
+    chain: JointChain,
+    settings: Settings,
+) -> Machine:
+    """The Machine of a checked document: Pinocchio model, axes and screws, home pose."""
+    import pinocchio as pin
+
+    try:
+        model = pin.buildModelFromXML(text)
+    except Exception as e:  # Pinocchio raises plain RuntimeError/ValueError
+        raise MachineDefinitionError(f"{source}: Pinocchio cannot read the URDF: {e}") from e
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    pin.updateFramePlacements(model, data)
+    fw, ft = model.getFrameId("workpiece"), model.getFrameId("tool")
+    o_m_w = data.oMf[fw]
+    r_w = o_m_w.rotation
+    home = (o_m_w.inverse() * data.oMf[ft]).homogeneous.copy()
+    home[:3, 3] *= M_TO_MM
+
+    axes: list[Axis] = []
+    pin_index: dict[str, tuple[int, int]] = {}
+    for i, j in enumerate(chain.joints):
+        jid = model.getJointId(j.name)
+        jm = model.joints[jid]
+        pin_index[j.name] = (jm.idx_q, jm.nq)
+        motion = np.asarray(data.joints[jid].S).reshape(6)  # local frame, linear first
+        o_m_j = data.oMi[jid]
+        sign = -1.0 if j.side == "table" else 1.0
+        if j.type == "prismatic":
+            direction = r_w.T @ (o_m_j.rotation @ motion[:3])
+            screw = np.concatenate([np.zeros(3), sign * direction])
+        else:
+            w = r_w.T @ (o_m_j.rotation @ motion[3:])
+            point = r_w.T @ (o_m_j.translation - o_m_w.translation) * M_TO_MM
+            screw = sign * np.concatenate([w, -np.cross(w, point)])
+        scale = 1.0 if j.type in ROTARY_TYPES else M_TO_MM
+        lower, upper = (-np.inf, np.inf) if j.type == "continuous" else (j.lower, j.upper)
+        axes.append(
+            Axis(
+                name=j.name,
+                kind=j.type,
+                lower=lower * scale,
+                upper=upper * scale,
+                velocity=(j.velocity * scale) if j.velocity is not None else np.inf,
+                side=j.side,
+                screw=screw,
+                chain_index=i,
+            )
+        )
+    axes.sort(key=lambda a: NC_ADDRESSES.index(a.name))
+    for a in axes:
+        a.screw.setflags(write=False)
+    home.setflags(write=False)
+    machine = Machine(
+        name=name,
+        path=source,
+        axes=tuple(axes),
+        settings=settings,
+        home_tool_in_work=home,
+        model=model,
+        urdf_text=text,
+        link_axes=link_axes(doc, tuple(a.name for a in axes)),
+        _shapes=_shapes_of(doc, source),
+        _pin_index=tuple(pin_index[a.name] for a in axes),
+        _frame_ids=(fw, ft),
+    )
+    check_geometry(machine, source)
+    log.debug("loaded machine %s (%s) from %s", name, machine.family, source)
+    return machine
+
+
+def check_geometry(machine: Machine, source: str) -> None:
+    """Checks that need the numbers: independent linear axes, usable rotary axes.
+
+    Raises
+    ------
+    MachineDefinitionError
+        When two rotary axes are parallel, when the second rotary axis is parallel to the
+        tool axis (it would not change the orientation), or when the linear axes do not span
+        space.
+    """
+    lin = np.array([a.direction for a in machine.linear])
+    if abs(np.linalg.det(lin)) < 1e-6:
+        names = ", ".join(a.name for a in machine.linear)
+        raise MachineDefinitionError(
+            f"{source}: linear axes {names} do not span space (their directions are coplanar)"
+        )
+    rot = machine.rotary
+    v0 = machine.home_tool_axis
+    if len(rot) == 2:
+        k1, k2 = rot[0].direction, rot[1].direction
+        if np.linalg.norm(np.cross(k1, k2)) < 1e-6:
+            raise MachineDefinitionError(
+                f"{source}: rotary joints {rot[0].name!r} and {rot[1].name!r} are parallel: "
+                "no five-axis orientation is possible"
+            )
+    last = rot[-1]
+    if len(rot) == 2 and np.linalg.norm(np.cross(last.direction, v0)) < 1e-6:
+        raise MachineDefinitionError(
+            f"{source}: rotary joint {last.name!r} is parallel to the tool axis at home, so it "
+            "cannot change the tool orientation"
+        )

@@ -1,0 +1,161 @@
+"""Realising a plan: joint vectors from a strategy's rotary angles.
+
+A :class:`~urdfpost.planning.problem.Plan` holds rotary angles only; here X, Y, Z are solved
+from them so that the cutting point (or the tip) lies on the CL path at every row
+(:func:`realise`, :func:`solve_rows`), and the generic subdivision gets its midpoints along the
+plan's curve, or from exact inverse kinematics where the plan has none
+(:func:`midpoint_solver`). The rows of the plan's rewinds (lift, turn, return) are inserted by
+:func:`with_rewinds`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from urdfpost.geometry import angle_between
+from urdfpost.kinematics.inverse import assemble, solve_linear
+from urdfpost.linearize import nearest_solution
+from urdfpost.planning.problem import (
+    Plan,
+    Problem,
+    _cutting_point,
+    _on_segments,
+    at_param,
+    tool_axis_of,
+)
+from urdfpost.planning.rewinds import LIFT, RETURN, TURN, rewind_rows
+from urdfpost.toolpath import Toolpath
+
+
+def realise(problem: Problem, plan: Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Joint vectors of a plan's rows, with X, Y, Z solved from the rotary angles.
+
+    Returns
+    -------
+    q : ndarray, shape (N, m)
+    tip : ndarray, shape (N, 3), mm
+        Where the tip is (the cutting point minus the pivot along the tool axis, plus the lift).
+    axis : ndarray, shape (N, 3)
+        The tool axis the rows point along.
+    """
+    bent = np.zeros(len(plan.param), dtype=bool)
+    if plan.curve is not None:
+        bent = np.isfinite(plan.curve(plan.param)).all(axis=1)
+    return solve_rows(problem, plan.toolpath, plan.param, plan.rotary, plan.lift, bent=bent)
+
+
+def solve_rows(
+    problem: Problem,
+    toolpath: Toolpath,
+    param: np.ndarray,
+    rotary: np.ndarray,
+    lift: np.ndarray,
+    bent: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Joint vectors for rotary angles at positions along the CL path (see :func:`realise`).
+
+    Rows marked ``bent`` keep the cutting point (pivot) on the CL path, the others the tip
+    (default: all rows keep the cutting point; at a CL point with the programmed axis the two
+    are the same).
+    """
+    machine = problem.machine
+    pivot = problem.pivot if bent is None else np.where(bent, problem.pivot, 0.0)
+    where = _on_segments(toolpath, param)
+    point = _cutting_point(toolpath, *where, 0.0)
+    centre = _cutting_point(toolpath, *where, problem.pivot)
+    axis = tool_axis_of(machine, rotary)
+    pv = np.broadcast_to(pivot, (len(param),))[:, None]
+    tip = np.where(pv > 0, centre - pv * axis, point) + lift[:, None] * axis
+    lin = solve_linear(machine, rotary, tip, problem.tool_length)
+    return assemble(machine, rotary, lin), tip, axis
+
+
+def midpoint_solver(
+    problem: Problem, plan: Plan
+) -> Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Midpoints for the generic subdivision along the plan's curve (or exact elsewhere).
+
+    Returns
+    -------
+    callable
+        ``solve(param (k,), qa (k, m), qb (k, m)) -> (q, tip, axis)``.
+    """
+    machine, tol = problem.machine, problem.tol
+    cols = list(machine.rotary_columns)
+    lift_param, lift_value = plan.param, plan.lift
+
+    def solve(param: np.ndarray, qa: np.ndarray, qb: np.ndarray):
+        guess = 0.5 * (qa[:, cols] + qb[:, cols])
+        rot = np.full_like(guess, np.nan)
+        if plan.curve is not None:
+            rot = plan.curve(param)
+        exact = np.isnan(rot).any(axis=1)
+        if exact.any():
+            _, ax = at_param(plan.toolpath, param[exact], 0.0)
+            rot[exact] = nearest_solution(machine, ax, guess[exact], tol)
+        lift = (
+            np.interp(param, lift_param, lift_value) if lift_value.any() else np.zeros(len(param))
+        )
+        return solve_rows(problem, plan.toolpath, param, rot, lift, bent=~exact)
+
+    return solve
+
+
+def with_rewinds(
+    problem: Problem, plan: Plan, q: np.ndarray, tip: np.ndarray, axis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Insert the lift and the turn of every rewind of a plan.
+
+    A rewind is a row at the same position as the row before it whose joint-space turn from
+    that row would swing the tool axis (a turn in place at a pole does not): the path arrives
+    with one solution and leaves with another of the same pose. Between them the tool lifts
+    along its axis by the retract distance, turns there, and comes back.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, m)
+    tip, axis : ndarray, shape (N, 3)
+        The plan's rows as :func:`urdfpost.planning.realise.realise` gives them.
+
+    Returns
+    -------
+    q, tip, axis, param : ndarray
+        With the rows inserted.
+    kind : ndarray, shape (N',), int
+        ``CUT``, or ``LIFT`` / ``TURN`` / ``RETURN`` for the rows of a rewind.
+    """
+    machine, param = problem.machine, plan.param
+    kind = np.zeros(len(param), dtype=int)
+    same = np.flatnonzero(param[1:] == param[:-1]) + 1
+    if not same.size:
+        return q, tip, axis, param, kind
+    rot = plan.rotary
+    a, b = rot[same - 1], rot[same]
+    end = tool_axis_of(machine, b)
+    swing = np.max(
+        [angle_between(tool_axis_of(machine, a + t * (b - a)), end) for t in (0.25, 0.5, 0.75)],
+        axis=0,
+    )
+    ks = same[swing > problem.tol.orientation]
+    if not ks.size:
+        return q, tip, axis, param, kind
+    lifted = np.vstack(
+        [
+            rewind_rows(
+                machine, q[k - 1], q[k], tip[k], axis[k], problem.tool_length, problem.retract
+            )[:2]
+            for k in ks
+        ]
+    )
+    at = np.repeat(ks, 2)
+    up = np.repeat(tip[ks] + problem.retract * axis[ks], 2, axis=0)
+    kind[ks] = RETURN
+    return (
+        np.insert(q, at, lifted, axis=0),
+        np.insert(tip, at, up, axis=0),
+        np.insert(axis, at, np.repeat(axis[ks], 2, axis=0), axis=0),
+        np.insert(param, at, param[at]),
+        np.insert(kind, at, np.tile([LIFT, TURN], len(ks))),
+    )

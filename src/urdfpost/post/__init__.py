@@ -1,1 +1,0 @@
-"""Posting: CL data in, a verified NC program out."""

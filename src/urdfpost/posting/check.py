@@ -1,0 +1,141 @@
+"""The check of a posted piece: its program read back, against the CL data and the strategy's path.
+
+Every post ends here, whole or in pieces, in this process or in a verification worker:
+:func:`check_piece` measures the program read back from its text against what the piece was
+made from (a :class:`CheckTarget`), and :func:`tolerance_error` is the error of a program that
+misses its tolerance. The measuring itself is :mod:`urdfpost.verify`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from urdfpost.errors import ToleranceError
+from urdfpost.machine import Machine
+from urdfpost.program import Program
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Toolpath
+from urdfpost.verify import Check, Verification, verify, verify_checks
+
+
+@dataclass(frozen=True)
+class CheckTarget:
+    """What the program of a piece is checked against (small enough to send to a worker).
+
+    Attributes
+    ----------
+    cl : Toolpath
+        The CL points of the piece.
+    intended : Toolpath or None
+        The path the strategy intended, where it bent the tool axis or moved the path; None:
+        the CL data is the path.
+    lifts : int
+        Lifted spans of the plan (the tip leaves the CL path there by design).
+    pivot_mm : float
+        Ball radius of the cutter: a bent axis is checked at the ball centre.
+    angle_tolerance_deg : float
+        How far the strategy may bend the tool axis.
+    tool_length : float
+        mm: the length the machine-coordinate positions include.
+    """
+
+    cl: Toolpath
+    intended: Toolpath | None
+    lifts: int
+    pivot_mm: float
+    angle_tolerance_deg: float
+    tool_length: float
+
+
+def bent_tolerances(tol: Tolerances, angle_tolerance_deg: float, pivot: float) -> Tolerances:
+    """Tolerances against the CL data for a program whose strategy bent the tool axis.
+
+    The orientation may deviate by the angle tolerance on top of its own; the cutting point,
+    ``pivot`` mm up the tool axis (a ball centre), by the tip tolerance plus ``pivot`` times the
+    orientation tolerance: what that point moves when tip and axis are each within theirs.
+    """
+    return replace(
+        tol,
+        orientation=tol.orientation + float(np.radians(angle_tolerance_deg)),
+        tip=tol.tip + pivot * tol.orientation,
+    )
+
+
+def check_piece(
+    program: Program, machine: Machine, target: CheckTarget, tol: Tolerances
+) -> tuple[Verification, Verification | None]:
+    """A piece's program, read back, against the CL data and against its strategy's path.
+
+    A strategy that bends the tool axis is checked twice: against the path it intended (rows
+    and curve: tip and orientation tolerances as usual), and against the CL data with the
+    orientation allowed the angle tolerance on top, measured at the cutting point (the ball
+    centre of a ball-end tool, whose tolerance is the tip tolerance plus the ball radius times
+    the orientation tolerance: what a ball centre may move when tip and axis are each within
+    theirs). A strategy that does not bend is checked against the CL data as it is.
+
+    Parameters
+    ----------
+    program : Program
+        As read back from the text.
+    machine : Machine
+    target : CheckTarget
+    tol : Tolerances
+
+    Returns
+    -------
+    cl : Verification
+        Against the CL data.
+    intended : Verification or None
+        Against the strategy's path (None when the CL data is the path).
+    """
+    length = target.tool_length
+    if target.intended is None:
+        return verify(program, machine, target.cl, tool_length=length, tol=tol), None
+    pivot = target.pivot_mm
+    loose = bent_tolerances(tol, target.angle_tolerance_deg, pivot)
+    checks = [Check(target.intended, tol), Check(target.cl, loose, pivot)]
+    intended, cl = verify_checks(program, machine, checks, length)
+    if target.lifts:
+        cl = replace(
+            cl,
+            ok=intended.ok,
+            notes=[
+                *cl.notes,
+                f"{target.lifts} lifted spans: the tip leaves the CL path there by design",
+            ],
+        )
+    return cl, intended
+
+
+def tolerance_error(
+    cl: Toolpath,
+    checks: tuple[Verification, Verification | None],
+    units: str,
+    *,
+    piece: bool = False,
+) -> ToleranceError | None:
+    """The error of a program that misses its tolerance, or None when it does not.
+
+    Parameters
+    ----------
+    cl : Toolpath
+        The CL data checked against (for the message).
+    checks : (Verification, Verification or None)
+        Of :func:`check_piece`: the one against the intended path is reported first.
+    units : str
+        Of the figures in the message.
+    piece : bool
+        ``cl`` is a piece of a streamed post: the message names its CL lines.
+    """
+    check, intent = checks
+    for v, what in ((intent, "the path its strategy intended"), (check, "the CL data")):
+        if v is not None and not v.ok:
+            lines = f" (lines {int(cl.line[0])} to {int(cl.line[-1])})" if piece else ""
+            return ToleranceError(
+                f"{cl.source}: the program misses its tolerance against {what}{lines}, nothing "
+                f"written: {v.summary(units)}"
+                + (f"; worst near CL line {v.worst_cl_line}" if v.worst_cl_line else "")
+            )
+    return None

@@ -1,0 +1,305 @@
+"""Checking a program file against its CL data in bounded memory (``urdfpost verify`` of a
+large job), and the merging of verifications checked in pieces.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from urdfpost.dialects import dialect_for
+from urdfpost.errors import CLDataError, UrdfpostError
+from urdfpost.machine import Machine
+from urdfpost.posting import PIECE_POINTS
+from urdfpost.program import Blocks, Move, MoveTable, Program, rewind_moves
+from urdfpost.readers._stream import text_pieces
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Toolpath, joined, toolpath_slice
+from urdfpost.verify import (
+    REACH,
+    Verification,
+    at_pivot,
+    match_points,
+    missed_note,
+    program_joints,
+    rewind_note,
+    row_poses_at_tip,
+    verify,
+)
+
+log = logging.getLogger(__name__)
+
+
+def merge_verifications(parts: list[Verification]) -> Verification:
+    """One verification of the pieces' checks of a streamed program.
+
+    Each piece after the first starts with the CL point and the program row the piece before
+    ended with: they are counted once.
+    """
+    first = parts[0]
+    joins = len(parts) - 1
+    missed: list[int] = []
+    for v in parts:
+        lines = v.missed_lines
+        if missed and lines and lines[0] == missed[-1]:
+            lines = lines[1:]  # the point at a join, missed in both pieces
+        missed += lines
+    cl_points = sum(v.cl_points for v in parts) - joins
+    worst = max(parts, key=lambda v: v.max_tip_deviation)
+    compared = sum(v.compared for v in parts)
+    mean = sum(v.mean_tip_deviation * v.compared for v in parts) / max(compared, 1)
+    steps: dict[str, float] = {}
+    for v in parts:
+        for k, x in v.max_rotary_step_deg.items():
+            steps[k] = max(steps.get(k, 0.0), x)
+    # the pieces' notes once each; those that count something, counted over the whole
+    notes: list[str] = []
+    rewinds = sum(v.rewind_moves for v in parts)
+    for v in parts:
+        counted = {rewind_note(v.rewind_moves)} | (
+            {missed_note(v.missed_lines)} if v.missed_lines else set()
+        )
+        notes += [x for x in v.notes if x not in counted and x not in notes]
+    if rewinds:
+        notes.insert(0, rewind_note(rewinds))
+    if missed:
+        notes.append(missed_note(missed))
+    return replace(
+        first,
+        ok=all(v.ok for v in parts),
+        cl_points=cl_points,
+        reached=cl_points - len(missed),
+        missed_lines=missed,
+        blocks=sum(v.blocks for v in parts) - joins,
+        max_tip_deviation=worst.max_tip_deviation,
+        mean_tip_deviation=float(mean),
+        max_orientation_deviation_deg=max(v.max_orientation_deviation_deg for v in parts),
+        max_rotary_step_deg=steps,
+        worst_cl_line=worst.worst_cl_line,
+        notes=notes,
+        compared=compared,
+        rewind_moves=rewinds,
+    )
+
+
+TEXT_PIECE = 8 << 20
+"""Characters of program text read at a time by :func:`verify_stream`."""
+
+
+def program_texts(path: str | os.PathLike[str], size: int = TEXT_PIECE) -> Iterator[str]:
+    """The text of a program file in pieces of about ``size`` characters, cut at line ends
+    (as the CL readers read theirs: :func:`urdfpost.readers._stream.text_pieces`).
+
+    Raises
+    ------
+    UrdfpostError
+        The file cannot be read.
+    """
+    try:
+        yield from text_pieces(str(path), size)
+    except CLDataError as e:  # (said of a CL file there)
+        raise UrdfpostError(f"{path}: {e.detail}") from e
+
+
+def _joined_programs(head: Program | None, tail: Program) -> Program:
+    """The blocks of ``tail`` after those of ``head`` (the header of ``tail``, which has seen
+    as much of the text)."""
+    if head is None:
+        return tail
+    return replace(tail, blocks=Blocks((*head.parts, *tail.parts)))
+
+
+def _split_rows(program: Program, row: int) -> tuple[Program, Program]:
+    """The program up to move ``row`` and from it (the move in both; the other blocks after
+    it in the second)."""
+    head: list[Any] = []
+    tail: list[Any] = []
+    seen = 0  # moves before the part
+    for part in program.parts:
+        if isinstance(part, MoveTable):
+            size = len(part)
+            if seen + size <= row:
+                head.append(part)
+            elif seen > row:
+                tail.append(part)
+            else:
+                at = row - seen
+                head.append(part.rows(0, at + 1))
+                tail.append(part.rows(at, size))
+        elif isinstance(part, Move):
+            size = 1
+            if seen < row:
+                head.append(part)
+            elif seen > row:
+                tail.append(part)
+            else:
+                head.append(part)
+                tail.append(part)
+        else:
+            size = 0
+            (head if seen <= row else tail).append(part)
+        seen += size
+    return (
+        replace(program, blocks=Blocks(tuple(head))),
+        replace(program, blocks=Blocks(tuple(tail))),
+    )
+
+
+def _verify_cut(
+    program: Program,
+    machine: Machine,
+    cl: Toolpath,
+    tol: Tolerances,
+    tool_length: float,
+    pivot: float,
+    target: int,
+    program_ends: bool,
+) -> tuple[int, int] | None:
+    """Where the check of a program against CL data can be cut in two: a CL point at or
+    before ``target`` and the program row that reaches it, such that checking the two sides
+    on their own (the row and the point in both) gives what checking them together gives.
+
+    The matching of CL points to rows is sequential (:func:`urdfpost.verify.match_points`): each
+    point is searched from the row the point before reached. Cut at a point ``c`` reached by
+    row ``r``, with the next point reached by a later row, the second side starts where the
+    whole check is after ``c``; the first side holds every row the search for a point up to
+    ``c`` looks at when the rows go on :data:`REACH` past ``r`` (or the program ends). The
+    blocks into and out of ``r`` are feed moves outside rewinds, so that the rapids and the
+    rewinds of each side are what they are in the whole.
+
+    Returns
+    -------
+    (c, r) or None
+    """
+    values, rapid = program_joints(machine, program)
+    n_rows, n_cl = len(values), len(cl)
+    if n_rows < 3 or n_cl < 3:
+        return None
+    rows = at_pivot(row_poses_at_tip(machine, values, program.tcp, tool_length), pivot)
+    match = match_points(cl.tip + pivot * cl.axis, cl.axis, rows.tip, rows.axis, tol)
+    aside = rapid | rewind_moves(program)
+    j = np.arange(1, min(target, n_cl - 2) + 1)
+    r = match[j]
+    ok = (r >= 1) & (match[j + 1] > r) & (r + 1 < n_rows)
+    if not program_ends:
+        ok &= r + REACH + 1 < n_rows
+    safe = np.clip(r, 0, n_rows - 2)
+    ok &= ~aside[safe] & ~aside[safe + 1]
+    if not ok.any():
+        return None
+    c = int(j[ok][-1])
+    return c, int(match[c])
+
+
+def verify_stream(
+    program_path: str | os.PathLike[str],
+    cl_pieces: Iterable[Toolpath],
+    machine: Machine,
+    controller: str,
+    *,
+    tol: Tolerances,
+    tool_length: float,
+    pivot: float = 0.0,
+    piece_points: int = PIECE_POINTS,
+    texts: Iterable[str] | None = None,
+) -> tuple[Verification, Program]:
+    """:func:`urdfpost.verify.verify` of a program file against CL data given in pieces, in
+    bounded memory: the program is read and checked a piece at a time.
+
+    Each piece is cut at a CL point and the program row that reaches it where the two sides
+    check as the whole does (:func:`_verify_cut`); the next piece starts with that point and
+    row. The figures are merged as for a streamed post (:func:`merge_verifications`): every
+    block is checked once; only the mean deviation counts the join rows twice.
+
+    Parameters
+    ----------
+    program_path : path
+        The program file (for reading and messages).
+    cl_pieces : iterable of Toolpath
+        Consecutive pieces of the CL data (:func:`urdfpost.readers.read_cl_chunks`).
+    machine : Machine
+    controller : str
+        Dialect of the program.
+    tol : Tolerances
+    tool_length : float, mm
+    pivot : float, mm
+        As :func:`urdfpost.verify.verify`.
+    piece_points : int
+        CL points checked per piece, about.
+    texts : iterable of str, optional
+        The program text in pieces cut at line ends (default: read from ``program_path``).
+
+    Returns
+    -------
+    verification : Verification
+    header : Program
+        The program's header (name, units, TCP, tool length) without blocks.
+
+    Raises
+    ------
+    ProgramParseError, UrdfpostError
+        A program line that cannot be read; a file that cannot.
+    """
+    if piece_points < 2:
+        raise ValueError(f"piece_points must be at least 2, got {piece_points}")
+    reader = dialect_for(controller).reader(path=str(program_path))
+    text_source = iter(program_texts(program_path) if texts is None else texts)
+    cl_source = iter(cl_pieces)
+    program: Program | None = None
+    cl: Toolpath | None = None
+    program_ends = cl_ends = False
+    parts: list[Verification] = []
+    header: Program | None = None
+    want = piece_points
+    rows_per_point = 1.5  # a first guess, then as the pieces so far had
+    rows_done = points_done = 0
+    while True:
+        while not cl_ends and (cl is None or len(cl) < want + 2):
+            more = next(cl_source, None)
+            if more is None:
+                cl_ends = True
+            else:
+                cl = more if cl is None else joined(cl, [more])
+        need = int(rows_per_point * want) + REACH + 2
+        while not program_ends and (program is None or len(program.move_table()) < need):
+            text = next(text_source, None)
+            if text is None:
+                program_ends = True
+                continue
+            reader.feed(text)
+            program = _joined_programs(program, reader.take())
+        if program is None:
+            program = reader.take()
+        if header is None:
+            header = replace(program, blocks=Blocks(()))
+        assert cl is not None
+        if cl_ends and program_ends:
+            parts.append(
+                verify(program, machine, cl, tool_length=tool_length, tol=tol, pivot=pivot)
+            )
+            break
+        cut = _verify_cut(program, machine, cl, tol, tool_length, pivot, want, program_ends)
+        if cut is None:  # nowhere to cut yet: a longer piece, and more rows
+            want *= 2
+            continue
+        c, r = cut
+        head, program = _split_rows(program, r)
+        parts.append(
+            verify(
+                head, machine, toolpath_slice(cl, 0, c + 1), tool_length=tool_length, tol=tol,
+                pivot=pivot,
+            )
+        )  # fmt: skip
+        cl = toolpath_slice(cl, c, len(cl), first_events=False)
+        rows_done += r
+        points_done += c
+        rows_per_point = max(1.0, 1.25 * rows_done / max(points_done, 1))
+        want = piece_points
+        log.info("verified a piece: CL lines to %d, program rows to %d", cl.line[0], rows_done)
+    assert header is not None
+    return merge_verifications(parts), header

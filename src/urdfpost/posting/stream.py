@@ -1,0 +1,382 @@
+"""Posting in pieces: a long job in bounded memory, written and verified as it goes.
+
+:func:`post_stream` takes the CL data as consecutive pieces (from
+:func:`urdfpost.readers.read_cl_chunks`, or slices of one toolpath) and posts them one piece of
+about ``piece_points`` CL points at a time. Nothing of the whole job is held but what the
+figures need, so memory depends on the piece size and not on the length of the job.
+
+How the pieces join:
+
+- **Planning** sees ahead. Each piece is planned over a window of ``lookahead`` more CL points
+  than it posts (the singularity strategy, branch choice and rewinds as in :func:`post`), and
+  only the part up to the cut is kept. The cut is a CL point where nothing spans it: a feed
+  move on both sides, no CL event there, no singular span or lift within a point of it, the
+  tool axis away from the poles and as programmed (not bent by the strategy), and one program
+  row there. The next window starts at that point, which takes the angles the piece before
+  chose exactly (``fixed_start`` of :func:`urdfpost.planning.branches.select`), so the joint path is
+  continuous and no rewind or branch switch appears at a cut. The branch choice at a cut is
+  the best one over the window, which sees ``lookahead`` points past it. Where the best paths
+  into every candidate still possible at the window's end agree up to the cut (the survivors
+  of the branch planner have met:
+  :attr:`urdfpost.planning.branches.Selection.settled`), no CL points
+  after the window can change it, and the choice is the one a plan of the whole job makes;
+  such a cut is preferred (in the second half of the piece). Where there is none, as when
+  both branches stay within travel all along, the choice rests on the lookahead: a travel
+  limit further on that the other branch avoids would get a rewind later instead. The report
+  lists those joins (``streamed.unsettled_joins``) and warns; the joins after one start from
+  its choice, and are settled given it. A strategy that shapes a whole feed run (``cone``)
+  shapes the two halves of a run cut in two on their own. Either way the program is checked
+  like any other, and on jobs without such cases the text is the one :func:`post` writes.
+- **Writing** is one program: the control's writer keeps its modal state and block numbers
+  from piece to piece, and the text goes to a temporary file beside the output, renamed into
+  place when the last piece is verified (nothing is left behind on an error).
+- **Verification** reads back each piece's text with one reader (its modal state carries on
+  too) and checks it against the piece's CL points, starting from the last row of the piece
+  before: every block of the program is checked once. The figures are merged. On a machine
+  with more than one core this runs in a worker process, one piece behind the planning, so
+  the two share the work (a piece is handed over when the one before is checked: one piece
+  waits at most). A piece that misses its tolerance stops the post all the same.
+
+The singular spans of the report are numbered along the pieces' plan paths joined (each join
+once), as :func:`post` numbers them along its plan's path. Figures that depend on the whole job
+are taken from the first window: the program name
+(``PARTNO``), the ball radius of the first cutter and the tool of the collision world.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from urdfpost._files import give_mode
+from urdfpost.geometry import angle_between
+from urdfpost.machine import Machine
+from urdfpost.planning.strategies import STRATEGIES, Plan, tool_axis_of
+from urdfpost.posting import LOOKAHEAD, PIECE_POINTS
+from urdfpost.posting.options import PostOptions, resolve
+from urdfpost.posting.piece import Continuation, make_problem, post_piece
+from urdfpost.posting.readback import merge_verifications
+from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
+from urdfpost.posting.worker import FORK, Checks, PieceJob
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Motion, Toolpath, joined, toolpath_slice
+from urdfpost.verify import Verification
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class StreamResult:
+    """What :func:`post_stream` produced.
+
+    Attributes
+    ----------
+    path : Path
+        The program file written.
+    verification : Verification
+        Of the whole program read back, against the CL data (the pieces' checks merged).
+    report : Report
+        As :func:`urdfpost.posting.whole.post` reports, with ``streamed`` figures (pieces, piece
+        size, lookahead).
+    """
+
+    path: Path
+    verification: Verification
+    report: Report
+
+
+@dataclass(frozen=True)
+class _Cut:
+    point: int  # CL index in the window
+    plan: Plan  # the plan up to it
+    settled: bool  # whether the branch choice up to it is the one the whole job would make
+
+
+def _cut(
+    window: Toolpath, plan: Plan, target: int, machine: Machine, tol: Tolerances
+) -> _Cut | None:
+    """The last CL point at or before ``target`` where a piece can end (module docstring),
+    and the window's plan up to it; None when there is none.
+
+    A point where the branch choice is settled (:attr:`Plan.settled`: no CL points after the
+    window could change it) is taken when there is one in the second half of the piece;
+    otherwise the last possible point, whose choice rests on the lookahead.
+    """
+    n = len(window)
+    hi = min(target, n - 2)
+    lo = 1
+    c = np.arange(lo, hi + 1)
+    line, motion = window.line, window.motion
+    ok = (motion[c] == Motion.FEED) & (motion[c + 1] == Motion.FEED)
+    ok &= (line[c - 1] < line[c]) & (line[c] < line[c + 1])
+    events = np.array([e.index for e in window.events], dtype=np.int64)
+    ok &= ~np.isin(c, events) & ~np.isin(c + 1, events)
+    if machine.rotary:  # the tool axis well away from the poles of the first rotary axis
+        cos_pole = np.abs(window.axis[c] @ machine.rotary[0].direction)
+        ok &= cos_pole < np.cos(10.0 * max(tol.pole, tol.pole_crossing))
+    spans = [(s.first, s.last) for s in plan.spans]
+    settled = len(plan.toolpath) - 1 if plan.settled is None else plan.settled
+    points = c[ok]
+
+    def last_regular(upto: int, down_to: int) -> tuple[int, int] | None:
+        """The last point at or before CL point ``upto`` (and not before ``down_to``) where a
+        piece can end, with its plan point."""
+        for point in points[: np.searchsorted(points, upto, side="right")][::-1].tolist():
+            if point < down_to:
+                break
+            at = _regular(window, plan, point, spans, machine)
+            if at is not None:
+                return point, at
+        return None
+
+    found = last_regular(target, 0)
+    if found is None:
+        return None
+    if found[1] > settled and settled >= 0:  # a settled point in the second half?
+        upto = int(np.searchsorted(line, plan.toolpath.line[settled], side="right")) - 1
+        earlier = last_regular(upto, target // 2)
+        if earlier is not None:
+            return _kept(plan, *earlier, settled=True)
+    return _kept(plan, *found, settled=found[1] <= settled)
+
+
+def _regular(
+    window: Toolpath, plan: Plan, point: int, spans: list[tuple[int, int]], machine: Machine
+) -> int | None:
+    """The plan's point of CL point ``point`` when a piece can end there (no span, lift, turn
+    in place or bent axis at it: the module docstring), else None."""
+    tp = plan.toolpath
+    at = int(np.searchsorted(tp.line, window.line[point], side="right")) - 1
+    if at < 1 or at >= len(tp) - 1 or tp.line[at] != window.line[point]:
+        return None
+    if not (
+        np.array_equal(tp.tip[at], window.tip[point])
+        and np.array_equal(tp.axis[at], window.axis[point])
+    ):
+        return None  # moved by the strategy
+    if any(first - 1 <= at <= last + 1 for first, last in spans):
+        return None
+    r = int(np.searchsorted(plan.param, at, side="left"))
+    if int(np.searchsorted(plan.param, at, side="right")) - r != 1:
+        return None  # a turn in place or a rewind there, or no row
+    if plan.lift[max(r - 1, 0) : r + 2].any():
+        return None
+    if angle_between(tool_axis_of(machine, plan.rotary[r : r + 1]), tp.axis[at])[0] > 1e-9:
+        return None  # the strategy bent the tool axis there: the next piece starts exact
+    return at
+
+
+def _kept(plan: Plan, point: int, at: int, *, settled: bool) -> _Cut:
+    """The cut at CL point ``point`` of the window, point ``at`` of the plan."""
+    r = int(np.searchsorted(plan.param, at))
+    kept = replace(
+        plan,
+        toolpath=toolpath_slice(plan.toolpath, 0, at + 1),
+        param=plan.param[: r + 1],
+        rotary=plan.rotary[: r + 1],
+        lift=plan.lift[: r + 1],
+        spans=[s for s in plan.spans if s.last < at],
+        settled=min(at, len(plan.toolpath) - 1 if plan.settled is None else plan.settled),
+    )
+    return _Cut(point=point, plan=kept, settled=settled)
+
+
+def post_stream(
+    pieces: Iterable[Toolpath],
+    machine: Machine,
+    out: str | os.PathLike[str],
+    options: PostOptions | None = None,
+    *,
+    piece_points: int = PIECE_POINTS,
+    lookahead: int | None = None,
+    progress: Callable[[int], None] | None = None,
+    parallel: bool | None = None,
+) -> StreamResult:
+    """Post CL data given in pieces to a program file, a piece at a time (module docstring).
+
+    Parameters
+    ----------
+    pieces : iterable of Toolpath
+        Consecutive pieces of one job (:func:`urdfpost.readers.read_cl_chunks`), any sizes.
+    machine : Machine
+    out : path
+        The program file; written only when the whole program is verified.
+    options : PostOptions, optional
+    piece_points : int
+        CL points posted per piece (the last may be up to ``lookahead`` longer).
+    lookahead : int, optional
+        CL points past a piece's end its plan takes into account; default a fifth of
+        ``piece_points``, at most :data:`~urdfpost.posting.LOOKAHEAD`.
+    progress : callable, optional
+        Called with the number of CL points just posted.
+    parallel : bool, optional
+        Verify each piece in a worker process while the next one is planned; default on Linux
+        when the machine has more than one core and the job more than one piece. On Linux the
+        worker is forked: from an application with other threads running (which a fork does
+        not carry over, locks they hold included) pass False. Elsewhere it is spawned: the
+        calling script needs the ``if __name__ == "__main__"`` guard of
+        :mod:`multiprocessing`.
+
+    Returns
+    -------
+    StreamResult
+
+    Raises
+    ------
+    UnreachableError, CollisionError, ToleranceError, UrdfpostError
+        As :func:`urdfpost.posting.whole.post`; nothing is written then.
+    ValueError
+        ``piece_points`` under 2 or ``lookahead`` under 1.
+    """
+    if lookahead is None:
+        lookahead = max(1, min(LOOKAHEAD, piece_points // 5))
+    if piece_points < 2 or lookahead < 1:
+        raise ValueError(
+            f"piece_points must be at least 2 and lookahead at least 1, got {piece_points} and "
+            f"{lookahead}"
+        )
+    out = Path(out)
+    source = iter(pieces)
+    buffer = next(source, None)
+    if buffer is None:
+        raise ValueError("post_stream: no toolpath pieces given")
+    exhausted = False
+    job = resolve(options, machine, buffer.units)
+    dialect, units, tol = job.dialect, job.units, job.tol
+    base = None
+    writer = None
+    figures: PieceFigures | None = None
+    collisions: list[Collisions] = []
+    offset = 0  # index of the piece's first point in the joined plan paths
+    start: np.ndarray | None = None
+    last_piece: Toolpath | None = None
+    reader_warnings = list(buffer.warnings)  # the job's, in order
+    buffer = replace(buffer, warnings=())
+    checks: Checks | None = None
+    unsettled: list[int] = []  # CL lines of the joins whose branch choice rests on the lookahead
+    count = 0
+    tool_length = job.tool_length
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
+    tmp = Path(tmp_name)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+            want = piece_points  # CL points of the next piece (more where no cut was found)
+            while True:
+                pending, have = [], len(buffer)
+                while not exhausted and have < want + lookahead:
+                    more = next(source, None)
+                    if more is None:
+                        exhausted = True
+                    else:
+                        reader_warnings += more.warnings
+                        pending.append(replace(more, warnings=()))
+                        have += len(more)
+                if pending:
+                    buffer = joined(buffer, pending)
+                last = exhausted and len(buffer) <= want + lookahead
+                window = buffer if last else toolpath_slice(buffer, 0, want + lookahead)
+                if base is None:
+                    base = make_problem(window, job)
+                if checks is None:
+                    if parallel is None:
+                        parallel = FORK and not last and (os.cpu_count() or 1) > 1
+                    checks = Checks(machine, dialect.name, str(out), tol, units, parallel)
+                problem = replace(base, toolpath=window, start=start)
+                plan = STRATEGIES[job.strategy](problem)
+                if last:
+                    piece, cut = window, len(window) - 1
+                else:
+                    c = _cut(window, plan, want, machine, tol)
+                    if c is None:  # nowhere to end a piece: a longer one
+                        want *= 2
+                        log.info("no place to end a streamed piece; trying %d points", want)
+                        continue
+                    cut, plan, want = c.point, c.plan, piece_points
+                    piece = toolpath_slice(window, 0, cut + 1)
+                    if not c.settled:
+                        unsettled.append(int(window.line[cut]))
+                last_piece = piece
+                continuation = Continuation(
+                    start=start, tcp_on=start is not None and job.tcp, last=last
+                )
+                posted = post_piece(piece, job, problem=problem, plan=plan, piece=continuation)
+                program = posted.program
+                tool_length = program.tool_length
+                if writer is None:
+                    writer = dialect.writer(program, block_numbers=job.block_numbers)
+                    writer.open(job.header)
+                writer.write_body(program)
+                if last:
+                    writer.close()
+                text = writer.take()
+                handle.write(text)
+                checks.submit(PieceJob.of(text, posted))
+                found = posted.figures
+                figures = found if figures is None else figures.joined(found, offset)
+                offset += len(posted.plan.toolpath) - 1
+                collisions.append(posted.collisions)
+                if len(posted.joints):
+                    start = posted.joints[-1]
+                count += 1
+                if progress:
+                    progress(len(piece) - (1 if count > 1 else 0))
+                if last:
+                    break
+                buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)
+                log.info(
+                    "streamed piece %d: CL lines %d to %d", count, piece.line[0], piece.line[-1]
+                )
+        assert checks is not None
+        results = checks.finish()
+        verification = merge_verifications([check for check, _ in results])
+        intents = [intent for _, intent in results if intent is not None]
+        assert figures is not None and last_piece is not None
+        warnings = figures.warnings
+        if unsettled:
+            warnings += (
+                f"{last_piece.source}: at {len(unsettled)} of {count - 1} joins of the "
+                f"streamed pieces (the first at CL line {unsettled[0]}) the branch choice rests on "
+                f"{lookahead} CL points of lookahead: the whole job could choose otherwise "
+                "there (a travel limit further on); --piece-points 0 plans it whole",
+            )
+        strategy = figures.strategy
+        if intents:
+            strategy = replace(strategy, intended_path_check=merge_verifications(intents))
+        figures = replace(figures, strategy=strategy, warnings=warnings)
+        report = Report(
+            machine=machine.name,
+            controller=dialect.name,
+            tcp=job.tcp,
+            units=units,
+            verification=verification,
+            tool_length_mm=tool_length,
+            warnings=tuple(reader_warnings) + figures.warnings,
+            figures=figures,
+            collisions=Collisions.merged(collisions),
+            streamed=StreamFigures(
+                pieces=count,
+                piece_points=piece_points,
+                lookahead=lookahead,
+                worker=bool(parallel),  # pieces verified in a worker process
+                # joins where the branch choice is not settled by the window (CL lines)
+                unsettled_joins=unsettled,
+            ),
+        )
+        give_mode(tmp, out)
+        os.replace(tmp, out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        if checks is not None:
+            checks.close()
+    return StreamResult(path=out, verification=verification, report=report)
+
+
+__all__ = ["StreamResult", "post_stream"]

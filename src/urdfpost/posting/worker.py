@@ -1,0 +1,240 @@
+"""Verification of a streamed post's pieces, in a worker process or here.
+
+A streamed post hands each piece's text to :class:`Checks` as soon as it is written. On a
+machine with more than one core a worker process reads the texts back in order with one reader
+(its modal state carries on from piece to piece) and checks each against its CL points while
+the next piece is planned; otherwise the pieces are checked here, one after the other. Either
+way the check is :func:`urdfpost.posting.check.check_piece`, the one of every post.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import multiprocessing
+import pickle
+import sys
+import threading
+from dataclasses import dataclass, replace
+from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from urdfpost.errors import UrdfpostError
+from urdfpost.machine import Machine
+from urdfpost.posting.check import CheckTarget, check_piece, tolerance_error
+from urdfpost.program import Blocks, Insert, MoveTable, Program
+from urdfpost.tolerances import Tolerances
+from urdfpost.verify import Verification
+
+if TYPE_CHECKING:
+    from urdfpost.posting.piece import PostedPiece
+
+log = logging.getLogger(__name__)
+
+FORK = sys.platform.startswith("linux")
+"""Whether verification workers are forked (where forking a process that runs numpy is safe);
+elsewhere pieces are verified in the worker only when asked for, in a spawned process."""
+
+
+def _prepended(program: Program, axes: tuple[str, ...], row: np.ndarray) -> Program:
+    """``program`` with a first move at ``row`` (positions of ``axes``): where the piece before
+    ended, so that the first block of the piece is checked too."""
+    position = np.array([row[axes.index(a)] if a in axes else np.nan for a in program.axes])
+    start = MoveTable(position[None, :], np.zeros(1, bool), np.full(1, np.nan), np.full(1, -1))
+    return replace(program, blocks=Blocks((start, *program.parts)))
+
+
+@dataclass(frozen=True)
+class PieceJob:
+    """What checking one piece takes: its text and what it is checked against.
+
+    Attributes
+    ----------
+    text : str
+        The piece's program text.
+    inserts : list of str
+        The texts of the piece's inserted blocks, in order.
+    target : CheckTarget
+    """
+
+    text: str
+    inserts: list[str]
+    target: CheckTarget
+
+    @classmethod
+    def of(cls, text: str, posted: PostedPiece) -> PieceJob:
+        """The job of a posted piece written as ``text``."""
+        return cls(
+            text=text,
+            inserts=[b.text for b in posted.program.parts if isinstance(b, Insert)],
+            target=posted.target,
+        )
+
+
+class PieceVerifier:
+    """Reads back the pieces' texts in order with one reader and checks each against its CL
+    points, from the last row of the piece before (module docstring)."""
+
+    def __init__(
+        self, machine: Machine, controller: str, path: str, tol: Tolerances, units: str
+    ) -> None:
+        from urdfpost.dialects import dialect_for
+
+        self.machine, self.tol, self.units = machine, tol, units
+        self.reader = dialect_for(controller).reader(path=path)
+        self.previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
+
+    def check(self, job: PieceJob) -> tuple[Verification, Verification | None]:
+        """The piece's verifications against the CL data and against its strategy's path.
+
+        Raises
+        ------
+        ToleranceError
+            Either misses its tolerance.
+        """
+        self.reader.feed(job.text, job.inserts)
+        readback = self.reader.take()
+        if self.previous is not None:
+            readback = _prepended(readback, *self.previous)
+        checks = check_piece(readback, self.machine, job.target, self.tol)
+        error = tolerance_error(job.target.cl, checks, self.units, piece=True)
+        if error is not None:
+            raise error
+        check, intent = checks
+        table = readback.move_table()
+        if len(table):
+            self.previous = (readback.axes, np.asarray(table.position[-1]))
+        return check, intent
+
+
+def _serve(conn: Connection, *args: Any) -> None:
+    """A verification worker: checks the jobs it receives with one :class:`PieceVerifier` and
+    sends back ``(True, result)`` or ``(False, exception)``, until it receives None."""
+    verifier = PieceVerifier(*args)
+    while (job := conn.recv()) is not None:
+        try:
+            answer: tuple[bool, Any] = (True, verifier.check(job))
+        except Exception as exc:  # sent back to be raised where the post runs
+            answer = (False, exc)
+            try:
+                pickle.dumps(exc)
+            except Exception:
+                answer = (False, UrdfpostError(f"verification failed: {exc!r}"))
+        conn.send(answer)
+
+
+class Checks:
+    """The pieces' checks, in order: in a worker process while the next piece is planned (the
+    two cores of a small machine share the work), or here one after the other.
+
+    One piece is checked at a time; the next is handed over when the one before has been
+    checked, so at most one piece waits (memory stays bounded).
+    """
+
+    def __init__(
+        self,
+        machine: Machine,
+        controller: str,
+        path: str,
+        tol: Tolerances,
+        units: str,
+        parallel: bool,
+    ) -> None:
+        self.results: list[tuple[Verification, Verification | None]] = []
+        self.local: PieceVerifier | None = None
+        self.conn: Connection | None = None
+        self.process: BaseProcess | None = None
+        self.busy = False  # a job was handed over and its result not taken yet
+        self.sender: threading.Thread | None = None
+        self.sent = True  # whether the last job reached the worker
+        args = (machine, controller, path, tol, units)
+        if not parallel:
+            self.local = PieceVerifier(*args)
+            return
+        # a fork carries the machine over as it is and does not import the caller's main
+        # module again (which a script without a main guard would not survive)
+        context = (
+            multiprocessing.get_context("fork") if FORK else multiprocessing.get_context("spawn")
+        )
+        self.conn, child = context.Pipe()
+        self.process = context.Process(target=_serve, args=(child, *args), daemon=True)
+        self.process.start()
+        child.close()
+        log.info("streamed pieces are verified in worker process %d", self.process.pid)
+
+    def submit(self, job: PieceJob) -> None:
+        """Check ``job`` (after the one before, which it waits for in the worker).
+
+        The job is pickled and sent from a thread, so that planning the next piece goes on
+        while the worker takes it in.
+        """
+        if self.local is not None:
+            self.results.append(self.local.check(job))
+            return
+        self._collect()
+        self.busy = True
+        self.sender = threading.Thread(target=self._send, args=(job,), daemon=True)
+        self.sender.start()
+
+    def _send(self, job: PieceJob) -> None:
+        assert self.conn is not None
+        try:
+            self.conn.send(job)
+        except OSError:  # a broken pipe: the worker is gone (reported by _collect)
+            self.sent = False
+
+    def finish(self) -> list[tuple[Verification, Verification | None]]:
+        """Every piece's verifications, in order, once all are checked."""
+        self._collect()
+        return self.results
+
+    def _collect(self) -> None:
+        if not self.busy:
+            return
+        assert self.conn is not None and self.process is not None
+        self._join_sender()
+        try:
+            if not self.sent:
+                raise OSError("not sent")
+            ok, value = self.conn.recv()
+        except (EOFError, OSError):
+            raise self._gone() from None
+        self.busy = False
+        if not ok:
+            raise value
+        self.results.append(value)
+
+    def _gone(self) -> UrdfpostError:
+        """The error of a worker that stopped (killed, out of memory), nothing written."""
+        assert self.process is not None
+        self.process.join(timeout=10)
+        self.busy = False
+        return UrdfpostError(
+            f"the verification worker (process {self.process.pid}) stopped with exit code "
+            f"{self.process.exitcode} before the program was verified; nothing written"
+        )
+
+    def _join_sender(self) -> None:
+        if self.sender is not None:
+            self.sender.join()
+            self.sender = None
+
+    def close(self) -> None:
+        """Stop the worker (at once when a check is still running: the post has failed)."""
+        if self.process is None or self.conn is None:
+            return
+        if self.busy:
+            self.process.terminate()
+            self._join_sender()  # its write fails once the worker is gone
+        else:
+            with contextlib.suppress(OSError):
+                self.conn.send(None)
+        self.process.join(timeout=10)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self.conn.close()
+        self.process = None

@@ -1,0 +1,383 @@
+"""Matching a program's rows to the CL points they reach, and the poses of its rows.
+
+A program reaches a CL point where one of its rows has the tool tip within the tip tolerance of
+it and the tool axis within the orientation tolerance of its axis. The rows are searched in
+order (:func:`match_points`): each CL point from the row the point before reached, at most
+:data:`REACH` rows on. The rows' joint values come from the program's move table
+(:func:`program_joints`) and their poses from the forward kinematics
+(:func:`row_poses_at_tip`, :func:`at_pivot`).
+
+The deviation between the rows (the blocks) is :mod:`urdfpost.verify.measure`; the streamed
+verifier (:func:`urdfpost.posting.readback.verify_stream`) cuts its pieces where this matching can
+be cut.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from urdfpost.errors import DialectError
+from urdfpost.geometry import VecArrays, angle_between, coords
+from urdfpost.linearize import RowPoses
+from urdfpost.machine import Machine
+from urdfpost.program import Program
+from urdfpost.tolerances import Tolerances
+
+
+def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.ndarray]:
+    """Joint values and rapid flags of a program's moves (from :meth:`Program.move_table`).
+
+    Axes the program never writes stay at the machine's home; values not yet programmed at
+    the start are taken from home too.
+
+    Parameters
+    ----------
+    machine : Machine
+    program : Program
+        As written, or as read back from text by a dialect.
+
+    Returns
+    -------
+    values : ndarray, shape (N, m)
+        Machine axis order; X Y Z in mm (tool tip in workpiece coordinates for TCP programs),
+        rotary in rad.
+    rapid : ndarray, shape (N,), bool
+
+    Raises
+    ------
+    DialectError
+        The program writes an axis the machine does not have.
+    """
+    unknown = [a for a in program.axes if a not in machine.axis_names]
+    if unknown:
+        raise DialectError(
+            f"program {program.name} writes axes {' '.join(unknown)} that machine "
+            f"{machine.name} does not have ({' '.join(machine.axis_names)})"
+        )
+    table = program.move_table()
+    pos = table.position
+    values = np.tile(machine.home, (len(table), 1))
+    for j, name in enumerate(program.axes):
+        col = machine.axis_names.index(name)
+        column = pos[:, j]
+        if name in program.rotary:
+            column = np.radians(column)
+        # forward fill NaN (modal value not yet programmed), home before the first value
+        ok = ~np.isnan(column)
+        idx = np.where(ok, np.arange(len(column)), -1)
+        idx = np.maximum.accumulate(idx)
+        filled = np.where(idx >= 0, column[np.maximum(idx, 0)], values[:, col])
+        values[:, col] = filled
+    rapid = table.rapid.copy()
+    return values, rapid
+
+
+def _row_poses(
+    machine: Machine, values: np.ndarray, tcp: bool, tool_length: float, pivot: float
+) -> RowPoses:
+    """The measured point (``pivot`` up the tool axis from the tip) and axis of program rows.
+
+    :func:`at_pivot` of :func:`row_poses_at_tip`.
+    """
+    return at_pivot(row_poses_at_tip(machine, values, tcp, tool_length), pivot)
+
+
+def row_poses_at_tip(
+    machine: Machine, values: np.ndarray, tcp: bool, tool_length: float
+) -> RowPoses:
+    """Tool tip and axis of program rows, and the reach and swing that bound the blocks.
+
+    In TCP programs the linear values are the tip: only the rotary axes go through the
+    kinematics (with the linear ones at 0, which do not turn the tool axis).
+
+    Parameters
+    ----------
+    machine : Machine
+    values : ndarray, shape (N, m)
+        Joint values of the rows (:func:`program_joints`), mm / rad.
+    tcp : bool
+        The program is a TCP program (its linear values are the tool tip).
+    tool_length : float, mm
+        The tool length machine-coordinate positions include (not used in TCP programs).
+
+    Returns
+    -------
+    RowPoses
+        Arrays of N rows; tip in mm, in the workpiece frame.
+    """
+    if not tcp:
+        return RowPoses.of(machine, values, tool_length)
+    q = values.copy()
+    lin = list(machine.linear_columns)
+    q[:, lin] = 0.0
+    poses = RowPoses.of(machine, q, 0.0)
+    return replace(poses, tip=values[:, lin])
+
+
+def at_pivot(rows: RowPoses, pivot: float) -> RowPoses:
+    """Poses of the point ``pivot`` up the tool axis from the tip of ``rows``.
+
+    The reach grows by at most ``|pivot|`` times the swing (the part of ``pivot`` times the
+    tool axis across each rotary axis' line): an upper bound, which is what the bounds of
+    the deviation between samples (:mod:`urdfpost.verify.measure`) need.
+
+    Parameters
+    ----------
+    rows : RowPoses
+        At the tool tip (:func:`row_poses_at_tip`).
+    pivot : float, mm
+        How far up the tool axis the measured point is (0: the tip; ``rows`` are returned).
+
+    Returns
+    -------
+    RowPoses
+    """
+    if pivot == 0.0:
+        return rows
+    return RowPoses(
+        rows.tip + pivot * rows.axis, rows.axis, rows.reach + abs(pivot) * rows.swing, rows.swing
+    )
+
+
+REACH = 64 + 256 + 1024 + 4096
+"""Rows after the previous match that the search for a CL point looks at (:func:`match_points`):
+a CL point no row reaches within them is missed. Whoever cuts a program and its CL data in
+pieces to match them apart (:func:`urdfpost.posting.readback.verify_stream`) keeps this many rows
+after a cut on the first side."""
+
+_WINDOWS = (2, 14, 48, 256, 1024, 4096)
+"""Successive pieces of those rows searched (most CL points are reached within the first)."""
+
+_NEAR = 2
+"""Pieces of :data:`_WINDOWS` searched from a guessed start (the first 16 rows)."""
+
+_RUN = 8192
+"""Most CL points :func:`match_points` takes at once (every round looks at the rest of the run)."""
+
+_ROUNDS = 16
+"""Rounds of :func:`match_points` before a run of CL points is cut at its exact prefix."""
+
+_SEQUENTIAL = 256
+"""CL points taken one at a time, at most, per round of :func:`match_points`."""
+
+_PAIRS = 1 << 20
+"""Largest (CL point, row) distance matrix built at once."""
+
+_UNKNOWN = -2
+
+
+def _distance(tip: VecArrays, cl_tip: VecArrays, rows: np.ndarray, js: np.ndarray) -> np.ndarray:
+    """Distances of program rows from CL points (as ``np.linalg.norm`` computes them).
+
+    Parameters
+    ----------
+    tip, cl_tip : VecArrays
+        Coordinate arrays of the program rows' and the CL points' tips, mm.
+    rows : ndarray, shape (k, w), int
+    js : ndarray, shape (k, 1), int
+
+    Returns
+    -------
+    ndarray, shape (k, w), mm
+    """
+    d = tip[0][rows] - cl_tip[0][js]
+    out = d * d
+    for i in (1, 2):
+        np.subtract(tip[i][rows], cl_tip[i][js], out=d)
+        d *= d
+        out += d
+    return np.sqrt(out, out=out)
+
+
+def _first_reaching(
+    cl_tip: VecArrays,
+    cl_axis: np.ndarray,
+    tip: VecArrays,
+    axis: np.ndarray,
+    tol: Tolerances,
+    js: np.ndarray,
+    start: np.ndarray,
+    windows: tuple[int, ...] = _WINDOWS,
+) -> np.ndarray:
+    """For CL points ``js``, the first row at or after ``start`` that reaches each (tip within
+    tolerance, axis within the orientation tolerance), searching the rows ``windows`` cover.
+
+    Returns
+    -------
+    ndarray, shape of ``js``, int
+        The row; -1 when none does and ``windows`` cover :data:`REACH` rows or the rest of
+        the program, ``_UNKNOWN`` when they cover fewer.
+    """
+    n = len(tip[0])
+    out = np.full(len(js), -1)
+    todo = np.flatnonzero(start < n)
+    lo = 0
+    for width in windows:
+        off = np.arange(lo, lo + width)
+        step = max(1, _PAIRS // width)
+        left = []
+        for part in range(0, len(todo), step):
+            sub = todo[part : part + step]
+            rows = start[sub, None] + off
+            safe = np.minimum(rows, n - 1)
+            j = js[sub, None]
+            hit = (_distance(tip, cl_tip, safe, j) <= tol.tip) & (rows < n)
+            near = np.nonzero(hit)
+            hit[near] = angle_between(axis[safe[near]], cl_axis[j[near[0], 0]]) <= tol.orientation
+            found = hit.any(axis=1)
+            out[sub[found]] = rows[found, np.argmax(hit[found], axis=1)]
+            left.append(sub[~found & (start[sub] + lo + width < n)])
+        todo = np.concatenate(left) if left else todo
+        lo += width
+        if not todo.size:
+            break
+    out[todo] = _UNKNOWN if lo < REACH else -1
+    return out
+
+
+def _walk(cl_tip: VecArrays, tip: VecArrays, js: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Rows ``k`` moved on while the next row is strictly nearer to CL points ``js`` (distances
+    computed as the search computes them), a few rows at a time and then more."""
+    n = len(tip[0])
+    k = k.copy()
+    active = np.arange(len(k))
+    width = 4
+    while active.size:
+        rows = k[active, None] + np.arange(width)
+        dist = _distance(tip, cl_tip, np.minimum(rows, n - 1), js[active, None])
+        dist[rows >= n] = np.inf  # past the end: not nearer
+        stop = ~(dist[:, 1:] < dist[:, :-1])
+        stops = stop.any(axis=1)
+        k[active] += np.where(stops, np.argmax(stop, axis=1), width - 1)
+        active = active[~stops]
+        width = min(8 * width, 4096)
+    return k
+
+
+def _starts(m: np.ndarray, ptr: int) -> np.ndarray:
+    """Where the search for each point of a run starts, given the results known so far.
+
+    The last match before a point, ``ptr`` before the first; a point whose result is not known
+    yet counts as a match one row on (one row per CL point, what a program usually has).
+    """
+    index = np.arange(len(m))
+    known = np.maximum.accumulate(np.where(m >= 0, index, -1))  # last match at or before
+    base = np.where(known >= 0, m[np.maximum(known, 0)], ptr)
+    unknown = np.cumsum(m == _UNKNOWN)
+    since = unknown - np.where(known >= 0, unknown[np.maximum(known, 0)], 0)
+    after = base + since  # the start for the point after each
+    return np.concatenate([[ptr], after[:-1]])
+
+
+def match_points(
+    cl_tip: np.ndarray,
+    cl_axis: np.ndarray,
+    tip: np.ndarray,
+    axis: np.ndarray,
+    tol: Tolerances,
+) -> np.ndarray:
+    """For each CL point, the program point at or after the previous match that reaches it (tip
+    within tolerance, axis within orientation tolerance; the nearest of a run of such points),
+    or -1.
+
+    The definition is sequential: with ``ptr = 0``, for each CL point j in turn, ``m_j`` is the
+    first row in ``[ptr, ptr + REACH)`` that reaches it, walked on while the next row is
+    strictly nearer (CL points closer together than the tolerance); ``ptr = m_j`` when there
+    is one, else ``ptr`` stays. So ``m_j = F_j(ptr_j)``, a function of the start alone, and
+    ``ptr_{j+1}`` is the last match up to j.
+
+    It is computed for runs of CL points at once as a fixed point. Guess every start (one row
+    per CL point after the last match known), evaluate ``F_j`` there over the first rows only
+    (most points are reached within them; the others are unknown), set the guesses from the
+    results (:func:`_starts`), and repeat, evaluating again only where a guess changed. The
+    first point whose guess differs from its recomputed start, or whose result is unknown, has
+    an exact start (every point before it is consistent, and the run starts at the exact
+    ``ptr``): it is searched from there, and so is every point after it, one at a time, until
+    one is reached within the first rows of its search (after missed CL points, or long runs
+    of inserted rows); the guesses after that follow from it again. When every result is known
+    and every guess equals its start, the recurrence holds at every point, and its solution
+    from the exact first start is unique: it is the sequential answer. A run that needs many
+    rounds is cut at its exact prefix and the runs get shorter.
+
+    Parameters
+    ----------
+    cl_tip : ndarray, shape (n_cl, 3), mm
+        The CL points (at the measured point: the tip, or the pivot up the tool axis).
+    cl_axis : ndarray, shape (n_cl, 3)
+        Their unit tool axes.
+    tip : ndarray, shape (N, 3), mm
+        The program rows' measured points in the workpiece frame (:func:`at_pivot`).
+    axis : ndarray, shape (N, 3)
+        Their unit tool axes.
+    tol : Tolerances
+        ``tol.tip`` (mm) and ``tol.orientation`` (rad) decide what reaches a point.
+
+    Returns
+    -------
+    ndarray, shape (n_cl,), int
+        The row reaching each CL point, non-decreasing over the points reached; -1 for a
+        point not reached.
+    """
+    n_cl = len(cl_tip)
+    out = np.full(n_cl, -1)
+    ptr, j0, size = 0, 0, 1024
+    cl_xyz, xyz = coords(cl_tip), coords(tip)
+
+    def evaluate(i: np.ndarray, start: np.ndarray, windows: tuple[int, ...]) -> None:
+        """Results of points i from the given starts: first row reaching, and walked on."""
+        hit = _first_reaching(cl_xyz, cl_axis, xyz, axis, tol, js[i], start, windows)
+        first[i], done_for[i] = hit, start
+        ok = hit >= 0
+        hit[ok] = _walk(cl_xyz, xyz, js[i][ok], hit[ok])
+        m[i] = hit
+
+    def holds(i: np.ndarray | int, start: np.ndarray | int) -> np.ndarray | bool:
+        """Whether the results of points i hold for these starts: computed for them, or for
+        an earlier start with the first row reaching at or after them (nothing in between)."""
+        return (done_for[i] == start) | (
+            (done_for[i] >= 0) & (start > done_for[i]) & (first[i] >= start)
+        )
+
+    while j0 < n_cl:
+        js = np.arange(j0, min(j0 + size, n_cl))
+        k = len(js)
+        guess = ptr + np.arange(k)
+        m = np.full(k, _UNKNOWN)  # results
+        first = np.full(k, _UNKNOWN)  # first rows reaching (before the walk)
+        done_for = np.full(k, -1)  # the start each result was computed for
+        exact, rounds = 0, 0  # the points before exact are final
+        while rounds < _ROUNDS:
+            rounds += 1
+            stale = np.flatnonzero(done_for != guess)
+            same = holds(stale, guess[stale])
+            done_for[stale[same]] = guess[stale[same]]
+            stale = stale[~same]
+            evaluate(stale, guess[stale], _WINDOWS[:_NEAR])
+            start = _starts(m, ptr)
+            off = np.flatnonzero((start != guess) | (m == _UNKNOWN))
+            if not off.size:
+                exact = k
+                break
+            e, s = int(off[0]), int(start[off[0]])
+            for _ in range(_SEQUENTIAL):  # e's start s is exact
+                if not holds(e, s):
+                    evaluate(np.array([e]), np.array([s]), _WINDOWS[:_NEAR])
+                if m[e] == _UNKNOWN:
+                    evaluate(np.array([e]), np.array([s]), (REACH,))
+                done_for[e] = guess[e] = s
+                s = int(m[e]) if m[e] >= 0 else s
+                e += 1
+                if e == k or (holds(e, s) and m[e] != _UNKNOWN):
+                    break  # the next result holds: back to the rounds
+            exact = e
+            guess[e:] = _starts(m, ptr)[e:]
+        out[js[:exact]] = m[:exact]
+        if exact == k:
+            ptr, j0 = int(_starts(np.append(m, _UNKNOWN), ptr)[-1]), int(js[-1]) + 1
+            size = min(2 * size, _RUN) if rounds <= 3 else max(16, size // 2)
+        else:  # too many rounds: start again from the exact prefix
+            ptr, j0 = int(guess[exact]), int(js[exact])
+            size = max(16, size // 4)
+    return out

@@ -1,0 +1,787 @@
+"""Verification: a program's motion, run through the machine, compared with the CL data.
+
+The program is taken as the control executes it: every block end goes through the forward
+kinematics (tool tip and axis in the workpiece frame; the vectorised product of exponentials,
+which the tests hold to Pinocchio on every shipped machine and on generated ones); between
+feed blocks the axes are interpolated linearly as the control does (in TCP programs the tip
+moves on the straight line and the rotary axes interpolate linearly), sampled densely, and the
+worst sample refined by golden-section search in every block where that could change the
+result (elsewhere a bound on the deviation between samples rules it out). The result is
+compared with the CL path: tool-tip distance to the CL polyline, tool-axis angle to the CL axis
+interpolated (slerp) at the same place, and which CL points the program reaches, in order
+(:mod:`urdfpost.verify.match`). Everything runs on arrays, in chunks of blocks.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from urdfpost.geometry import (
+    Arcs,
+    Segments,
+    VecArrays,
+    angle_from_chord2,
+    chunks,
+    coords,
+    cos_sin,
+    may_reach,
+    refine_max,
+)
+from urdfpost.kinematics.forward import interpolation_bounds, tip_and_axis_along
+from urdfpost.linearize import RowPoses
+from urdfpost.machine import Machine
+from urdfpost.program import Program, rewind_moves
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Toolpath
+from urdfpost.verify.match import at_pivot, match_points, program_joints, row_poses_at_tip
+
+log = logging.getLogger(__name__)
+
+_SAMPLES = 8
+"""Samples inside every block, besides its ends (the bounds of :meth:`_Blocks.bounds` are of
+second order in their spacing, so few blocks need refining after 8)."""
+
+_ITERATIONS = 14
+"""Golden-section iterations of the refinement: the bracket of two sample spacings shrinks to
+under 3e-4 of the block."""
+
+_NEGLIGIBLE = 1e-9
+"""Share of a tolerance below which a deviation is not refined (when nothing larger is seen)."""
+
+
+@dataclass(frozen=True)
+class Verification:
+    """What verification measured (lengths mm, angles degrees).
+
+    Attributes
+    ----------
+    ok : bool
+        Every CL point reached, tip and orientation deviations within tolerance.
+    cl_points : int
+    reached : int
+    missed_lines : list of int
+        CL source lines of the points the program does not reach (in order).
+    blocks : int
+        Motion blocks in the program.
+    max_tip_deviation, mean_tip_deviation : float, mm
+    max_orientation_deviation_deg : float
+    max_rotary_step_deg : dict
+        Largest step of each rotary axis between consecutive blocks.
+    tip_tolerance : float, mm
+    orientation_tolerance_deg : float
+    worst_cl_line : int or None
+        CL line nearest the worst tip deviation.
+    tcp : bool
+    notes : list of str
+    compared : int
+        How many deviations the mean is over (kept out of :meth:`as_dict`; merging the
+        verifications of the pieces of a streamed post weighs their means by it).
+    rewind_moves : int
+        Moves of rewinds, not compared with the CL path (:func:`rewind_note`; kept out of
+        :meth:`as_dict` too).
+    """
+
+    ok: bool
+    cl_points: int
+    reached: int
+    missed_lines: list[int]
+    blocks: int
+    max_tip_deviation: float
+    mean_tip_deviation: float
+    max_orientation_deviation_deg: float
+    max_rotary_step_deg: dict[str, float]
+    tip_tolerance: float
+    orientation_tolerance_deg: float
+    worst_cl_line: int | None
+    tcp: bool
+    notes: list[str] = field(default_factory=list)
+    compared: int = 0
+    rewind_moves: int = 0
+
+    def as_dict(self) -> dict:
+        """Plain data for JSON reports."""
+        out = asdict(self)
+        del out["compared"], out["rewind_moves"]
+        return out
+
+    def summary(self, units: str = "mm") -> str:
+        """One paragraph for people, lengths in ``units``."""
+        scale = 25.4 if units == "inch" else 1.0
+        fmt = ".5f" if units == "inch" else ".4f"
+        steps = ", ".join(f"{k} {v:.3f}" for k, v in self.max_rotary_step_deg.items())
+        verdict = "within tolerance" if self.ok else "BEYOND TOLERANCE"
+        return (
+            f"verification {verdict}: {self.reached}/{self.cl_points} CL points reached, "
+            f"{self.blocks} blocks; tool tip deviation max {self.max_tip_deviation / scale:{fmt}} "
+            f"mean {self.mean_tip_deviation / scale:{fmt}} {units} (tolerance "
+            f"{self.tip_tolerance / scale:{fmt}}); tool axis deviation max "
+            f"{self.max_orientation_deviation_deg:.4f} deg (tolerance "
+            f"{self.orientation_tolerance_deg:.3f}); largest rotary step {steps or 'none'} deg"
+        )
+
+
+def rewind_note(moves: int) -> str:
+    """The note of a verification that left ``moves`` rewind moves out."""
+    return f"{moves} rewind moves are not compared with the CL path"
+
+
+def missed_note(lines: list[int]) -> str:
+    """The note of a verification that missed the CL points of ``lines`` (not empty)."""
+    return f"{len(lines)} CL points not reached, first at line {lines[0]}"
+
+
+def _sampled_once(rows: np.ndarray) -> VecArrays:
+    """Rows of an (n, 3) array as coordinate arrays of shape (1, n): one sample of n blocks."""
+    x, y, z = coords(rows)
+    return x[None], y[None], z[None]
+
+
+@dataclass(frozen=True)
+class _Polyline:
+    """The CL path as segments: segment j runs from CL point j to j + 1 (the last is a point).
+
+    The segments and arcs are made for the CL indices asked for (:meth:`take`), not kept for
+    the whole path.
+
+    Attributes
+    ----------
+    tip : VecArrays
+        Coordinate arrays of the CL points, shape (n,), mm.
+    axis : VecArrays
+        Of the CL tool axes (unit).
+    """
+
+    tip: VecArrays
+    axis: VecArrays
+
+    @classmethod
+    def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
+        """The polyline of CL points ``tip`` and axes ``axis``, shape (n, 3)."""
+        return cls(coords(tip), coords(axis))
+
+    def __len__(self) -> int:
+        return len(self.tip[0])
+
+    def take(self, index: np.ndarray) -> tuple[Segments, Arcs]:
+        """The segments of the tips (mm) and the arcs of the axes (slerp) from CL points
+        ``index`` to the next ones, shape (k,)."""
+        nxt = np.minimum(index + 1, len(self) - 1)
+        (px, py, pz), (ax, ay, az) = self.tip, self.axis
+        segments = Segments.of_coords(
+            (px[index], py[index], pz[index]), (px[nxt], py[nxt], pz[nxt])
+        )
+        arcs = Arcs.of_coords((ax[index], ay[index], az[index]), (ax[nxt], ay[nxt], az[nxt]))
+        return segments, arcs
+
+
+@dataclass(frozen=True)
+class _FirstSpan:
+    """The first CL segment and arc of the spans of blocks, and how far the projection
+    parameter of samples on that segment falls outside [0, 1] (shape (s, n); 0 inside)."""
+
+    segments: Segments
+    arcs: Arcs
+    outside: np.ndarray
+
+
+def _span_deviation(
+    points: VecArrays,
+    axes: VecArrays,
+    polyline: _Polyline,
+    ja: np.ndarray,
+    jb: np.ndarray,
+    first: list[_FirstSpan] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Distance of sample points from the CL polyline between CL indices ``ja`` and ``jb``, and
+    of their tool axes from the CL axis interpolated (slerp) at the nearest place.
+
+    Parameters
+    ----------
+    points, axes : VecArrays
+        Coordinate arrays of shape (s, n): s samples of n blocks.
+    polyline : _Polyline
+    ja, jb : ndarray, shape (n,), int
+        CL span of each block (``jb >= ja``).
+    first : list, optional
+        When given, the span's first segment and arc, and how far the projection parameter
+        on that segment falls outside [0, 1], are appended to it (:class:`_FirstSpan`).
+
+    Returns
+    -------
+    dist2 : ndarray, shape (s, n), mm^2
+        Squared distance from the nearest segment of the span (the first of equals).
+    chord2 : ndarray, shape (s, n)
+        Squared chord between the tool axis and the CL axis there (see
+        :func:`urdfpost.geometry.angle_from_chord2`).
+    """
+    span = np.maximum(jb - ja, 1)
+    last = len(polyline) - 1
+    dist2 = chord2 = np.zeros(0)
+    for off in range(int(span.max(initial=1))):
+        cols = np.flatnonzero(span > off) if off else slice(None)
+        a = np.minimum(ja[cols] + off, last)
+        pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
+        axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
+        seg, arc = polyline.take(a)
+        outside: list[np.ndarray] | None = [] if off == 0 and first is not None else None
+        d2, u = seg.distance2(pts, outside)
+        if outside and first is not None:  # (outside is only ever filled when first is given)
+            first.append(_FirstSpan(seg, arc, outside[0]))
+        c2 = arc.chord2(axs, *cos_sin(u * arc.omega))
+        if off == 0:
+            dist2, chord2 = d2, c2
+            continue
+        better = d2 < dist2[:, cols]
+        dist2[:, cols] = np.where(better, d2, dist2[:, cols])
+        chord2[:, cols] = np.where(better, c2, chord2[:, cols])
+    return dist2, chord2
+
+
+@dataclass(frozen=True)
+class _Blocks:
+    """The feed blocks of a program, and how to evaluate them anywhere.
+
+    Block i moves from program row ``start[i]`` to ``start[i] + 1`` and is compared with the CL
+    span ``ja[i] .. jb[i]``, where ``valid[i]`` (None: every block).
+    """
+
+    machine: Machine
+    values: np.ndarray
+    rows: RowPoses
+    start: np.ndarray
+    ja: np.ndarray
+    jb: np.ndarray
+    polyline: _Polyline
+    tcp: bool
+    tool_length: float
+    pivot: float
+    valid: np.ndarray | None = None
+
+    def along(self, blocks: np.ndarray, t: np.ndarray) -> tuple[VecArrays | None, VecArrays]:
+        """Tool tip (None in TCP programs) and axis along blocks at parameters t, the
+        coordinate arrays of shape (s, k) of :func:`tip_and_axis_along`.
+
+        The same for every comparison of one program (the pivot is added in :meth:`errors`).
+        """
+        q0, q1 = self.values[self.start[blocks]], self.values[self.start[blocks] + 1]
+        return tip_and_axis_along(self.machine, q0, q1, t, self.tool_length, with_tip=not self.tcp)
+
+    def errors(
+        self,
+        blocks: np.ndarray,
+        t: np.ndarray,
+        first: list[_FirstSpan] | None = None,
+        along: tuple[VecArrays | None, VecArrays] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Squared distance and chord (:func:`_span_deviation`) of blocks at parameters t.
+
+        Parameters
+        ----------
+        blocks : ndarray, shape (k,), int
+        t : ndarray, shape (s,) (the same for every block) or (s, k)
+        first : list, optional
+            See :func:`_span_deviation`.
+        along : tuple, optional
+            :meth:`along` of the same blocks and t, when known.
+
+        Returns
+        -------
+        dist2, chord2 : ndarray, shape (s, k)
+        """
+        tip, axis = self.along(blocks, t) if along is None else along
+        if tip is None:  # TCP: the control moves the tip on the straight line
+            q0, q1 = self.values[self.start[blocks]], self.values[self.start[blocks] + 1]
+            lin = list(self.machine.linear_columns)
+            p0, dp = q0[:, lin], q1[:, lin] - q0[:, lin]
+            tt = t[:, None] if t.ndim == 1 else t
+            x, y, z = (p0[:, i] + tt * dp[:, i] + self.pivot * axis[i] for i in range(3))
+            p = (x, y, z)
+        elif self.pivot:
+            x, y, z = (tip[i] + self.pivot * axis[i] for i in range(3))
+            p = (x, y, z)
+        else:
+            p = tip
+        return _span_deviation(
+            p,
+            axis,
+            self.polyline,
+            self.ja[blocks],
+            self.jb[blocks],
+            first,
+        )
+
+    def bounds(
+        self,
+        blocks: np.ndarray,
+        dist2: np.ndarray,
+        chord2: np.ndarray,
+        span: _FirstSpan,
+        h: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Upper bounds on the tip deviation (mm) and on the chord of the axis deviation over
+        each whole block, from its samples (evenly spaced h apart, both ends included).
+
+        Where a block is compared with one CL segment, from A to A + d, with ``|p'| <= L`` and
+        ``|p''| <= M`` for the measured point p(t) and ``|a'| <= L_a``, ``|a''| <= M_a`` for the
+        tool axis a(t) (:func:`interpolation_bounds`; in TCP programs p is the straight line
+        plus the pivot times the tool axis):
+
+        - the tip deviation is the distance of p(t) from the segment, a convex and 1-Lipschitz
+          function of p: it is at most the largest sample plus ``M h^2 / 8`` (p stays that
+          close to the chord between two samples, and on the chord the distance is at most the
+          larger of theirs);
+        - the axis deviation is the chord ``|a(t) - e(s(t))|`` to the CL slerp e (angle omega,
+          speed omega) at the clipped projection parameter ``s = clip(u)``, ``u = (p - A).d /
+          |d|^2``. Without the clip, ``f = a - e(u)`` is smooth with ``|f''| <= M_a + omega^2
+          u'^2 + omega |u''|``, ``|u'| <= L / |d|``, ``|u''| <= M / |d|``, so ``|f|`` is at
+          most its largest sample plus ``|f''| h^2 / 8``; the clip moves e by at most omega
+          times how far u is outside [0, 1], which between samples exceeds the largest sampled
+          excess by at most ``|u''| h^2 / 8``. Together: the largest sampled chord, plus twice
+          omega times the largest sampled excess, plus ``(M_a + omega^2 L^2 / |d|^2 + 2 omega
+          M / |d|) h^2 / 8``. A first-order bound holds too (the chord changes at most at the
+          speed ``L_a + omega L / |d|``: between two samples at most their mean plus that speed
+          times h / 2); the smaller of the two is taken.
+
+        A block compared with more than one CL segment gets no bound (infinite).
+
+        Parameters
+        ----------
+        blocks : ndarray, shape (k,), int
+        dist2, chord2 : ndarray, shape (s, k)
+            Samples from :meth:`errors`.
+        span : _FirstSpan
+            The blocks' first CL segments and arcs, and how far the projection parameter falls
+            outside [0, 1] at the samples (from :meth:`errors`).
+        h : float
+
+        Returns
+        -------
+        tip, chord : ndarray, shape (k,)
+        """
+        r = self.rows
+        a, b = self.start[blocks], self.start[blocks] + 1
+        q0, q1 = self.values[a], self.values[b]
+        tip_speed, tip_curv, axis_speed, axis_curv = interpolation_bounds(
+            self.machine, q0, q1, r.reach[a], r.reach[b], r.swing[a], r.swing[b]
+        )
+        if self.tcp:
+            lin = list(self.machine.linear_columns)
+            chord = np.linalg.norm(q1[:, lin] - q0[:, lin], axis=1)
+            tip_speed = chord + abs(self.pivot) * axis_speed
+            tip_curv = abs(self.pivot) * axis_curv
+        ja = self.ja[blocks]
+        inv_length = np.sqrt(span.segments.inv_dd)  # 0 for a point
+        omega = span.arcs.omega
+        spin = omega * tip_speed * inv_length
+        g = np.sqrt(chord2)
+        room = h * h / 8.0
+        tip_bound = np.sqrt(dist2.max(axis=0)) + tip_curv * room
+        first = 0.5 * (g[1:] + g[:-1]).max(axis=0) + (axis_speed + spin) * (h / 2.0)
+        curv = axis_curv + spin * spin + 2.0 * omega * tip_curv * inv_length
+        second = g.max(axis=0) + 2.0 * omega * span.outside.max(axis=0) + curv * room
+        one = self.jb[blocks] - ja <= 1
+        return np.where(one, tip_bound, np.inf), np.where(one, np.minimum(first, second), np.inf)
+
+
+@dataclass
+class _Deviation:
+    """What :func:`_block_deviation` measured in the blocks of one comparison.
+
+    Attributes
+    ----------
+    tip : ndarray, shape (n,), mm
+        Largest tip deviation seen per block (0 where the block is not compared).
+    total : float, mm
+        Sum of the sampled tip deviations.
+    count : int
+        Number of samples.
+    chord2 : float
+        Largest squared axis chord seen in any block.
+    """
+
+    tip: np.ndarray
+    total: float
+    count: int
+    chord2: float
+
+
+def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) -> list[_Deviation]:
+    """Deviation of every feed block, sampled and refined where it can matter, in one or more
+    comparisons of the same program blocks (the kinematics along them evaluated once).
+
+    Every block is sampled at ``_SAMPLES + 2`` evenly spaced parameters, its ends included. The
+    worst samples are refined by golden-section search (:func:`refine_max`) in the blocks where
+    that could change what verification reports: where the bound of :meth:`_Blocks.bounds`
+    reaches the largest deviation sampled in any block, or the level given (the largest at the
+    program points). Elsewhere the refined value would stay below that, so the reported maxima
+    (and the block they are in) are those of refining every block.
+
+    Parameters
+    ----------
+    feeds : list of _Blocks
+        The comparisons; the same machine, program values and blocks (``start``), each with
+        its own CL spans, pivot and the blocks it compares (``valid``).
+    levels : list of (float, float)
+        Per comparison: no block needs refining below this tip deviation (mm) and squared axis
+        chord.
+
+    Returns
+    -------
+    list of _Deviation
+    """
+    n = len(feeds[0].start)
+    t = np.linspace(0.0, 1.0, _SAMPLES + 2)
+    h = float(t[1] - t[0])
+    out = []
+    best = [(np.zeros(n), np.zeros(n)) for _ in feeds]
+    worst = [(np.zeros(n, dtype=int), np.zeros(n, dtype=int)) for _ in feeds]
+    bound = [(np.zeros(n), np.zeros(n)) for _ in feeds]
+    total = [0.0 for _ in feeds]
+    for part in chunks(n, len(t)):
+        blocks = np.arange(part.start, part.stop)
+        along = feeds[0].along(blocks, t)
+        cols = np.arange(len(blocks))
+        for f, feed in enumerate(feeds):
+            first: list[_FirstSpan] = []
+            dist2, chord2 = feed.errors(blocks, t, first, along)
+            valid = None if feed.valid is None else feed.valid[part]
+            if valid is not None:
+                dist2[:, ~valid] = 0.0
+                chord2[:, ~valid] = 0.0
+            total[f] += float(np.sqrt(dist2).sum())
+            for i, e in enumerate((dist2, chord2)):
+                worst[f][i][part] = np.argmax(e, axis=0)
+                best[f][i][part] = e[worst[f][i][part], cols]
+            tip_bound, chord_bound = feed.bounds(blocks, dist2, chord2, first[0], h)
+            if valid is not None:  # blocks not compared are never refined
+                tip_bound[~valid] = -np.inf
+                chord_bound[~valid] = -np.inf
+            bound[f][0][part], bound[f][1][part] = tip_bound, chord_bound
+    for f, feed in enumerate(feeds):
+        tip_level, chord2_level = levels[f]
+        level = (
+            max(float(np.sqrt(best[f][0].max(initial=0.0))), tip_level),
+            float(np.sqrt(max(best[f][1].max(initial=0.0), chord2_level))),
+        )
+        wanted = (may_reach(bound[f][0], level[0]), may_reach(bound[f][1], level[1]))
+        todo = np.flatnonzero(wanted[0] | wanted[1])
+        log.debug(
+            "verify: %d blocks, tip refined in %d, orientation in %d",
+            n,
+            wanted[0].sum(),
+            wanted[1].sum(),
+        )
+        for part in chunks(len(todo), 4):  # four evaluations per block at a time
+            sub = todo[part]
+
+            def errors(
+                idx: np.ndarray, tt: np.ndarray, sub: np.ndarray = sub, feed: _Blocks = feed
+            ) -> tuple[np.ndarray, np.ndarray]:
+                dist2, chord2 = feed.errors(sub[idx], tt[None, :])
+                return dist2[0], chord2[0]
+
+            refined = refine_max(
+                errors,
+                t,
+                (worst[f][0][sub], worst[f][1][sub]),
+                (best[f][0][sub], best[f][1][sub]),
+                (wanted[0][sub], wanted[1][sub]),
+                iterations=_ITERATIONS,
+            )
+            best[f][0][sub], best[f][1][sub] = refined
+        compared = n if feed.valid is None else int(feed.valid.sum())
+        out.append(
+            _Deviation(
+                tip=np.sqrt(best[f][0]),
+                total=total[f],
+                count=compared * len(t),
+                chord2=float(best[f][1].max(initial=0.0)),
+            )
+        )
+    return out
+
+
+@dataclass(frozen=True)
+class Check:
+    """One comparison of a program with CL data (see :func:`verify`).
+
+    Attributes
+    ----------
+    toolpath : Toolpath
+    tol : Tolerances
+    pivot : float, mm
+        The point measured, this far up the tool axis from the tip.
+    """
+
+    toolpath: Toolpath
+    tol: Tolerances
+    pivot: float = 0.0
+
+
+def verify(
+    program: Program,
+    machine: Machine,
+    toolpath: Toolpath,
+    *,
+    tool_length: float | None = None,
+    tol: Tolerances | None = None,
+    pivot: float = 0.0,
+) -> Verification:
+    """Run a program through the machine and compare it with the CL data.
+
+    Parameters
+    ----------
+    program : Program
+        As written, or as read back from text by a dialect.
+    machine : Machine
+    toolpath : Toolpath
+        The CL data the program was made from.
+    tool_length : float, optional, mm
+        Tool length machine-coordinate positions include (default: the program's).
+    tol : Tolerances, optional
+    pivot : float, mm
+        Measure the point this far up the tool axis from the tip instead of the tip, on both
+        sides (the ball centre of a ball-end tool, about which a strategy that bends the tool
+        axis pivots). 0 measures the tip.
+
+    Returns
+    -------
+    Verification
+    """
+    tol = tol or Tolerances.for_units(program.units)
+    (check,) = verify_checks(program, machine, [Check(toolpath, tol, pivot)], tool_length)
+    return check
+
+
+def verify_checks(
+    program: Program,
+    machine: Machine,
+    checks: list[Check],
+    tool_length: float | None = None,
+) -> list[Verification]:
+    """:func:`verify` of one program against several CL paths, tolerances or pivots.
+
+    The program is read and run through the machine once: its joint values, the kinematics
+    at its rows and along its blocks are shared by the comparisons.
+
+    Parameters
+    ----------
+    program : Program
+    machine : Machine
+    checks : list of Check
+    tool_length : float, optional, mm
+        As :func:`verify`.
+
+    Returns
+    -------
+    list of Verification
+        One per check, in order.
+    """
+    tool_length = program.tool_length if tool_length is None else tool_length
+    values, rapid = program_joints(machine, program)
+    notes: list[str] = []
+    # a rewind leaves the CL path on purpose (lift, turn, return): checked like a rapid, by
+    # its end points only
+    rewind = rewind_moves(program)
+    if rewind.any():
+        rapid = rapid | rewind
+        notes.append(rewind_note(int(rewind.sum())))
+    if len(values) == 0 or not all(len(c.toolpath) for c in checks):
+        if len(values) and len(checks) > 1:  # compare those with CL points on their own
+            return [verify_checks(program, machine, [c], tool_length)[0] for c in checks]
+        return [_nothing_to_compare(program, values, c) for c in checks]
+    rows = row_poses_at_tip(machine, values, program.tcp, tool_length)
+    steps: dict[str, float] = {}
+    for a in machine.rotary:
+        col = machine.axis_names.index(a.name)
+        steps[a.name] = float(np.degrees(np.abs(np.diff(values[:, col])).max(initial=0.0)))
+    blocks = np.flatnonzero(~rapid[1:]) + 1  # feed block k joins program points k-1 and k
+    parts = [_Comparison.of(c, rows, rapid, blocks) for c in checks]
+    feeds = [
+        _Blocks(
+            machine=machine,
+            values=values,
+            rows=part.rows,
+            start=blocks - 1,
+            ja=part.ja,
+            jb=part.jb,
+            polyline=part.polyline,
+            tcp=program.tcp,
+            tool_length=tool_length,
+            pivot=c.pivot,
+            valid=part.valid,
+        )
+        for c, part in zip(checks, parts, strict=True)
+    ]
+    deviations = _block_deviation(
+        feeds, [part.levels(c.tol) for c, part in zip(checks, parts, strict=True)]
+    )
+    return [
+        replace(
+            part.verification(program, c, deviation, blocks, steps, notes),
+            rewind_moves=int(rewind.sum()),
+        )
+        for c, part, deviation in zip(checks, parts, deviations, strict=True)
+    ]
+
+
+def _nothing_to_compare(program: Program, values: np.ndarray, check: Check) -> Verification:
+    """The verification of a program without motion, or against CL data without motion."""
+    tol, n_cl = check.tol, len(check.toolpath)
+    return Verification(
+        ok=n_cl == 0,
+        cl_points=n_cl,
+        reached=0,
+        missed_lines=[int(x) for x in check.toolpath.line],
+        blocks=len(values),
+        max_tip_deviation=0.0,
+        mean_tip_deviation=0.0,
+        max_orientation_deviation_deg=0.0,
+        max_rotary_step_deg={},
+        tip_tolerance=tol.tip,
+        orientation_tolerance_deg=float(np.degrees(tol.orientation)),
+        worst_cl_line=None,
+        tcp=program.tcp,
+        notes=["program has no motion" if len(values) == 0 else "CL data has no motion"],
+    )
+
+
+@dataclass(frozen=True)
+class _Comparison:
+    """One check's view of a program: which CL points its rows reach, the CL span of every
+    row and feed block, and the deviation at the rows.
+
+    Attributes
+    ----------
+    rows : RowPoses
+        At the check's pivot.
+    polyline : _Polyline
+        Of the CL points (at the pivot).
+    reached : ndarray, shape (n_cl,), bool
+    before : ndarray, shape (N,), int
+        Last CL index matched at or before each program row (-1 before the first).
+    ja, jb : ndarray, shape (n_blocks,), int
+        CL span of each feed block (0 where it is not compared).
+    valid : ndarray or None, shape (n_blocks,), bool
+        The feed blocks compared: those between the first and last CL point reached (None:
+        all of them).
+    row_tip : ndarray, shape (k,), mm
+        Tip deviation at the rows compared (feed rows and rows reaching a CL point).
+    row_chord2 : ndarray, shape (k,)
+        Squared axis chord there.
+    row_span : ndarray, shape (k,), int
+        First CL index of their spans.
+    """
+
+    rows: RowPoses
+    polyline: _Polyline
+    reached: np.ndarray
+    before: np.ndarray
+    ja: np.ndarray
+    jb: np.ndarray
+    valid: np.ndarray | None
+    row_tip: np.ndarray
+    row_chord2: np.ndarray
+    row_span: np.ndarray
+
+    @classmethod
+    def of(
+        cls, check: Check, tip_rows: RowPoses, rapid: np.ndarray, blocks: np.ndarray
+    ) -> _Comparison:
+        """Match the CL points of ``check`` with the rows (poses at the tip ``tip_rows``)."""
+        toolpath, n_cl = check.toolpath, len(check.toolpath)
+        rows = at_pivot(tip_rows, check.pivot)
+        cl_tip = toolpath.tip + check.pivot * toolpath.axis
+        match = match_points(cl_tip, toolpath.axis, rows.tip, rows.axis, check.tol)
+        reached = match >= 0
+        # CL span of every program point: last CL index matched at or before it, first after
+        owner = np.full(len(rows.tip), -1)
+        owner[match[reached]] = np.flatnonzero(reached)
+        before = np.maximum.accumulate(np.where(owner >= 0, owner, -1))
+        after_src = np.where(owner >= 0, owner, n_cl)
+        after = np.minimum.accumulate(after_src[::-1])[::-1]
+
+        # the block ends themselves (rapids included) against their CL span
+        ja_pt = np.maximum(before, 0)
+        jb_pt = np.maximum(np.where(after < n_cl, after, n_cl - 1), ja_pt)
+        polyline = _Polyline.of(cl_tip, toolpath.axis)
+        dp2, op2 = np.empty(len(rows.tip)), np.empty(len(rows.tip))
+        for part in chunks(len(rows.tip), 1):
+            at_rows = (_sampled_once(rows.tip[part]), _sampled_once(rows.axis[part]))
+            d2, c2 = _span_deviation(*at_rows, polyline, ja_pt[part], jb_pt[part])
+            dp2[part], op2[part] = d2[0], c2[0]
+        feed_pts = ~rapid | (owner >= 0)
+
+        valid = (before[blocks - 1] >= 0) & (after[blocks] < n_cl)
+        ja = np.where(valid, before[blocks - 1], 0)
+        jb = np.where(valid, np.maximum(after[blocks], ja), 0)
+        return cls(
+            rows=rows,
+            polyline=polyline,
+            reached=reached,
+            before=before,
+            ja=ja,
+            jb=jb,
+            valid=None if valid.all() else valid,
+            row_tip=np.sqrt(dp2[feed_pts]),
+            row_chord2=op2[feed_pts],
+            row_span=ja_pt[feed_pts],
+        )
+
+    def levels(self, tol: Tolerances) -> tuple[float, float]:
+        """What no block needs refining for: the largest deviation at a program row, or (when
+        there is next to none) a billionth of the tolerance (tip mm, squared chord)."""
+        tip_level = max(self.row_tip.max(initial=0.0), _NEGLIGIBLE * tol.tip)
+        chord2_level = max(
+            self.row_chord2.max(initial=0.0), (2.0 * np.sin(_NEGLIGIBLE * tol.orientation / 2)) ** 2
+        )
+        return float(tip_level), float(chord2_level)
+
+    def verification(
+        self,
+        program: Program,
+        check: Check,
+        deviation: _Deviation,
+        blocks: np.ndarray,
+        steps: dict[str, float],
+        notes: list[str],
+    ) -> Verification:
+        """The figures of this comparison, with the feed blocks' ``deviation``."""
+        tol, toolpath = check.tol, check.toolpath
+        dp = self.row_tip
+        dmax = deviation.tip if self.valid is None else deviation.tip[self.valid]
+        compared = blocks if self.valid is None else blocks[self.valid]
+        max_tip = float(max(dmax.max(initial=0.0), dp.max(initial=0.0)))
+        mean_tip = (deviation.total + float(dp.sum())) / max(deviation.count + dp.size, 1)
+        max_chord2 = max(deviation.chord2, float(self.row_chord2.max(initial=0.0)))
+        max_ori = float(angle_from_chord2(max_chord2))
+        worst_line = None
+        if len(compared) and dmax.max() >= dp.max(initial=0.0):
+            worst_line = int(toolpath.line[self.before[compared[int(np.argmax(dmax))] - 1]])
+        elif dp.size:
+            worst_line = int(toolpath.line[self.row_span[int(np.argmax(dp))]])
+        missed_lines = [int(x) for x in toolpath.line[~self.reached]]
+        ok = not missed_lines and max_tip <= tol.tip and max_ori <= tol.orientation
+        notes = list(notes)
+        if missed_lines:
+            notes.append(missed_note(missed_lines))
+        return Verification(
+            ok=bool(ok),
+            cl_points=len(toolpath),
+            reached=int(self.reached.sum()),
+            missed_lines=missed_lines,
+            blocks=len(self.rows.tip),
+            max_tip_deviation=max_tip,
+            mean_tip_deviation=float(mean_tip),
+            max_orientation_deviation_deg=float(np.degrees(max_ori)),
+            max_rotary_step_deg=steps,
+            tip_tolerance=tol.tip,
+            orientation_tolerance_deg=float(np.degrees(tol.orientation)),
+            worst_cl_line=worst_line,
+            tcp=program.tcp,
+            notes=notes,
+            compared=deviation.count + dp.size,
+        )
