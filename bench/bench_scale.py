@@ -24,9 +24,9 @@ column is the peak after the imports, before the work) do not pollute each other
     write it without a closed-form solver; a sample of points, extrapolated to the file;
 (f) ``closed-form IK``: :func:`urdfpost.kinematics.inverse.inverse` over all points of the file;
 (g) ``in pieces``: (b) and (c) as ``urdfpost post`` runs them on large files
-    (:func:`urdfpost.posting.stream.post_stream` over :func:`urdfpost.readers.read_cl_chunks`, pieces
-    of :data:`urdfpost.posting.PIECE_POINTS` CL points, each verified in a worker process while
-    the next is planned: the two cores share the work); the worker's peak memory is shown
+    (:func:`urdfpost.posting.stream.post_stream` over
+    :func:`urdfpost.readers.read_cl_chunks`, pieces of :data:`urdfpost.posting.PIECE_POINTS` CL
+    points, each verified in a worker process while the next is planned: the two cores share the work); the worker's peak memory is shown
     beside the post's. Then the fastest control in machine coordinates at 10M points as well
     (``--stream-sizes``): the peak memory must not grow with the job;
 (h) ``urdfpost verify`` of the program of (b) for the fastest control (posted once and kept
@@ -107,8 +107,8 @@ def measure_post(path: str, control: str, tcp: bool) -> dict[str, Any]:
 
 
 def measure_stream(path: str, control: str, tcp: bool) -> dict[str, Any]:
-    """The post of (b)/(c) in pieces (:func:`urdfpost.posting.stream.post_stream`, the file read with
-    :func:`urdfpost.readers.read_cl_chunks`, each piece verified in a worker process while the
+    """The post of (b)/(c) in pieces (:func:`urdfpost.posting.stream.post_stream`, the file read
+    with :func:`urdfpost.readers.read_cl_chunks`, each piece verified in a worker process while the
     next is planned), the program written to a temporary file."""
     import tempfile
 
@@ -319,7 +319,7 @@ def measure_verify(path: str, control: str, pieces: bool) -> dict[str, Any]:
     from urdfpost.posting.readback import verify_stream
     from urdfpost.readers import read_cl_chunks
     from urdfpost.tolerances import Tolerances
-    from urdfpost.verify import verify
+    from urdfpost.verification import verify
 
     program_path = _program_of(path, control)
     machine = load_machine(MACHINE)

@@ -27,7 +27,7 @@ from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import PostResult, post
 from urdfpost.program import Move, Program, Tcp
 from urdfpost.toolpath import Motion, Toolpath
-from urdfpost.verify import program_joints
+from urdfpost.verification import program_joints
 
 
 @functools.cache

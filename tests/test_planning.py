@@ -21,7 +21,7 @@ from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import post
 from urdfpost.program import Comment, Move, rewind_moves
 from urdfpost.toolpath import Event, Motion, Toolpath
-from urdfpost.verify import program_joints
+from urdfpost.verification import program_joints
 
 ROOT = Path(__file__).resolve().parents[1]
 GANTRY = ROOT / "robots" / "urdf" / "gantry-ca.urdf"

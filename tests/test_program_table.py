@@ -43,7 +43,7 @@ from urdfpost.program import (
     rewind_moves,
 )
 from urdfpost.toolpath import Event, Motion, Toolpath
-from urdfpost.verify import program_joints, verify
+from urdfpost.verification import program_joints, verify
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -45,7 +45,7 @@ def flat(tp: Toolpath) -> Toolpath:
 
 
 def first_axis_travel_deg(result, m) -> float:
-    from urdfpost.verify import program_joints
+    from urdfpost.verification import program_joints
 
     q, _ = program_joints(m, result.program)
     col = m.axis_names.index(m.rotary[0].name)

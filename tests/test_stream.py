@@ -21,7 +21,7 @@ from urdfpost.posting.stream import post_stream
 from urdfpost.posting.whole import post
 from urdfpost.readers import read_cl
 from urdfpost.toolpath import Event, Toolpath, toolpath_pieces, toolpath_slice
-from urdfpost.verify import Verification
+from urdfpost.verification import Verification
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -335,7 +335,7 @@ def test_verify_in_pieces_is_the_whole_verify(
     from urdfpost.dialects import dialect_for
     from urdfpost.posting.readback import program_texts, verify_stream
     from urdfpost.tolerances import Tolerances
-    from urdfpost.verify import verify
+    from urdfpost.verification import verify
 
     m = load_machine("dmu50")
     events = with_events(raster).events  # (an insert is read back only knowing its text)
@@ -366,7 +366,7 @@ def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
     from urdfpost.dialects import dialect_for
     from urdfpost.posting.readback import verify_stream
     from urdfpost.tolerances import Tolerances
-    from urdfpost.verify import verify
+    from urdfpost.verification import verify
 
     m = load_machine("gantry-ca")
     n = 3000

@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import urdfpost.linearize as linearize_module
-import urdfpost.verify.measure as verify_module
+import urdfpost.verification.measure as verify_module
 from urdfpost import load_machine
 from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
@@ -30,9 +30,9 @@ from urdfpost.program import Move, Program, Tcp, ToolChange
 from urdfpost.readers import read_cl
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verify import Verification, match_points, verify
-from urdfpost.verify.match import _row_poses
-from urdfpost.verify.measure import _Blocks, _Polyline
+from urdfpost.verification import Verification, match_points, verify
+from urdfpost.verification.match import _row_poses
+from urdfpost.verification.measure import _Blocks, _Polyline
 
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"

@@ -43,7 +43,7 @@ def __getattr__(name: str):
 
         return read_cl
     if name == "verify":
-        from urdfpost.verify import verify
+        from urdfpost.verification import verify
 
         return verify
     raise AttributeError(f"module 'urdfpost' has no attribute {name!r}")

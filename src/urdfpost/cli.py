@@ -501,7 +501,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from urdfpost.machine import load_machine
     from urdfpost.posting.report import Report
     from urdfpost.tolerances import Tolerances
-    from urdfpost.verify import verify
+    from urdfpost.verification import verify
 
     machine = load_machine(args.machine)
     dialect = dialect_for(args.controller, None if args.controller else args.program)

@@ -6,8 +6,8 @@ them; the chunks long paths are measured in; the golden-section refinement of pe
 and the test of a bound against a level that decides where the refinement runs.
 
 Pure functions over numpy arrays: nothing here knows the machine or its kinematics. The
-callers (:mod:`urdfpost.linearize`, :mod:`urdfpost.verify`, :mod:`urdfpost.planning.strategies`)
-bring the points and axes.
+callers (:mod:`urdfpost.linearize`, :mod:`urdfpost.verification`,
+:mod:`urdfpost.planning.strategies`) bring the points and axes.
 """
 
 from __future__ import annotations

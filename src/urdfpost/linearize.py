@@ -38,7 +38,7 @@ from urdfpost.geometry import (
 )
 from urdfpost.kinematics.forward import (
     ROWS,
-    Chain,
+    PoeChain,
     Scratch,
     chain_of,
     cos_sin_along,
@@ -87,7 +87,7 @@ class RowPoses:
     swing: np.ndarray
 
     @classmethod
-    def of(cls, machine: Machine | Chain, q: np.ndarray, tool_length: float) -> RowPoses:
+    def of(cls, machine: Machine | PoeChain, q: np.ndarray, tool_length: float) -> RowPoses:
         """The poses at joint values ``q`` (n, m), mm / rad."""
         return cls(*tip_axis_and_reach(machine, q, tool_length))
 
@@ -187,7 +187,7 @@ class _Slack:
     @classmethod
     def of(
         cls,
-        machine: Machine | Chain,
+        machine: Machine | PoeChain,
         q0: np.ndarray,
         q1: np.ndarray,
         seg: Segments,
@@ -230,7 +230,7 @@ class _Slack:
 
 
 def _error_bounds(
-    machine: Machine | Chain,
+    machine: Machine | PoeChain,
     q0: np.ndarray,
     q1: np.ndarray,
     seg: Segments,
@@ -275,7 +275,7 @@ def _error_bounds(
 
 
 def _sampled_errors(
-    chain: Chain,
+    chain: PoeChain,
     scratch: Scratch,
     q0: np.ndarray,
     q1: np.ndarray,

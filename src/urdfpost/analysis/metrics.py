@@ -25,8 +25,8 @@ Axis kinematics
     not move the tip (less than :data:`STILL`).
 
 Accuracy and conditioning
-    Tool-tip and tool-axis deviation come from :func:`urdfpost.verify.verify` (between blocks, as
-    the control interpolates); the conditioning of the orientation Jacobian
+    Tool-tip and tool-axis deviation come from :func:`urdfpost.verification.verify` (between
+    blocks, as the control interpolates); the conditioning of the orientation Jacobian
     (:func:`urdfpost.planning.singularity.conditioning`) is taken at every end of a feed block.
 
 Angles are reported in degrees and lengths in mm, whatever the program units.
@@ -49,7 +49,7 @@ from urdfpost.program import Program
 from urdfpost.reports import json_ready
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verify import program_joints, verify
+from urdfpost.verification import program_joints, verify
 
 log = logging.getLogger(__name__)
 
@@ -301,8 +301,8 @@ def measure(
         tol : Tolerances, optional
             For verification (default: for the program's units).
         pivot : float, mm
-            Passed to :func:`~urdfpost.verify.verify`: deviations are measured this far up the tool
-            axis (the ball centre for a strategy that bends the axis about it).
+            Passed to :func:`~urdfpost.verification.verify`: deviations are measured this far up
+            the tool axis (the ball centre for a strategy that bends the axis about it).
         lifts : int
             Retracts the strategy added, reported as is.
 

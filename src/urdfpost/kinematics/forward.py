@@ -343,10 +343,6 @@ class PoeChain:
         return self.home_tool_in_work[:3, 2].copy()
 
 
-# the old name, until planning/singularity.py and linearize.py import PoeChain
-Chain = PoeChain
-
-
 def chain_of(machine: Machine | PoeChain) -> PoeChain:
     """The chain of a machine (a chain is its own).
 

@@ -209,7 +209,7 @@ def _blocks(n: int) -> Iterator[slice]:
 
 
 @dataclass(frozen=True)
-class _Chain:
+class _SolveConstants:
     """The chain between workpiece and tool as the linear solve needs it.
 
     Attributes
@@ -234,7 +234,7 @@ class _Chain:
     axis: Constant
 
     @classmethod
-    def of(cls, machine: Machine) -> _Chain:
+    def of(cls, machine: Machine) -> _SolveConstants:
         lines: list[tuple[Constant, Constant]] = []
         before: dict[str, int] = {}
         for a in sorted(machine.axes, key=lambda a: a.chain_index):
@@ -458,7 +458,7 @@ def solve_rotary(
 
 
 def _linear_block(
-    chain: _Chain,
+    chain: _SolveConstants,
     turns: tuple[tuple[np.ndarray, np.ndarray], ...],
     tip: Arrays,
     tool_length: float,
@@ -549,7 +549,7 @@ def solve_linear(
     """
     tip = np.asarray(tip, dtype=float).reshape(-1, 3)
     rotary = np.asarray(rotary, dtype=float).reshape(len(tip), -1)
-    chain = _Chain.of(machine)
+    chain = _SolveConstants.of(machine)
     out = np.empty((len(tip), 3))
     for sl in _blocks(len(tip)):
         turns = tuple((np.cos(t), np.sin(t)) for t in rotary[sl].T)
@@ -616,7 +616,7 @@ def inverse(
     tip = np.asarray(tip, dtype=float).reshape(-1, 3)
     axis = np.asarray(axis, dtype=float).reshape(-1, 3)
     n, r = tip.shape[0], len(machine.rotary)
-    tilt, chain = _Tilt.of(machine), _Chain.of(machine)
+    tilt, chain = _Tilt.of(machine), _SolveConstants.of(machine)
     rot_cols, lin_cols = list(machine.rotary_columns), list(machine.linear_columns)
     cos_pole, sin_pole = np.cos(pole_angle), np.sin(pole_angle)
     angles = np.empty((n, 2, r))

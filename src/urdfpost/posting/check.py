@@ -3,7 +3,7 @@
 Every post ends here, whole or in pieces, in this process or in a verification worker:
 :func:`check_piece` measures the program read back from its text against what the piece was
 made from (a :class:`CheckTarget`), and :func:`tolerance_error` is the error of a program that
-misses its tolerance. The measuring itself is :mod:`urdfpost.verify`.
+misses its tolerance. The measuring itself is :mod:`urdfpost.verification`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from urdfpost.machine import Machine
 from urdfpost.program import Program
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verify import Check, Verification, verify, verify_checks
+from urdfpost.verification import Check, Verification, verify, verify_checks
 
 
 @dataclass(frozen=True)

@@ -222,7 +222,9 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         tcp=options.tcp,
         tool_length=settings.tool_length if options.tool_length is None else options.tool_length,
         angle_tolerance_deg=options.angle_tolerance,
-        prefer=options.prefer,
+        prefer=options.prefer
+        if options.prefer is not None
+        else (Preference(*settings.prefer) if settings.prefer else None),
         planner=options.planner,
         lift=options.lift * scale,
         retract=DEFAULT_RETRACT if options.retract is None else options.retract * scale,

@@ -20,7 +20,7 @@ from urdfpost.program import Blocks, Move, MoveTable, Program, rewind_moves
 from urdfpost.readers._stream import text_pieces
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath, joined, toolpath_slice
-from urdfpost.verify import (
+from urdfpost.verification import (
     REACH,
     Verification,
     at_pivot,
@@ -164,8 +164,8 @@ def _verify_cut(
     before ``target`` and the program row that reaches it, such that checking the two sides
     on their own (the row and the point in both) gives what checking them together gives.
 
-    The matching of CL points to rows is sequential (:func:`urdfpost.verify.match_points`): each
-    point is searched from the row the point before reached. Cut at a point ``c`` reached by
+    The matching of CL points to rows is sequential
+    (:func:`urdfpost.verification.match_points`): each point is searched from the row the point before reached. Cut at a point ``c`` reached by
     row ``r``, with the next point reached by a later row, the second side starts where the
     whole check is after ``c``; the first side holds every row the search for a point up to
     ``c`` looks at when the rows go on :data:`REACH` past ``r`` (or the program ends). The
@@ -208,7 +208,7 @@ def verify_stream(
     piece_points: int = PIECE_POINTS,
     texts: Iterable[str] | None = None,
 ) -> tuple[Verification, Program]:
-    """:func:`urdfpost.verify.verify` of a program file against CL data given in pieces, in
+    """:func:`urdfpost.verification.verify` of a program file against CL data given in pieces, in
     bounded memory: the program is read and checked a piece at a time.
 
     Each piece is cut at a CL point and the program row that reaches it where the two sides
@@ -228,7 +228,7 @@ def verify_stream(
     tol : Tolerances
     tool_length : float, mm
     pivot : float, mm
-        As :func:`urdfpost.verify.verify`.
+        As :func:`urdfpost.verification.verify`.
     piece_points : int
         CL points checked per piece, about.
     texts : iterable of str, optional

@@ -15,7 +15,7 @@ import numpy as np
 
 from urdfpost.planning.singularity import Span
 from urdfpost.units import mm_per_unit
-from urdfpost.verify import Verification
+from urdfpost.verification import Verification
 
 
 @dataclass(frozen=True)

@@ -66,7 +66,7 @@ from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigu
 from urdfpost.posting.worker import FORK, Checks, PieceJob
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath, joined, toolpath_slice
-from urdfpost.verify import Verification
+from urdfpost.verification import Verification
 
 log = logging.getLogger(__name__)
 

@@ -12,7 +12,7 @@ from urdfpost.posting.piece import PostedPiece, post_piece
 from urdfpost.posting.report import Report
 from urdfpost.program import Insert, Program
 from urdfpost.toolpath import Toolpath
-from urdfpost.verify import Verification
+from urdfpost.verification import Verification
 
 
 @dataclass(frozen=True)

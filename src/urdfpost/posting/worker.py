@@ -27,7 +27,7 @@ from urdfpost.machine import Machine
 from urdfpost.posting.check import CheckTarget, check_piece, tolerance_error
 from urdfpost.program import Blocks, Insert, MoveTable, Program
 from urdfpost.tolerances import Tolerances
-from urdfpost.verify import Verification
+from urdfpost.verification import Verification
 
 if TYPE_CHECKING:
     from urdfpost.posting.piece import PostedPiece

@@ -72,7 +72,8 @@ def select(
     axis : ndarray, shape (n, 3)
     tool_length : float, mm
     prefer : Preference, optional
-        Defaults to the machine file's preference.
+        None: no preferred branch (a post passes the machine file's, resolved by
+        :func:`urdfpost.posting.options.resolve`).
     entry : ndarray, shape (n,), bool, optional
         Points where the preference applies again (the path is entered anew, e.g. after a
         tool change). The first point always is one.
@@ -119,8 +120,6 @@ def select(
     axis = np.asarray(axis, dtype=float).reshape(-1, 3)
     n = tip.shape[0]
     lines = np.arange(1, n + 1) if lines is None else np.asarray(lines)
-    if prefer is None and machine.settings.prefer is not None:
-        prefer = Preference(*machine.settings.prefer)
     if fixed_start and start is None:
         raise ValueError("fixed_start needs the joint vector to start from")
     start = machine.home if start is None else np.asarray(start, dtype=float)

@@ -9,7 +9,7 @@ worst sample refined by golden-section search in every block where that could ch
 result (elsewhere a bound on the deviation between samples rules it out). The result is
 compared with the CL path: tool-tip distance to the CL polyline, tool-axis angle to the CL axis
 interpolated (slerp) at the same place, and which CL points the program reaches, in order
-(:mod:`urdfpost.verify.match`). Everything runs on arrays, in chunks of blocks.
+(:mod:`urdfpost.verification.match`). Everything runs on arrays, in chunks of blocks.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from urdfpost.machine import Machine
 from urdfpost.program import Program, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verify.match import at_pivot, match_points, program_joints, row_poses_at_tip
+from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
 
 log = logging.getLogger(__name__)
 

@@ -8,9 +8,9 @@ order.
 
 Modules
 -------
-:mod:`urdfpost.verify.match`
+:mod:`urdfpost.verification.match`
     Which program rows reach which CL points, the rows' joint values and poses.
-:mod:`urdfpost.verify.measure`
+:mod:`urdfpost.verification.measure`
     The deviation of the blocks from the CL path, and the figures of a :class:`Verification`.
 
 The streamed verifier (:func:`urdfpost.posting.readback.verify_stream`) uses the matching on its
@@ -19,8 +19,14 @@ own (:func:`match_points`, :data:`REACH`) to find where a program can be checked
 
 from __future__ import annotations
 
-from urdfpost.verify.match import REACH, at_pivot, match_points, program_joints, row_poses_at_tip
-from urdfpost.verify.measure import (
+from urdfpost.verification.match import (
+    REACH,
+    at_pivot,
+    match_points,
+    program_joints,
+    row_poses_at_tip,
+)
+from urdfpost.verification.measure import (
     Check,
     Verification,
     missed_note,

@@ -7,7 +7,7 @@ order (:func:`match_points`): each CL point from the row the point before reache
 (:func:`program_joints`) and their poses from the forward kinematics
 (:func:`row_poses_at_tip`, :func:`at_pivot`).
 
-The deviation between the rows (the blocks) is :mod:`urdfpost.verify.measure`; the streamed
+The deviation between the rows (the blocks) is :mod:`urdfpost.verification.measure`; the streamed
 verifier (:func:`urdfpost.posting.readback.verify_stream`) cuts its pieces where this matching can
 be cut.
 """
@@ -121,7 +121,7 @@ def at_pivot(rows: RowPoses, pivot: float) -> RowPoses:
 
     The reach grows by at most ``|pivot|`` times the swing (the part of ``pivot`` times the
     tool axis across each rotary axis' line): an upper bound, which is what the bounds of
-    the deviation between samples (:mod:`urdfpost.verify.measure`) need.
+    the deviation between samples (:mod:`urdfpost.verification.measure`) need.
 
     Parameters
     ----------
