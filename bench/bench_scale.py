@@ -26,9 +26,10 @@ column is the peak after the imports, before the work) do not pollute each other
 (g) ``in pieces``: (b) and (c) as ``urdfpost post`` runs them on large files
     (:func:`urdfpost.posting.stream.post_stream` over
     :func:`urdfpost.readers.read_cl_chunks`, pieces of :data:`urdfpost.posting.PIECE_POINTS` CL
-    points, each verified in a worker process while the next is planned: the two cores share the work); the worker's peak memory is shown
-    beside the post's. Then the fastest control in machine coordinates at 10M points as well
-    (``--stream-sizes``): the peak memory must not grow with the job;
+    points, each verified in a worker process while the next is planned: the two cores share
+    the work); the worker's peak memory is shown beside the post's. Then the fastest control
+    in machine coordinates at 10M points as well (``--stream-sizes``): the peak memory must not grow
+    with the job;
 (h) ``urdfpost verify`` of the program of (b) for the fastest control (posted once and kept
     beside the CL file), whole and in pieces (:func:`urdfpost.posting.readback.verify_stream`); in
     pieces at 10M too.

@@ -558,10 +558,12 @@ def test_the_package_api_is_the_functions_of_the_readme() -> None:
     """``from urdfpost import post`` is the post function (not a subpackage of that name),
     whatever modules were imported before."""
     import urdfpost
-    import urdfpost.posting.stream  # noqa: F401 (a submodule imported first)
+    import urdfpost.posting.stream
+    import urdfpost.verification.match  # submodules imported first
     from urdfpost import PostOptions, PostResult, post, read_cl, verify
 
     assert callable(post) and post.__name__ == "post"
-    assert urdfpost.post is post
+    assert urdfpost.post is post and urdfpost.posting.stream.post_stream
+    assert urdfpost.verification.match.match_points
     assert PostOptions.__name__ == "PostOptions" and PostResult.__name__ == "PostResult"
     assert callable(read_cl) and callable(verify)

@@ -1,4 +1,5 @@
-"""The streamed post (urdfpost.posting.stream): pieces joined into the program a whole post writes."""
+"""The streamed post (urdfpost.posting.stream): pieces joined into the program a whole post
+writes."""
 
 from __future__ import annotations
 

@@ -262,6 +262,8 @@ def post_piece(
         A CL point no branch reaches within travel.
     CollisionError
         A move of the program collides.
+    GeometryError
+        Collision geometry that cannot be built (a stock file, a ``<collision>`` element).
     """
     machine, tol, tool_length = job.machine, job.tol, job.tool_length
     cl = toolpath

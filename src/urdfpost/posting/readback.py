@@ -165,12 +165,12 @@ def _verify_cut(
     on their own (the row and the point in both) gives what checking them together gives.
 
     The matching of CL points to rows is sequential
-    (:func:`urdfpost.verification.match_points`): each point is searched from the row the point before reached. Cut at a point ``c`` reached by
-    row ``r``, with the next point reached by a later row, the second side starts where the
-    whole check is after ``c``; the first side holds every row the search for a point up to
-    ``c`` looks at when the rows go on :data:`REACH` past ``r`` (or the program ends). The
-    blocks into and out of ``r`` are feed moves outside rewinds, so that the rapids and the
-    rewinds of each side are what they are in the whole.
+    (:func:`urdfpost.verification.match_points`): each point is searched from the row the
+    point before reached. Cut at a point ``c`` reached by row ``r``, with the next point
+    reached by a later row, the second side starts where the whole check is after ``c``; the first
+    side holds every row the search for a point up to ``c`` looks at when the rows go on
+    :data:`REACH` past ``r`` (or the program ends). The blocks into and out of ``r`` are feed moves
+    outside rewinds, so that the rapids and the rewinds of each side are what they are in the whole.
 
     Returns
     -------

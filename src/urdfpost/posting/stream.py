@@ -229,7 +229,7 @@ def post_stream(
 
     Raises
     ------
-    UnreachableError, CollisionError, ToleranceError, UrdfpostError
+    UnreachableError, CollisionError, GeometryError, ToleranceError, UrdfpostError
         As :func:`urdfpost.posting.whole.post`; nothing is written then.
     ValueError
         ``piece_points`` under 2 or ``lookahead`` under 1.

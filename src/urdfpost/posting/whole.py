@@ -89,6 +89,8 @@ def post(
         A CL point no branch reaches within travel.
     CollisionError
         A move of the program collides.
+    GeometryError
+        Collision geometry that cannot be built (a stock file, a ``<collision>`` element).
     ToleranceError
         The program read back deviates from the CL data beyond tolerance (the message carries
         the figures); nothing should be written then.
