@@ -24,7 +24,7 @@ from urdfpost._files import check_distinct, output_target, write_texts
 from urdfpost.errors import UrdfpostError
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.reports import report_json
-from urdfpost.units import mm_per_unit
+from urdfpost.units import UNITS, mm_per_unit
 
 if TYPE_CHECKING:
     from urdfpost.posting.stream import StreamResult
@@ -198,6 +198,7 @@ def _planning_arguments(p: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for documentation and tests)."""
     from urdfpost.dialects import DIALECTS
+    from urdfpost.readers import FORMATS
 
     controllers = sorted(DIALECTS)
     p = argparse.ArgumentParser(
@@ -229,7 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     po.add_argument(
         "--units",
-        choices=("mm", "inch"),
+        choices=UNITS,
         help="units of the CL data when the file does not say (default mm)",
     )
     po.add_argument(
@@ -244,7 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     po.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+ or B-")
     _strategy_arguments(po, single=True)
-    po.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
+    po.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     po.add_argument("--block-numbers", action="store_true", help="number the blocks")
     po.add_argument("--name", help="program name (default: PARTNO or URDFPOST)")
     po.add_argument("--report", help="write a JSON report here")
@@ -277,7 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="dialect of the program (default: from its extension)",
     )
     ve.add_argument(
-        "--units", choices=("mm", "inch"), help="units of the CL data when the file does not say"
+        "--units", choices=UNITS, help="units of the CL data when the file does not say"
     )
     ve.add_argument(
         "--tool-length",
@@ -294,7 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
         "program must follow the CL tool axis); when given, a ball-end tool is measured at "
         "its ball centre, as the post checks it",
     )
-    ve.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
+    ve.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     ve.add_argument("--report", help="write a JSON report here")
     ve.add_argument(
         "--piece-points",
@@ -321,12 +322,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=True,
         help="machine axis positions instead of TCP",
     )
-    co.add_argument("--units", choices=("mm", "inch"), help="units of the CL data if not given")
+    co.add_argument("--units", choices=UNITS, help="units of the CL data if not given")
     co.add_argument("--tool-length", type=_non_negative, help="tool length in program units")
     co.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
     co.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+")
     _strategy_arguments(co, single=False)
-    co.add_argument("--format", choices=("apt", "plain"), help="CL format (default: detected)")
+    co.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     co.add_argument("--report", help="write the figures as JSON here")
     co.add_argument("--plot", help="write a PNG of rotary angles and speeds here")
 
@@ -597,6 +598,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             f"--strategies: unknown {', '.join(unknown)}; expected 'all' or names from "
             f"{', '.join(STRATEGIES)}"
         )
+    if args.plot:  # before the comparison, which can take minutes
+        from urdfpost.analysis.plot import require_matplotlib
+
+        require_matplotlib()
     toolpath = _read_cl(args, machine)
     units = toolpath.units
     scale = mm_per_unit(units)

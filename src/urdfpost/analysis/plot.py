@@ -34,6 +34,20 @@ def _speed_scale(values: list[np.ndarray]) -> str:
     return "log" if pos.max() > _LOG_RATIO * np.median(pos) else "linear"
 
 
+def require_matplotlib() -> None:
+    """Check that matplotlib can be imported (before a long comparison whose plot it draws).
+
+    Raises
+    ------
+    UrdfpostError
+        When it cannot: the message says how to install it (the ``plot`` extra).
+    """
+    try:
+        import matplotlib  # noqa: F401 (only its presence is checked here)
+    except ImportError as e:  # the test extra installs matplotlib
+        raise UrdfpostError("compare --plot needs matplotlib: pip install 'urdfpost[plot]'") from e
+
+
 def plot_comparison(
     results: Sequence[tuple[str, Metrics]],
     spans: Sequence[Span],
@@ -70,11 +84,10 @@ def plot_comparison(
     ValueError
         When there is nothing to plot, or a result carries no profile.
     """
-    try:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError as e:  # the test extra installs matplotlib
-        raise UrdfpostError("compare --plot needs matplotlib: pip install 'urdfpost[plot]'") from e
+    require_matplotlib()
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     if not results:
         raise ValueError("plot_comparison: expected at least one result, got none")
     for name, m in results:

@@ -51,12 +51,9 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from urdfpost.errors import DialectError
-
-if TYPE_CHECKING:
-    from urdfpost.dialects.reader import ProgramBuilder
 
 #: M-codes every control here shares (ISO 6983 / common practice).
 STANDARD_M_CODES: Mapping[int, str] = MappingProxyType(
@@ -206,6 +203,17 @@ def _empty() -> Mapping[str, str]:
     return MappingProxyType({})
 
 
+class LineParser(Protocol):
+    """A control's own reading of one program line (Heidenhain's conversational lines).
+
+    Called with the control's spec, the reader's
+    :class:`~urdfpost.dialects.reader.ProgramBuilder` (typed ``Any`` here: the reader imports
+    this module, not the other way round) and the line as written.
+    """
+
+    def __call__(self, spec: DialectSpec, builder: Any, raw: str, /) -> None: ...
+
+
 @dataclass(frozen=True)
 class DialectSpec:
     """Everything that differs between two controls.
@@ -346,7 +354,7 @@ class DialectSpec:
     rapid_modal: bool = True
     format_motion: Callable[[MotionWords], str] = format_gcode_motion
     motion_layout: MotionLayout | None = None
-    parse_line: Callable[[DialectSpec, ProgramBuilder, str], None] | None = None
+    parse_line: LineParser | None = None
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

@@ -717,3 +717,33 @@ def singular_sets(machine: Machine, tol: Tolerances | None = None) -> list[Singu
                 d = np.cos(ang) * k1 + np.sin(ang) * perp
                 out.append(SingularSet("edge", k1.copy(), ang, _within_travel(machine, d, tol)))
     return out
+
+
+def nearest_solution(
+    machine: Machine, axis: np.ndarray, guess: np.ndarray, tol: Tolerances
+) -> np.ndarray:
+    """Exact rotary angles for tool axes on the branch and turn nearest a guess.
+
+    Parameters
+    ----------
+    machine : Machine
+    axis : ndarray, shape (k, 3)
+    guess : ndarray, shape (k, r), rad
+        Rotary angles (chain order) to be near; an undetermined first angle (a pole) takes
+        the guess's, and so does an unreachable axis (which a reachable path cannot give).
+
+    Returns
+    -------
+    ndarray, shape (k, r), rad
+    """
+    sols = solve_rotary(machine, axis, tol)
+    ang = sols.angles.copy()  # (k, 2, r)
+    ang[:, :, 0] = np.where(np.isnan(ang[:, :, 0]), guess[:, None, 0], ang[:, :, 0])
+    ang = ang + 2 * np.pi * np.round((guess[:, None, :] - ang) / (2 * np.pi))
+    dist = np.abs(ang - guess[:, None, :]).sum(axis=2)
+    dist = np.where(sols.valid, dist, np.inf)
+    br = np.argmin(dist, axis=1)
+    rot = ang[np.arange(len(br)), br]
+    bad = ~np.isfinite(dist[np.arange(len(br)), br])
+    rot[bad] = guess[bad]
+    return rot

@@ -15,8 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from urdfpost.geometry import angle_between
-from urdfpost.kinematics.inverse import assemble, solve_linear
-from urdfpost.linearize import nearest_solution
+from urdfpost.kinematics.inverse import assemble, nearest_solution, solve_linear
 from urdfpost.planning.problem import (
     Plan,
     Problem,

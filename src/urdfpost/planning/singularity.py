@@ -36,7 +36,7 @@ def orientation_jacobian(machine: Machine | PoeChain, q: np.ndarray) -> np.ndarr
     Column j is ``omega_j(q) x v``, where ``omega_j`` is the direction of rotary joint j in the
     workpiece frame at configuration ``q`` (signed so that a positive joint value turns the
     tool positively relative to the workpiece) and ``v`` the tool axis. The tests hold it to
-    :func:`urdfpost.kinematics.forward.jacobian_pin` (Pinocchio).
+    Pinocchio's Jacobian (``jacobian_pin`` in ``tests/oracles.py``).
 
     Parameters
     ----------
