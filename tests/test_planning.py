@@ -253,3 +253,20 @@ def test_global_rotary_travel_is_never_worse_than_local(name: str, path: str) ->
     assert int(best.rewind.sum()) <= int(local.rewind.sum())
     if best.rewind.sum() == local.rewind.sum():
         assert _travel(m, best.q) <= _travel(m, local.q) + 1e-9
+
+
+def test_compare_checks_collisions_as_a_post_does(tmp_path: Path) -> None:
+    """``compare`` posts each strategy through the post's own path (``post_piece``), collision
+    world and check of the program's moves included: with every branch colliding, every
+    strategy fails with the post's collision error, where without collision checks all
+    verify."""
+    from urdfpost.analysis.compare import compare
+
+    m = load_machine(machine_with_fixtures(tmp_path, (+1, -1)))
+    names = ["none", "recursive", "cone"]
+    unchecked = compare(tilted_line(), m, names, PostOptions())
+    assert all(o.verified for o in unchecked.outcomes)
+    checked = compare(tilted_line(), m, names, PostOptions(collisions=True))
+    for o in checked.outcomes:
+        assert not o.verified and o.metrics is None
+        assert o.error is not None and "job.apt:10: every branch collides" in o.error
