@@ -163,7 +163,7 @@ def bench_post(machine_name: str, stock: Path, tips: np.ndarray, axes: np.ndarra
         t0 = time.perf_counter()
         result = post(tp, machine, options)
         times.append(time.perf_counter() - t0)
-    hits = result.report["collisions"]
+    hits = result.report.as_json()["collisions"]
     print(
         f"{machine_name:10s} {n:6d} {times[0]:8.2f} {times[1]:8.2f} {times[1] - times[0]:8.2f} "
         f"{hits['samples']:8d} {hits['min_clearance']:7.2f} ({hits['clearance_points']} points)"

@@ -136,7 +136,7 @@ def measure_stream(path: str, control: str, tcp: bool) -> dict[str, Any]:
         "text_mb": text_mb,
         "max_dev_mm": v.max_tip_deviation,
         "ok": v.ok,
-        "pieces": result.report["streamed"]["pieces"],
+        "pieces": result.report.as_json()["streamed"]["pieces"],
         "piece_points": PIECE_POINTS,
         "base_mb": base,
         # the verification worker's peak (its RSS shares the pages forked from this process)

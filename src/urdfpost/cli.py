@@ -23,7 +23,7 @@ from urdfpost import __version__
 from urdfpost._files import check_distinct, output_target, write_texts
 from urdfpost.errors import UrdfpostError
 from urdfpost.posting import PIECE_POINTS
-from urdfpost.reports import report_json
+from urdfpost.strict_json import report_json
 from urdfpost.units import UNITS, mm_per_unit
 
 if TYPE_CHECKING:

@@ -46,7 +46,7 @@ from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
 from urdfpost.planning.singularity import conditioning
 from urdfpost.program import Program
-from urdfpost.reports import json_ready
+from urdfpost.strict_json import json_ready
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification import program_joints, verify

@@ -278,7 +278,7 @@ class Report:
 
     def as_json(self) -> dict[str, Any]:
         """Plain data for JSON: lengths in program units, angles in degrees (non-finite
-        figures are turned into null by :func:`urdfpost.reports.report_json`)."""
+        figures are turned into null by :func:`urdfpost.strict_json.report_json`)."""
         v, scale = self.verification, mm_per_unit(self.units)
         out: dict[str, Any] = {
             "machine": self.machine,
