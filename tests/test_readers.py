@@ -1068,8 +1068,13 @@ def test_arc_too_large_to_interpolate_is_a_clear_error() -> None:
     from urdfpost.errors import CLDataError
     from urdfpost.readers import read_cl_text
 
-    text = "GOTO/0,0,0\nGOTO/0,1,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,1.3e154,0\n"
+    # the end point as far as a length may be (1e9 mm), five turns: 11 million points
+    text = "GOTO/0,0,0\nGOTO/0,1,0\nCIRCLE/0,0,0,0,0,1,10,TIMES,5\nGOTO/0,1e9,0\n"
     with pytest.raises(CLDataError, match=r":3: expected an arc a machine can cut"):
+        read_cl_text(text, source="huge.apt")
+    # further, the end point itself is refused (issue 22)
+    text = "GOTO/0,0,0\nGOTO/0,1,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,1.3e154,0\n"
+    with pytest.raises(CLDataError, match=r":4: GOTO: y 1\.3e154 mm is beyond the largest length"):
         read_cl_text(text, source="huge.apt")
 
 

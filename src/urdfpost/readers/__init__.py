@@ -208,7 +208,11 @@ def read_cl_text(
     Raises
     ------
     CLDataError
-        For data that cannot be read.
+        For data that cannot be read, among them a number that is not finite where a finite
+        one is needed, and a length, once in mm, beyond
+        :data:`~urdfpost.readers._common.MAX_LENGTH_MM` (a feed beyond
+        :data:`~urdfpost.readers._common.MAX_FEED_MM_PER_MIN`): the message names the file,
+        the record's line and the value.
     ValueError
         For an unknown format or units name, or a chord tolerance that is not positive.
     """

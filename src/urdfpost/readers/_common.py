@@ -31,6 +31,17 @@ ZERO_AXIS = 1e-9
 #: (CL files print 4 to 10 decimals: 1e-3 is far above their rounding).
 AXIS_LENGTH_SLACK = 1e-3
 
+#: mm. Largest length a reader accepts after conversion to mm: a coordinate, a circle's centre or
+#: radius, a tool's size or length, a frame origin. A kilometre is already absurd for a machine
+#: tool; 1e9 mm keeps every later product and sum of lengths far from float overflow (squares
+#: stay below 1e18, where 1.8e308 overflows), while an inch value such as 1e308 overflows to inf
+#: on conversion. A value beyond it is a :class:`~urdfpost.errors.CLDataError` at its record.
+MAX_LENGTH_MM = 1e9
+#: mm/min. Fastest feed a reader accepts (after conversion, a feed per revolution times the
+#: spindle speed): :data:`MAX_LENGTH_MM` per minute, over 16 km/s. A feed per revolution is a
+#: length, bounded by :data:`MAX_LENGTH_MM` per revolution.
+MAX_FEED_MM_PER_MIN = MAX_LENGTH_MM
+
 _UNIT_NAMES = {"mm": "mm", "inch": "inch", "in": "inch", "inches": "inch"}
 
 
@@ -85,6 +96,124 @@ def parse_number(token: str, *, source: str, line: int, what: str) -> float:
     if not _NUMBER.fullmatch(text):
         raise CLDataError(source, line, f"expected a number for {what}, got '{text}'")
     return float(text)
+
+
+def format_number(value: float) -> str:
+    """Short text of a number for messages: ``1e308``, ``-2.54e9``, ``0.01``, ``nan``."""
+    text = f"{value:.6g}"
+    mantissa, e, exponent = text.partition("e")
+    return f"{mantissa}e{int(exponent)}" if e else text
+
+
+def beyond_length(what: str, value: float, units: str) -> str:
+    """Message for a length beyond :data:`MAX_LENGTH_MM`.
+
+    Parameters
+    ----------
+    what : str
+        The value's role, e.g. "GOTO: x", "CIRCLE: radius".
+    value : float
+        The value as written, in ``units``.
+    units : str
+        Units of the value as written ("mm" or "inch").
+
+    Examples
+    --------
+    >>> beyond_length("GOTO: x", 1e308, "inch")
+    'GOTO: x 1e308 inch is beyond the largest length urdfpost accepts (1e9 mm)'
+    """
+    return (
+        f"{what} {format_number(value)} {units} is beyond the largest length urdfpost accepts "
+        f"({format_number(MAX_LENGTH_MM)} mm)"
+    )
+
+
+def check_length(
+    value: float, scale: float, *, units: str, source: str, line: int, what: str
+) -> float:
+    """Convert a length to mm and check it against :data:`MAX_LENGTH_MM`.
+
+    Parameters
+    ----------
+    value : float
+        The length as written, finite.
+    scale : float
+        Millimetres per unit of ``units``.
+    units : str
+        Units of ``value`` ("mm" or "inch"), for the message.
+    source, line : str, int
+        Where the record is, for the error.
+    what : str
+        The value's role, as for :func:`beyond_length`.
+
+    Returns
+    -------
+    float, mm
+        ``value * scale``.
+
+    Raises
+    ------
+    CLDataError
+        When ``abs(value * scale)`` exceeds :data:`MAX_LENGTH_MM` (or overflows).
+    """
+    length = value * scale
+    if not abs(length) <= MAX_LENGTH_MM:
+        raise CLDataError(source, line, beyond_length(what, value, units))
+    return length
+
+
+def check_coordinates(
+    values: Sequence[float],
+    tokens: Sequence[str],
+    scale: float,
+    *,
+    units: str,
+    source: str,
+    line: int,
+    record: str,
+    role: str = "",
+) -> None:
+    """Raise the error of the first of x, y, z that is not finite or beyond the bound.
+
+    Called when a quick test of a point's three coordinates failed; the checks and messages
+    are those of one coordinate at a time, in order.
+
+    Parameters
+    ----------
+    values : sequence of floats
+        The numbers of the record; the first three are x, y, z as written.
+    tokens : sequence of str
+        Their text, for the message about a value that is not finite.
+    scale : float
+        Millimetres per unit of ``units``.
+    units : str
+        Units of the values ("mm" or "inch").
+    source, line : str, int
+        Where the record is.
+    record : str
+        Name of the record in messages ("GOTO", "CIRCLE"), or "" for a plain point.
+    role : str
+        What the point is, when it is not the record's motion ("centre").
+
+    Raises
+    ------
+    CLDataError
+        For the first coordinate that is not finite, or beyond :data:`MAX_LENGTH_MM` in mm.
+    """
+    of = f" of {record}" if record else ""
+    prefix = f"{record}: " if record else ""
+    if role:
+        prefix += f"{role} "
+    for k, name in enumerate("xyz"):
+        value = values[k]
+        if not math.isfinite(value):
+            raise CLDataError(
+                source,
+                line,
+                f"expected a finite number for the {ordinal(k + 1)} value{of}, "
+                f"got '{tokens[k].strip()}'",
+            )
+        check_length(value, scale, units=units, source=source, line=line, what=prefix + name)
 
 
 def format_values(values: Sequence[float]) -> str:

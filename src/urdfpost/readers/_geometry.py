@@ -56,12 +56,13 @@ class Frame:
         """
         x = np.asarray(x_axis, dtype=float)
         y = np.asarray(y_axis, dtype=float)
-        nx = float(np.linalg.norm(x))
-        if not np.isfinite(nx) or nx < 1e-9:
-            raise ValueError("X axis of zero length")
-        x = x / nx
-        y = y - (y @ x) * x
-        ny = float(np.linalg.norm(y))
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge axis: an inf norm, refused
+            nx = float(np.linalg.norm(x))
+            if not np.isfinite(nx) or nx < 1e-9:
+                raise ValueError("X axis of zero length")
+            x = x / nx
+            y = y - (y @ x) * x
+            ny = float(np.linalg.norm(y))
         if not np.isfinite(ny) or ny < 1e-9:
             raise ValueError("Y axis of zero length or parallel to the X axis")
         y = y / ny

@@ -21,9 +21,10 @@ Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records. Step 1 f
 (:func:`scan_text`) and reads their numbers in bulk with numpy into a :class:`GotoRun`; step 3
 applies the modal state to the whole run at once, with the same arithmetic in the same order as
 for one record, so the points are bit-identical. A run whose values would need a message (a
-non-finite number, a tool axis of zero or non-unit length) or that follows a ``RAPID`` or
-``CIRCLE`` is read record by record for those records, exactly as any other line; so is
-everything that is not a plain GOTO line.
+non-finite number, a length beyond :data:`~urdfpost.readers._common.MAX_LENGTH_MM` once in mm,
+a tool axis of zero or non-unit length) or that follows a ``RAPID`` or ``CIRCLE`` is read
+record by record for those records, exactly as any other line; so is everything that is not a
+plain GOTO line.
 
 Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
 
@@ -67,8 +68,13 @@ from urdfpost.units import MM_PER_INCH
 
 from ._common import (
     AXIS_LENGTH_SLACK,
+    MAX_FEED_MM_PER_MIN,
+    MAX_LENGTH_MM,
     ZERO_AXIS,
     ToolpathBuilder,
+    check_coordinates,
+    check_length,
+    format_number,
     format_values,
     normalise_units,
     ordinal,
@@ -779,19 +785,42 @@ class _AptInterpreter:
             )
             for k, token in enumerate(args, start=1)
         ]
-        for k, value in enumerate(values[:3], start=1):
-            if not math.isfinite(value):
-                raise self.error(
-                    record,
-                    f"expected a finite number for the {ordinal(k)} value of {record.word}, "
-                    f"got '{args[k - 1]}'",
-                )
-        tip = self.frame.point([v * self.scale for v in values[:3]])
+        scale = self.scale
+        x, y, z = values[0] * scale, values[1] * scale, values[2] * scale
+        if not (abs(x) <= MAX_LENGTH_MM and abs(y) <= MAX_LENGTH_MM and abs(z) <= MAX_LENGTH_MM):
+            self._check_coordinates(record, values, args)
+        tip = self.frame.point((x, y, z))
         if len(values) == 6:
             self.axis_local = unit_vector(values[3:], builder=self.builder, line=record.line)
             self.axis = self.frame.vector(self.axis_local)
             self.multiaxis = True
         return tip, len(values) == 6
+
+    def _check_coordinates(
+        self, record: Record, values: Sequence[float], args: Sequence[str], role: str = ""
+    ) -> None:
+        """Raise the error of the first of x, y, z (``values[:3]``) not finite or too large."""
+        check_coordinates(
+            values,
+            args,
+            self.scale,
+            units=self.units,
+            source=self.source,
+            line=record.line,
+            record=record.word,
+            role=role,
+        )
+
+    def _length(self, record: Record, value: float, what: str) -> float:
+        """A finite length of ``record`` in mm, checked against :data:`MAX_LENGTH_MM`."""
+        return check_length(
+            value,
+            self.scale,
+            units=self.units,
+            source=self.source,
+            line=record.line,
+            what=f"{record.word}: {what}",
+        )
 
     def _current_feed(self) -> float:
         """Feed of a feed move now, mm/min (NaN when unknown)."""
@@ -820,7 +849,8 @@ class _AptInterpreter:
         The first record goes alone when it ends an arc or follows RAPID. The others are
         computed with the arithmetic of :meth:`_point` and :meth:`Frame.point` in the same
         order (so bit for bit the same points); when a value would need a message (not finite,
-        a tool axis of zero or non-unit length), the records are read one by one instead.
+        beyond :data:`MAX_LENGTH_MM` in mm, a tool axis of zero or non-unit length), the records
+        are read one by one instead.
         """
         first = 0
         if self.circle is not None or self.rapid_next:
@@ -856,7 +886,10 @@ class _AptInterpreter:
         values : ndarray, shape (k, 3) or (k, 6)
             Numbers as written.
         """
-        if not np.isfinite(values[:, :3]).all():
+        # the test of _point on every record at once; the whole array first (one contiguous
+        # pass, and tool axis components are small), the coordinates alone when it fails
+        scale = self.scale
+        if not (_within_bound(values, scale) or _within_bound(values[:, :3], scale)):
             return None
         (a, b, c), (d, e, f), (g, h, i) = self.frame.rotation
         ox, oy, oz = self.frame.origin
@@ -913,18 +946,13 @@ class _AptInterpreter:
             )
             for k, token in enumerate(args[:7], start=1)
         ]
-        for k in (1, 2, 3):
-            if not math.isfinite(values[k - 1]):
-                raise self.error(
-                    record,
-                    f"expected a finite number for the {ordinal(k)} value of CIRCLE, "
-                    f"got '{args[k - 1]}'",
-                )
+        self._check_coordinates(record, values, args, "centre")
         radius = values[6]
         if not (math.isfinite(radius) and radius > 0.0):
             raise self.error(
                 record, f"expected a positive radius for the 7th value of CIRCLE, got '{args[6]}'"
             )
+        radius_mm = self._length(record, radius, "radius")
         axis = unit_vector(values[3:6], builder=self.builder, line=record.line, what="circle axis")
         turns = self._circle_turns(record, args[7:])
         if self.builder.last_tip is None:
@@ -939,7 +967,7 @@ class _AptInterpreter:
             line=record.line,
             centre=self.frame.point([v * self.scale for v in values[:3]]),
             rotation_axis=tuple(self.arc_sense * a for a in world_axis),  # type: ignore[arg-type]
-            radius=radius * self.scale,
+            radius=radius_mm,
             turns=turns,
         )
 
@@ -1042,11 +1070,44 @@ class _AptInterpreter:
         if not (math.isfinite(value) and value > 0.0):
             raise self.error(record, f"expected a positive feed in FEDRAT, got {value:g}")
         per_rev, feed_scale = _FEED_MODES[words[0]] if words else (False, self.scale)
+        self._check_feed(record, value, per_rev, feed_scale, self.rpm)
         self.feed_value, self.feed_per_rev, self.feed_scale = value, per_rev, feed_scale
         if per_rev and (self.rpm is None or not self.spindle_on):
             self.builder.warn(
                 record.line,
                 "feed per revolution with no spindle speed; feed left unset until a SPINDL record",
+            )
+
+    def _check_feed(
+        self, record: Record, value: float, per_rev: bool, feed_scale: float, rpm: float | None
+    ) -> None:
+        """Check a feed (``value * feed_scale`` mm/min or mm/rev) against the bounds.
+
+        Raises
+        ------
+        CLDataError
+            For a feed per minute beyond :data:`MAX_FEED_MM_PER_MIN`, a feed per revolution
+            beyond :data:`MAX_LENGTH_MM`, or one whose product with ``rpm`` (when known) is
+            beyond :data:`MAX_FEED_MM_PER_MIN`.
+        """
+        feed = value * feed_scale
+        units = "mm" if feed_scale == 1.0 else "inch"
+        written = f"feed {format_number(value)} {units}/{'rev' if per_rev else 'min'}"
+        bound = format_number(MAX_FEED_MM_PER_MIN)
+        fastest = f"is beyond the fastest feed urdfpost accepts ({bound} mm/min)"
+        if not per_rev:
+            if not feed <= MAX_FEED_MM_PER_MIN:
+                raise self.error(record, f"{record.word}: {written} {fastest}")
+            return
+        if not feed <= MAX_LENGTH_MM:
+            raise self.error(
+                record,
+                f"{record.word}: {written} is beyond the largest feed per revolution urdfpost "
+                f"accepts ({format_number(MAX_LENGTH_MM)} mm/rev)",
+            )
+        if rpm is not None and not feed * rpm <= MAX_FEED_MM_PER_MIN:
+            raise self.error(
+                record, f"{record.word}: {written} at {format_number(rpm)} rpm {fastest}"
             )
 
     def _spindl(self, record: Record) -> None:
@@ -1066,6 +1127,8 @@ class _AptInterpreter:
             rpm = numbers[0]
             if not (math.isfinite(rpm) and rpm >= 0.0):
                 raise self.error(record, f"expected a spindle speed >= 0 in SPINDL, got {rpm:g}")
+            if self.feed_per_rev:
+                self._check_feed(record, self.feed_value, True, self.feed_scale, rpm)
             self.rpm = rpm
         if "CLW" in words:
             self.spindle_direction = "cw"
@@ -1102,13 +1165,11 @@ class _AptInterpreter:
         if "LENGTH" in upper:
             k = upper.index("LENGTH")
             value = tokens[k + 1] if k + 1 < len(tokens) else ""
-            length = parse_number(
-                value,
-                source=self.source,
-                line=record.line,
-                what=f"the {ordinal(position + k + 1)} value of {record.word}",
-            )
-            data["length"] = length * self.scale
+            what = f"the {ordinal(position + k + 1)} value of {record.word}"
+            length = parse_number(value, source=self.source, line=record.line, what=what)
+            if not math.isfinite(length):
+                raise self.error(record, f"expected a finite tool length for {what}, got '{value}'")
+            data["length"] = self._length(record, length, "length")
         self.tool_data = {}
         self.builder.add_event("tool", record.line, **data)
 
@@ -1155,11 +1216,11 @@ class _AptInterpreter:
                 raise self.error(
                     record, f"expected tool dimensions >= 0 in {record.word}, got {value:g}"
                 )
-        data = {"diameter": values[0] * self.scale}
+        data = {"diameter": self._length(record, values[0], "diameter")}
         if len(values) > 1:
-            data["corner_radius"] = values[1] * self.scale
+            data["corner_radius"] = self._length(record, values[1], "corner radius")
         if len(values) > length_index:
-            data["length"] = values[length_index] * self.scale
+            data["length"] = self._length(record, values[length_index], "length")
         return data
 
     def _tool_path(self, record: Record) -> None:
@@ -1182,7 +1243,9 @@ class _AptInterpreter:
         _, v = _split_tokens(record, self.source)
         if not all(math.isfinite(x) for x in v):
             raise self.error(record, f"expected finite numbers in MSYS, got {format_values(v)}")
-        origin = [x * self.scale for x in v[:3]]
+        origin = [
+            self._length(record, x, f"origin {name}") for x, name in zip(v[:3], "xyz", strict=True)
+        ]
         try:
             self.frame = Frame.from_axes(origin, v[3:6], v[6:9])
         except ValueError:
@@ -1235,6 +1298,19 @@ class _AptInterpreter:
             self.builder.add_event(kind, record.line, **data)
 
         return handler
+
+
+def _within_bound(values: np.ndarray, scale: float) -> bool:
+    """Whether ``abs(v * scale) <= MAX_LENGTH_MM`` for every ``v`` of ``values``.
+
+    The test of :meth:`_AptInterpreter._point` on a whole array, with the same result: scaling
+    by a positive factor keeps the order, so the largest ``abs(v * scale)`` is that of the
+    largest or the smallest ``v``. False when a value is NaN (the extremes are NaN).
+    """
+    return (
+        float(values.max()) * scale <= MAX_LENGTH_MM
+        and -float(values.min()) * scale <= MAX_LENGTH_MM
+    )
 
 
 def _first_record(run: GotoRun) -> Record:

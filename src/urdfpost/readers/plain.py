@@ -20,7 +20,9 @@ from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Motion, Toolpath
 
 from ._common import (
+    MAX_LENGTH_MM,
     ToolpathBuilder,
+    check_coordinates,
     normalise_units,
     ordinal,
     parse_number,
@@ -109,7 +111,9 @@ class PlainReader:
         Raises
         ------
         CLDataError
-            For a line that is not 3 or 6 numbers, or a tool axis of zero length.
+            For a line that is not 3 or 6 numbers, a coordinate that is not finite or beyond
+            :data:`~urdfpost.readers._common.MAX_LENGTH_MM` in mm, or a tool axis of zero
+            length.
         """
         source, scale, builder, axis = self.source, self.scale, self.builder, self.axis
         try:
@@ -119,13 +123,25 @@ class PlainReader:
                     builder.add_event("comment", number, text=comment)
                 if not code:
                     continue
-                values = _values(code, source, number)
+                tokens, values = _values(code, source, number)
+                x, y, z = values[0] * scale, values[1] * scale, values[2] * scale
+                if not (
+                    abs(x) <= MAX_LENGTH_MM and abs(y) <= MAX_LENGTH_MM and abs(z) <= MAX_LENGTH_MM
+                ):
+                    check_coordinates(
+                        values,
+                        tokens,
+                        scale,
+                        units=self.units,
+                        source=source,
+                        line=number,
+                        record="",
+                    )
                 if len(values) == 6:
                     axis = unit_vector(values[3:], builder=builder, line=number)
                     if self.multiaxis_from is None:
                         self.multiaxis_from = len(builder)
-                tip = tuple(v * scale for v in values[:3])
-                builder.add_point(tip, axis, math.nan, Motion.FEED, number)
+                builder.add_point((x, y, z), axis, math.nan, Motion.FEED, number)
         finally:
             self.axis = axis
 
@@ -148,8 +164,8 @@ def _split_comment(raw: str) -> tuple[str, str]:
     return raw[: match.start()].strip(), raw[match.end() :].strip()
 
 
-def _values(code: str, source: str, line: int) -> list[float]:
-    """The 3 or 6 finite numbers of a point line."""
+def _values(code: str, source: str, line: int) -> tuple[list[str], list[float]]:
+    """The tokens and the 3 or 6 numbers of a point line (the coordinates not yet checked)."""
     tokens = _SEPARATOR.split(code)
     if len(tokens) not in (3, 6):
         raise CLDataError(
@@ -159,12 +175,7 @@ def _values(code: str, source: str, line: int) -> list[float]:
         parse_number(token, source=source, line=line, what=f"the {ordinal(k)} value")
         for k, token in enumerate(tokens, start=1)
     ]
-    for k, value in enumerate(values[:3], start=1):
-        if not math.isfinite(value):
-            raise CLDataError(
-                source, line, f"expected a finite number for the {ordinal(k)} value, got '{value}'"
-            )
-    return values
+    return tokens, values
 
 
 def read_plain_stream(
