@@ -5,7 +5,7 @@ frame), a ``tool`` link (gauge point, +Z toward the spindle), and between them 3
 or 2 rotary joints named with their NC addresses. Everything urdfpost needs is derived here at
 load time, with no per-machine code:
 
-- the Pinocchio model (forward kinematics and Jacobians for checking);
+- the Pinocchio model of the links and joints (forward kinematics and Jacobians for checking);
 - the chain from workpiece to tool as screws in the workpiece frame at home (product of
   exponentials), which the vectorised forward and inverse kinematics use;
 - travel limits, velocities and the post settings of the ``<urdfpost>`` extension element;
@@ -32,6 +32,8 @@ from urdfpost.machine.urdf import (
     JointChain,
     UrdfDoc,
     check_chain,
+    check_tree,
+    kinematic_urdf,
     link_axes,
     parse_settings,
     parse_urdf,
@@ -134,6 +136,7 @@ def machine_from_urdf(text: str, source: str = "<string>", name: str = "machine"
     """
     doc = parse_urdf(text, source)
     chain = check_chain(doc, source)
+    check_tree(doc, source)
     settings = parse_settings(doc, source, chain.joints)
     return _build(text, source, name, doc, chain, settings)
 
@@ -163,12 +166,16 @@ def _build(
     chain: JointChain,
     settings: Settings,
 ) -> Machine:
-    """The Machine of a checked document: Pinocchio model, axes and screws, home pose."""
+    """The Machine of a checked document: Pinocchio model, axes and screws, home pose.
+
+    Pinocchio reads only the links and joints (:func:`~urdfpost.machine.urdf.kinematic_urdf`),
+    all checked already, so it neither fails nor prints on a file that passed the checks.
+    """
     import pinocchio as pin
 
     try:
-        model = pin.buildModelFromXML(text)
-    except Exception as e:  # Pinocchio raises plain RuntimeError/ValueError
+        model = pin.buildModelFromXML(kinematic_urdf(doc))
+    except Exception as e:  # Pinocchio raises plain RuntimeError/ValueError; not expected here
         raise MachineDefinitionError(f"{source}: Pinocchio cannot read the URDF: {e}") from e
     data = model.createData()
     pin.forwardKinematics(model, data, pin.neutral(model))

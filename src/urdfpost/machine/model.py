@@ -142,7 +142,9 @@ class Machine:
     home_tool_in_work : ndarray, shape (4, 4)
         Pose of the tool frame in the workpiece frame at q = 0, translation in mm.
     model : pinocchio.Model
-        The Pinocchio model of the whole URDF.
+        The Pinocchio model of every link and joint of the URDF (kinematics only: its inertias
+        are zero, as urdfpost gives Pinocchio no ``<inertial>``; the shapes are in
+        :attr:`shapes`).
     urdf_text : str
         The file's text (for views and for building variants of the machine).
     link_axes : dict of str to tuple of str

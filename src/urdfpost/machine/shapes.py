@@ -121,15 +121,28 @@ class LinkShape:
 
 
 def _floats(text: str | None, n: int, default: tuple[float, ...], where: str) -> np.ndarray:
-    """``n`` numbers separated by spaces, shape (n,); ``default`` when the attribute is absent."""
+    """``n`` finite numbers separated by spaces, shape (n,); ``default`` when the attribute is
+    absent."""
     if text is None:
         return np.array(default, dtype=float)
+    count = "a" if n == 1 else str(n)
+    plural = "" if n == 1 else "s"
     try:
         values = np.array([float(v) for v in text.split()])
     except ValueError as e:
-        raise GeometryError(f"{where}: {text!r}: expected {n} numbers") from e
+        raise GeometryError(f"{where}: {text!r}: expected {count} number{plural}") from e
     if values.shape != (n,):
-        raise GeometryError(f"{where}: {text!r}: expected {n} numbers")
+        raise GeometryError(f"{where}: {text!r}: expected {count} number{plural}")
+    if not np.all(np.isfinite(values)):
+        raise GeometryError(f"{where}: {text!r}: expected {count} finite number{plural}")
+    return values
+
+
+def _lengths(text: str | None, n: int, where: str) -> np.ndarray:
+    """``n`` finite lengths >= 0 (a shape's sizes), shape (n,), URDF metres."""
+    values = _floats(text, n, (), where)
+    if np.any(values < 0):
+        raise GeometryError(f"{where}: {text!r}: expected sizes >= 0")
     return values
 
 
@@ -198,18 +211,18 @@ def _geometry(shape: Any, where: str, source: str) -> Geometry:
     """The geometry of a ``<box>``, ``<cylinder>``, ``<sphere>`` or ``<mesh>`` element."""
     tag = shape.tag
     if tag == "box":
-        size = _floats(shape.get("size"), 3, (), f"{where}: <box size>") * M_TO_MM
+        size = _lengths(shape.get("size"), 3, f"{where}: <box size>") * M_TO_MM
         size.setflags(write=False)
         extent = float(np.linalg.norm(size) / 2)
         geometry: Geometry = Box(size)
     elif tag == "cylinder":
-        r = _floats(shape.get("radius"), 1, (), f"{where}: <cylinder radius>")[0]
-        length = _floats(shape.get("length"), 1, (), f"{where}: <cylinder length>")[0]
+        r = _lengths(shape.get("radius"), 1, f"{where}: <cylinder radius>")[0]
+        length = _lengths(shape.get("length"), 1, f"{where}: <cylinder length>")[0]
         r, length = r * M_TO_MM, length * M_TO_MM
         extent = math.hypot(r, length / 2)
         geometry = Cylinder(float(r), float(length))
     elif tag == "sphere":
-        r = _floats(shape.get("radius"), 1, (), f"{where}: <sphere radius>")[0] * M_TO_MM
+        r = _lengths(shape.get("radius"), 1, f"{where}: <sphere radius>")[0] * M_TO_MM
         extent = float(r)
         geometry = Sphere(float(r))
     elif tag == "mesh":
@@ -246,8 +259,8 @@ def link_shapes(root: Any, source: str) -> tuple[LinkShape, ...]:
     ------
     GeometryError
         For a ``<collision>`` without geometry, an unknown shape, a size or origin that is not
-        the right count of numbers, a zero size, a mesh without a file name or whose file is
-        not found. Each message names the file, the line and the link.
+        the right count of finite numbers, a negative or zero size, a mesh without a file name
+        or whose file is not found. Each message names the file, the line and the link.
     """
     shapes: list[LinkShape] = []
     for link in root.findall("link"):

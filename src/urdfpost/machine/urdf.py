@@ -3,9 +3,17 @@
 Validation happens here, once, before Pinocchio sees the file, so every message can name the
 file, the line and the joint or link at fault. The functions parse the text
 (:func:`parse_urdf`), find the moving joints between ``workpiece`` and ``tool``
-(:func:`check_chain`), read the ``<urdfpost>`` settings (:func:`parse_settings`) and which axes
-carry each link (:func:`link_axes`); :mod:`urdfpost.machine.load` builds the
-:class:`~urdfpost.machine.model.Machine` from them.
+(:func:`check_chain`), check that the links form one tree (:func:`check_tree`), read the
+``<urdfpost>`` settings (:func:`parse_settings`) and which axes carry each link
+(:func:`link_axes`); :mod:`urdfpost.machine.load` builds the
+:class:`~urdfpost.machine.model.Machine` from them, handing Pinocchio only the links and joints
+(:func:`kinematic_urdf`).
+
+The checks cover everything in a joint that Pinocchio's URDF parser (urdfdom) reads, so that a
+file passing them never makes it fail or print: every number is finite and written as urdfdom
+reads numbers, every joint has a known type, limits where its type needs them, and links that
+exist. Entity declarations are refused (the file is parsed without expanding them, and without
+network or DTD access).
 
 This module is a leaf: it imports from urdfpost only the errors, the units, the machine's data
 classes and the dialect registry (for the controller names).
@@ -13,9 +21,10 @@ classes and the dialect registry (for the controller names).
 
 from __future__ import annotations
 
+import copy
+import math
 from dataclasses import dataclass
 
-import numpy as np
 from lxml import etree
 
 from urdfpost.dialects import DIALECTS
@@ -79,86 +88,256 @@ def _where(source: str, line: int | None) -> str:
     return f"{source}:{line}" if line else source
 
 
-def _float(source: str, el: etree._Element, attr: str, default: float | None) -> float | None:
+# URDF joint types (urdfdom refuses others)
+JOINT_TYPES = ("fixed", "prismatic", "revolute", "continuous", "floating", "planar")
+
+# URDF versions urdfdom reads
+URDF_VERSIONS = ("1.0", "1.1", "1.2")
+
+
+def _parse_number(raw: str) -> float | None:
+    """``raw`` as a float (possibly not finite), or None when it is no number urdfdom reads.
+
+    Python's ``float`` reads more than urdfdom (Pinocchio's URDF parser) does: "1_0",
+    non-ASCII digits and trailing blanks too. These are refused here (urdfdom does take leading
+    blanks); "nan" and "inf" are read, for the caller to refuse as not finite.
+    """
+    try:
+        value = float(raw)
+    except ValueError:
+        return None
+    if "_" in raw or not raw.isascii() or raw[-1:].isspace():
+        return None
+    return value
+
+
+def _float_or_none(source: str, el: etree._Element, attr: str, what: str = "") -> float | None:
+    """The finite number in attribute ``attr`` of ``el``; None when the attribute is absent.
+
+    ``what`` starts the message (``"joint 'B': "``), after the file and the element's line.
+    """
     raw = el.get(attr)
     if raw is None:
-        return default
-    try:
-        return float(raw)
-    except ValueError as e:
+        return None
+    value = _parse_number(raw)
+    if value is None or not math.isfinite(value):
+        finite = "" if value is None else "finite "
         raise MachineDefinitionError(
-            f"{_where(source, el.sourceline)}: <{el.tag}> {attr}={raw!r}: expected a number"
-        ) from e
+            f"{_where(source, el.sourceline)}: {what}<{el.tag}> {attr}={raw!r}: "
+            f"expected a {finite}number"
+        )
+    return value
+
+
+def _float(source: str, el: etree._Element, attr: str, default: float, what: str = "") -> float:
+    """As :func:`_float_or_none`, with ``default`` for an absent attribute."""
+    value = _float_or_none(source, el, attr, what)
+    return default if value is None else value
+
+
+def _vector(
+    source: str, el: etree._Element, attr: str, what: str
+) -> tuple[float, float, float] | None:
+    """The three finite numbers in attribute ``attr`` of ``el``; None when it is absent."""
+    raw = el.get(attr)
+    if raw is None:
+        return None
+    parts = raw.split()
+    numbers = [v for v in map(_parse_number, parts) if v is not None]
+    if len(parts) != 3 or len(numbers) != 3:
+        expected = "3 numbers"
+    elif not all(map(math.isfinite, numbers)):
+        expected = "3 finite numbers"
+    else:
+        return numbers[0], numbers[1], numbers[2]
+    raise MachineDefinitionError(
+        f"{_where(source, el.sourceline)}: {what}<{el.tag}> {attr}={raw!r}: expected {expected}"
+    )
+
+
+def _check_doctype(root: etree._Element, text: str, source: str) -> None:
+    """Refuse entity declarations: urdfpost does not expand them, and other URDF tools differ."""
+    dtd = root.getroottree().docinfo.internalDTD
+    entities = list(dtd.iterentities()) if dtd is not None else []
+    if entities:
+        at = text.find("<!ENTITY")
+        line = text.count("\n", 0, at) + 1 if at >= 0 else 1
+        raise MachineDefinitionError(
+            f"{source}:{line}: <!ENTITY {entities[0].name}>: entity declarations are not "
+            "allowed in a machine file (they are not expanded); write the value itself"
+        )
 
 
 def parse_urdf(text: str, source: str) -> UrdfDoc:
-    """Parse URDF text into links and joints, checking well-formedness.
+    """Parse URDF text into links and joints, checking each element on its own.
+
+    The XML is parsed without expanding entities, without loading a DTD and without network
+    access.
 
     Raises
     ------
     MachineDefinitionError
-        For broken XML, a root that is not ``<robot>``, links or joints without names, joints
-        without parent or child, axes that are not three numbers.
+        For broken XML, entity declarations, a root that is not ``<robot>`` or has no name or an
+        unknown ``version``, links or joints without names or defined twice, a link that is the
+        child of two joints, and every fault :func:`check_joint` finds.
     """
+    parser = etree.XMLParser(
+        remove_comments=True,
+        resolve_entities=False,
+        load_dtd=False,
+        no_network=True,
+        huge_tree=False,
+    )
     try:
-        root = etree.fromstring(text.encode("utf-8"), parser=etree.XMLParser(remove_comments=True))
+        root = etree.fromstring(text.encode("utf-8"), parser=parser)
     except etree.XMLSyntaxError as e:
-        raise MachineDefinitionError(f"{source}: not a URDF: broken XML: {e}") from e
+        raise MachineDefinitionError(
+            f"{_where(source, e.lineno)}: not a URDF: broken XML: {e.msg}"
+        ) from e
+    _check_doctype(root, text, source)
+    where = _where(source, root.sourceline)
     if root.tag != "robot":
         raise MachineDefinitionError(
-            f"{_where(source, root.sourceline)}: not a URDF: expected root element <robot>, "
-            f"got <{root.tag}>"
+            f"{where}: not a URDF: expected root element <robot>, got <{root.tag}>"
+        )
+    if not root.get("name"):
+        raise MachineDefinitionError(f"{where}: <robot> without name")
+    version = root.get("version")
+    if version is not None and version not in URDF_VERSIONS:
+        raise MachineDefinitionError(
+            f"{where}: <robot version={version!r}>: expected one of {' '.join(URDF_VERSIONS)}"
         )
     links: dict[str, int] = {}
     for el in root.findall("link"):
         name = el.get("name")
         if not name:
             raise MachineDefinitionError(f"{_where(source, el.sourceline)}: <link> without name")
+        if name in links:
+            raise MachineDefinitionError(
+                f"{_where(source, el.sourceline)}: link {name!r} defined twice (first at line "
+                f"{links[name]})"
+            )
         links[name] = el.sourceline
     joints: dict[str, JointSpec] = {}
+    parent_joint: dict[str, JointSpec] = {}  # child link -> its joint
     for el in root.findall("joint"):
-        spec = _joint_spec(source, el)
+        spec = check_joint(source, el)
         if spec.name in joints:
             raise MachineDefinitionError(
-                f"{_where(source, spec.line)}: joint {spec.name!r} defined twice (a moving "
-                "joint's name is its NC address, so two joints cannot share one)"
+                f"{_where(source, spec.line)}: joint {spec.name!r} defined twice (first at line "
+                f"{joints[spec.name].line}): joint names must be unique"
+            )
+        if spec.child in parent_joint:
+            first = parent_joint[spec.child]
+            raise MachineDefinitionError(
+                f"{_where(source, spec.line)}: joint {spec.name!r}: link {spec.child!r} is "
+                f"already the child of joint {first.name!r} (line {first.line}); a link has one "
+                "parent"
             )
         joints[spec.name] = spec
+        parent_joint[spec.child] = spec
     return UrdfDoc(root=root, links=links, joints=joints)
 
 
-def _joint_spec(source: str, el: etree._Element) -> JointSpec:
+def check_joint(source: str, el: etree._Element) -> JointSpec:
+    """Read a ``<joint>`` element, checking everything in it that URDF readers read.
+
+    Parameters
+    ----------
+    source : str
+        The file, for messages.
+    el : lxml.etree._Element
+        The ``<joint>`` element.
+
+    Returns
+    -------
+    JointSpec
+        URDF units (metres, radians); ``side`` empty.
+
+    Raises
+    ------
+    MachineDefinitionError
+        At the line of the element at fault, naming the joint: a missing name, type, parent or
+        child; an unknown type; a number that is not a finite number (``<origin xyz rpy>``,
+        ``<axis xyz>``, ``<limit>``, ``<dynamics>``, ``<safety_controller>``,
+        ``<calibration>``, ``<mimic>``); a zero axis on a moving joint; a prismatic or revolute
+        joint without ``<limit>``, a ``<limit>`` without ``effort`` and ``velocity``, a
+        negative effort or velocity; a ``<safety_controller>`` without ``k_velocity`` or a
+        ``<mimic>`` without ``joint``.
+    """
     where = _where(source, el.sourceline)
     name = el.get("name")
     jtype = el.get("type")
     if not name or not jtype:
         raise MachineDefinitionError(f"{where}: <joint> needs name and type attributes")
-    parent, child = el.find("parent"), el.find("child")
+    if jtype not in JOINT_TYPES:
+        raise MachineDefinitionError(f"{where}: joint {name!r} has unknown type {jtype!r}")
+    what = f"joint {name!r}: "
+    sub: dict[object, etree._Element] = {}  # tag -> first child with it (one pass: find is slow)
+    for c in el:
+        sub.setdefault(c.tag, c)
+    parent, child = sub.get("parent"), sub.get("child")
     if parent is None or child is None or not parent.get("link") or not child.get("link"):
         raise MachineDefinitionError(
             f"{where}: joint {name!r} needs <parent link> and <child link>"
         )
-    axis_el = el.find("axis")
+    origin = sub.get("origin")
+    if origin is not None:
+        _vector(source, origin, "xyz", what)
+        _vector(source, origin, "rpy", what)
+    axis_el = sub.get("axis")
     axis = (1.0, 0.0, 0.0)
     if axis_el is not None:
-        parts = (axis_el.get("xyz") or "").split()
-        try:
-            axis = tuple(float(p) for p in parts)  # type: ignore[assignment]
-        except ValueError as e:
+        xyz = _vector(source, axis_el, "xyz", what)
+        if xyz is None:
             raise MachineDefinitionError(
-                f"{where}: joint {name!r}: axis xyz={axis_el.get('xyz')!r}: expected 3 numbers"
-            ) from e
-        if len(axis) != 3:
-            raise MachineDefinitionError(
-                f"{where}: joint {name!r}: axis xyz={axis_el.get('xyz')!r}: expected 3 numbers"
+                f"{_where(source, axis_el.sourceline)}: joint {name!r}: <axis> needs xyz"
             )
-    limit = el.find("limit")
+        axis = xyz
+    if jtype in ("prismatic", "revolute", "continuous", "planar") and math.hypot(*axis) < 1e-9:
+        raise MachineDefinitionError(
+            f"{_where(source, axis_el.sourceline if axis_el is not None else el.sourceline)}: "
+            f"joint {name!r}: zero axis vector {axis}: "
+            "expected a direction"
+        )
+    limit = sub.get("limit")
     lower = upper = 0.0
     velocity = None
+    if limit is None and jtype in ("prismatic", "revolute"):
+        raise MachineDefinitionError(
+            f"{where}: joint {name!r} is {jtype}: it needs "
+            '<limit lower="..." upper="..." effort="..." velocity="..."/>'
+        )
     if limit is not None:
-        lower = _float(source, limit, "lower", 0.0)  # type: ignore[assignment]
-        upper = _float(source, limit, "upper", 0.0)  # type: ignore[assignment]
-        velocity = _float(source, limit, "velocity", None)
+        lwhere = _where(source, limit.sourceline)
+        lower = _float(source, limit, "lower", 0.0, what)
+        upper = _float(source, limit, "upper", 0.0, what)
+        effort = _float_or_none(source, limit, "effort", what)
+        velocity = _float_or_none(source, limit, "velocity", what)
+        if effort is None or velocity is None:
+            raise MachineDefinitionError(
+                f"{lwhere}: joint {name!r}: <limit> needs effort and velocity attributes (URDF "
+                "requires both; urdfpost uses velocity, any effort >= 0 will do)"
+            )
+        if effort < 0:
+            raise MachineDefinitionError(
+                f"{lwhere}: joint {name!r}: effort limit {effort} must not be negative"
+            )
+        if velocity < 0:
+            raise MachineDefinitionError(
+                f"{lwhere}: joint {name!r}: velocity limit {velocity} must be positive"
+            )
+    for tag, attrs, needs in _JOINT_NUMBERS:
+        other = sub.get(tag)
+        if other is None:
+            continue
+        for attr in attrs:
+            _float_or_none(source, other, attr, what)
+        if needs and all(other.get(a) is None for a in needs):
+            raise MachineDefinitionError(
+                f"{_where(source, other.sourceline)}: joint {name!r}: <{tag}> needs "
+                f"{' or '.join(needs)}"
+            )
     return JointSpec(
         name=name,
         type=jtype,
@@ -170,6 +349,20 @@ def _joint_spec(source: str, el: etree._Element) -> JointSpec:
         velocity=velocity,
         line=el.sourceline,
     )
+
+
+# the other elements of a joint that urdfdom reads: tag, its number attributes, the attributes
+# of which it needs at least one
+_JOINT_NUMBERS: tuple[tuple[str, tuple[str, ...], tuple[str, ...]], ...] = (
+    ("dynamics", ("damping", "friction"), ("damping", "friction")),
+    (
+        "safety_controller",
+        ("soft_lower_limit", "soft_upper_limit", "k_position", "k_velocity"),
+        ("k_velocity",),
+    ),
+    ("calibration", ("rising", "falling"), ()),
+    ("mimic", ("multiplier", "offset"), ("joint",)),
+)
 
 
 def _path_to_root(doc: UrdfDoc, link: str) -> list[JointSpec]:
@@ -200,7 +393,7 @@ def check_chain(doc: UrdfDoc, source: str) -> JointChain:
     ------
     MachineDefinitionError
         Missing links, floating/planar joints on the chain, wrong joint count, bad names,
-        duplicate NC addresses, zero axes, inverted limits.
+        inverted limits, no travel, a velocity that is not positive.
     """
     for link in ("workpiece", "tool"):
         if link not in doc.links:
@@ -231,10 +424,6 @@ def check_chain(doc: UrdfDoc, source: str) -> JointChain:
                 f"{_where(source, j.line)}: joint {j.name!r} is {j.type}: a machine axis must "
                 "be prismatic, revolute or continuous (fixed joints are allowed too)"
             )
-        if j.type not in ("fixed", "prismatic", "revolute", "continuous"):
-            raise MachineDefinitionError(
-                f"{_where(source, j.line)}: joint {j.name!r} has unknown type {j.type!r}"
-            )
     moving = [j for j in chain if j.type != "fixed"]
     n_lin = sum(j.type == "prismatic" for j in moving)
     n_rot = len(moving) - n_lin
@@ -260,10 +449,6 @@ def check_chain(doc: UrdfDoc, source: str) -> JointChain:
             raise MachineDefinitionError(
                 f"{where}: joint {j.name!r} is {j.type}: rotary axes are named A, B or C"
             )
-        if float(np.linalg.norm(j.axis)) < 1e-9:
-            raise MachineDefinitionError(
-                f"{where}: joint {j.name!r}: zero axis vector {j.axis}: expected a direction"
-            )
         if j.type != "continuous" and j.lower > j.upper:
             raise MachineDefinitionError(
                 f"{where}: joint {j.name!r}: lower limit {j.lower} is above upper limit {j.upper}"
@@ -284,16 +469,79 @@ def _sided(j: JointSpec, side: str) -> JointSpec:
     return JointSpec(**{**j.__dict__, "side": side})
 
 
+def check_tree(doc: UrdfDoc, source: str) -> str:
+    """Check that the links form one tree, as URDF requires (after :func:`check_chain`).
+
+    Returns
+    -------
+    str
+        The root link (the one link that is no joint's child).
+
+    Raises
+    ------
+    MachineDefinitionError
+        For a joint whose parent or child link is not defined, or a second root link (a link no
+        joint attaches to the tree of the workpiece).
+    """
+    for j in doc.joints.values():
+        for role, link in (("parent", j.parent), ("child", j.child)):
+            if link not in doc.links:
+                raise MachineDefinitionError(
+                    f"{_where(source, j.line)}: joint {j.name!r}: {role} link {link!r} is not "
+                    "defined"
+                )
+    children = {j.child for j in doc.joints.values()}
+    root = "workpiece"
+    by_child = {j.child: j for j in doc.joints.values()}
+    while root in by_child:  # no loop: check_chain has walked this path
+        root = by_child[root].parent
+    for link, line in doc.links.items():
+        if link not in children and link != root:
+            raise MachineDefinitionError(
+                f"{_where(source, line)}: link {link!r} is attached by no joint: a URDF is one "
+                f"tree with one root link ({root!r} here); attach {link!r} to it with a joint"
+            )
+    return root
+
+
+def kinematic_urdf(doc: UrdfDoc) -> str:
+    """The links and joints of a checked document as URDF text, for Pinocchio.
+
+    Everything else is left out: the shapes (``<collision>``, ``<visual>``, read by
+    :mod:`urdfpost.machine.shapes` with their own messages), ``<inertial>`` and ``<material>``
+    (urdfpost uses no masses or colours) and extension elements. Pinocchio's parser then reads
+    only what :func:`check_joint` has checked, and prints nothing.
+
+    Parameters
+    ----------
+    doc : UrdfDoc
+        A document that passed :func:`parse_urdf`, :func:`check_chain` and :func:`check_tree`.
+
+    Returns
+    -------
+    str
+        A URDF with the same links, joints and order, so the same Pinocchio model (but for
+        the inertias, all zero).
+    """
+    robot = etree.Element("robot", name=doc.root.get("name", ""))
+    for link in doc.links:
+        etree.SubElement(robot, "link", name=link)
+    for joint in doc.root.iterfind("joint"):
+        robot.append(copy.deepcopy(joint))
+    return etree.tostring(robot, encoding="unicode")
+
+
 def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> Settings:
     """Read the ``<urdfpost>`` extension element (all settings optional).
 
     Raises
     ------
     MachineDefinitionError
-        For an unknown controller (one not in :data:`urdfpost.dialects.DIALECTS`) or units, a
-        preference or home naming a missing axis, or a value that is not a number. The
-        ``strategy`` name is not checked here: :attr:`Settings.where` lets the post report an
-        unknown one against the file.
+        At the line of the element: for an unknown controller (one not in
+        :data:`urdfpost.dialects.DIALECTS`) or units, a ``tool_length`` that is not a finite
+        length >= 0, a preference or home naming a missing axis, a home value that is not a
+        finite number or is outside the travel. The ``strategy`` name is not checked here:
+        :attr:`Settings.where` lets the post report an unknown one against the file.
     """
     axis_names = [j.name for j in joints]
     rotary_names = [j.name for j in joints if j.type != "prismatic"]
@@ -309,7 +557,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
     units = el.get("units", "mm")
     if units not in ("mm", "inch"):
         raise MachineDefinitionError(f"{where}: <urdfpost units={units!r}>: expected mm or inch")
-    tool_length = (_float(source, el, "tool_length", 0.0) or 0.0) * M_TO_MM
+    tool_length = _tool_length(source, el)
     prefer = None
     pref_el = el.find("prefer")
     if pref_el is not None:
@@ -329,7 +577,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
                     f"{_where(source, home_el.sourceline)}: <home {key}=...>: no such axis; "
                     f"expected one of {' '.join(axis_names)}"
                 )
-            value = _float(source, home_el, key, 0.0) or 0.0
+            value = _float(source, home_el, key, 0.0)
             joint = joints[axis_names.index(key)]
             if (
                 joint.type != "continuous"
@@ -353,6 +601,24 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         strategy=strategy,
         where=where,
     )
+
+
+def _tool_length(source: str, el: etree._Element) -> float:
+    """The ``tool_length`` setting, mm (URDF metres in the file)."""
+    raw = el.get("tool_length")
+    if raw is None:
+        return 0.0
+    value = _parse_number(raw)
+    if value is None:
+        raise MachineDefinitionError(
+            f"{_where(source, el.sourceline)}: <urdfpost> tool_length={raw!r}: expected a number"
+        )
+    if not (math.isfinite(value) and value >= 0):
+        raise MachineDefinitionError(
+            f"{_where(source, el.sourceline)}: <urdfpost> tool_length={raw!r}: expected a "
+            "finite length >= 0 m"
+        )
+    return value * M_TO_MM
 
 
 def link_axes(doc: UrdfDoc, axis_names: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
