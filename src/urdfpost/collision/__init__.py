@@ -8,13 +8,7 @@
 The machine's shapes are read with the machine file (:attr:`urdfpost.machine.Machine.shapes`);
 ``docs/collisions.md`` says which bodies are checked against which, and the limits.
 
-Examples
---------
->>> from urdfpost.machine import load_machine
->>> machine = load_machine("dmu50")
->>> world = CollisionWorld.build(machine, ToolBody(diameter=10.0), tool_length=100.0)
->>> bool(world.check(machine.home).hit[0])
-False
+An example is in :mod:`urdfpost.collision.world`.
 """
 
 from __future__ import annotations

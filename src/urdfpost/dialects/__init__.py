@@ -38,12 +38,11 @@ word-address G-code goes in the same module as the hooks its spec names (:mod:`.
 
 from __future__ import annotations
 
-import importlib
 import math
 import os
-import pkgutil
 from pathlib import PurePath
 
+from urdfpost._modules import public_modules
 from urdfpost.dialects.dialect import Dialect
 from urdfpost.dialects.spec import DialectSpec, MotionLayout, NumberFormat
 from urdfpost.errors import DialectError
@@ -72,10 +71,7 @@ def _discover(package: str, path: list[str]) -> dict[str, Dialect]:
         Two controls of one name, or a ``RANK`` that is not an int.
     """
     found: dict[str, tuple[float, Dialect]] = {}
-    for info in pkgutil.iter_modules(path):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{package}.{info.name}")
+    for module in public_modules(package, path):
         spec = getattr(module, "SPEC", None)
         if not isinstance(spec, DialectSpec):
             continue

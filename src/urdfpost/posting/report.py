@@ -143,14 +143,6 @@ class PieceFigures:
             warnings=self.warnings + tuple(w for w in other.warnings if w not in self.warnings),
         )
 
-    def shifted(self, offset: int) -> PieceFigures:
-        """The figures with the spans re-indexed by ``offset`` points."""
-        spans = tuple(
-            replace(sp, first=sp.first + offset, last=sp.last + offset)
-            for sp in self.strategy.spans
-        )
-        return replace(self, strategy=replace(self.strategy, spans=spans))
-
 
 @dataclass(frozen=True)
 class Collisions:

@@ -43,14 +43,13 @@ Adding a format takes one new file, ``readers/<name>.py``, that declares ``FORMA
 
 from __future__ import annotations
 
-import importlib
 import logging
 import operator
 import os
-import pkgutil
 from collections.abc import Iterator, Mapping
 from types import MappingProxyType
 
+from urdfpost._modules import public_modules
 from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Toolpath
 
@@ -98,10 +97,7 @@ def _discover(package: str, path: list[str]) -> Mapping[str, Format]:
         fallback format.
     """
     found: dict[str, Format] = {}
-    for info in pkgutil.iter_modules(path):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{package}.{info.name}")
+    for module in public_modules(package, path):
         entry = getattr(module, "FORMAT", None)
         if not isinstance(entry, Format):
             raise TypeError(

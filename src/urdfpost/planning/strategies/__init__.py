@@ -39,9 +39,7 @@ Shared pieces (pole crossings, turns in place, the closest tilt) are in ``_commo
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
+from urdfpost._modules import public_modules
 from urdfpost.planning.problem import (
     Plan,
     Problem,
@@ -56,9 +54,7 @@ from urdfpost.planning.realise import midpoint_solver, realise, solve_rows
 from urdfpost.planning.strategies._common import best_tilt, split_at_pole_crossings
 from urdfpost.planning.strategies._registry import registered, strategy
 
-for _module in sorted(m.name for m in pkgutil.iter_modules(__path__)):
-    if not _module.startswith("_"):
-        importlib.import_module(f"{__name__}.{_module}")
+public_modules(__name__, __path__)  # each registers its strategies with @strategy
 
 STRATEGIES: dict[str, Strategy] = registered()
 """Every strategy by name, in the order of their ranks."""
