@@ -772,7 +772,8 @@ def test_good_base_file_loads(tmp_path):
     m = load_machine(path)
     assert m.family == "table-table"
     assert m.settings == Settings()
-    assert m.settings.controller == "heidenhain" and m.settings.units == "mm"
+    # no units setting: None, so that a post's program takes the CL data's units
+    assert m.settings.controller == "heidenhain" and m.settings.units is None
     assert m.settings.tool_length == 0.0 and m.settings.prefer is None
     assert m.settings.home == {} and np.all(m.home == 0.0)
 

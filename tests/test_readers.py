@@ -207,9 +207,9 @@ def test_nx_ballmill_file():
     expected_motion = [Motion.RAPID if g[2] else Motion.FEED for g in gotos]
     np.testing.assert_array_equal(tp.motion, expected_motion)
     assert (tp.motion == Motion.RAPID).sum() == 3
-    # MSYS/3,3,0 with identity axes: the MCS origin in part coordinates, added to every point.
-    origin = np.array([3.0, 3.0, 0.0])
-    expected_tip = (np.array([g[1][:3] for g in gotos]) + origin) * MM_PER_INCH
+    # MSYS/3,3,0 with identity axes says where the MCS lies in the part: informational, the
+    # GOTO values are already in the MCS (NX's own post writes them as they are)
+    expected_tip = np.array([g[1][:3] for g in gotos]) * MM_PER_INCH
     np.testing.assert_allclose(tp.tip, expected_tip, rtol=0, atol=1e-9)
     axis = np.array([0.0, 0.0, 1.0])
     for k, (_, values, _) in enumerate(gotos):
@@ -223,14 +223,19 @@ def test_nx_ballmill_file():
     after = (tp.motion == Motion.FEED) & (tp.line > feed_line)
     np.testing.assert_allclose(tp.feed[after], 10 * MM_PER_INCH)
     assert np.isnan(tp.feed[tp.motion == Motion.RAPID]).all()
-    kinds = [(e.kind, e.index) for e in tp.events]
-    assert kinds == [("operation", 0), ("cutter", 0), ("comment", 0)]
+    kinds = [(e.kind, e.index, e.line) for e in tp.events]
+    assert kinds == [("operation", 0, 1), ("cutter", 0, 2), ("msys", 0, 3), ("comment", 0, 4)]
     assert tp.events[0].data == {"name": "NORM_PART", "tool_name": "BALL_MILL_1.00"}
     cutter = tp.events[1].data
     assert cutter["diameter"] == pytest.approx(25.4)
     assert cutter["corner_radius"] == pytest.approx(12.7)
     assert cutter["length"] == pytest.approx(76.2)
-    assert tp.events[2].data == {"text": "centerline data"}
+    msys = tp.events[2].data
+    assert msys["mcs"] == 0 and msys["transformed"] is False
+    np.testing.assert_allclose(msys["origin"], [3 * MM_PER_INCH, 3 * MM_PER_INCH, 0], atol=1e-12)
+    np.testing.assert_array_equal(msys["rotation"], np.eye(3))
+    assert msys["text"] == "MCS 0 origin 3 3 0 inch, x-axis 1 0 0, z-axis 0 0 1"
+    assert tp.events[3].data == {"text": "centerline data"}
 
 
 @pytest.fixture(scope="module")
@@ -365,7 +370,13 @@ def test_nx_project2_events(project2):
     comments = [e.data["text"] for e in tp.events if e.kind == "comment"]
     assert len(comments) == 20
     assert "centerline and contact point" in comments
-    assert {e.kind for e in tp.events} == {"operation", "cutter", "tool", "comment"}
+    assert {e.kind for e in tp.events} == {"operation", "cutter", "tool", "comment", "msys"}
+    # one MSYS per operation, all of the same MCS (at the part's zero): no point is moved
+    msys = [e for e in tp.events if e.kind == "msys"]
+    assert len(msys) == 15
+    assert {(e.data["mcs"], e.data["transformed"]) for e in msys} == {(0, False)}
+    assert {e.data["origin"] for e in msys} == {(0.0, 0.0, 0.0)}
+    assert tp.warnings == ()
     # each tool event precedes the first motion of its operation
     for event in tools:
         assert tp.line[event.index] > event.line
@@ -472,17 +483,33 @@ def test_non_unit_axis_is_normalised_with_warning():
 
 
 def test_msys_rotation_hand_computed():
-    # X axis = part +Y, Y axis = part -X (so Z = part +Z): a 90 degree turn about Z.
+    # X axis = part +Y, Y axis = part -X (so Z = part +Z): a 90 degree turn about Z. One MCS:
+    # informational, points and axes as written, the MCS in the event
     tp = apt("MSYS/10,20,30,0,1,0,-1,0,0\nGOTO/1,2,3,1,0,0\nGOTO/0,0,0\n")
-    np.testing.assert_allclose(tp.tip, [[10 - 2, 20 + 1, 30 + 3], [10, 20, 30]], atol=1e-12)
-    np.testing.assert_allclose(tp.axis, [[0, 1, 0], [0, 1, 0]], atol=1e-12)
+    np.testing.assert_allclose(tp.tip, [[1, 2, 3], [0, 0, 0]], atol=0)
+    np.testing.assert_allclose(tp.axis, [[1, 0, 0], [1, 0, 0]], atol=0)
+    (event,) = tp.events
+    assert (event.kind, event.index, event.line) == ("msys", 0, 1)
+    np.testing.assert_allclose(event.data["origin"], [10, 20, 30], atol=1e-12)
+    np.testing.assert_allclose(
+        event.data["rotation"], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12
+    )
+    assert event.data["text"] == "MCS 0 origin 10 20 30 mm, x-axis 0 1 0, z-axis 0 0 1"
+    assert tp.warnings == ()
     # X = part X, Y = part Z, so Z = X x Y = part -Y; axes given unnormalised
     tp = apt("MSYS/0,0,0,2,0,0,0,0,5\nGOTO/1,2,3\n")
-    np.testing.assert_allclose(tp.tip, [[1, -3, 2]], atol=1e-12)
-    np.testing.assert_allclose(tp.axis, [[0, -1, 0]], atol=1e-12)
-    # inch: the origin is scaled too; a new MSYS replaces the previous one
+    np.testing.assert_allclose(tp.tip, [[1, 2, 3]], atol=0)
+    np.testing.assert_allclose(tp.axis, [[0, 0, 1]], atol=0)
+    np.testing.assert_allclose(tp.events[0].data["rotation"], [[1, 0, 0], [0, 0, -1], [0, 1, 0]])
+    # inch, a second MSYS of another MCS (1 in along X from the first): its points are
+    # transformed into the first MCS, p_first = p_second + (0 - 1 in, 0, 0)
     tp = apt("UNITS/INCHES\nMSYS/1,0,0,1,0,0,0,1,0\nGOTO/1,0,0\nMSYS/0,0,0,1,0,0,0,1,0\nGOTO/1,0,0")
-    np.testing.assert_allclose(tp.tip, [[2 * MM_PER_INCH, 0, 0], [MM_PER_INCH, 0, 0]])
+    np.testing.assert_allclose(tp.tip, [[MM_PER_INCH, 0, 0], [0, 0, 0]], atol=1e-12)
+    assert [(e.data["mcs"], e.data["transformed"]) for e in tp.events] == [(0, False), (1, True)]
+    assert tp.warnings == (
+        "src.apt:4: MSYS at line 4 differs from the first MCS (line 2): points transformed "
+        "into the first MCS",
+    )
 
 
 def test_msys_not_orthogonal_warns():
@@ -593,10 +620,20 @@ def test_feed_per_rev_without_spindle_warns_until_speed_known():
     )
 
 
-def test_units_fallback_and_file_wins():
+def test_units_given_win_over_the_file():
     assert apt("GOTO/1,0,0", units="inch").units == "inch"
     np.testing.assert_allclose(apt("GOTO/1,0,0", units="inch").tip, [[25.4, 0, 0]])
+    assert apt("GOTO/1,0,0", units="inch").warnings == ()
+    # units given override a file that says otherwise, with a warning naming its line
     tp = apt("UNITS/MM\nGOTO/1,0,0", units="inch")
+    assert tp.units == "inch"
+    np.testing.assert_allclose(tp.tip, [[25.4, 0, 0]])
+    assert tp.warnings == ("src.apt:1: CL file says mm at line 1; read as inch (--cl-units)",)
+    # ... and no warning when the file says the same
+    tp = apt("UNITS/MM\nGOTO/1,0,0", units="mm")
+    assert (tp.units, tp.warnings) == ("mm", ())
+    # no units given: the file's
+    tp = apt("UNITS/MM\nGOTO/1,0,0")
     assert tp.units == "mm"
     np.testing.assert_allclose(tp.tip, [[1, 0, 0]])
     # a feed unit anywhere decides, even after the first points

@@ -234,7 +234,12 @@ def test_shared_files(name, max_points, text_piece):
 def test_shared_file_other_arguments():
     path = shared_cl("nx_project2_15ops_inch.cls")
     pieces = check_file(path, 1000, 1 << 12, format="APT", units="mm", chord_tolerance=0.02)
-    assert pieces is not None and pieces[0].units == "inch"  # FEDRAT/IPM wins over units=
+    # units= win over the file's FEDRAT/IPM (line 21), with one warning, in the first piece
+    assert pieces is not None and pieces[0].units == "mm"
+    assert pieces[0].warnings == (
+        f"{path}:21: CL file says inch at line 21; read as mm (--cl-units)",
+    )
+    assert [w for p in pieces[1:] for w in p.warnings] == []
 
 
 # -- generated text -----------------------------------------------------------------------------
@@ -361,7 +366,7 @@ _text_pieces = st.sampled_from([1, 2, 3, 5, 7, 16, 64, 4096])
 def whole_file_facts(text: str, source: str) -> object:
     """Units declared and NX dialect, as read_apt_text finds them in the whole text."""
 
-    def facts() -> tuple[str | None, bool]:
+    def facts() -> tuple[tuple[str, int] | None, bool]:
         scan = apt_module.scan_text(text, source)
         nx = scan.listing_lines > 0 or any(apt_module.is_nx_record(r) for r in scan.records)
         return apt_module._file_units(scan.records), nx
@@ -389,12 +394,13 @@ def test_generated_apt(tmp_path_factory, text, max_points, text_piece, bulk_piec
 @pytest.mark.parametrize(
     ("text", "facts"),
     [
-        ("GOTO/1,2,3\n" * 5 + "GOTO/1,2,IPM\n" + "GOTO/1,2,3\n" * 5, ("inch", False)),
-        ("goto / 1, 2, 3\n  GOTO/1,2,3,0,0,mmpr\n", ("mm", False)),
-        ("FEDRAT/IPM,1\nGOTO/1,2,3\nUNITS/MM\n", ("mm", False)),
-        ("FEDRAT/$\nIPM,5\nGOTO/1,2,3\n", ("inch", False)),
+        # (units, line that declares them), NX dialect
+        ("GOTO/1,2,3\n" * 5 + "GOTO/1,2,IPM\n" + "GOTO/1,2,3\n" * 5, (("inch", 6), False)),
+        ("goto / 1, 2, 3\n  GOTO/1,2,3,0,0,mmpr\n", (("mm", 2), False)),
+        ("FEDRAT/IPM,1\nGOTO/1,2,3\nUNITS/MM\n", (("mm", 3), False)),
+        ("FEDRAT/$\nIPM,5\nGOTO/1,2,3\n", (("inch", 1), False)),
         ("PPRINT x $\n" + "GOTO/1,2,3\n" * 4, (None, False)),
-        ("PPRINT x $\nGOTO/1,2,3\nUNITS/INCHES\n", ("inch", False)),
+        ("PPRINT x $\nGOTO/1,2,3\nUNITS/INCHES\n", (("inch", 3), False)),
         ("GOTO/1,2,3\nTLDATA/MILL,1\n", (None, True)),
         ("GOTO/1,2,3\nMSYS/0,0,0,1,0,0,0,1,0\n", (None, True)),
         ("GOTO/1,2,3\nTool Path Listing has 3 lines.\n", (None, True)),

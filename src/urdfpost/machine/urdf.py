@@ -554,8 +554,8 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         raise MachineDefinitionError(
             f"{where}: <urdfpost controller={controller!r}>: expected one of {tuple(DIALECTS)}"
         )
-    units = el.get("units", "mm")
-    if units not in ("mm", "inch"):
+    units = el.get("units")  # None: the program takes the CL data's units
+    if units is not None and units not in ("mm", "inch"):
         raise MachineDefinitionError(f"{where}: <urdfpost units={units!r}>: expected mm or inch")
     tool_length = _tool_length(source, el)
     prefer = None

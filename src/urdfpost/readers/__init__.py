@@ -6,8 +6,10 @@ Two formats, one module each:
   :mod:`urdfpost.readers.apt` for the records understood and the events emitted;
 - ``"plain"``: one ``x y z [i j k]`` point per line, see :mod:`urdfpost.readers.plain`.
 
-Every reader returns a :class:`~urdfpost.toolpath.Toolpath` in millimetres in the workpiece frame
-and remembers the file's units. Files are opened only here. :func:`read_cl` reads a whole file at
+Every reader returns a :class:`~urdfpost.toolpath.Toolpath` in millimetres in the program's
+coordinates (for NX CLSF: the first MCS, the GOTO values as written) and remembers the units it
+read the file in: those given (``units=``, the command line's ``--cl-units``), else the file's
+own, else mm. Files are opened only here. :func:`read_cl` reads a whole file at
 once; :func:`read_cl_chunks` reads it in pieces (for files too large to hold in memory) and
 hands out the same toolpath as consecutive pieces.
 
@@ -180,6 +182,7 @@ def read_cl_text(
     format: str | None = None,
     units: str | None = None,
     chord_tolerance: float = 0.001,
+    separate_mcs: bool = False,
 ) -> Toolpath:
     """Read CL data from a string.
 
@@ -192,10 +195,16 @@ def read_cl_text(
     format : str, optional
         A key of :data:`FORMATS` (any case); detected with :func:`detect_format` when omitted.
     units : str, optional
-        "mm" or "inch": the units of the values when the file does not say (default "mm").
-        A file that says (``UNITS/``, ``IPM``/``MMPM``) wins.
+        "mm" or "inch": the units of the values, whatever the file says (a file that says
+        otherwise, ``UNITS/`` or ``IPM``/``MMPM``, gets the warning "CL file says inch at line
+        L; read as mm (--cl-units)"). None: the units the file declares, else mm (never a
+        machine's units).
     chord_tolerance : float, mm
         Largest chord error of points interpolated on arcs.
+    separate_mcs : bool
+        NX CLSF: leave the points after an ``MSYS`` of another MCS in that MCS (its ``msys``
+        event's ``mcs`` index marks the change) instead of transforming them into the first
+        MCS (see :mod:`urdfpost.readers.apt`).
 
     Returns
     -------
@@ -216,8 +225,18 @@ def read_cl_text(
         format = detect_format(text)
         logger.debug("%s: detected format %s", source, format)
     return _format_named(format).read_text(
-        text, source=source, units=units, chord_tolerance=chord_tolerance
+        text,
+        source=source,
+        units=units,
+        chord_tolerance=chord_tolerance,
+        **_mcs_option(separate_mcs),
     )
+
+
+def _mcs_option(separate_mcs: bool) -> dict[str, bool]:
+    """``separate_mcs`` for a format's reader: given only when true (a format without
+    coordinate systems need not take it)."""
+    return {"separate_mcs": True} if separate_mcs else {}
 
 
 def read_cl(
@@ -226,6 +245,7 @@ def read_cl(
     format: str | None = None,
     units: str | None = None,
     chord_tolerance: float = 0.001,
+    separate_mcs: bool = False,
 ) -> Toolpath:
     """Read a CL file (UTF-8, or UTF-16/32 with a byte-order mark; undecodable bytes are
     replaced, a NUL byte is an error).
@@ -234,7 +254,7 @@ def read_cl(
     ----------
     path : str or path-like
         The file; its name is used in messages.
-    format, units, chord_tolerance
+    format, units, chord_tolerance, separate_mcs
         As for :func:`read_cl_text`.
 
     Raises
@@ -252,7 +272,12 @@ def read_cl(
     text = check_text(str(memoryview(data)[mark:], codec, "replace"), source)
     del data
     return read_cl_text(
-        text, source=source, format=format, units=units, chord_tolerance=chord_tolerance
+        text,
+        source=source,
+        format=format,
+        units=units,
+        chord_tolerance=chord_tolerance,
+        separate_mcs=separate_mcs,
     )
 
 
@@ -263,12 +288,13 @@ def read_cl_chunks(
     format: str | None = None,
     units: str | None = None,
     chord_tolerance: float = 0.001,
+    separate_mcs: bool = False,
     _text_piece: int = 1 << 23,
 ) -> Iterator[Toolpath]:
     """Read a CL file in pieces: :func:`read_cl` for files too large to hold in memory.
 
     The file is read from disk in pieces of about ``_text_piece`` characters cut at line
-    breaks; the reader's state (continued record, modal feed, units, tool, tool axis, frame,
+    breaks; the reader's state (continued record, modal feed, units, tool, tool axis, MCS,
     pending RAPID or CIRCLE, line number) goes on from one piece to the next, and points are
     handed out as soon as more than ``max_points`` are held. Memory is bounded by the two piece
     sizes, not by the file's size. An APT file is first scanned quickly for what applies to all
@@ -281,7 +307,7 @@ def read_cl_chunks(
         The file; its name is used in messages.
     max_points : int
         Most points in a piece (at least 1).
-    format, units, chord_tolerance
+    format, units, chord_tolerance, separate_mcs
         As for :func:`read_cl_text`. A detected format is detected on the whole file, as by
         :func:`read_cl` (reading stops at the first APT record).
     _text_piece : int
@@ -291,8 +317,9 @@ def read_cl_chunks(
     -------
     iterator of Toolpath
         Consecutive, disjoint pieces of ``read_cl(path, format=format, units=units,
-        chord_tolerance=chord_tolerance)``, each of 1 to ``max_points`` points (every piece but
-        the last has ``max_points``); a file with no motion gives one piece of 0 points.
+        chord_tolerance=chord_tolerance, separate_mcs=separate_mcs)``, each of 1 to
+        ``max_points`` points (every piece but the last has ``max_points``); a file with no
+        motion gives one piece of 0 points.
         Concatenated, the pieces' ``tip``, ``axis``, ``feed``, ``motion`` and ``line`` are
         those of :func:`read_cl` bit for bit. An event is in the piece of the point it comes
         before, its ``index`` counted from the piece's first point (events after the last
@@ -338,6 +365,7 @@ def read_cl_chunks(
         units=units,
         chord_tolerance=chord_tolerance,
         text_piece=text_piece,
+        separate_mcs=separate_mcs,
     )
 
 
@@ -366,6 +394,7 @@ def _read_chunks(
     units: str | None,
     chord_tolerance: float,
     text_piece: int,
+    separate_mcs: bool,
 ) -> Iterator[Toolpath]:
     """The pieces of :func:`read_cl_chunks` (its arguments checked)."""
     if format is None:
@@ -377,4 +406,5 @@ def _read_chunks(
         units=units,
         chord_tolerance=chord_tolerance,
         text_piece=text_piece,
+        **_mcs_option(separate_mcs),
     )

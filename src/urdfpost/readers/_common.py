@@ -251,6 +251,10 @@ class ToolpathBuilder:
         self.events: list[Event] = []
         self.warnings: list[str] = []
         self._warned_at: list[int] = []  # index of the next point when each warning came
+        # box of the tips and fastest feed of every point added (for the units' plausibility)
+        self._low = np.full(3, np.inf)
+        self._high = np.full(3, -np.inf)
+        self._fastest = -np.inf
 
     def __len__(self) -> int:
         return self._taken + self._chunked + len(self._motion)
@@ -274,6 +278,7 @@ class ToolpathBuilder:
                 np.asarray(self._line, dtype=np.int64).reshape(k),
             )
         )
+        self._note(self._chunks[-1][0], self._chunks[-1][2])
         self._chunked += k
         self._tip, self._axis, self._feed, self._motion, self._line = [], [], [], [], []
 
@@ -383,7 +388,25 @@ class ToolpathBuilder:
                 np.asarray(line, dtype=np.int64).reshape(k),
             )
         )
+        self._note(self._chunks[-1][0], self._chunks[-1][2])
         self._chunked += k
+
+    def _note(self, tip: np.ndarray, feed: np.ndarray) -> None:
+        """Widen the box of the tips and raise the fastest feed by a chunk's points."""
+        with np.errstate(invalid="ignore"):
+            np.minimum(self._low, tip.min(axis=0), out=self._low)
+            np.maximum(self._high, tip.max(axis=0), out=self._high)
+        finite = feed[np.isfinite(feed)]
+        if finite.size:
+            self._fastest = max(self._fastest, float(finite.max()))
+
+    def figures(self) -> tuple[float | None, float | None]:
+        """The largest side of the box around every tip added (mm) and the fastest feed of any
+        point (mm/min); None for no points or no feed."""
+        self._flush()
+        extent = float((self._high - self._low).max()) if len(self) else None
+        fastest = self._fastest if np.isfinite(self._fastest) else None
+        return extent, fastest
 
     def set_last_axis(self, axis: Sequence[float]) -> None:
         """Replace the tool axis of the last point."""

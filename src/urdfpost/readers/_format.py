@@ -17,7 +17,8 @@ __all__ = ["Detector", "Format", "StreamReader", "TextReader"]
 
 
 class TextReader(Protocol):
-    """Reads the whole text of a file: ``read_text(text, *, source, units, chord_tolerance)``.
+    """Reads the whole text of a file:
+    ``read_text(text, *, source, units, chord_tolerance[, separate_mcs])``.
 
     Parameters
     ----------
@@ -26,9 +27,14 @@ class TextReader(Protocol):
     source : str
         File name for messages.
     units : str or None
-        "mm" or "inch": the units of the values when the file does not say (None: "mm").
+        "mm" or "inch": the units of the values, whatever the file says (a file that says
+        otherwise gets a warning). None: the units the file declares, else "mm".
     chord_tolerance : float, mm
         Largest chord error of points interpolated on arcs (a format without arcs ignores it).
+    separate_mcs : bool
+        Passed only when true (so a format without coordinate systems may leave it out):
+        points after a change of coordinate system (NX ``MSYS``) stay in theirs instead of
+        being transformed into the first (see :mod:`urdfpost.readers.apt`).
 
     Returns
     -------
@@ -42,13 +48,19 @@ class TextReader(Protocol):
     """
 
     def __call__(
-        self, text: str, *, source: str, units: str | None, chord_tolerance: float
+        self,
+        text: str,
+        *,
+        source: str,
+        units: str | None,
+        chord_tolerance: float,
+        separate_mcs: bool = ...,
     ) -> Toolpath: ...
 
 
 class StreamReader(Protocol):
     """Reads a file in pieces:
-    ``read_stream(source, *, max_points, units, chord_tolerance, text_piece)``.
+    ``read_stream(source, *, max_points, units, chord_tolerance, text_piece[, separate_mcs])``.
 
     Parameters
     ----------
@@ -57,7 +69,7 @@ class StreamReader(Protocol):
         text in pieces cut at line breaks, decoded as the whole-file reading decodes it).
     max_points : int
         Most points in a piece (at least 1).
-    units, chord_tolerance
+    units, chord_tolerance, separate_mcs
         As for :class:`TextReader`.
     text_piece : int
         Bytes read from the file at a time.
@@ -77,6 +89,7 @@ class StreamReader(Protocol):
         units: str | None,
         chord_tolerance: float,
         text_piece: int,
+        separate_mcs: bool = ...,
     ) -> Iterator[Toolpath]: ...
 
 

@@ -41,6 +41,28 @@ class Frame:
         (a, b, c), (d, e, f), (g, h, i) = self.rotation
         return (a * x + b * y + c * z, d * x + e * y + f * z, g * x + h * y + i * z)
 
+    def in_frame(self, other: Frame) -> Frame:
+        """This frame expressed in ``other``: ``other^-1 * self``.
+
+        A point ``p`` given in this frame is ``R_o.T @ (o_s - o_o) + R_o.T @ R_s @ p`` in
+        ``other`` (``o``, ``R``: origin and rotation of this frame ``s`` and of ``other``).
+        """
+        r_other = np.asarray(other.rotation)
+        rotation = r_other.T @ np.asarray(self.rotation)
+        origin = r_other.T @ (np.asarray(self.origin) - np.asarray(other.origin))
+        (a, b, c), (d, e, f), (g, h, i) = rotation.tolist()
+        ox, oy, oz = origin.tolist()
+        return Frame(origin=(ox, oy, oz), rotation=((a, b, c), (d, e, f), (g, h, i)))
+
+    def near(self, other: Frame, relative: float = 1e-9) -> bool:
+        """Whether two frames are the same within ``relative``: the origins within ``relative``
+        times the larger of their distances from zero and 1 mm, the rotations' entries within
+        ``relative``."""
+        o1, o2 = np.asarray(self.origin), np.asarray(other.origin)
+        size = max(1.0, float(np.abs(o1).max()), float(np.abs(o2).max()))
+        turn = np.abs(np.asarray(self.rotation) - np.asarray(other.rotation)).max()
+        return bool(np.abs(o1 - o2).max() <= relative * size and turn <= relative)
+
     @classmethod
     def from_axes(
         cls, origin: Sequence[float], x_axis: Sequence[float], y_axis: Sequence[float]

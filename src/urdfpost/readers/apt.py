@@ -5,10 +5,22 @@ A file is read in three steps:
 1. :func:`scan_records` turns lines into logical records: ``$`` continuations are joined, ``$$``
    comments split off, NX listing header/trailer lines skipped, and reading stops at ``FINI``.
 2. The file's units are taken from the records (``UNITS/``, else the first ``IPM``/``MMPM``/
-   ``IPR``/``MMPR`` keyword), and the dialect from NX-only records (``TOOL PATH/``, ``TLDATA/``,
-   ``MSYS/``, ``PAINT/``, ``END-OF-PATH``, listing lines).
+   ``IPR``/``MMPR`` keyword; else mm; units given by the caller override them, with a
+   warning when the file says otherwise), and the dialect from NX-only records
+   (``TOOL PATH/``, ``TLDATA/``, ``MSYS/``, ``PAINT/``, ``END-OF-PATH``, listing lines).
 3. :class:`_AptInterpreter` walks the records with the modal state (tool axis, feed, spindle,
-   coordinate frame, pending ``RAPID``/``CIRCLE``) and fills a toolpath builder.
+   MCS, pending ``RAPID``/``CIRCLE``) and fills a toolpath builder. At the end, one warning
+   when the feeds, cutter and extents look like the other unit
+   (:func:`urdfpost.units.units_doubt`).
+
+Coordinates (NX ``MSYS``): GOTO, CIRCLE and tool-axis values are in the MCS, the program zero,
+and are kept as written. ``MSYS/x,y,z,xi,xj,xk,yi,yj,yk`` says where that MCS lies in the
+part's absolute frame; it is recorded (an ``msys`` event) and changes no point while every
+MSYS of the file gives the same MCS (equal within 1e-9, relative). After an MSYS of another
+MCS, the points, tool axes and arcs are transformed into the first MCS (``p_first = F1^-1 F2
+p``), with the warning "MSYS at line L differs from the first MCS (line K): points
+transformed into the first MCS"; with ``separate_mcs`` they are left in their MCS and the
+``msys`` event's ``mcs`` index marks the change (for a program with one work offset per MCS).
 
 Steps 1 and 3 keep their state between calls, so that :func:`read_apt_stream` (the reader of
 :func:`~urdfpost.readers.read_cl_chunks`) can feed them a file piece by piece
@@ -41,6 +53,12 @@ Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
   ``direction`` ("cw", "ccw", "off")
 - ``"coolant"``: ``mode`` ("flood", "mist", "through", "air", "off")
 - ``"home"`` (``GOHOME``), ``"stop"``: ``optional`` (``STOP`` False, ``OPSTOP`` True)
+- ``"msys"``: ``mcs`` (int: 0 for the first MCS, 1, 2... for each other distinct one, in the
+  order they come), ``origin`` (mm) and ``rotation`` (rows of the 3x3 matrix whose columns
+  are the MCS's X, Y, Z axes) of the MCS in the part's absolute frame, ``transformed`` (bool:
+  the points after it are transformed into MCS 0), ``text`` (the same in words, lengths in
+  the file's units: "MCS 0 origin 3 3 0 inch, x-axis 1 0 0, z-axis 0 0 1"; the post writes
+  it as a comment)
 - ``"unknown"``: ``text`` (the record as written; a warning is added too)
 
 Arc direction (``CIRCLE/xc,yc,zc,i,j,k,r``): generic APT arcs turn counter-clockwise seen from
@@ -64,7 +82,7 @@ import numpy as np
 
 from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Motion, Toolpath
-from urdfpost.units import MM_PER_INCH
+from urdfpost.units import MM_PER_INCH, other_units, units_doubt
 
 from ._common import (
     AXIS_LENGTH_SLACK,
@@ -580,16 +598,17 @@ def detect_apt(text: str, line_start: bool = True) -> bool:
     return APT_LINE.search(text, 0 if line_start else 1) is not None
 
 
-def _file_units(records: Sequence[Record | GotoRun]) -> str | None:
-    """Units the records declare: the first UNITS record, else the first feed-unit keyword."""
+def _file_units(records: Sequence[Record | GotoRun]) -> tuple[str, int] | None:
+    """Units the records declare and the line that says so: the first UNITS record, else the
+    first feed-unit keyword; None when they say nothing."""
     for record in records:
         units = declared_units(record)
         if units:
-            return units
+            return units, record.line
     for record in records:
         units = feed_units(record)
         if units:
-            return units
+            return units, record.line
     return None
 
 
@@ -654,21 +673,53 @@ class _AptInterpreter:
     source : str
         File name for messages.
     units : str
-        Units of the file ("mm" or "inch").
+        Units the values are read in ("mm" or "inch").
     chord_tolerance : float, mm
         Chord error allowed when interpolating arcs.
     nx : bool
         NX CLSF dialect (arcs turn clockwise about the circle axis).
+    declared : tuple of (str, int), optional
+        The units the file declares and the line that says so (None: it says nothing).
+    forced : bool
+        ``units`` were given by the caller: they apply whatever the file says (a declaration
+        of other units gets a warning, feed keywords give the feed mode only: the first of
+        other units than ``units`` gets the same warning, unless the declaration had one).
+    separate_mcs : bool
+        Leave the points after an ``MSYS`` of another MCS in that MCS (the ``msys`` event
+        marks the change) instead of transforming them into the first MCS.
     """
 
-    def __init__(self, source: str, units: str, chord_tolerance: float, nx: bool) -> None:
+    def __init__(
+        self,
+        source: str,
+        units: str,
+        chord_tolerance: float,
+        nx: bool,
+        *,
+        declared: tuple[str, int] | None = None,
+        forced: bool = False,
+        separate_mcs: bool = False,
+    ) -> None:
         self.source = source
-        self.units = units
+        self.units = self.file_units = units
         self.scale = scale_of(units)
         self.chord_tolerance = chord_tolerance
         self.arc_sense = -1.0 if nx else 1.0
         self.builder = ToolpathBuilder(source)
+        self.declared = declared
+        self.forced = forced
+        # a feed keyword of other units than those given gets one warning, unless the
+        # declaration already had one
+        self.feed_units_warned = False
+        if forced and declared is not None and declared[0] != units:
+            self.feed_units_warned = True
+            self.builder.warn(declared[1], _forced_message(declared[0], declared[1], units))
+        # MSYS: each distinct MCS (in the part frame, mm) with the line that first set it; the
+        # frame of the points read now in the program's (the first MCS's) coordinates
+        self.separate_mcs = separate_mcs
+        self.mcs: list[tuple[Frame, int]] = []
         self.frame: Frame = IDENTITY
+        self.largest_cutter: float | None = None
         self.axis_local: tuple[float, float, float] = (0.0, 0.0, 1.0)
         self.axis = self.axis_local
         self.multiaxis = False
@@ -736,7 +787,8 @@ class _AptInterpreter:
         self.handlers.get(record.word, self._unknown)(record)
 
     def finish(self) -> None:
-        """Check the end of the file: no CIRCLE waiting for its GOTO.
+        """Check the end of the file: no CIRCLE waiting for its GOTO; warn when the figures
+        (feeds, cutter, extents) look like the other unit (:func:`~urdfpost.units.units_doubt`).
 
         Raises
         ------
@@ -749,6 +801,32 @@ class _AptInterpreter:
             )
         if self.ignored:
             logger.debug("%s: ignored records %s", self.source, self.ignored)
+        self._check_units()
+
+    def _check_units(self) -> None:
+        """One warning when the data, read in the file's units, look like the other unit."""
+        units, scale = self.file_units, scale_of(self.file_units)
+        extent, fastest = self.builder.figures()
+        doubt = units_doubt(
+            units,
+            feed=None if fastest is None else fastest / scale,
+            cutter=None if self.largest_cutter is None else self.largest_cutter / scale,
+            extent=None if extent is None else extent / scale,
+        )
+        if doubt is None:
+            return
+        other = other_units(units)
+        if self.forced:
+            line, read = 1, f"read in {units} (--cl-units)"
+        elif self.declared is not None:
+            line, read = self.declared[1], f"says {units} at line {self.declared[1]}"
+        else:
+            line, read = 1, f"says no units and is read in {units}"
+        self.builder.warn(
+            line,
+            f"CL file {read}, but its figures look like {other}: {doubt}; "
+            f"check its units (--cl-units {other} reads it in {other})",
+        )
 
     def error(self, record: Record, message: str) -> CLDataError:
         """A CLDataError for ``record``."""
@@ -1070,6 +1148,12 @@ class _AptInterpreter:
         if not (math.isfinite(value) and value > 0.0):
             raise self.error(record, f"expected a positive feed in FEDRAT, got {value:g}")
         per_rev, feed_scale = _FEED_MODES[words[0]] if words else (False, self.scale)
+        if self.forced:  # the keyword's unit is the file's, which the caller overrode
+            feed_scale = self.scale
+            says = feed_units(record)
+            if says is not None and says != self.units and not self.feed_units_warned:
+                self.feed_units_warned = True
+                self.builder.warn(record.line, _forced_message(says, record.line, self.units))
         self._check_feed(record, value, per_rev, feed_scale, self.rpm)
         self.feed_value, self.feed_per_rev, self.feed_scale = value, per_rev, feed_scale
         if per_rev and (self.rpm is None or not self.spindle_on):
@@ -1185,6 +1269,7 @@ class _AptInterpreter:
         self._tool_change(record, args[1:], 2)
 
     def _set_cutter(self, record: Record, data: dict[str, float]) -> None:
+        self.largest_cutter = max(self.largest_cutter or 0.0, data["diameter"])
         if not self.builder.amend_last_event("tool", **data):
             self.tool_data.update(data)
         self.builder.add_event("cutter", record.line, **data)
@@ -1237,6 +1322,13 @@ class _AptInterpreter:
     # -- frames, modes, units -------------------------------------------------------------
 
     def _msys(self, record: Record) -> None:
+        """``MSYS/x,y,z,xi,xj,xk,yi,yj,yk``: where the MCS (the program zero, in which the
+        GOTO values are) lies in the part's absolute frame.
+
+        Informative while every MSYS gives one MCS: the points stay as written. After an
+        MSYS of another MCS, the points are transformed into the first MCS (with a warning),
+        or, with ``separate_mcs``, left in theirs. Either way an ``msys`` event records it.
+        """
         args = record.args or []
         if len(args) != 9:
             raise self.error(record, f"expected 9 values in MSYS, got {len(args)}")
@@ -1247,7 +1339,7 @@ class _AptInterpreter:
             self._length(record, x, f"origin {name}") for x, name in zip(v[:3], "xyz", strict=True)
         ]
         try:
-            self.frame = Frame.from_axes(origin, v[3:6], v[6:9])
+            mcs = Frame.from_axes(origin, v[3:6], v[6:9])
         except ValueError:
             raise self.error(
                 record,
@@ -1257,8 +1349,51 @@ class _AptInterpreter:
         x, y = np.asarray(v[3:6]), np.asarray(v[6:9])
         if abs(float(x @ y)) > 1e-3 * float(np.linalg.norm(x) * np.linalg.norm(y)):
             self.builder.warn(record.line, "MSYS axes are not orthogonal; orthonormalised")
+        index = next((k for k, (seen, _) in enumerate(self.mcs) if mcs.near(seen)), None)
+        if index is None:
+            index = len(self.mcs)
+            self.mcs.append((mcs, record.line))
+        first, first_line = self.mcs[0]
+        transformed = bool(index) and not self.separate_mcs
+        self.frame = mcs.in_frame(first) if transformed else IDENTITY
+        if index:
+            done = (
+                "points transformed into the first MCS"
+                if transformed
+                else f"points left in MCS {index} (separate MCS)"
+            )
+            self.builder.warn(
+                record.line,
+                f"MSYS at line {record.line} differs from the first MCS (line {first_line}): "
+                f"{done}",
+            )
         self.axis = self.frame.vector(self.axis_local)
-        logger.debug("%s:%d: MSYS frame %s", self.source, record.line, self.frame)
+        self.builder.add_event(
+            "msys",
+            record.line,
+            mcs=index,
+            origin=mcs.origin,
+            rotation=mcs.rotation,
+            transformed=transformed,
+            text=self._mcs_text(mcs, index, transformed),
+        )
+        logger.debug("%s:%d: MSYS %s, MCS %d", self.source, record.line, mcs, index)
+
+    def _mcs_text(self, mcs: Frame, index: int, transformed: bool) -> str:
+        """The ``msys`` event's text, lengths in the file's units."""
+        scale = self.scale
+        (a, _, c), (d, _, f), (g, _, i) = mcs.rotation
+
+        def triple(values: Iterable[float]) -> str:
+            return " ".join(format_number(0.0 if abs(u) < 1e-12 else u) for u in values)
+
+        text = (
+            f"MCS {index} origin {triple(o / scale for o in mcs.origin)} {self.units}, "
+            f"x-axis {triple((a, d, g))}, z-axis {triple((c, f, i))}"
+        )
+        if transformed:
+            text += ": points transformed into MCS 0"
+        return text
 
     def _multax(self, record: Record) -> None:
         mode = [a.upper() for a in record.args] if record.args is not None else ["ON"]
@@ -1271,6 +1406,11 @@ class _AptInterpreter:
         units = _UNITS_WORDS.get(record.args[0].upper()) if record.args else None
         if units is None or len(record.args or ()) != 1:
             self._unknown(record)
+            return
+        if self.forced:
+            declared_here = self.declared is not None and self.declared[1] == record.line
+            if units != self.units and not declared_here:  # the declaration has its warning
+                self.builder.warn(record.line, _forced_message(units, record.line, self.units))
             return
         if units != self.units:
             self.builder.warn(
@@ -1298,6 +1438,11 @@ class _AptInterpreter:
             self.builder.add_event(kind, record.line, **data)
 
         return handler
+
+
+def _forced_message(says: str, line: int, units: str) -> str:
+    """The warning for a file that says ``says`` at ``line`` and is read in ``units``."""
+    return f"CL file says {says} at line {line}; read as {units} (--cl-units)"
 
 
 def _within_bound(values: np.ndarray, scale: float) -> bool:
@@ -1332,6 +1477,7 @@ def read_apt_text(
     source: str = "<string>",
     units: str | None = None,
     chord_tolerance: float = 0.001,
+    separate_mcs: bool = False,
 ) -> Toolpath:
     """Read APT / CATIA / Creo / NX CLSF cutter-location data.
 
@@ -1342,25 +1488,35 @@ def read_apt_text(
     source : str
         File name for messages.
     units : str, optional
-        Units assumed when the file does not say ("mm" or "inch"; default "mm").
+        "mm" or "inch": the units of the values, whatever the file says (a file that declares
+        others gets the warning "CL file says inch at line L; read as mm (--cl-units)", and
+        its feed keywords, ``IPM`` or ``MMPM``, give the feed mode only; the first of other
+        units gets the same warning unless the declaration had one). None: the units the
+        file declares (``UNITS/``, else the first ``IPM``/``MMPM``/``IPR``/``MMPR``), else mm.
     chord_tolerance : float, mm
         Largest chord error of the points interpolated on CIRCLE arcs.
+    separate_mcs : bool
+        After an ``MSYS`` of an MCS other than the first, leave the points in that MCS (its
+        ``msys`` event marks the change) instead of transforming them into the first MCS.
 
     Returns
     -------
     Toolpath
-        Tips in mm in the workpiece frame (after MSYS), unit axes, feeds in mm/min.
+        Tips in mm in the program's coordinates (the first MCS: GOTO values as written), unit
+        axes, feeds in mm/min. Its ``units`` are those the values were read in.
 
     Raises
     ------
     CLDataError
         For data that cannot be read (message names the line and what was expected).
     """
-    fallback = normalise_units(units)
+    forced = units is not None
+    given = normalise_units(units)
     if not (math.isfinite(chord_tolerance) and chord_tolerance > 0.0):
         raise ValueError(f"chord_tolerance: expected a positive length, got {chord_tolerance!r}")
     scan = scan_text(text, source)
-    file_units = _file_units(scan.records) or fallback
+    declared = _file_units(scan.records)
+    file_units = given if forced or declared is None else declared[0]
     nx = scan.listing_lines > 0 or any(is_nx_record(r) for r in scan.records)
     runs = [r for r in scan.records if isinstance(r, GotoRun)]
     logger.debug(
@@ -1375,7 +1531,15 @@ def read_apt_text(
         scan.listing_lines,
         scan.trailing_comments,
     )
-    interpreter = _AptInterpreter(source, file_units, chord_tolerance, nx)
+    interpreter = _AptInterpreter(
+        source,
+        file_units,
+        chord_tolerance,
+        nx,
+        declared=declared,
+        forced=forced,
+        separate_mcs=separate_mcs,
+    )
     interpreter.run(scan.records)
     if scan.after_fini:
         interpreter.builder.warn(
@@ -1410,7 +1574,7 @@ def _apt_parts(source: str, text_piece: int) -> Iterator[str]:
         del text
 
 
-def _apt_facts(source: str, size: int) -> tuple[str | None, bool]:
+def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, bool]:
     """What an APT file says of itself before FINI: declared units and NX dialect.
 
     The records are those of :func:`~urdfpost.readers.apt.scan_text`, except that blocks of
@@ -1419,9 +1583,9 @@ def _apt_facts(source: str, size: int) -> tuple[str | None, bool]:
 
     Returns
     -------
-    units : str or None
-        As ``_file_units`` of the whole file: the first UNITS record, else the first feed-unit
-        keyword, else None.
+    units : tuple of (str, int), or None
+        As ``_file_units`` of the whole file: the units of the first UNITS record, else of the
+        first feed-unit keyword, and its line; else None.
     nx : bool
         Whether the file has NX listing lines or NX-only records.
 
@@ -1432,8 +1596,8 @@ def _apt_facts(source: str, size: int) -> tuple[str | None, bool]:
         before any record is interpreted).
     """
     scanner = _Scanner(source)
-    declared: str | None = None
-    in_feeds: str | None = None
+    declared: tuple[str, int] | None = None
+    in_feeds: tuple[str, int] | None = None
     nx = False
     line = 1
     for text in _apt_parts(source, size):
@@ -1441,8 +1605,10 @@ def _apt_facts(source: str, size: int) -> tuple[str | None, bool]:
         if not (scanner.pending is None and _only_plain_gotos(text, count)):
             _prescan_piece(scanner, text, line)
         for record in scanner.scan.records:
-            declared = declared or declared_units(record)
-            in_feeds = in_feeds or feed_units(record)
+            if declared is None and (units := declared_units(record)):
+                declared = (units, record.line)
+            if in_feeds is None and (units := feed_units(record)):
+                in_feeds = (units, record.line)
             nx = nx or is_nx_record(record)
         scanner.scan.records.clear()
         if scanner.fini:
@@ -1509,15 +1675,30 @@ def _first_point_of(record: Record | GotoRun, before: int, after: int) -> int:
 
 
 def read_apt_stream(
-    source: str, *, max_points: int, units: str | None, chord_tolerance: float, text_piece: int
+    source: str,
+    *,
+    max_points: int,
+    units: str | None,
+    chord_tolerance: float,
+    text_piece: int,
+    separate_mcs: bool = False,
 ) -> Iterator[Toolpath]:
     """:func:`read_apt_text` of a file, in pieces (``FORMAT.read_stream``)."""
-    fallback = normalise_units(units)
+    forced = units is not None
+    given = normalise_units(units)
     check_chord_tolerance(chord_tolerance)
     declared, nx = _apt_facts(source, text_piece)
-    file_units = declared or fallback
+    file_units = given if forced or declared is None else declared[0]
     logger.debug("%s: units %s, dialect %s", source, file_units, "NX CLSF" if nx else "APT")
-    interpreter = _AptInterpreter(source, file_units, chord_tolerance, nx)
+    interpreter = _AptInterpreter(
+        source,
+        file_units,
+        chord_tolerance,
+        nx,
+        declared=declared,
+        forced=forced,
+        separate_mcs=separate_mcs,
+    )
     builder = interpreter.builder
     scanner = _Scanner(source)
     multiaxis_from: int | None = None

@@ -3,7 +3,7 @@
 Values are separated by blanks or commas. Three values keep the previous tool axis (initially
 (0, 0, 1)). Text after ``#`` or ``;`` is a comment (a "comment" event). Blank lines are
 ignored. Every point is a feed move with no programmed feed (NaN); the file has no units, so
-the caller's ``units`` (default "mm") apply.
+the caller's ``units`` apply, else mm.
 
 It is the format of text in which no other format is detected (``FORMAT.fallback``).
 """
@@ -47,6 +47,7 @@ def read_plain_text(
     source: str = "<string>",
     units: str | None = None,
     chord_tolerance: float = 0.001,
+    separate_mcs: bool = False,
 ) -> Toolpath:
     """Read a plain list of points.
 
@@ -60,6 +61,8 @@ def read_plain_text(
         Units of the values ("mm" or "inch"; default "mm").
     chord_tolerance : float, mm
         Unused (plain files have no arcs); accepted for a common reader signature.
+    separate_mcs : bool
+        Unused (plain files have one coordinate system); accepted for a common signature.
 
     Returns
     -------
@@ -71,7 +74,7 @@ def read_plain_text(
     CLDataError
         For a line that is not 3 or 6 numbers, or a tool axis of zero length.
     """
-    del chord_tolerance
+    del chord_tolerance, separate_mcs
     reader = PlainReader(source, units)
     reader.feed(split_lines(text), 1)
     return reader.build()
@@ -179,10 +182,16 @@ def _values(code: str, source: str, line: int) -> tuple[list[str], list[float]]:
 
 
 def read_plain_stream(
-    source: str, *, max_points: int, units: str | None, chord_tolerance: float, text_piece: int
+    source: str,
+    *,
+    max_points: int,
+    units: str | None,
+    chord_tolerance: float,
+    text_piece: int,
+    separate_mcs: bool = False,
 ) -> Iterator[Toolpath]:
     """:func:`read_plain_text` of a file, in pieces."""
-    del chord_tolerance  # no arcs, as in read_plain_text
+    del chord_tolerance, separate_mcs  # no arcs and one frame, as in read_plain_text
     reader = PlainReader(source, units)
     builder, file_units = reader.builder, reader.units
     line = 1
