@@ -16,14 +16,14 @@ from typing import Any
 import numpy as np
 
 from urdfpost.analysis.metrics import Metrics, cl_path_position, measure
-from urdfpost.errors import UrdfpostError
+from urdfpost.errors import UnreachableError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.planning.singularity import Span
 from urdfpost.planning.strategies import STRATEGIES
 from urdfpost.posting.check import bent_tolerances
 from urdfpost.posting.options import PostOptions, resolve
 from urdfpost.posting.piece import post_piece
-from urdfpost.posting.whole import written
+from urdfpost.posting.whole import travel_hint, written
 from urdfpost.toolpath import Toolpath
 from urdfpost.units import mm_per_unit
 
@@ -153,7 +153,8 @@ def compare(
             posted = post_piece(toolpath, job)
         except UrdfpostError as e:
             log.info("strategy %s: %s", name, e)
-            outcomes.append(Outcome(name, None, False, str(e), False))
+            hint = travel_hint(toolpath, job) if isinstance(e, UnreachableError) else ""
+            outcomes.append(Outcome(name, None, False, f"{e}{hint}", False))
             continue
         plan = posted.plan
         if spans is None or name == "recursive":

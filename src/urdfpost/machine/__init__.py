@@ -3,7 +3,8 @@
 - :mod:`urdfpost.machine.model`: :class:`Machine`, :class:`Axis`, :class:`Settings` (data);
 - :mod:`urdfpost.machine.urdf`: reading and checking the URDF and its ``<urdfpost>`` element;
 - :mod:`urdfpost.machine.shapes`: the links' ``<collision>`` shapes as data;
-- :mod:`urdfpost.machine.load`: finding machines by name and building a :class:`Machine`.
+- :mod:`urdfpost.machine.load`: finding machines by name and building a :class:`Machine`;
+- :mod:`urdfpost.machine.setup`: the job setup (:class:`Setup`), where the program zero sits.
 
 Examples
 --------
@@ -23,6 +24,7 @@ from urdfpost.machine.load import (
     machine_from_urdf,
     resolve_machine,
     shipped_machine_dir,
+    with_setup,
 )
 from urdfpost.machine.model import (
     MOVING_TYPES,
@@ -32,6 +34,7 @@ from urdfpost.machine.model import (
     Machine,
     Settings,
 )
+from urdfpost.machine.setup import Setup, WorkpieceMount
 from urdfpost.machine.shapes import Box, Cylinder, LinkShape, Mesh, Sphere, resolve_mesh_path
 
 __all__ = [
@@ -45,7 +48,9 @@ __all__ = [
     "Machine",
     "Mesh",
     "Settings",
+    "Setup",
     "Sphere",
+    "WorkpieceMount",
     "check_geometry",
     "list_machines",
     "load_machine",
@@ -54,4 +59,5 @@ __all__ = [
     "resolve_machine",
     "resolve_mesh_path",
     "shipped_machine_dir",
+    "with_setup",
 ]

@@ -11,6 +11,10 @@ load time, with no per-machine code:
 - travel limits, velocities and the post settings of the ``<urdfpost>`` extension element;
 - which axes carry each link, and the links' ``<collision>`` shapes (as data).
 
+A job may put the program zero elsewhere than the file does (:class:`~urdfpost.machine.setup.
+Setup`): the setup is written into the workpiece joint of the parsed document before any of
+that is derived (:func:`~urdfpost.machine.setup.apply_setup`), so everything follows it.
+
 URDF metres are converted to millimetres here. :mod:`urdfpost.machine.urdf` reads and checks the
 file, :mod:`urdfpost.machine.shapes` its collision shapes, :mod:`urdfpost.machine.model` holds
 the result.
@@ -27,6 +31,7 @@ import numpy as np
 
 from urdfpost.errors import GeometryError, MachineDefinitionError
 from urdfpost.machine.model import NC_ADDRESSES, ROTARY_TYPES, Axis, Machine, Settings
+from urdfpost.machine.setup import WORKPIECE, Setup, WorkpieceMount, place_workpiece
 from urdfpost.machine.shapes import LinkShape, link_shapes
 from urdfpost.machine.urdf import (
     JointChain,
@@ -88,13 +93,16 @@ def resolve_machine(name_or_path: str | os.PathLike[str]) -> Path:
     )
 
 
-def load_machine(name_or_path: str | os.PathLike[str]) -> Machine:
+def load_machine(name_or_path: str | os.PathLike[str], setup: Setup | None = None) -> Machine:
     """Read and check a machine file.
 
     Parameters
     ----------
     name_or_path : str or path
         A URDF file, or the name of a machine in :func:`machine_dirs`.
+    setup : Setup, optional
+        Where the job puts the program zero (:mod:`urdfpost.machine.setup`); default the
+        file's own placement.
 
     Returns
     -------
@@ -110,10 +118,12 @@ def load_machine(name_or_path: str | os.PathLike[str]) -> Machine:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
         raise MachineDefinitionError(f"{path}: cannot read: {e}") from e
-    return machine_from_urdf(text, source=str(path), name=path.stem)
+    return machine_from_urdf(text, source=str(path), name=path.stem, setup=setup)
 
 
-def machine_from_urdf(text: str, source: str = "<string>", name: str = "machine") -> Machine:
+def machine_from_urdf(
+    text: str, source: str = "<string>", name: str = "machine", setup: Setup | None = None
+) -> Machine:
     """Build a :class:`Machine` from URDF text (see :func:`load_machine`).
 
     Parameters
@@ -124,6 +134,8 @@ def machine_from_urdf(text: str, source: str = "<string>", name: str = "machine"
         Where it came from, for messages and for finding mesh files.
     name : str
         Machine name.
+    setup : Setup, optional
+        Where the job puts the program zero; default the URDF's own placement.
 
     Returns
     -------
@@ -138,7 +150,53 @@ def machine_from_urdf(text: str, source: str = "<string>", name: str = "machine"
     chain = check_chain(doc, source)
     check_tree(doc, source)
     settings = parse_settings(doc, source, chain.joints)
-    return _build(text, source, name, doc, chain, settings)
+    mount = _mount(doc, source, setup or Setup())
+    return _build(text, source, name, doc, chain, settings, mount)
+
+
+def _mount(doc: UrdfDoc, source: str, setup: Setup) -> WorkpieceMount | None:
+    """Apply the job setup to the workpiece's joint in ``doc`` (in place) and say where the
+    program zero is; None when the workpiece hangs on no fixed joint (and no setup is asked).
+
+    Raises
+    ------
+    MachineDefinitionError
+        A setup asked of a machine whose workpiece is the root link or the child of a moving
+        joint (the setup would move the axis, not the part).
+    """
+    spec = next((j for j in doc.joints.values() if j.child == WORKPIECE), None)
+    if spec is not None and spec.type == "fixed":
+        element = next(el for el in doc.root.iterfind("joint") if el.get("name") == spec.name)
+        return place_workpiece(element, spec.parent, setup)
+    if setup.is_default:
+        return None
+    why = (
+        "the workpiece is the root link"
+        if spec is None
+        else f"the workpiece is the child of the {spec.type} joint {spec.name!r}"
+    )
+    where = source if spec is None else f"{source}:{spec.line}"
+    raise MachineDefinitionError(
+        f"{where}: cannot apply the job setup: {why}; a setup changes the fixed joint that "
+        "mounts 'workpiece' on its parent link: add one (docs/machines.md)"
+    )
+
+
+def with_setup(machine: Machine, setup: Setup | None) -> Machine:
+    """The same machine file loaded with another job setup (from :attr:`Machine.urdf_text`,
+    which is the file's own text: the setup replaces the one ``machine`` was loaded with).
+
+    Parameters
+    ----------
+    machine : Machine
+    setup : Setup or None
+        None or the default: the URDF's own placement.
+
+    Returns
+    -------
+    Machine
+    """
+    return machine_from_urdf(machine.urdf_text, machine.path, machine.name, setup)
 
 
 def _shapes_of(doc: UrdfDoc, source: str) -> tuple[LinkShape, ...] | GeometryError:
@@ -165,6 +223,7 @@ def _build(
     doc: UrdfDoc,
     chain: JointChain,
     settings: Settings,
+    mount: WorkpieceMount | None = None,
 ) -> Machine:
     """The Machine of a checked document: Pinocchio model, axes and screws, home pose.
 
@@ -232,9 +291,19 @@ def _build(
         _shapes=_shapes_of(doc, source),
         _pin_index=tuple(pin_index[a.name] for a in axes),
         _frame_ids=(fw, ft),
+        mount=mount,
     )
     check_geometry(machine, source)
     log.debug("loaded machine %s (%s) from %s", name, machine.family, source)
+    if mount is not None and not mount.setup.is_default:
+        log.info(
+            "%s: program zero at (%.3f, %.3f, %.3f) mm on link %s, turned %.3f deg about its Z "
+            "(the job setup)",
+            name,
+            *mount.origin,
+            mount.parent,
+            mount.setup.rotation,
+        )
     return machine
 
 

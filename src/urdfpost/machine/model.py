@@ -16,6 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from urdfpost.errors import GeometryError
+from urdfpost.machine.setup import WorkpieceMount
 from urdfpost.machine.shapes import LinkShape
 from urdfpost.units import M_TO_MM
 
@@ -93,8 +94,9 @@ class Settings:
     ----------
     controller : str
         Default control dialect ("heidenhain").
-    units : str
-        Default program units when the CL data does not say ("mm").
+    units : str or None
+        Program units when the post is not given any (``--units``): "mm" or "inch"; None when
+        the machine file sets none (the program is then in the CL data's units).
     tool_length : float
         Default tool length, mm (0: the gauge point is programmed).
     prefer : tuple of (str, int) or None
@@ -112,7 +114,7 @@ class Settings:
     """
 
     controller: str = "heidenhain"
-    units: str = "mm"
+    units: str | None = None
     tool_length: float = 0.0
     prefer: tuple[str, int] | None = None
     home: dict[str, float] = field(default_factory=dict)
@@ -153,6 +155,10 @@ class Machine:
     shapes : tuple of LinkShape
         The ``<collision>`` shapes of every link, in file order (a property: see
         :attr:`shapes`).
+    mount : WorkpieceMount or None
+        Where the program zero (``workpiece``) sits on its parent link, and the job setup the
+        machine was loaded with (:mod:`urdfpost.machine.setup`); None when the workpiece hangs
+        on no fixed joint.
     """
 
     name: str
@@ -167,6 +173,7 @@ class Machine:
     _shapes: tuple[LinkShape, ...] | GeometryError
     _pin_index: tuple[tuple[int, int], ...]  # per axis: (idx_q, nq) in the Pinocchio model
     _frame_ids: tuple[int, int]  # (workpiece, tool)
+    mount: WorkpieceMount | None = None
 
     # -- description --------------------------------------------------------------------
 
