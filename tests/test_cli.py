@@ -38,6 +38,7 @@ TINY = """\
 UNITS/MM
 MULTAX/ON
 LOADTL/1
+SPINDL/10000,CLW
 FEDRAT/MMPM,1000
 GOTO/0,0,10,0,0.2588190,0.9659258
 GOTO/20,0,10,0.2588190,0,0.9659258
@@ -117,7 +118,7 @@ def test_post_writes_the_program_and_reports(
     stdout = capsys.readouterr().out.splitlines()
     assert stdout[0] == f"wrote {out} (heidenhain, TCP, mm) for machine dmu50"
     assert stdout[1] == "strategy recursive: 1 singular spans (pole at CL lines 19-25)"
-    assert stdout[2].startswith("verification within tolerance: 16/16 CL points reached, 19 blocks")
+    assert stdout[2].startswith("verification within tolerance: 16/16 CL points reached, 23 blocks")
     assert re.search(r"tool tip deviation max \d\.\d{4} mean \d\.\d{4} mm", stdout[2])
     assert "largest rotary step C 176.005, B 30.060 deg" in stdout[2]
     data = json.loads(report.read_text())
@@ -132,7 +133,7 @@ def test_post_writes_the_program_and_reports(
     ):
         assert key in data, key
     assert data["cl_points"] == 16
-    assert data["blocks"] == 19
+    assert data["blocks"] == 23  # 19 on the path, 4 of the approach and the end
     assert data["units"] == "mm"
     assert data["warnings"] == []
     assert set(data["max_rotary_step_deg"]) == {"B", "C"}
@@ -334,9 +335,12 @@ def test_malformed_cl_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[str])
 
 def test_unreachable_point_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # the tool pointing down: beyond the B travel of the trunnion (-35..120 deg)
-    text = "UNITS/MM\nLOADTL/1\nGOTO/0,0,5,0,0,1\nGOTO/0,0,0,0,0,-1\nGOTO/0,0,5,0,0,1\n"
+    text = (
+        "UNITS/MM\nLOADTL/1\nSPINDL/8000,CLW\nFEDRAT/MMPM,500\nGOTO/0,0,5,0,0,1\n"
+        "GOTO/0,0,0,0,0,-1\nGOTO/0,0,5,0,0,1\n"
+    )
     msg = _domain_error(tmp_path, capsys, text, ["-m", "umc750"])
-    assert f"{tmp_path / 'part.apt'}:4:" in msg
+    assert f"{tmp_path / 'part.apt'}:6:" in msg
     assert "cannot be reached" in msg
     assert "umc750" in msg
 
@@ -427,9 +431,9 @@ def test_unknown_cl_record_warns_and_becomes_a_comment(
         == 0
     )
     err = capsys.readouterr().err
-    assert re.search(rf"urdfpost: warning: {re.escape(str(cl))}:5: .*FROBNICATE/1,2", err)
+    assert re.search(rf"urdfpost: warning: {re.escape(str(cl))}:6: .*FROBNICATE/1,2", err)
     assert "(FROBNICATE/1,2)" in out.read_text().splitlines()
-    assert any("FROBNICATE" in w and ":5:" in w for w in json.loads(report.read_text())["warnings"])
+    assert any("FROBNICATE" in w and ":6:" in w for w in json.loads(report.read_text())["warnings"])
 
 
 # --------------------------------------------------------------------------------------------
@@ -446,6 +450,8 @@ def test_inch_cl_gives_inch_program_and_inch_report(
         out = tmp_path / f"inch{ext}"
         report = tmp_path / f"inch{ext}.json"
         args = ["post", str(cl), "-m", "dmu50", "-o", str(out), "--report", str(report), "-q"]
+        # dmu50 writes mm (its <urdfpost units="mm">): inch asked for; --tool-length in inch
+        args += ["--units", "inch"]
         assert main([*args, "--tool-length", "4", "--no-tcp"]) == 0
         assert re.search(pattern, out.read_text(), re.M), ext
         data = json.loads(report.read_text())
@@ -479,17 +485,22 @@ def test_nx_ballmill_through_the_command_line(
                 str(out),
                 "--report",
                 str(report),
+                "--spindle",
+                "8000",
             ]
         )
         == 0
     )
     captured = capsys.readouterr()
     assert "(fanuc, TCP, inch) for machine umc750" in captured.out
+    # the file starts no spindle: --spindle's, said as a warning, before the approach
+    assert "S8000 CW (--spindle) used" in captured.err
     assert "348/348 CL points reached" in captured.out
     assert "no tool change before the first move; tool 1 assumed" in captured.err
     text = out.read_text()
     assert re.search(r"^G20$", text, re.M)
-    assert "G0 X-1.2721 Y-0.0148 Z3.0000" in text
+    assert "\nX-4.2721 Y-3.0148 Z3.0000 B" in text  # the GOTO as written (MSYS moves nothing)
+    assert text.index("S8000 M3") < text.index("G43.4")
     data = json.loads(report.read_text())
     assert data["units"] == "inch" and data["cl_points"] == data["cl_points_reached"] == 348
     assert data["max_tip_deviation"] <= 0.0004

@@ -275,8 +275,10 @@ def test_heidenhain_syntax() -> None:
     assert lines[0] == "0 BEGIN PGM DEMO_PART_1 MM"
     assert lines[-1] == f"{len(lines) - 1} END PGM DEMO_PART_1 MM"
     assert [int(line.split()[0]) for line in lines] == list(range(len(lines)))
-    assert "1 M126" in lines
-    assert "3 TOOL CALL 1 Z S12000" in lines and "4 M3" in lines
+    # the start resets what an earlier program may have left on (TCPM, a tilted plane)
+    assert lines[1:3] == ["1 FUNCTION RESET TCPM", "2 PLANE RESET STAY"]
+    assert "3 M126" in lines
+    assert "5 TOOL CALL 1 Z S12000" in lines and "6 M3" in lines
     assert any(line.endswith("FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS") for line in lines)
     assert any(
         line.endswith("L X+10.000 Y-5.000 Z+50.000 B+0.0000 C+90.0000 FMAX") for line in lines
@@ -285,7 +287,7 @@ def test_heidenhain_syntax() -> None:
     assert any(line.endswith("L X+0.000 Z-1.250 F1250.5") for line in lines)  # -0.0004 -> +0.000
     assert any(line.endswith("; Roughing (T1: D10 flat); pass 1") for line in lines)
     assert any(line.endswith("L Z+0 R0 FMAX M91") for line in lines)
-    assert "23 TOOL CALL 2 Z S8000" in lines and "24 M4" in lines
+    assert "25 TOOL CALL 2 Z S8000" in lines and "26 M4" in lines
 
 
 def test_heidenhain_speed_change_without_tool_change() -> None:
@@ -293,9 +295,9 @@ def test_heidenhain_speed_change_without_tool_change() -> None:
     blocks += (Spindle("cw", 6000), Spindle("ccw", 6000), Spindle("off"), Spindle("cw", 6000))
     dialect = DIALECTS["heidenhain"]
     text = dialect.write(Program("S", ("X",), frozenset(), "mm", False, blocks))
-    assert text.splitlines()[1:-2] == [
-        "1 TOOL CALL 3 Z S5000", "2 M8", "3 M3", "4 L X+1.000 FMAX", "5 TOOL CALL Z S6000",
-        "6 M3", "7 M4", "8 M5", "9 M3",
+    assert text.splitlines()[3:-2] == [
+        "3 TOOL CALL 3 Z S5000", "4 M8", "5 M3", "6 L X+1.000 FMAX", "7 TOOL CALL Z S6000",
+        "8 M3", "9 M4", "10 M5", "11 M3",
     ]  # fmt: skip
     spindles = [b for b in dialect.read(text).blocks if isinstance(b, Spindle)]
     assert spindles == [Spindle("cw", 5000.0), Spindle("cw", 6000.0), Spindle("ccw", 6000.0),
@@ -336,7 +338,8 @@ def test_siemens_and_linuxcnc_tcp_codes() -> None:
     assert siemens[-1] == "M30"
     linuxcnc = DIALECTS["linuxcnc"].write(sample_mm(INSERTS["linuxcnc"])).splitlines()
     assert linuxcnc[linuxcnc.index("M428") - 1] == "G43 H1"
-    assert linuxcnc[linuxcnc.index("M429") + 1] == "G49"
+    assert linuxcnc[linuxcnc.index("M429", linuxcnc.index("M428")) + 1] == "G49"
+    assert linuxcnc.index("M429") < linuxcnc.index("M428")  # TCP off at the start too
     assert linuxcnc[-1] == "M2"
 
 

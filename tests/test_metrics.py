@@ -56,7 +56,7 @@ def cl_of(m: Machine, program: Program) -> Toolpath:
     """The CL data a TCP program reaches exactly (its tips and tool axes)."""
     values, rapid = program_joints(m, program)
     _, axis = tip_and_axis(m, values)
-    tp = Toolpath.from_points(values[:, list(m.linear_columns)], axis, feed=1000.0)
+    tp = Toolpath.from_points(values[:, list(m.linear_columns)], axis, feed=1000.0, spindle=10000.0)
     tp.motion[rapid] = Motion.RAPID
     tp.feed[rapid] = np.nan
     return tp

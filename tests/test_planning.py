@@ -70,6 +70,7 @@ def toolpath_of(tip: np.ndarray, axis: np.ndarray, cutter: dict | None = None) -
         events=(
             Event(index=0, kind="tool", line=8, data={"number": 1}),
             Event(index=0, kind="cutter", line=9, data=data),
+            Event(index=0, kind="spindle", line=9, data={"rpm": 10000.0, "direction": "cw"}),
         ),
         source="job.apt",
         units="mm",
@@ -102,13 +103,15 @@ def test_preferred_branch_hits_a_tall_fixture_and_the_clear_one_is_taken(tmp_pat
     a = m.axis_names.index("A")
     # without collision checks the preference (A+) wins and the motor housing is in the fixture
     plain = post(tp, m, PostOptions(prefer=Preference("A", +1), strategy="recursive"))
-    assert np.all(program_joints(m, plain.program)[0][:, a] > 0)
+    cut = [mv.cl_line is not None for mv in plain.program.moves()]  # not the post's own
+    assert np.all(program_joints(m, plain.program)[0][cut, a] > 0)
     assert plain.report.as_json()["collisions"] == {"checked": False}
     checked = post(
         tp, m, PostOptions(prefer=Preference("A", +1), strategy="recursive", collisions=True)
     )
     values, _ = program_joints(m, checked.program)
-    assert np.all(values[:, a] < 0)
+    cut = [mv.cl_line is not None for mv in checked.program.moves()]
+    assert np.all(values[cut, a] < 0)
     assert checked.verification.ok
     why = [w for w in checked.report.as_json()["warnings"] if "collides" in w]
     assert why and "job.apt:10" in why[0] and "c_motor with tall_fixture_plus" in why[0]
@@ -227,8 +230,8 @@ def test_no_rewind_when_travel_suffices() -> None:
     result = post(spiral(turns=1.5), load_machine("gantry-ca"), PostOptions(strategy="recursive"))
     assert result.report.as_json()["rewinds"] == []
     assert not rewind_moves(result.program).any()
-    moves = [b for b in result.program.blocks if isinstance(b, Move)]
-    assert sum(b.rapid for b in moves) == 1  # the approach only
+    moves = [b for b in result.program.blocks if isinstance(b, Move) and b.cl_line is not None]
+    assert sum(b.rapid for b in moves) == 1  # the CL's approach only
     assert moves[0].position[-1] == pytest.approx(-270.0)  # C: the start from which 540 fits
 
 

@@ -18,6 +18,7 @@ import functools
 import math
 import os
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -102,7 +103,7 @@ UNITS_LINE = {
     "linuxcnc": {"inch": r"^G20$", "mm": r"^G21$"},
 }
 
-_HOME_WORDS = ("M91", "G28", "G75", "G53")
+_HOME_WORDS = ("M91", "G28", "G75", "G53", "SUPA")
 _AXIS_WORD = re.compile(r"(?<![A-Z0-9_=])([XYZABC])([-+]?\d*\.?\d+)")
 
 
@@ -131,10 +132,16 @@ def motion_lines(text: str) -> list[int]:
     return out
 
 
-def first_index(lines: list[str], pattern: str) -> int:
+def first_index(lines: list[str], pattern: str, after: int = -1) -> int:
+    hits = [i for i, line in enumerate(lines) if i > after and re.search(pattern, code_body(line))]
+    assert hits, f"no line after {after} matches {pattern!r}"
+    return hits[0]
+
+
+def last_index(lines: list[str], pattern: str) -> int:
     hits = [i for i, line in enumerate(lines) if re.search(pattern, code_body(line))]
     assert hits, f"no line matches {pattern!r}"
-    return hits[0]
+    return hits[-1]
 
 
 def has_line(lines: list[str], pattern: str) -> bool:
@@ -273,13 +280,17 @@ def test_golden_program(machine_name: str, controller: str, mode: str) -> None:
     assert r["cl_lines_missed"] == []
     assert r["blocks"] == len(result.program.moves())
     assert r["warnings"] == []
+    # the post's own moves: rotaries to the first orientation, above the first point as high
+    # as the travel allows, the approach point, and rotaries home at the end
+    transitions = 4
+    assert sum(mv.cl_line is None for mv in result.program.moves()) >= transitions
     if MODES[mode]:
         # only the pole turn and the two blocks either side of the near-pole point are added
-        assert r["blocks"] == 19
+        assert r["blocks"] == 19 + transitions
     else:
         # machine coordinates: the swing of the rotary axes near the pole is subdivided
         assert r["blocks"] > 100
-        assert r["inserted_blocks"] == r["blocks"] - 16 - r["pole_turns"]
+        assert r["inserted_blocks"] == r["blocks"] - 16 - r["pole_turns"] - transitions
 
 
 @pytest.mark.parametrize(("machine_name", "controller", "mode"), CASES)
@@ -293,31 +304,54 @@ def test_golden_program_structure(machine_name: str, controller: str, mode: str)
     lines = result.text.splitlines()
     marks = MARKERS[controller]
     moves = motion_lines(result.text)
-    assert len(moves) == len(result.program.moves())
-    first, last = moves[0], moves[-1]
+    program_moves = result.program.moves()
+    assert len(moves) == len(program_moves)
+    # the CL moves; the post's own (approach, rotaries home at the end) have no CL line
+    cl_moves = [i for i, mv in zip(moves, program_moves, strict=True) if mv.cl_line is not None]
+    first, last = cl_moves[0], cl_moves[-1]
+    end = len(lines) - 1
 
     assert has_line(lines, UNITS_LINE[controller]["mm"])
     assert first_index(lines, marks["tool"]) < first
     for key in ("spindle", "coolant"):
         assert first_index(lines, marks[key]) < first, key
+    # the spindle and coolant stop after the last cut (as the CL says), and before the end
     for key in ("spindle_off", "coolant_off"):
-        assert last < first_index(lines, marks[key]) < first_index(lines, marks["home"]), key
-    assert last < first_index(lines, marks["home"])
+        assert last < last_index(lines, marks[key]) < end, key
+    home = first_index(lines, marks["home"], after=last)
     code = [code_body(x) for x in lines if not is_comment(code_body(x))]
     assert re.search(marks["end"], code[-1]), code[-1]
     if tcp:
-        on, off = first_index(lines, marks["on"]), first_index(lines, marks["off"])
+        on, off = first_index(lines, marks["on"]), first_index(lines, marks["off"], after=last)
         assert first_index(lines, marks["tool"]) < on < first
-        assert last < off < first_index(lines, marks["home"])
+        assert last < off < home
         assert not re.search(r"tool table length must be 0", result.text, re.I)
     else:
         assert not has_line(lines, marks["on"])
-        assert not has_line(lines, marks["off"])
         assert re.search(r"tool table length must be 0", result.text, re.I)
+    # the table or head back to zero after the last cut, with the tool up
+    rotary = [a.name for a in m.rotary]
+    back_home = [i for i in moves if i > home and all(f"{a}" in lines[i] for a in rotary)]
+    assert back_home, "no move of the rotary axes home after the last cut"
 
     # modal axis words: no word repeats the value the axis already has
+    # (a mode change, a home return, a machine-coordinate move or a tool change makes the
+    # next move state its axes again)
     modal: dict[str, float] = {}
-    for i in moves:
+    resets = {
+        i
+        for i, line in enumerate(lines)
+        if i not in moves
+        and (
+            any(re.search(marks[k], code_body(line)) for k in ("on", "off", "home", "tool"))
+            or any(w in code_body(line).split() for w in _HOME_WORDS)
+        )
+    }
+    for i in range(len(lines)):
+        if i in resets:
+            modal.clear()
+        if i not in moves:
+            continue
         for address, value in _AXIS_WORD.findall(code_body(lines[i])):
             assert modal.get(address) != float(value), f"line {i}: {address} repeated"
             modal[address] = float(value)
@@ -345,11 +379,13 @@ def test_golden_signs_and_values_by_eye() -> None:
     geometry says they must be."""
     # TCP programs write the CL tip itself: the first feed point of the pass
     fanuc = posted("dmu50", "fanuc", True).text
-    assert "\nG1 X-18.000 Y-4.000 Z3.648\n" in fanuc
+    assert "\nG1 X-18.000 Y-4.000 Z3.648 F600.\n" in fanuc
     heid = posted("dmu50", "heidenhain", True).text
-    assert re.search(r"^\d+ L X-18\.000 Y-4\.000 Z\+3\.648$", heid, re.M)
-    # C turns in place at the vertical approach point, at the feed of the plunge
-    assert "\nG0 X-20.000 Y-4.000 Z60.000 B0.0000 C0.0000\nG1 C176.0049 F600.\n" in fanuc
+    assert re.search(r"^\d+ L X-18\.000 Y-4\.000 Z\+3\.648 F600$", heid, re.M)
+    # C turns in place at the vertical approach point (RAPID in the CL: FMAX, G0)
+    # after the approach from above (TCP on: every axis stated again); the turn before the
+    # next RAPID is rapid too
+    assert "\nZ70.000\nZ60.000 B0.0000 C0.0000\nC176.0049\nX-15.502" in fanuc
     # tilt 30.06 deg at the ends of the pass (table cradle B is positive only on dmu50: -5..110)
     assert "B+30.0604" in heid
     # monoblock swivel head tilts negative (B -120..30, preferred B-), gantry fork A negative
@@ -394,7 +430,8 @@ def test_every_feed_move_has_a_feed() -> None:
 def _post_real(name: str, tcp: bool) -> tuple[Toolpath, PostResult]:
     m = machine("umc750")
     tp = read_cl(shared_cl(name), units=m.settings.units, chord_tolerance=INCH_TOL_MM)
-    return tp, post(tp, m, PostOptions(strategy="recursive", tcp=tcp))
+    # the file starts no spindle: the job gives one (as --spindle)
+    return tp, post(tp, m, PostOptions(strategy="recursive", tcp=tcp, spindle=8000.0))
 
 
 def _check_real(tp: Toolpath, result: PostResult, tcp: bool) -> None:
@@ -430,12 +467,15 @@ def _check_real(tp: Toolpath, result: PostResult, tcp: bool) -> None:
 
 def test_nx_ballmill_first_goto_in_tcp_program() -> None:
     tp, result = _post_real("nx_variable_axis_ballmill_inch.cls", True)
-    # GOTO/-4.2721,-3.0148,3.0000 with MSYS translating the MCS by (3, 3, 0) in
+    # GOTO/-4.2721,-3.0148,3.0000 in the MCS, as written: MSYS (3, 3, 0) in says where the
+    # MCS lies in the part and moves no point (NX's own post writes X-4.2721 Y-3.0148)
     first = tp.tip[0] / MM_PER_INCH
-    assert first == pytest.approx([-1.2721, -0.0148, 3.0], abs=1e-9)
-    assert re.search(
-        r"^G0 X-1\.2721 Y-0\.0148 Z3\.0000 B-?\d+\.\d{4} C-?\d+\.\d{4}$", result.text, re.M
-    )
+    assert first == pytest.approx([-4.2721, -3.0148, 3.0], abs=1e-9)
+    # approached from above along the tool axis, then the point itself
+    lines = result.text.splitlines()
+    at = [k for k, x in enumerate(lines) if re.match(r"^X-4\.2721 Y-3\.0148 Z3\.0000 B", x)]
+    assert at, "first GOTO not written as it is"
+    assert re.match(r"^X-4\.\d{4} Y-3\.\d{4} Z3\.3\d{3}$", lines[at[0] - 1])  # 0.39 in above
 
 
 @pytest.mark.parametrize("tcp", [True, False], ids=["tcp", "mc"])
@@ -481,9 +521,10 @@ FINI
 def test_inch_cl_gives_inch_program_and_report(controller: str, tcp: bool) -> None:
     tp = read_cl_text(INCH_JOB, source="inch.apt")
     assert tp.units == "inch"
-    result = post(
-        tp, machine("dmu50"), PostOptions(strategy="recursive", controller=controller, tcp=tcp)
-    )
+    # dmu50 writes mm programs (its <urdfpost units="mm">): inch asked for
+    options = PostOptions(strategy="recursive", controller=controller, tcp=tcp)
+    assert post(tp, machine("dmu50"), options).program.units == "mm"
+    result = post(tp, machine("dmu50"), replace(options, units="inch"))
     lines = result.text.splitlines()
     assert has_line(lines, UNITS_LINE[controller]["inch"])
     assert not has_line(lines, UNITS_LINE[controller]["mm"])
@@ -502,7 +543,9 @@ def test_inch_cl_gives_inch_program_and_report(controller: str, tcp: bool) -> No
     )
     if tcp:
         # the first point written in inch, 4 decimals
-        assert re.search(r"X\+?1\.0000 Y\+?0\.0000 Z\+?1\.0000", result.text)
+        # (approached from 0.3937 in, 10 mm, above it)
+        assert re.search(r"Z\+?1\.3937( FMAX)?\n(\d+ L )?Z\+?1\.0000", result.text)
+        assert re.search(r"X\+?1\.0000 Y\+?0\.0000 Z\+?\d+\.\d{4}( FMAX)?\n", result.text)
 
 
 def test_units_option_writes_a_mm_job_in_inch() -> None:
@@ -524,6 +567,7 @@ POLE_CROSSING = """\
 UNITS/MM
 MULTAX/ON
 LOADTL/1
+SPINDL/10000,CLW
 FEDRAT/MMPM,1000
 GOTO/10.0000,5.0000,10.0000,0.2588190,0.0000000,0.9659258
 GOTO/-10.0000,5.0000,10.0000,-0.2588190,0.0000000,0.9659258

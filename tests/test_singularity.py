@@ -48,6 +48,9 @@ def first_axis_travel_deg(result, m) -> float:
     from urdfpost.verification import program_joints
 
     q, _ = program_joints(m, result.program)
+    # on the path: from the first CL point to the last (not the post's approach and end)
+    on_cl = np.flatnonzero([mv.cl_line is not None for mv in result.program.moves()])
+    q = q[on_cl[0] : on_cl[-1] + 1]
     col = m.axis_names.index(m.rotary[0].name)
     return float(np.degrees(np.abs(np.diff(q[:, col])).sum()))
 
@@ -124,7 +127,7 @@ def test_detector_finds_nothing_far_from_the_pole() -> None:
     az = 0.3 * np.sin(t)
     axis = np.stack([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)], 1)
     tip = np.stack([30 * np.cos(t), 30 * np.sin(t), 150 + 5 * np.sin(t)], 1)
-    tp = Toolpath.from_points(tip, axis, feed=1000.0)
+    tp = Toolpath.from_points(tip, axis, feed=1000.0, spindle=10000.0)
     for name in ("dmu50", "gantry-ca", "monoblock", "dmu50-nutating"):
         m = load_machine(name)
         problem = Problem(m, tp, tool_length=m.settings.tool_length, tol=Tolerances())

@@ -169,7 +169,7 @@ def test_joins_that_rest_on_the_lookahead_are_reported(tmp_path: Path) -> None:
     t = np.radians(20.0)
     axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
     tip = np.stack([np.linspace(-20, 20, n), 5 * np.sin(az), np.zeros(n)], axis=1)
-    job = Toolpath.from_points(tip, axis, feed=1000.0, source="twofold")
+    job = Toolpath.from_points(tip, axis, feed=1000.0, source="twofold", spindle=10000.0)
     out = tmp_path / "out.nc"
     options = PostOptions(controller="heidenhain", tcp=False)
     result = post_stream(toolpath_pieces(job, 700), m, out, options, piece_points=800,
@@ -375,7 +375,7 @@ def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
     t = np.radians(30.0)
     axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
     tip = np.stack([40 * np.cos(az), 40 * np.sin(az), np.linspace(0, -6, n)], axis=1)
-    job = Toolpath.from_points(tip, axis, feed=800.0, source="spiral")
+    job = Toolpath.from_points(tip, axis, feed=800.0, source="spiral", spindle=10000.0)
     result = post(job, m, PostOptions(controller="fanuc", tcp=False, strategy="recursive"))
     assert result.report.as_json()["rewinds"]
     path = tmp_path / "spiral.nc"

@@ -302,7 +302,7 @@ def test_deviation_inside_a_block_is_measured(label: str, dx: float, db: float) 
     radius = np.linalg.norm((tip0[0] - c_axis.pivot)[:2])
     assert radius == pytest.approx(50.0)
     tips, axes = tip_and_axis(m, np.vstack([q0, q1]), tool_length)
-    tp = Toolpath.from_points(tips, axes, feed=1000.0)
+    tp = Toolpath.from_points(tips, axes, feed=1000.0, spindle=10000.0)
     program = _two_block_program(m, q0, q1, tool_length)
     v = verify(program, m, tp, tol=Tolerances.for_units("mm"))
     expected = _chord_deviation(m, q0, q1, tool_length)
@@ -350,7 +350,7 @@ def test_cl_points_closer_than_the_tolerance() -> None:
         [[0, 0, 5.0], [0.008, 0, 5], [0.008, 20, 5], [0.008, 20.006, 5], [10, 20.006, 5]]
     )
     axes = np.tile([0.0, 0.0, 1.0], (len(tips), 1))
-    tp = Toolpath.from_points(tips, axes, feed=1000.0)
+    tp = Toolpath.from_points(tips, axes, feed=1000.0, spindle=10000.0)
     blocks = (Tcp(True), *(Move(False, (*t, 0.0, 0.0), feed=1000.0) for t in tips))
     program = Program(
         name="DENSE",

@@ -24,7 +24,7 @@ from urdfpost._files import check_distinct, output_target, write_texts
 from urdfpost.errors import UrdfpostError
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.strict_json import report_json
-from urdfpost.units import UNITS, mm_per_unit
+from urdfpost.units import UNITS, mm_per_unit, program_units
 
 if TYPE_CHECKING:
     from urdfpost.posting.stream import StreamResult
@@ -41,21 +41,30 @@ def _given(inputs: dict[str, Any]) -> dict[str, Any]:
     return {role: path for role, path in inputs.items() if path is not None}
 
 
+def _program_units(args: argparse.Namespace, machine: Any, cl_units: str) -> str:
+    """The program units: ``--units``, else the machine file's setting, else ``cl_units``
+    (``verify`` has no ``--units``: its program says)."""
+    return program_units(getattr(args, "units", None), machine.settings.units, cl_units)
+
+
 def _read_cl(args: argparse.Namespace, machine: Any) -> Any:
     """Read the CL file, interpolating arcs with the chord tolerance of the program units.
 
-    The units are the file's own when it says, else ``--units``, else the machine's; arcs are
-    read again when the file's units turn out to differ from the guess.
+    The CL units are ``--cl-units`` when given (a file that says otherwise gets a warning),
+    else the file's own, else mm (never the machine's); arcs are read again when the program
+    units (:func:`_program_units`) turn out to differ from the guess.
     """
     from urdfpost.readers import read_cl
     from urdfpost.tolerances import Tolerances
 
-    units = args.units or machine.settings.units
-    chord = Tolerances.for_units(units, args.tolerance).chord
-    toolpath = read_cl(args.cl, format=args.format, units=units, chord_tolerance=chord)
-    if toolpath.units != units:
-        chord = Tolerances.for_units(toolpath.units, args.tolerance).chord
-        toolpath = read_cl(args.cl, format=args.format, units=units, chord_tolerance=chord)
+    cl_units = args.cl_units
+    guess = _program_units(args, machine, cl_units or "mm")
+    chord = Tolerances.for_units(guess, args.tolerance).chord
+    toolpath = read_cl(args.cl, format=args.format, units=cl_units, chord_tolerance=chord)
+    units = _program_units(args, machine, toolpath.units)
+    if units != guess:
+        chord = Tolerances.for_units(units, args.tolerance).chord
+        toolpath = read_cl(args.cl, format=args.format, units=cl_units, chord_tolerance=chord)
     return toolpath
 
 
@@ -72,17 +81,19 @@ def _read_cl_pieces(
     from urdfpost.readers import read_cl_chunks
     from urdfpost.tolerances import Tolerances
 
-    units = args.units or machine.settings.units
+    cl_units = args.cl_units
+    guess = _program_units(args, machine, cl_units or "mm")
 
     def pieces(chord: float) -> Iterator[Any]:
         return read_cl_chunks(
-            args.cl, max_points=points, format=args.format, units=units, chord_tolerance=chord
+            args.cl, max_points=points, format=args.format, units=cl_units, chord_tolerance=chord
         )
 
-    chunks = pieces(Tolerances.for_units(units, args.tolerance).chord)
+    chunks = pieces(Tolerances.for_units(guess, args.tolerance).chord)
     first = next(chunks)
-    if first.units != units:
-        chunks = pieces(Tolerances.for_units(first.units, args.tolerance).chord)
+    units = _program_units(args, machine, first.units)
+    if units != guess:
+        chunks = pieces(Tolerances.for_units(units, args.tolerance).chord)
         first = next(chunks)
     return first, itertools.chain([first], chunks)
 
@@ -136,6 +147,42 @@ def _prefer(value: str) -> Any:
         return Preference.parse(value)
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from e
+
+
+def _setup(value: str) -> Any:
+    from urdfpost.machine import Setup
+
+    try:
+        return Setup.parse(value)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from e
+
+
+def _setup_argument(p: argparse.ArgumentParser, units: str) -> None:
+    """``--setup``: where the job puts the program zero on the machine."""
+    p.add_argument(
+        "--setup",
+        type=_setup,
+        metavar="X,Y,Z[,ROT]",
+        help="where the program zero (the CL frame) sits for this job: X,Y,Z its origin in the "
+        "frame of the link the URDF mounts the workpiece on (the parent link of the joint "
+        f"whose child is 'workpiece', e.g. c_table), {units}; ROT degrees about that link's "
+        "+Z, added to the URDF's orientation (default: the URDF's placement; "
+        "docs/machines.md). Write --setup=-10,5,80 when it starts with a minus",
+    )
+
+
+def _job_machine(args: argparse.Namespace, machine: Any, scale: float) -> Any:
+    """``machine`` with the ``--setup`` of the job (its offset in units of ``scale`` mm)."""
+    from urdfpost.errors import MachineDefinitionError
+    from urdfpost.machine import with_setup
+
+    if args.setup is None:
+        return machine
+    try:
+        return with_setup(machine, args.setup.scaled(scale))
+    except MachineDefinitionError as e:
+        raise UsageError(f"--setup: {e}") from e
 
 
 def _strategy_arguments(p: argparse.ArgumentParser, single: bool) -> None:
@@ -195,6 +242,49 @@ def _planning_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _job_arguments(p: argparse.ArgumentParser) -> None:
+    """Work offset, approach and process defaults of ``post``."""
+    p.add_argument(
+        "--work-offset",
+        type=int,
+        default=1,
+        metavar="N",
+        help="work offset the program selects: 1 for G54 (Heidenhain preset 1), 2 for G55, ... "
+        "(default 1)",
+    )
+    p.add_argument(
+        "--clearance",
+        type=_positive,
+        help="approach point above the first point of each tool's path, along its tool axis, "
+        "program units (default 10 mm)",
+    )
+    p.add_argument(
+        "--feed",
+        type=_positive,
+        help="feed for cutting moves the CL data gives none for, program units/min "
+        "(default: such a move is an error)",
+    )
+    p.add_argument(
+        "--spindle",
+        type=_positive,
+        metavar="RPM",
+        help="spindle speed (clockwise) for cutting the CL data does not start the spindle "
+        "for (default: such a move is an error)",
+    )
+
+
+def _cl_units_argument(p: argparse.ArgumentParser, *aliases: str) -> None:
+    """``--cl-units``: the units the CL file is read in."""
+    p.add_argument(
+        "--cl-units",
+        *aliases,
+        dest="cl_units",
+        choices=UNITS,
+        help="units of the CL data, overriding what the file says (with a warning when it "
+        "says otherwise); default the file's own units, else mm",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for documentation and tests)."""
     from urdfpost.dialects import DIALECTS
@@ -231,8 +321,9 @@ def build_parser() -> argparse.ArgumentParser:
     po.add_argument(
         "--units",
         choices=UNITS,
-        help="units of the CL data when the file does not say (default mm)",
+        help="program units (default: the machine file's units setting, else the CL file's)",
     )
+    _cl_units_argument(po)
     po.add_argument(
         "--tool-length",
         type=_non_negative,
@@ -244,6 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="tool-tip tolerance in program units (default 0.01 mm / 0.0004 in)",
     )
     po.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+ or B-")
+    _setup_argument(po, "program units")
     _strategy_arguments(po, single=True)
     po.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     po.add_argument("--block-numbers", action="store_true", help="number the blocks")
@@ -265,6 +357,7 @@ def build_parser() -> argparse.ArgumentParser:
         "default a second process verifies it while the next is planned)",
     )
     _planning_arguments(po)
+    _job_arguments(po)
     po.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
     ve = sub.add_parser("verify", help="check an NC program against its CL data")
@@ -277,15 +370,14 @@ def build_parser() -> argparse.ArgumentParser:
         choices=controllers,
         help="dialect of the program (default: from its extension)",
     )
-    ve.add_argument(
-        "--units", choices=UNITS, help="units of the CL data when the file does not say"
-    )
+    _cl_units_argument(ve, "--units")
     ve.add_argument(
         "--tool-length",
         type=_non_negative,
         help="tool length in program units (machine-coordinate programs)",
     )
     ve.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
+    _setup_argument(ve, "the program's units")
     ve.add_argument(
         "--angle-tolerance",
         type=_non_negative,
@@ -322,10 +414,16 @@ def build_parser() -> argparse.ArgumentParser:
         default=True,
         help="machine axis positions instead of TCP",
     )
-    co.add_argument("--units", choices=UNITS, help="units of the CL data if not given")
+    co.add_argument(
+        "--units",
+        choices=UNITS,
+        help="program units (default: the machine file's units setting, else the CL file's)",
+    )
+    _cl_units_argument(co)
     co.add_argument("--tool-length", type=_non_negative, help="tool length in program units")
     co.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
     co.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+")
+    _setup_argument(co, "program units")
     _strategy_arguments(co, single=False)
     co.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     co.add_argument("--report", help="write the figures as JSON here")
@@ -394,8 +492,9 @@ def _cmd_post(args: argparse.Namespace) -> int:
         toolpath, chunks = _read_cl_pieces(args, machine, pieces)
     else:
         toolpath, chunks = _read_cl(args, machine), None
-    units = toolpath.units
+    units = _program_units(args, machine, toolpath.units)
     scale = mm_per_unit(units)
+    machine = _job_machine(args, machine, scale)
     dialect = dialect_for(
         args.controller or (None if args.output else machine.settings.controller), args.output
     )
@@ -418,6 +517,10 @@ def _cmd_post(args: argparse.Namespace) -> int:
         stock=args.stock,
         holder_diameter=args.holder_diameter,
         holder_length=args.holder_length,
+        work_offset=args.work_offset,
+        clearance=args.clearance,
+        feed=args.feed,
+        spindle=args.spindle,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {
@@ -524,6 +627,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         program = dialect.read(text, path=args.program)
         toolpath, chunks = _read_cl(args, machine), None
     scale = mm_per_unit(program.units)
+    machine = _job_machine(args, machine, scale)
     tol = Tolerances.for_units(program.units, args.tolerance)
     tool_length = (
         machine.settings.tool_length if args.tool_length is None else args.tool_length * scale
@@ -603,8 +707,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
         require_matplotlib()
     toolpath = _read_cl(args, machine)
-    units = toolpath.units
+    units = _program_units(args, machine, toolpath.units)
     scale = mm_per_unit(units)
+    machine = _job_machine(args, machine, scale)
     options = PostOptions(
         controller=args.controller,
         tcp=args.tcp,
@@ -739,6 +844,13 @@ def describe_machine(name: str) -> str:
     v0 = ", ".join(f"{x:+.4f}" for x in m.home_tool_axis)
     g0 = ", ".join(f"{x:.3f}" for x in m.home_tool_in_work[:3, 3])
     lines.append(f"home      tool axis ({v0}), gauge point ({g0}) mm at q = 0")
+    if m.mount is not None:
+        zero = ", ".join(f"{x:.3f}" for x in m.mount.origin)
+        turn = ", ".join(f"{x:g}" for x in m.mount.rpy)
+        lines.append(
+            f"zero      program zero ({zero}) mm on link {m.mount.parent} (joint "
+            f"{m.mount.joint}, rpy {turn} rad): the default of --setup"
+        )
     lines.append("singular tool directions (workpiece frame at home):")
     for sing in singular_sets(m):
         d = ", ".join(f"{x:+.4f}" for x in sing.direction)

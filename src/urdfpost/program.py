@@ -32,7 +32,7 @@ import itertools
 import math
 import operator
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, cast, overload
 
 import numpy as np
@@ -126,7 +126,50 @@ class Home:
     """Return to the machine's home (reference) position."""
 
 
-Block = Move | ToolChange | Spindle | Coolant | Comment | Insert | Tcp | Stop | Home
+@dataclass(frozen=True)
+class MachineMove:
+    """A rapid in machine coordinates (``G53 G0``, ``SUPA G0``, ``L ... M91``).
+
+    Work offsets and TCP do not apply to it: the values are machine axis positions, the ones
+    the machine's URDF joints give. Used for the retract before a rotary move and at a tool
+    change.
+
+    Attributes
+    ----------
+    axes : tuple of str
+        The axes that move (the others keep their place).
+    values : tuple of float
+        One per axis: mm for linear axes, degrees for rotary.
+    """
+
+    axes: tuple[str, ...]
+    values: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class WorkOffset:
+    """Selection of the work offset the program's coordinates are measured from.
+
+    ``number`` 1 is the first offset of the control (G54, Heidenhain preset 1), 2 the second
+    (G55), and so on.
+    """
+
+    number: int
+
+
+Block = (
+    Move
+    | ToolChange
+    | Spindle
+    | Coolant
+    | Comment
+    | Insert
+    | Tcp
+    | Stop
+    | Home
+    | MachineMove
+    | WorkOffset
+)
 
 
 def _read_only(values: Any, dtype: type | np.dtype) -> np.ndarray:
@@ -434,6 +477,10 @@ class Program:
         Tool length in mm the machine-coordinate positions were computed for.
     continuous : frozenset of str
         Rotary axes with unlimited travel (the dialect may write shortest-path codes for them).
+    cut_without_tcp : (str, int) or None
+        A program read from text: the file and line of its first feed move of X/Y/Z with TCP
+        off (a TCP program with such a move mixes machine positions with tool tips, which
+        verification refuses); None otherwise. Not compared.
     """
 
     name: str
@@ -444,6 +491,7 @@ class Program:
     blocks: Blocks
     tool_length: float = 0.0
     continuous: frozenset[str] = frozenset()
+    cut_without_tcp: tuple[str, int] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.blocks, Blocks):

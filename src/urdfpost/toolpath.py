@@ -127,6 +127,7 @@ class Toolpath:
         feed: float | np.ndarray = np.nan,
         units: str = "mm",
         source: str = "<points>",
+        spindle: float | None = None,
     ) -> Toolpath:
         """Build a feed-only toolpath from arrays (for scripts and tests).
 
@@ -140,6 +141,10 @@ class Toolpath:
             Units to write the program in.
         source : str
             Name used in messages.
+        spindle : float, optional, rpm
+            Start the spindle (clockwise) before the first point: a "spindle" event. Without
+            it the toolpath cuts with the spindle off, which a post refuses unless its job
+            gives a spindle speed (``PostOptions.spindle``).
         """
         tip = np.asarray(tip, dtype=float).reshape(-1, 3)
         axis = np.asarray(axis, dtype=float).reshape(-1, 3)
@@ -153,6 +158,9 @@ class Toolpath:
             line=np.arange(1, n + 1),
             units=units,
             source=source,
+            events=()
+            if spindle is None
+            else (Event(0, "spindle", 1, {"rpm": float(spindle), "direction": "cw"}),),
         )
 
 

@@ -289,43 +289,50 @@ def measure(
 ) -> Metrics:
     """Measure a program against its machine and the original CL data.
 
-        Parameters
-        ----------
-        program : Program
-            As built, or as read back from its text.
-        machine : Machine
-        toolpath : Toolpath
-            The original CL data (before any strategy changed it).
-        tool_length : float, optional, mm
-            Tool length of the program's positions (default: the program's).
-        tol : Tolerances, optional
-            For verification (default: for the program's units).
-        pivot : float, mm
-            Passed to :func:`~urdfpost.verification.verify`: deviations are measured this far up
-            the tool axis (the ball centre for a strategy that bends the axis about it).
-        lifts : int
-            Retracts the strategy added, reported as is.
+    Parameters
+    ----------
+    program : Program
+        As built, or as read back from its text.
+    machine : Machine
+    toolpath : Toolpath
+        The original CL data (before any strategy changed it).
+    tool_length : float, optional, mm
+        Tool length of the program's positions (default: the program's).
+    tol : Tolerances, optional
+        For verification (default: for the program's units).
+    pivot : float, mm
+        Passed to :func:`~urdfpost.verification.verify`: deviations are measured this far up
+        the tool axis (the ball centre for a strategy that bends the axis about it).
+    lifts : int
+        Retracts the strategy added, reported as is.
 
-        Returns
-        -------
-        Metrics
+    Returns
+    -------
+    Metrics
 
-        Examples
-        --------
-        >>> from urdfpost.machine import load_machine
-        >>> from urdfpost.posting.options import PostOptions
-    from urdfpost.posting.whole import post
-        >>> from urdfpost.analysis.testpaths import great_circle_sweep
-        >>> tp = great_circle_sweep(5.0)
-        >>> dmu50 = load_machine("dmu50")
-        >>> m = measure(post(tp, dmu50, PostOptions(strategy="none")).program, dmu50, tp)
-        >>> m.blocks == m.cl_points, round(m.max_step_deg["B"], 3)
-        (True, 0.444)
+    Examples
+    --------
+    >>> from urdfpost.machine import load_machine
+    >>> from urdfpost.posting.options import PostOptions
+    >>> from urdfpost.posting.whole import post
+    >>> from urdfpost.analysis.testpaths import great_circle_sweep
+    >>> tp = great_circle_sweep(5.0)
+    >>> dmu50 = load_machine("dmu50")
+    >>> m = measure(post(tp, dmu50, PostOptions(strategy="none")).program, dmu50, tp)
+    >>> m.blocks == m.cl_points, round(m.max_step_deg["B"], 3)
+    (True, 0.444)
     """
     tool_length = program.tool_length if tool_length is None else tool_length
     check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
     values, rapid = program_joints(machine, program)
     moves = program.moves()
+    # the strategy's path only: not the post's own approach before the first CL point and
+    # end after the last (moves with no CL line there); a program read back from text has no
+    # CL lines and is measured whole
+    on_cl = np.flatnonzero([mv.cl_line is not None for mv in moves])
+    if on_cl.size:
+        first, last = int(on_cl[0]), int(on_cl[-1]) + 1
+        values, rapid, moves = values[first:last], rapid[first:last], moves[first:last]
     n = len(values)
     lin = list(machine.linear_columns)
     rot = list(machine.rotary_columns)

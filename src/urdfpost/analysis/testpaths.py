@@ -56,6 +56,8 @@ __all__ = [
 CUTTER_DIAMETER = 6.0
 #: Distance of the approach and retract points from the path along the tool axis, mm.
 CLEARANCE = 10.0
+#: Spindle speed of every shipped path (clockwise), rpm.
+SPINDLE_RPM = 12000.0
 _DIGITS = 10  # significant digits written to APT: round trip to ~1e-9 relative
 
 
@@ -95,6 +97,7 @@ def _assemble(
     cutter = {"diameter": cutter_diameter, "corner_radius": cutter_diameter / 2.0}
     events.append(Event(0, "cutter", 0, dict(cutter)))
     events.append(Event(0, "tool", 0, {"number": 1, **cutter}))
+    events.append(Event(0, "spindle", 0, {"rpm": SPINDLE_RPM, "direction": "cw"}))
     n = 0
     for tip, axis, comment in passes:
         tip = np.asarray(tip, dtype=float)
@@ -353,9 +356,15 @@ def _apt_records(toolpath: Toolpath) -> tuple[list[str], np.ndarray, list[int]]:
             records.append("CUTTER/" + ",".join(_num(v) for v in values))
         elif e.kind == "tool":
             records.append(f"LOADTL/{int(e.data['number'])}")
+        elif e.kind == "spindle":
+            if e.data["direction"] == "off":
+                records.append("SPINDL/OFF")
+            else:
+                word = "CLW" if e.data["direction"] == "cw" else "CCLW"
+                records.append(f"SPINDL/RPM,{_num(e.data['rpm'])},{word}")
         else:
             raise ValueError(
-                f"to_apt: expected events of kind partno, comment, cutter or tool, "
+                f"to_apt: expected events of kind partno, comment, cutter, tool or spindle, "
                 f"got {e.kind!r} (line {e.line})"
             )
         event_lines[k] = len(records)
@@ -388,9 +397,10 @@ def to_apt(toolpath: Toolpath) -> str:
 
     Written in millimetres (``UNITS/MM``, ``FEDRAT/MMPM``) with 10 significant digits,
     ``MULTAX/ON`` and six-value ``GOTO`` records, ``RAPID`` before each rapid point; events of
-    kind partno, comment (``PPRINT``), cutter (``CUTTER/d,r[,0,0,0,0,length]``) and tool
-    (``LOADTL/n``) before the point they precede. A toolpath from this module's generators
-    carries the line numbers of this text.
+    kind partno, comment (``PPRINT``), cutter (``CUTTER/d,r[,0,0,0,0,length]``), tool
+    (``LOADTL/n``) and spindle (``SPINDL/RPM,n,CLW|CCLW``, ``SPINDL/OFF``) before the point
+    they precede. A toolpath from this module's generators carries the line numbers of this
+    text.
 
     Parameters
     ----------

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+import numpy as np
+
 from urdfpost.dialects.reader import ProgramReader, read_program
 from urdfpost.dialects.spec import ROTARY_ADDRESSES, DialectSpec
 from urdfpost.dialects.writer import ProgramWriter, program_writer, write_program
@@ -43,6 +45,7 @@ class Dialect:
         block_numbers: bool | None = None,
         header: str | None = None,
         program_number: int | None = None,
+        blank: np.ndarray | None = None,
     ) -> str:
         """The program as NC text.
 
@@ -57,6 +60,9 @@ class Dialect:
             on ``program`` only (no dates).
         program_number : int, optional
             Fanuc ``O``-number (default: the program name if it is a number, else 1000).
+        blank : ndarray, shape (2, 3), optional
+            Lowest and highest corner of the stock's box in the workpiece frame, mm: written
+            where the control describes its blank (Heidenhain ``BLK FORM``).
 
         Returns
         -------
@@ -75,6 +81,7 @@ class Dialect:
             block_numbers=block_numbers,
             header=header,
             program_number=program_number,
+            blank=blank,
         )
 
     def writer(

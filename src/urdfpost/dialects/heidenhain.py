@@ -46,6 +46,7 @@ _BEGIN = re.compile(r"BEGIN PGM (\S+) (MM|INCH)\Z")
 _END = re.compile(r"END PGM (\S+) (MM|INCH)\Z")
 _AXIS = re.compile(r"(I?)([XYZABC])(.*)\Z")
 _TOOL_CALL_WORD = re.compile(r"(DR2|DL|DR|S|F)(.*)\Z")  # DR, DR2: radius only, no effect
+_PRESET = re.compile(r"\s*Q339\s*=\s*\+?(\d+)\s*(?:;.*)?\Z")
 _MOTION_WORDS = "X.. Y.. Z.. A.. B.. C.. (IX.. incremental), R0, F.., FMAX, M.."
 
 
@@ -82,6 +83,12 @@ def parse_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
         Missing block number, unknown block or word, malformed number.
     """
     match = _LINE.match(raw)
+    cycle, builder.cycle = builder.cycle, None
+    if match is None and cycle == 247 and (preset := _PRESET.match(raw)):
+        builder.select_work_offset(f"preset {int(preset.group(1))}")
+        return
+    if cycle == 247:
+        raise builder.error("expected Q339=+<preset number> after CYCL DEF 247 DATUM SETTING ~")
     if match is None:
         raise builder.error(f"expected a block number at the start of {raw.strip()!r}")
     content = (match.group(2) or "").strip()
@@ -115,6 +122,10 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
         _tool_call(builder, words[2:])
     elif head in ("TOOL DEF", "BLK FORM") or code.startswith("CYCL DEF 32."):
         return  # tool preselection, graphics blank, path tolerance: no motion
+    elif code == "CYCL DEF 247 DATUM SETTING ~":
+        builder.cycle = 247  # the preset number follows on the next line
+    elif code == "PLANE RESET STAY":
+        return  # no tilted working plane (the rotary axes stay)
     elif code == "FUNCTION RESET TCPM":
         builder.set_tcp(False)
     elif code.startswith("FUNCTION TCPM"):
@@ -255,8 +266,14 @@ SPEC = DialectSpec(
     spindle_on="{code}",
     tcp_on=("FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS",),
     tcp_off=("FUNCTION RESET TCPM",),
+    setup=("FUNCTION RESET TCPM", "PLANE RESET STAY"),
     home=("L Z+0 R0 FMAX M91", "L X+0 Y+0 R0 FMAX M91"),
     home_comment="home",
+    machine_move="L {words} R0 FMAX M91",
+    work_offset=("CYCL DEF 247 DATUM SETTING ~", "  Q339=+{number} ;DATUM NUMBER"),
+    work_offsets=99,
+    work_offset_label="preset {number}",
+    blank_form=("BLK FORM 0.1 Z X{x0} Y{y0} Z{z0}", "BLK FORM 0.2 X{x1} Y{y1} Z{z1}"),
     shortest_path="M126",
     linear_mm=NumberFormat(3, plus_sign=True),
     linear_inch=NumberFormat(4, plus_sign=True),

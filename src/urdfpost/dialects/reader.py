@@ -56,6 +56,7 @@ from urdfpost.program import (
     Stop,
     Tcp,
     ToolChange,
+    WorkOffset,
 )
 from urdfpost.units import mm_per_unit
 
@@ -144,12 +145,14 @@ class ProgramBuilder:
         self.tcp = False
         self.tcp_ever = False
         self.tcp_at_first_feed: bool | None = None
+        self.cut_without_tcp: int | None = None  # line of the first X/Y/Z feed move, TCP off
         self.tool: int | None = None
         self.rpm = 0.0
         self.spindle_state: tuple[str, float] = ("off", 0.0)
         self._speed_change: Block | _ReadMove | _ReadMoves | None = None
         self.continuous = False
         self.work_offset: str | None = None
+        self.cycle: int | None = None  # a cycle whose parameters follow on the next lines
         self.ended = False
         self.code_seen = False
         self.items: list[Block | _ReadMove | _ReadMoves] = []
@@ -204,12 +207,19 @@ class ProgramBuilder:
         self.feed = value * self.feed_scale
 
     def select_work_offset(self, code: str) -> None:
-        """Work offset (G54...): one per program."""
+        """Work offset (G54... or "preset N"): one per program; a WorkOffset block (1 for G54
+        or preset 1, 2 for G55...) where it is selected first. (Siemens G500, no settable
+        offset, gives none.)"""
         if self.work_offset not in (None, code):
             raise self.error(
                 f"work offset changes from {self.work_offset} to {code}; expected one work "
                 "offset per program"
             )
+        if self.work_offset is None:
+            if code.startswith("preset "):
+                self._add(WorkOffset(int(code.split()[1])))
+            elif code != "G500":
+                self._add(WorkOffset(int(code[1:]) - 53))
         self.work_offset = code
 
     def move(self, values: dict[str, tuple[float, bool]], rapid: bool | None) -> None:
@@ -240,6 +250,9 @@ class ProgramBuilder:
         self.axes_seen.update(values)
         if not rapid and self.tcp_at_first_feed is None:
             self.tcp_at_first_feed = self.tcp
+        if not rapid and not self.tcp and self.cut_without_tcp is None:
+            if any(a not in ROTARY_ADDRESSES for a in values):
+                self.cut_without_tcp = self.line
         self._add(_ReadMove(rapid, position, None if rapid else self.feed))
 
     def moves(self, lines: _bulk.MotionLines, rows: slice, first_line: int) -> bool:
@@ -284,6 +297,11 @@ class ProgramBuilder:
         self.line = first_line + k - 1
         if self.tcp_at_first_feed is None and not rapid.all():
             self.tcp_at_first_feed = self.tcp
+        if not self.tcp and self.cut_without_tcp is None:
+            linear = [j for j, a in enumerate(AXIS_ORDER) if a not in ROTARY_ADDRESSES]
+            cuts = np.flatnonzero(~rapid & ~np.isnan(written[:, linear]).all(axis=1))
+            if cuts.size:
+                self.cut_without_tcp = first_line + int(cuts[0])
         seen = [a for j, a in enumerate(AXIS_ORDER) if not np.isnan(written[:, j]).all()]
         self.axes_seen.update(seen)
         self.position = {
@@ -406,6 +424,9 @@ class ProgramBuilder:
             tcp=tcp,
             blocks=Blocks(parts),
             continuous=rotary if self.continuous else frozenset(),
+            cut_without_tcp=None
+            if self.cut_without_tcp is None
+            else (self.path, self.cut_without_tcp),
         )
 
 

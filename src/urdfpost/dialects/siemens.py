@@ -54,7 +54,9 @@ G_CODES = MappingProxyType(
     }
 )
 
-KEYWORDS = MappingProxyType({"TRAORI": "tcp_on", "TRAFOOF": "tcp_off", "SUPA": "machine"})
+KEYWORDS = MappingProxyType(
+    {"TRAORI": "tcp_on", "TRAFOOF": "tcp_off", "SUPA": "machine", "CYCLE800": "noop"}
+)
 
 #: Place among the controls (see :mod:`urdfpost.dialects`).
 RANK = 1
@@ -66,7 +68,7 @@ SPEC = DialectSpec(
     comment_close="",
     semicolon_comments=True,
     name_comment=True,
-    setup=("{unit_code}", "G90 G17 G94"),
+    setup=("{unit_code}", "G90 G17 G40 G94", "TRAFOOF", "CYCLE800()"),
     finish=("M30",),
     g_codes=G_CODES,
     m_codes=STANDARD_M_CODES,
@@ -77,5 +79,7 @@ SPEC = DialectSpec(
     tcp_on=("TRAORI",),
     tcp_off=("TRAFOOF",),
     home=("G75 FP=1 Z1=0", "G75 FP=1 X1=0 Y1=0"),
+    machine_move="SUPA G0 {words}",
+    work_offsets=4,
     motion_layout=MotionLayout(),
 )

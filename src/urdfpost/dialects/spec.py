@@ -273,6 +273,22 @@ class DialectSpec:
         follows it directly.
     shortest_path : str or None
         Line written once at the start when the program has continuous rotary axes.
+    machine_move : str
+        A rapid in machine coordinates (:class:`~urdfpost.program.MachineMove`); ``{words}``
+        is its axis words. The reader reads such a block as a home return (the axes named
+        become unknown in the program's coordinates).
+    work_offset : tuple of str
+        Lines selecting a work offset (:class:`~urdfpost.program.WorkOffset`); ``{number}``
+        is its number (1 for the first), ``{code}`` 53 + number (G54 for 1); lines after
+        the first are continuation lines (never numbered).
+    work_offsets : int
+        How many work offsets the lines can select (G54 to G59: 6).
+    work_offset_label : str
+        A work offset as the header names it (``{number}``, ``{code}`` as above): "G54".
+    blank_form : tuple of str
+        Lines describing the blank (the stock's box, for the control's graphics) right after
+        the program's opening: ``{x0}``..``{z1}`` its corners as axis values (Heidenhain
+        ``BLK FORM``); empty: the control has none.
     linear_mm, linear_inch, rotary, feed_mm, feed_inch, rpm : NumberFormat
         Number formats.
     feed_inch_unit : float
@@ -334,6 +350,11 @@ class DialectSpec:
     home: tuple[str, ...] = ()
     home_comment: str | None = None
     shortest_path: str | None = None
+    machine_move: str = "G53 G0 {words}"
+    work_offset: tuple[str, ...] = ("G{code}",)
+    work_offsets: int = 6
+    work_offset_label: str = "G{code}"
+    blank_form: tuple[str, ...] = ()
     linear_mm: NumberFormat = NumberFormat(3)
     linear_inch: NumberFormat = NumberFormat(4)
     rotary: NumberFormat = NumberFormat(4)

@@ -38,6 +38,7 @@ from urdfpost.program import (
     Coolant,
     Home,
     Insert,
+    MachineMove,
     Move,
     MoveTable,
     Program,
@@ -45,6 +46,7 @@ from urdfpost.program import (
     Stop,
     Tcp,
     ToolChange,
+    WorkOffset,
 )
 from urdfpost.units import mm_per_unit
 
@@ -153,19 +155,36 @@ class ProgramWriter:
 
     # -- program -----------------------------------------------------------------------------
 
-    def write(self, header: str | None) -> str:
-        """The whole program text, ending with a newline."""
-        self.open(header)
+    def write(self, header: str | None, blank: np.ndarray | None = None) -> str:
+        """The whole program text, ending with a newline (``blank``: as for :meth:`open`)."""
+        self.open(header, blank)
         self.write_body()
         self.close()
         text = "\n".join(self.lines) + "\n"
         self.lines = []
         return text
 
-    def open(self, header: str | None) -> None:
-        """Write the program start: its opening, name and ``header`` comments and the setup."""
+    def open(self, header: str | None, blank: np.ndarray | None = None) -> None:
+        """Write the program start: its opening, the blank, name and ``header`` comments and
+        the setup.
+
+        Parameters
+        ----------
+        header : str or None
+            Comment lines.
+        blank : ndarray, shape (2, 3), optional
+            Lowest and highest corner of the stock's box in the workpiece frame, mm: the
+            control's ``blank_form`` lines when it has them.
+        """
         spec = self.spec
         self.emit_templates(spec.program_open, spec.number_frame)
+        if blank is not None and spec.blank_form:
+            corners = {
+                f"{a}{k}": self.format_axis(a.upper(), float(blank[k, j]))
+                for k in (0, 1)
+                for j, a in enumerate("xyz")
+            }
+            self.emit_templates(spec.blank_form, True, **corners)
         if spec.name_comment:
             self.emit_comment(self.program.name)
         for line in (header or "").splitlines():
@@ -296,8 +315,29 @@ class ProgramWriter:
                     self.emit_comment(self.spec.home_comment)
                 self.emit_templates(self.spec.home)
                 self.modal.invalidate()
+            case MachineMove():
+                self.write_machine_move(block)
+            case WorkOffset():
+                count = self.spec.work_offsets
+                if not 1 <= block.number <= count:
+                    raise DialectError(
+                        f"work offset {block.number}: {self.spec.name} has work offsets 1 "
+                        f"to {count}"
+                    )
+                for i, line in enumerate(self.spec.work_offset):  # continuation lines: no N
+                    self.emit(line.format(number=block.number, code=53 + block.number), i == 0)
             case _:
                 raise DialectError(f"cannot write block {block!r}")
+
+    def write_machine_move(self, move: MachineMove) -> None:
+        """A rapid in machine coordinates; the next motion block writes every axis."""
+        if not move.axes or len(move.axes) != len(move.values):
+            raise DialectError(f"machine move {move}: expected one value per axis")
+        words = " ".join(
+            f"{a}{self.format_axis(a, v)}" for a, v in zip(move.axes, move.values, strict=True)
+        )
+        self.emit(self.spec.machine_move.format(words=words))
+        self.modal.invalidate()
 
     def write_move(self, move: Move) -> None:
         """Write a motion block with only the changed axes (all after a forced state)."""
@@ -644,6 +684,7 @@ def write_program(
     block_numbers: bool | None = None,
     header: str | None = None,
     program_number: int | None = None,
+    blank: np.ndarray | None = None,
 ) -> str:
     """Write ``program`` for the control described by ``spec``.
 
@@ -660,6 +701,8 @@ def write_program(
         Text written as comment lines after the program start (e.g. a date, the machine).
     program_number : int, optional
         Program number where the control has one (Fanuc ``O``-number).
+    blank : ndarray, shape (2, 3), optional
+        The stock's box, mm (:meth:`ProgramWriter.open`).
 
     Returns
     -------
@@ -671,7 +714,7 @@ def write_program(
     DialectError
         The program cannot be written for this control.
     """
-    return program_writer(spec, program, block_numbers, program_number).write(header)
+    return program_writer(spec, program, block_numbers, program_number).write(header, blank)
 
 
 def program_writer(

@@ -10,12 +10,14 @@ the blocks.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
 from urdfpost.machine import Machine
 from urdfpost.planning.rewinds import LIFT, RETURN, TURN
+from urdfpost.posting.transitions import Transitions
 from urdfpost.program import (
     REWIND_END,
     Block,
@@ -23,11 +25,13 @@ from urdfpost.program import (
     Coolant,
     Home,
     Insert,
+    MachineMove,
     MoveTable,
     Spindle,
     Stop,
     Tcp,
     ToolChange,
+    WorkOffset,
 )
 from urdfpost.toolpath import Event, Motion, Toolpath
 
@@ -88,6 +92,8 @@ def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]
         out.append(Home())
     elif kind == "stop":
         out.append(Stop(optional=bool(data.get("optional", False))))
+    elif kind == "msys":  # where the program zero lies in the part (information only)
+        out.append(Comment(f"MSYS {data.get('text', '')}".strip()))
     else:
         text = " ".join(f"{k}={v}" for k, v in data.items())
         out.append(Comment(f"{kind} {text}".strip()))
@@ -139,9 +145,10 @@ def _move_table(
     """The motion blocks of the rows, as arrays.
 
     Positions in degrees for the rotary axes; in TCP programs X, Y, Z are the tip. A row that
-    stands on a CL point already reached (a turn at a pole) moves at the feed of the move that
-    follows, even when the point was reached by a rapid; the lift and turn of a rewind are off
-    the part: rapid, or at ``rewind_feed`` (mm/min) when it is given.
+    stands on a CL point already reached (a turn at a pole) goes with the move that leaves the
+    point: rapid when that move is a RAPID (a reorientation between rapids stays rapid), else
+    at its feed, even when the point was reached by a rapid; the lift and turn of a rewind are
+    off the part: rapid, or at ``rewind_feed`` (mm/min) when it is given.
     """
     n, g = len(toolpath), rows.point
     rotary_names = {a.name for a in machine.rotary}
@@ -159,7 +166,9 @@ def _move_table(
     before = np.concatenate([[-1], last[:-1]]) if len(rows) else last
     arrived = np.where(before >= 0, g[np.maximum(before, 0)], -1)
     turning = g == arrived
-    rapid = (toolpath.motion[g] == int(Motion.RAPID)) & ~turning
+    # a turn standing on a point goes with the move that leaves it: rapid before a RAPID
+    rapid_next = np.append(toolpath.motion[1:] == int(Motion.RAPID), False)
+    rapid = np.where(turning, rapid_next[g], toolpath.motion[g] == int(Motion.RAPID))
     feed = np.where(turning, next_feed[g], toolpath.feed[g])
     off = (rows.kind == LIFT) | (rows.kind == TURN)
     rapid[off] = rewind_feed is None
@@ -179,6 +188,9 @@ def program_body(
     rewind_feed: float | None,
     tcp_on: bool = False,
     close: bool = True,
+    transitions: Transitions | None = None,
+    work_offset: int | None = None,
+    coolant: str | None = None,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -200,7 +212,19 @@ def program_body(
     tcp_on : bool
         TCP is on before the body (a piece of a streamed post that continues one with TCP).
     close : bool
-        The body ends the program: TCP is switched off at its end.
+        The body ends the program: TCP is switched off at its end (and with
+        ``transitions``, the tool retracts and the rotary axes go home).
+    transitions : Transitions, optional
+        Makes the moves off the path (:mod:`urdfpost.posting.transitions`): the safe approach
+        before the first row (when the body starts the program, i.e. ``work_offset`` is
+        given) and after every tool change or home return, the retract before a tool change,
+        the end. None: the rows only, as planned.
+    work_offset : int, optional
+        The body starts the program: the work offset it selects (1 for G54) and, with
+        ``transitions``, a retract before the first tool change.
+    coolant : str, optional
+        The coolant on before the body (a streamed piece): a tool change stops it and, unless
+        the CL data sets the coolant there, starts it again.
 
     Returns
     -------
@@ -223,14 +247,37 @@ def program_body(
     by_row: dict[int, list[Event]] = {}
     for event, row in zip(events, at.tolist(), strict=True):
         by_row.setdefault(row, []).append(event)
+    starting = work_offset is not None
+    if starting:
+        assert work_offset is not None
+        body.append(WorkOffset(work_offset))
+        if transitions is not None and count:  # a program without motion moves nothing
+            body.append(transitions.retract_block())
     lift_comments = iter(comments)
     done = 0  # rows in tables so far
     for k in starts.tolist():
         before: list[Block] = []
-        for event in by_row.get(k, []):
+        here = by_row.get(k, [])
+        leaves = k > 0 and any(e.kind in ("tool", "home") for e in here)
+        restart = None  # the coolant a tool change stopped, to start again after it
+        if transitions is not None and leaves and any(e.kind == "tool" for e in here):
+            line = int(toolpath.line[g_of(rows, k - 1)])
+            before += transitions.leave(rows.q[k - 1], line, tcp_state[0])
+            tcp_state[0] = False
+            restart = _coolant_on(body, coolant)
+        for event in here:
             before += _event_blocks(event, tcp_state, tcp)
+        if restart is not None and not any(e.kind == "coolant" for e in here):
+            before.append(Coolant(mode=restart))
         if kind[k] == LIFT:
             before.append(Comment(next(lift_comments)))
+        if transitions is not None and (leaves or (starting and k == 0)):
+            if tcp_state[0]:
+                before.append(Tcp(on=False))
+                tcp_state[0] = False
+            line = int(toolpath.line[g_of(rows, k)])
+            before += transitions.approach(rows.q[k - 1] if k else None, rows.q[k], line)
+            tcp_state[0] = tcp
         if tcp and not tcp_state[0]:
             before.append(Tcp(on=True))
             tcp_state[0] = True
@@ -248,6 +295,40 @@ def program_body(
         body.append(Comment(REWIND_END))
     for event in by_row.get(count, []):
         body += _event_blocks(event, tcp_state, tcp)
+    if transitions is not None and close and count:
+        line = int(toolpath.line[g_of(rows, count - 1)])
+        ending = transitions.end(rows.q[count - 1], line, tcp_state[0])
+        # not again what the CL data's own end did: spindle or coolant off, a home return
+        spindles = [b for b in body if isinstance(b, Spindle)]
+        coolants = [b for b in body if isinstance(b, Coolant)]
+        homed = bool(body) and isinstance(body[-1], Home)
+        body += [
+            b
+            for b in ending
+            if not (isinstance(b, Spindle) and spindles and spindles[-1].direction == "off")
+            and not (isinstance(b, Coolant) and coolants and coolants[-1].mode == "off")
+            and not (isinstance(b, MachineMove) and homed)
+        ]
+        tcp_state[0] = False
     if tcp_state[0] and close:
         body.append(Tcp(on=False))
     return body
+
+
+def _coolant_on(body: list[Block | MoveTable], before: str | None) -> str | None:
+    """The coolant mode the body leaves on (its last Coolant block; ``before`` when it has
+    none), None when off."""
+    for block in reversed(body):
+        if isinstance(block, Coolant):
+            return None if block.mode == "off" else block.mode
+    return before
+
+
+def coolant_after(blocks: Iterable[Block | MoveTable], before: str | None) -> str | None:
+    """The coolant mode on after ``blocks`` (``before`` when they set none), None when off."""
+    return _coolant_on(list(blocks), before)
+
+
+def g_of(rows: Rows, k: int) -> int:
+    """The CL point (index into the plan's toolpath) of row ``k``."""
+    return int(rows.point[k])

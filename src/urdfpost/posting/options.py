@@ -15,8 +15,9 @@ from urdfpost.machine import Machine
 from urdfpost.planning.branches import Preference
 from urdfpost.planning.rewinds import DEFAULT_RETRACT
 from urdfpost.planning.strategies import DEFAULT_STRATEGY, STRATEGIES
+from urdfpost.posting.transitions import DEFAULT_CLEARANCE
 from urdfpost.tolerances import Tolerances
-from urdfpost.units import mm_per_unit
+from urdfpost.units import mm_per_unit, program_units
 
 
 @dataclass(frozen=True)
@@ -31,7 +32,8 @@ class PostOptions:
         Write the tool tip in workpiece coordinates with TCP on (the control does the
         kinematics) instead of machine axis positions.
     units : str or None
-        Program units ("mm" or "inch"); default the CL file's units.
+        Program units ("mm" or "inch"); default the machine file's ``units`` setting, else
+        the CL data's units (:func:`urdfpost.units.program_units`).
     tool_length : float or None
         Tool length in mm (gauge point to tip); default the machine file's.
     tolerance : float or None
@@ -64,6 +66,17 @@ class PostOptions:
         Stock or part mesh (STL, OBJ, ...) in the workpiece frame, program units.
     holder_diameter, holder_length : float or None
         Tool holder size, program units; default 40 x 60 mm.
+    clearance : float or None
+        The approach point above the first point of the path (at the start and after each
+        tool change), along its tool axis, program units; default 10 mm (0.4 in).
+    work_offset : int
+        The work offset the program selects: 1 for G54 (Heidenhain preset 1), 2 for G55...
+    feed : float or None
+        Feed for cutting moves the CL data gives no feed for, program units per minute
+        (reported as a warning); None: such a move is an error.
+    spindle : float or None
+        Spindle speed (rpm, clockwise) for cutting with the spindle off (reported as a
+        warning); None: such a move is an error.
     """
 
     controller: str | None = None
@@ -84,6 +97,10 @@ class PostOptions:
     stock: str | None = None
     holder_diameter: float | None = None
     holder_length: float | None = None
+    clearance: float | None = None
+    work_offset: int = 1
+    feed: float | None = None
+    spindle: float | None = None
 
 
 @dataclass(frozen=True)
@@ -123,6 +140,13 @@ class Job:
         Path of the stock mesh, in program units.
     holder_diameter, holder_length : float or None
         mm; None: the tool model's defaults.
+    clearance : float
+        mm.
+    work_offset : int
+    feed : float or None
+        mm/min.
+    spindle : float or None
+        rpm.
     """
 
     machine: Machine
@@ -144,16 +168,10 @@ class Job:
     stock: str | None
     holder_diameter: float | None
     holder_length: float | None
-
-    @property
-    def header(self) -> str | None:
-        """The program header a post in machine coordinates writes (None with TCP)."""
-        if self.tcp:
-            return None
-        return (
-            f"machine coordinates for machine {self.machine.name} with tool length "
-            f"{self.tool_length:.3f} mm from the gauge point: the tool table length must be 0"
-        )
+    clearance: float = DEFAULT_CLEARANCE
+    work_offset: int = 1
+    feed: float | None = None
+    spindle: float | None = None
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -192,7 +210,8 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
     options : PostOptions or None
     machine : Machine
     cl_units : str
-        Units of the CL data (the program's unless the options say otherwise).
+        Units of the CL data: the program's when neither the options nor the machine file
+        name any (:func:`urdfpost.units.program_units`).
 
     Returns
     -------
@@ -206,16 +225,22 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         An unknown strategy (:func:`strategy_name`).
     """
     options = options or PostOptions()
-    units = options.units or cl_units
+    units = program_units(options.units, machine.settings.units, cl_units)
     scale = mm_per_unit(units)
 
     def mm(value: float | None) -> float | None:
         return None if value is None else value * scale
 
     settings = machine.settings
+    dialect = dialect_for(options.controller or settings.controller)
+    offsets = dialect.spec.work_offsets
+    if not 1 <= options.work_offset <= offsets:
+        raise UrdfpostError(
+            f"work offset {options.work_offset}: {dialect.name} has work offsets 1 to {offsets}"
+        )
     return Job(
         machine=machine,
-        dialect=dialect_for(options.controller or settings.controller),
+        dialect=dialect,
         units=units,
         tol=Tolerances.for_units(units, options.tolerance),
         strategy=strategy_name(machine, options.strategy),
@@ -235,4 +260,8 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         stock=options.stock,
         holder_diameter=mm(options.holder_diameter),
         holder_length=mm(options.holder_length),
+        clearance=DEFAULT_CLEARANCE if options.clearance is None else options.clearance * scale,
+        work_offset=options.work_offset,
+        feed=mm(options.feed),
+        spindle=options.spindle,
     )

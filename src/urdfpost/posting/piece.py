@@ -35,6 +35,7 @@ from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget
 from urdfpost.posting.options import Job
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
+from urdfpost.posting.transitions import Transitions
 from urdfpost.program import REWIND_BEGIN, Blocks, Program
 from urdfpost.toolpath import Event, Motion, Toolpath
 from urdfpost.units import mm_per_unit
@@ -183,11 +184,15 @@ class Continuation:
         TCP is on where the piece starts.
     last : bool
         The piece ends the program (TCP is switched off at its end).
+    coolant : str or None
+        The coolant mode on where the piece starts (None: off), which a tool change in the
+        piece stops and starts again.
     """
 
     start: np.ndarray | None
     tcp_on: bool
     last: bool
+    coolant: str | None = None
 
 
 @dataclass(frozen=True)
@@ -313,6 +318,11 @@ def post_piece(
         )
         pole_turns = int(np.sum(whole & ~first & (kind == CUT)))
         joined = ((toolpath.motion[owner] == Motion.FEED) & ~entry[owner]) | ~first
+        # a turn standing on a reached point goes with the move that leaves the point: before
+        # a RAPID it is one rapid block (the written program's too), not subdivided
+        standing = whole & ~first
+        feed_next = np.append(toolpath.motion[1:] == Motion.FEED, True)
+        joined = np.where(standing, feed_next[owner], joined)
         joined &= kind == CUT  # a rewind is no cut: its moves are not subdivided
         solve_at = midpoint_solver(problem, plan)
         parts_q, parts_tip, parts_src, parts_axis = [], [], [], []
@@ -375,6 +385,7 @@ def post_piece(
         spans=tuple(plan.spans),
     )
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
+    transitions = Transitions(machine, job.tcp, tool_length, job.clearance)
     body = program_body(
         toolpath,
         machine,
@@ -384,7 +395,10 @@ def post_piece(
         [r.comment for r in rewinds],
         job.rewind_feed,
         tcp_on=piece is not None and piece.tcp_on,
+        coolant=None if piece is None else piece.coolant,
         close=piece is None or piece.last,
+        transitions=transitions,
+        work_offset=None if continued else job.work_offset,
     )
     program = Program(
         name=program_name(toolpath, job.program_name),
@@ -415,10 +429,36 @@ def post_piece(
         tool_length=tool_length,
     )
     collisions = check_collisions(problem.collision, joints, joint_lines, cl)
+    check_transitions(problem.collision, transitions, cl)
     return PostedPiece(program, plan, target, figures, collisions, joints, joint_lines)
 
 
 CLEARANCE_POINTS = 500
+
+
+def check_transitions(
+    world: CollisionWorld | None, transitions: Transitions, toolpath: Toolpath
+) -> None:
+    """Check the moves off the path (approach, retract, end) for collisions.
+
+    Raises
+    ------
+    CollisionError
+        A move collides: names the CL line the transition leads to or leaves.
+    """
+    if world is None:
+        return
+    for line, path in transitions.paths:
+        moves = world.check_moves(path)
+        if moves.hit.any():
+            k = int(np.argmax(moves.hit))
+            hit = moves.pairs[k]
+            assert hit is not None
+            raise CollisionError(
+                f"{toolpath.source}:{line}: the safe approach or retract at this CL point "
+                f"collides: {hit[0]} with {hit[1]} (move {k + 1} of {len(path) - 1}, at "
+                f"{moves.at[k]:.0%}); a larger --clearance may help; nothing written"
+            )
 
 
 def check_collisions(

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import logging
 import os
+import shutil
 import tempfile
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
@@ -55,15 +56,20 @@ from pathlib import Path
 import numpy as np
 
 from urdfpost._files import give_mode
+from urdfpost.dialects import Dialect
 from urdfpost.geometry import angle_between
 from urdfpost.machine import Machine
 from urdfpost.planning.strategies import STRATEGIES, Plan, tool_axis_of
 from urdfpost.posting import LOOKAHEAD, PIECE_POINTS
-from urdfpost.posting.options import PostOptions, resolve
+from urdfpost.posting.body import coolant_after
+from urdfpost.posting.header import HeaderFigures, job_header, stock_box
+from urdfpost.posting.options import Job, PostOptions, resolve
 from urdfpost.posting.piece import Continuation, make_problem, post_piece
+from urdfpost.posting.process import checked_process
 from urdfpost.posting.readback import merge_verifications
 from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
 from urdfpost.posting.worker import FORK, Checks, PieceJob
+from urdfpost.program import Program
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath, joined, toolpath_slice
 from urdfpost.verification import Verification
@@ -251,17 +257,25 @@ def post_stream(
     dialect, units, tol = job.dialect, job.units, job.tol
     base = None
     writer = None
+    header: HeaderFigures | None = None  # the header's figures so far
+    first_program = None
+    blank = stock_box(job)  # the stock's box for the control's graphics (BLK FORM)
+    placeholder = 0  # bytes of the program's opening written with the placeholder header
     figures: PieceFigures | None = None
     collisions: list[Collisions] = []
     offset = 0  # index of the piece's first point in the joined plan paths
     start: np.ndarray | None = None
     last_piece: Toolpath | None = None
     reader_warnings = list(buffer.warnings)  # the job's, in order
-    buffer = replace(buffer, warnings=())
+    buffer, spindle, notes = checked_process(
+        replace(buffer, warnings=()), feed=job.feed, spindle=job.spindle, units=job.units
+    )
+    reader_warnings += notes
     checks: Checks | None = None
     unsettled: list[int] = []  # CL lines of the joins whose branch choice rests on the lookahead
     count = 0
     tool_length = job.tool_length
+    coolant: str | None = None  # on where the next piece starts
     fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
     tmp = Path(tmp_name)
     try:
@@ -275,7 +289,15 @@ def post_stream(
                         exhausted = True
                     else:
                         reader_warnings += more.warnings
-                        pending.append(replace(more, warnings=()))
+                        more, spindle, notes = checked_process(
+                            replace(more, warnings=()),
+                            feed=job.feed,
+                            spindle=job.spindle,
+                            units=job.units,
+                            state=spindle,
+                        )
+                        reader_warnings += notes
+                        pending.append(more)
                         have += len(more)
                 if pending:
                     buffer = joined(buffer, pending)
@@ -303,18 +325,28 @@ def post_stream(
                         unsettled.append(int(window.line[cut]))
                 last_piece = piece
                 continuation = Continuation(
-                    start=start, tcp_on=start is not None and job.tcp, last=last
+                    start=start, tcp_on=start is not None and job.tcp, last=last, coolant=coolant
                 )
                 posted = post_piece(piece, job, problem=problem, plan=plan, piece=continuation)
                 program = posted.program
+                coolant = coolant_after(program.parts, coolant)
                 tool_length = program.tool_length
+                if header is None:
+                    header = HeaderFigures.empty(program)
+                header.add(program)
+                opening = ""
                 if writer is None:
+                    # the header is known only at the end: a placeholder of as many lines now
+                    # (the block numbers after it stay), the real one spliced in at the end
+                    first_program = program
                     writer = dialect.writer(program, block_numbers=job.block_numbers)
-                    writer.open(job.header)
+                    writer.open(job_header(job, HeaderFigures.empty(program), tool_length), blank)
+                    opening = writer.take()
+                    placeholder = len(opening.encode("utf-8"))
                 writer.write_body(program)
                 if last:
                     writer.close()
-                text = writer.take()
+                text = opening + writer.take()
                 handle.write(text)
                 checks.submit(PieceJob.of(text, posted))
                 found = posted.figures
@@ -368,6 +400,12 @@ def post_stream(
                 unsettled_joins=unsettled,
             ),
         )
+        assert header is not None and first_program is not None
+        final = _with_header(
+            tmp, out, dialect, first_program, job, header, tool_length, placeholder
+        )
+        tmp.unlink()
+        tmp = final
         give_mode(tmp, out)
         os.replace(tmp, out)
     except BaseException:
@@ -377,6 +415,39 @@ def post_stream(
         if checks is not None:
             checks.close()
     return StreamResult(path=out, verification=verification, report=report)
+
+
+def _with_header(
+    tmp: Path,
+    out: Path,
+    dialect: Dialect,
+    program: Program,
+    job: Job,
+    header: HeaderFigures,
+    tool_length: float,
+    placeholder: int,
+) -> Path:
+    """A copy of the streamed program ``tmp`` whose opening has the real header.
+
+    The opening is written again with the header of the whole program (as many lines as the
+    placeholder's: the block numbers after it are unchanged) and the rest of ``tmp`` after
+    its first ``placeholder`` bytes is copied behind it, into a new temporary file beside
+    ``out``, which is returned.
+    """
+    writer = dialect.writer(program, block_numbers=job.block_numbers)
+    writer.open(job_header(job, header, tool_length), stock_box(job))
+    opening = writer.take()
+    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
+    final = Path(name)
+    try:
+        with os.fdopen(fd, "wb") as dst, open(tmp, "rb") as src:
+            dst.write(opening.encode("utf-8"))
+            src.seek(placeholder)
+            shutil.copyfileobj(src, dst, 1 << 20)
+    except BaseException:
+        final.unlink(missing_ok=True)
+        raise
+    return final
 
 
 __all__ = ["StreamResult", "post_stream"]

@@ -5,13 +5,18 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
+from urdfpost.errors import UnreachableError
 from urdfpost.machine import Machine
+from urdfpost.planning.setup_fit import fit_setup
 from urdfpost.posting.check import check_piece, tolerance_error
+from urdfpost.posting.header import HeaderFigures, job_header, stock_box
 from urdfpost.posting.options import Job, PostOptions, resolve
 from urdfpost.posting.piece import PostedPiece, post_piece
+from urdfpost.posting.process import checked_process
 from urdfpost.posting.report import Report
 from urdfpost.program import Insert, Program
 from urdfpost.toolpath import Toolpath
+from urdfpost.units import mm_per_unit
 from urdfpost.verification import Verification
 
 
@@ -54,7 +59,10 @@ def written(
         Of :func:`urdfpost.posting.check.check_piece`.
     """
     dialect, program = job.dialect, posted.program
-    text = dialect.write(program, block_numbers=job.block_numbers, header=job.header)
+    header = job_header(job, HeaderFigures.empty(program).add(program), program.tool_length)
+    text = dialect.write(
+        program, block_numbers=job.block_numbers, header=header, blank=stock_box(job)
+    )
     inserts = [b.text for b in program.parts if isinstance(b, Insert)]
     readback = dialect.read(text, path=f"<{dialect.name} program>", verbatim=inserts)
     return text, readback, check_piece(readback, job.machine, posted.target, job.tol)
@@ -86,7 +94,9 @@ def post(
     Raises
     ------
     UnreachableError
-        A CL point no branch reaches within travel.
+        A CL point no branch reaches within travel; when the points are outside the linear
+        travel, the message ends with the job setup that would bring them in, if one does
+        (:func:`travel_hint`).
     CollisionError
         A move of the program collides.
     GeometryError
@@ -96,13 +106,45 @@ def post(
         the figures); nothing should be written then.
     """
     job = resolve(options, machine, toolpath.units)
-    posted = post_piece(toolpath, job, progress=progress)
+    toolpath, _, notes = checked_process(
+        toolpath, feed=job.feed, spindle=job.spindle, units=job.units
+    )
+    if notes:
+        toolpath = replace(toolpath, warnings=toolpath.warnings + tuple(notes))
+    try:
+        posted = post_piece(toolpath, job, progress=progress)
+    except UnreachableError as e:
+        hint = travel_hint(toolpath, job)
+        if not hint:
+            raise
+        raise UnreachableError(f"{e}{hint}") from e
     text, _, checks = written(posted, job)
     report = make_report(toolpath, job, posted, checks)
     error = tolerance_error(toolpath, checks, job.units)
     if error is not None:
         raise error
     return PostResult(posted.program, text, checks[0], report, posted)
+
+
+def travel_hint(toolpath: Toolpath, job: Job) -> str:
+    """What ends the message of a post refused for linear travel: the job setup
+    (``--setup``, in the program units) that brings every CL point into travel, or that
+    none does; empty when the CL points are within travel (the refusal has another cause).
+
+    See :func:`urdfpost.planning.setup_fit.fit_setup`: the linear axes kept ``job.clearance``
+    inside their travel where it allows, at least the rounding of the printed setup.
+    """
+    scale = mm_per_unit(job.units)
+    fit = fit_setup(
+        job.machine,
+        toolpath.tip,
+        toolpath.axis,
+        job.tool_length,
+        margin=job.clearance,
+        min_margin=1e-3 * scale,  # the printed setup's last digit
+        tol=job.tol,
+    )
+    return fit.hint(job.units)
 
 
 def make_report(

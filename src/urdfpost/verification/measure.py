@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from urdfpost.errors import ProgramParseError
 from urdfpost.geometry import (
     Arcs,
     Segments,
@@ -580,6 +581,15 @@ def verify_checks(
     list of Verification
         One per check, in order.
     """
+    if program.tcp and program.cut_without_tcp is not None:
+        # its X/Y/Z would be machine positions among tool tips: no program of one kind
+        path, line = program.cut_without_tcp
+        raise ProgramParseError(
+            path,
+            line,
+            "a feed move of X/Y/Z with TCP off in a TCP program; expected TCP on before "
+            "every cutting move",
+        )
     tool_length = program.tool_length if tool_length is None else tool_length
     values, rapid = program_joints(machine, program)
     notes: list[str] = []
@@ -715,7 +725,13 @@ class _Comparison:
             dp2[part], op2[part] = d2[0], c2[0]
         feed_pts = ~rapid | (owner >= 0)
 
-        valid = (before[blocks - 1] >= 0) & (after[blocks] < n_cl)
+        # a feed block is compared along its length with its CL span unless it starts before
+        # the first CL point, ends after the last, or starts at a rapid on no CL point: an
+        # approach the post added (after a tool change, a home return), which leaves the CL
+        # path on purpose; its end is compared as a row. (A program whose rapid misses its CL
+        # point fails anyway: that point is not reached.)
+        from_approach = rapid[blocks - 1] & (owner[blocks - 1] < 0)
+        valid = (before[blocks - 1] >= 0) & (after[blocks] < n_cl) & ~from_approach
         ja = np.where(valid, before[blocks - 1], 0)
         jb = np.where(valid, np.maximum(after[blocks], ja), 0)
         return cls(

@@ -1,0 +1,176 @@
+"""The program header an operator reads before running a program: what it is for, which tools
+it calls, how far the axes go, and the work offset; no date, so that the same job gives the
+same text.
+
+The header has a fixed number of comment lines whatever the job (the tools are listed on one
+line), so that a streamed post can write a placeholder of the same lines first and the real
+header once the last piece is known, without changing any block number after it
+(:mod:`urdfpost.posting.stream`).
+
+Example (a TCP job on dmu50, Heidenhain, mm)::
+
+    ; urdfpost: machine dmu50, TCP (the control keeps the tool tip on the path), mm
+    ; work offset: preset 1
+    ; tools: T3 D6.000 L100.000
+    ; axis ranges: X-14.871..14.871 Y-14.871..14.871 Z0.000..40.000 B0.0000..56.6392 ...
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from urdfpost.program import Program, ToolChange
+from urdfpost.units import mm_per_unit
+
+if TYPE_CHECKING:
+    from urdfpost.posting.options import Job
+
+__all__ = ["HeaderFigures", "header_text", "job_header", "stock_box"]
+
+
+@dataclass
+class HeaderFigures:
+    """What the header says of the program, gathered piece by piece.
+
+    Attributes
+    ----------
+    axes : tuple of str
+        Program axis names.
+    rotary : frozenset of str
+    low, high : ndarray, shape (m,)
+        Smallest and largest position of each axis in the moves seen (program units and
+        degrees; inf / -inf for an axis not moved).
+    tools : dict of int to (float or None, float or None)
+        Tool number to (diameter, length), mm, in the order the tools are called.
+    """
+
+    axes: tuple[str, ...]
+    rotary: frozenset[str]
+    low: np.ndarray
+    high: np.ndarray
+    tools: dict[int, tuple[float | None, float | None]] = field(default_factory=dict)
+
+    @classmethod
+    def empty(cls, program: Program) -> HeaderFigures:
+        """Nothing seen yet, for programs with the axes of ``program``."""
+        m = len(program.axes)
+        return cls(program.axes, program.rotary, np.full(m, np.inf), np.full(m, -np.inf))
+
+    def add(self, program: Program) -> HeaderFigures:
+        """Take in the moves and tool calls of ``program`` (a whole program or a piece)."""
+        table = program.move_table()
+        if len(table.position):
+            with np.errstate(invalid="ignore"):
+                low = np.nanmin(np.where(np.isnan(table.position), np.inf, table.position), 0)
+                high = np.nanmax(np.where(np.isnan(table.position), -np.inf, table.position), 0)
+            np.minimum(self.low, low, out=self.low)
+            np.maximum(self.high, high, out=self.high)
+        for part in program.parts:
+            if isinstance(part, ToolChange) and part.number not in self.tools:
+                self.tools[part.number] = (part.diameter, part.length)
+        return self
+
+
+def _tool(number: int, diameter: float | None, length: float | None, scale: float, d: int) -> str:
+    words = [f"T{number}"]
+    if diameter is not None:
+        words.append(f"D{diameter / scale:.{d}f}")
+    if length is not None:
+        words.append(f"L{length / scale:.{d}f}")
+    return " ".join(words)
+
+
+def header_text(
+    figures: HeaderFigures,
+    *,
+    machine: str,
+    tcp: bool,
+    units: str,
+    work_offset: str,
+    tool_length: float,
+    zero: str | None = None,
+) -> str:
+    """The header's comment lines (without comment marks), one per line.
+
+    Parameters
+    ----------
+    figures : HeaderFigures
+    machine : str
+        Machine name.
+    tcp : bool
+    units : str
+        Program units ("mm" or "inch").
+    work_offset : str
+        The work offset as the control names it ("G54", "preset 1").
+    tool_length : float, mm
+        The tool length machine-coordinate positions were computed with.
+    zero : str, optional
+        Where the program zero sits on the machine, in words (the work offset line says it).
+
+    Returns
+    -------
+    str
+        Four lines with TCP, five in machine coordinates (the tool length the positions
+        assume, which the control's tool table must not add again).
+    """
+    scale = mm_per_unit(units)
+    decimals = 4 if units == "inch" else 3
+    mode = "TCP (the control keeps the tool tip on the path)" if tcp else "machine coordinates"
+    tools = ", ".join(
+        _tool(n, dia, length, scale, decimals) for n, (dia, length) in figures.tools.items()
+    )
+    ranges = []
+    for name, lo, hi in zip(figures.axes, figures.low, figures.high, strict=True):
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            continue
+        d = 4 if name in figures.rotary else decimals
+        ranges.append(f"{name}{lo:.{d}f}..{hi:.{d}f}")
+    lines = [
+        f"urdfpost: machine {machine}, {mode}, {units}",
+        f"work offset: {work_offset}" + (f"; {zero}" if zero else ""),
+        f"tools: {tools or 'none'}",
+        f"axis ranges: {' '.join(ranges) or 'no motion'}",
+    ]
+    if not tcp:
+        lines.append(
+            f"machine coordinates with tool length {tool_length:.3f} mm from the gauge point: "
+            "the tool table length must be 0, and the work offset zero (the program zero's place "
+            "is in the positions)"
+        )
+    return "\n".join(lines)
+
+
+def job_header(job: Job, figures: HeaderFigures, tool_length: float) -> str:
+    """:func:`header_text` for a job's program (``tool_length`` mm: the program's)."""
+    spec = job.dialect.spec
+    label = spec.work_offset_label.format(number=job.work_offset, code=53 + job.work_offset)
+    mount = job.machine.mount
+    zero = None
+    if mount is not None:
+        x, y, z = mount.origin
+        turned = f", turned {mount.setup.rotation:g} deg" if mount.setup.rotation else ""
+        given = " (--setup)" if mount.setup != type(mount.setup)() else ""
+        zero = f"program zero at {x:.3f} {y:.3f} {z:.3f} mm on {mount.parent}{turned}{given}"
+    return header_text(
+        figures,
+        machine=job.machine.name,
+        tcp=job.tcp,
+        units=job.units,
+        work_offset=label,
+        tool_length=tool_length,
+        zero=zero,
+    )
+
+
+def stock_box(job: Job) -> np.ndarray | None:
+    """The lowest and highest corner of the job's stock mesh (shape (2, 3), mm, workpiece
+    frame), or None without a stock."""
+    if job.stock is None:
+        return None
+    from urdfpost.collision.mesh import load_mesh
+
+    mesh = load_mesh(job.stock)
+    return np.asarray(mesh.bounds, dtype=float) * mm_per_unit(job.units)

@@ -1,0 +1,190 @@
+"""The process state of a job checked before anything is planned: feed and spindle.
+
+A cutting move (a CL feed move) needs a programmed feed and a running spindle. Where the CL
+data gives neither, the post stops with the file and line (:class:`~urdfpost.errors.CLDataError`),
+unless the job gives a default (``--feed``, ``--spindle``): then the default is used and said as
+a warning. After a tool change the spindle is off (the post stops it before the change); when
+the CL data does not start it again before the next cut, the post restarts it at the speed and
+direction it had, with a warning.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from urdfpost.errors import CLDataError
+from urdfpost.toolpath import Event, Motion, Toolpath
+from urdfpost.units import mm_per_unit
+
+
+@dataclass(frozen=True)
+class SpindleState:
+    """The spindle where a piece of CL data starts.
+
+    Attributes
+    ----------
+    direction : str
+        "cw", "ccw" or "off": the last speed the CL data started the spindle with.
+    rpm : float
+        The last speed the spindle was started with (0: never started).
+    running : bool
+        Whether the spindle turns (False after a tool change or ``SPINDL/OFF``).
+    """
+
+    direction: str = "off"
+    rpm: float = 0.0
+    running: bool = False
+
+    @property
+    def started(self) -> bool:
+        """The spindle has been started with a speed (so it can be restarted at it)."""
+        return self.direction != "off" and self.rpm > 0
+
+
+def _feeds(toolpath: Toolpath, feed: float | None, units: str) -> tuple[np.ndarray, list[str]]:
+    cut = toolpath.motion == int(Motion.FEED)
+    missing = cut & ~np.isfinite(toolpath.feed)
+    if not missing.any():
+        return toolpath.feed, []
+    first = int(toolpath.line[int(np.argmax(missing))])
+    if feed is None:
+        raise CLDataError(
+            toolpath.source,
+            first,
+            "a cutting move with no feed (no FEDRAT before it); expected a FEDRAT record, or "
+            "give the job a feed with --feed",
+        )
+    out = np.where(missing, feed, toolpath.feed)
+    scale = mm_per_unit(units)
+    return out, [
+        f"{toolpath.source}:{first}: {int(missing.sum())} cutting moves with no feed in the CL "
+        f"data: F{feed / scale:g} ({units}/min, --feed) used"
+    ]
+
+
+def checked_process(
+    toolpath: Toolpath,
+    *,
+    feed: float | None,
+    spindle: float | None,
+    units: str,
+    state: SpindleState | None = None,
+) -> tuple[Toolpath, SpindleState, list[str]]:
+    """``toolpath`` with every cutting move fed and cut with the spindle on.
+
+    Parameters
+    ----------
+    toolpath : Toolpath
+    feed : float or None
+        mm/min for cutting moves without a feed; None: such a move is an error.
+    spindle : float or None
+        rpm (clockwise) for cutting with the spindle never started; None: an error.
+    units : str
+        Program units, for the warnings.
+    state : SpindleState, optional
+        The spindle where ``toolpath`` starts (a piece of a streamed post); default off.
+
+    Returns
+    -------
+    toolpath : Toolpath
+        With the feeds filled in and spindle events added where needed.
+    state : SpindleState
+        The spindle at its end.
+    warnings : list of str
+
+    Raises
+    ------
+    CLDataError
+        A cutting move with no feed or with the spindle off, and no default for it.
+    """
+    state = state or SpindleState()
+    feeds, warnings = _feeds(toolpath, feed, units)
+    cuts = np.flatnonzero(toolpath.motion == int(Motion.FEED))
+    events = sorted(toolpath.events, key=lambda e: e.index)  # stable: file order kept
+    added: list[Event] = []
+    last_on = state if state.started else None  # what a tool change stopped
+    running = state.running and state.started
+    k = 0  # next event
+    since = 0  # index of the last event that stopped the spindle (tool change, SPINDL/OFF)
+    pending_tool: Event | None = None  # the last tool change with no spindle start after it
+    for point in cuts.tolist():
+        # the events before this point
+        while k < len(events) and events[k].index <= point:
+            e = events[k]
+            if e.kind == "tool":
+                if running:
+                    running = False
+                pending_tool = e
+                since = e.index
+            elif e.kind == "spindle":
+                rpm = float(e.data.get("rpm", 0.0))
+                direction = str(e.data.get("direction", "cw"))
+                on = direction != "off" and math.isfinite(rpm) and rpm > 0
+                running = on
+                pending_tool = None
+                if not on:
+                    since = e.index
+                if on:
+                    last_on = SpindleState(direction, rpm, True)
+            k += 1
+        if running:
+            continue
+        line = int(toolpath.line[point])
+        # the spindle starts where the CL data changed the tool or stopped it, else before the
+        # first point of the piece: before the approach, not at the cut
+        at = pending_tool.index if pending_tool is not None else since
+        if last_on is not None and pending_tool is not None:
+            restart = last_on
+            warnings.append(
+                f"{toolpath.source}:{pending_tool.line}: no SPINDL after the tool change before "
+                f"the cut at line {line}; the spindle restarts at S{restart.rpm:g} "
+                f"{restart.direction.upper()} as before the change"
+            )
+        elif spindle is not None:
+            restart = SpindleState("cw", float(spindle), True)
+            warnings.append(
+                f"{toolpath.source}:{line}: cutting with the spindle off (no SPINDL before this "
+                f"move): S{spindle:g} CW (--spindle) used"
+            )
+        else:
+            raise CLDataError(
+                toolpath.source,
+                line,
+                "a cutting move with the spindle off (no SPINDL before it); expected a SPINDL "
+                "record, or give the job a spindle speed with --spindle",
+            )
+        added.append(
+            Event(
+                index=at,
+                kind="spindle",
+                line=pending_tool.line if pending_tool is not None else line,
+                data={"rpm": restart.rpm, "direction": restart.direction},
+            )
+        )
+        running, last_on, pending_tool = True, restart, None
+    # the events after the last cut set the state the next piece starts with
+    for e in events[k:]:
+        if e.kind == "tool":
+            running = False
+        elif e.kind == "spindle":
+            rpm = float(e.data.get("rpm", 0.0))
+            direction = str(e.data.get("direction", "cw"))
+            running = direction != "off" and math.isfinite(rpm) and rpm > 0
+            if running:
+                last_on = SpindleState(direction, rpm, True)
+    end = (
+        SpindleState(last_on.direction, last_on.rpm, running)
+        if last_on is not None
+        else SpindleState()
+    )
+    if not added and not warnings:
+        return toolpath, end, []
+    # a restart goes after the tool change it follows: after every event at its index
+    merged = list(toolpath.events)
+    for extra in added:
+        after = max((i for i, e in enumerate(merged) if e.index <= extra.index), default=-1)
+        merged.insert(after + 1, extra)
+    return replace(toolpath, feed=feeds, events=tuple(merged)), end, warnings
