@@ -421,3 +421,36 @@ def test_verify_refuses_a_tcp_program_that_cuts_with_tcp_off(
     none.write_text(re.sub(TCP_ON[controller], "", result.text, flags=re.M))
     assert main([*argv, str(none)]) == 1
     assert "BEYOND TOLERANCE" in capsys.readouterr().out
+
+
+def test_a_transition_that_collides_is_an_error_naming_its_line() -> None:
+    """The transitions are checked with FCL against the stock and the machine (a move of
+    theirs through the dome, made here from the program's own first row, is refused)."""
+    from urdfpost.errors import CollisionError
+    from urdfpost.posting.options import resolve
+    from urdfpost.posting.piece import check_transitions, make_problem
+    from urdfpost.posting.transitions import Transitions
+
+    root = Path(__file__).resolve().parent.parent / "examples"
+    dome = read_cl_text((root / "dome.apt").read_text(), source="dome.apt")
+    m = load_machine("dmu50")
+    options = PostOptions(stock=str(root / "dome.stl"), tcp=False)  # rows are joint values
+    result = post(dome, m, options)
+    assert result.report.as_json()["collisions"]["checked"]  # the real ones are clear
+    job = resolve(options, m, dome.units)
+    world = make_problem(dome, job).collision
+    assert world is not None
+    transitions = Transitions(m, False, result.program.tool_length, job.clearance)
+    # the approach to the dome's top (tool vertical), then 40 mm further down into the dome
+    top = int(np.argmax(dome.tip[:, 2]))
+    q, _ = program_joints(m, result.program)
+    on_cl = [k for k, mv in enumerate(result.program.moves()) if mv.cl_line == dome.line[top]]
+    row = q[on_cl[0]].copy()
+    transitions.approach(None, row, int(dome.line[top]))
+    check_transitions(world, transitions, dome)  # from above: clear
+    z, z_top = retract_axis(m)
+    into = row.copy()
+    into[z] += -40.0 if z_top >= row[z] else 40.0  # away from the retract: down into the dome
+    transitions.paths.append((int(dome.line[top]), np.array([row, into])))
+    with pytest.raises(CollisionError, match=rf"dome\.apt:{dome.line[top]}: the safe approach"):
+        check_transitions(world, transitions, dome)
