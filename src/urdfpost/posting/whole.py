@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-from urdfpost.errors import UnreachableError
+from urdfpost.errors import ToleranceError, UnreachableError
 from urdfpost.machine import Machine
 from urdfpost.planning.setup_fit import fit_setup
 from urdfpost.posting.check import check_piece, tolerance_error
@@ -18,6 +18,7 @@ from urdfpost.program import Insert, Program
 from urdfpost.toolpath import Toolpath
 from urdfpost.units import mm_per_unit
 from urdfpost.verification import Verification
+from urdfpost.verification.process import check_process, located, rounding_of
 
 
 @dataclass(frozen=True)
@@ -103,7 +104,8 @@ def post(
         Collision geometry that cannot be built (a stock file, a ``<collision>`` element).
     ToleranceError
         The program read back deviates from the CL data beyond tolerance (the message carries
-        the figures); nothing should be written then.
+        the figures), or its feeds, spindle or tools differ from the CL data's
+        (:mod:`urdfpost.verification.process`); nothing should be written then.
     """
     job = resolve(options, machine, toolpath.units)
     toolpath, _, notes = checked_process(
@@ -118,11 +120,29 @@ def post(
         if not hint:
             raise
         raise UnreachableError(f"{e}{hint}") from e
-    text, _, checks = written(posted, job)
+    text, readback, checks = written(posted, job)
     report = make_report(toolpath, job, posted, checks)
     error = tolerance_error(toolpath, checks, job.units)
     if error is not None:
         raise error
+    # feeds, spindle and tools as ``urdfpost verify`` checks them: no program it would refuse
+    target = posted.target
+    process = check_process(
+        readback,
+        job.machine,
+        target.intended or target.cl,
+        tol=job.tol,
+        tool_length=target.tool_length,
+        rounding=rounding_of(job.dialect, job.units),
+    )
+    if not process.ok:
+        inserts = [b.text for b in posted.program.parts if isinstance(b, Insert)]
+        path = f"<{job.dialect.name} program>"
+        faults = located(process, job.dialect, lambda: [text], path, inserts)
+        raise ToleranceError(
+            f"{toolpath.source}: the program's process differs from the CL data, nothing "
+            f"written: {'; '.join(faults)}"
+        )
     return PostResult(posted.program, text, checks[0], report, posted)
 
 

@@ -1,0 +1,725 @@
+"""The process of a program against its CL data: feeds, spindle, tool numbers, program end.
+
+The geometry of a program (:mod:`urdfpost.verification.measure`) says nothing of how it cuts: a
+feed, a spindle speed or a tool number changed by hand moves no axis. This module compares
+them with the CL data, as the post makes its process of it
+(:func:`urdfpost.posting.process.checked_process`, the *expected* toolpath: feeds filled in and
+spindle restarts added where the CL data has none):
+
+- **feeds**: every cutting move of the program (a feed move toward a CL feed point, outside a
+  rewind) is at the CL feed of that point, within the rounding of the written F word; the move
+  that arrives at a CL feed point is no rapid. Where the CL data has no feed (NaN, filled by
+  ``--feed`` when the program was posted) any feed is accepted, and said in a note;
+- **spindle**: at every cutting move the spindle runs in the CL data's direction at its speed
+  (within the rounding of the S word); where the CL data never started it (``--spindle``) any
+  clockwise speed is accepted, and said;
+- **tools**: the program's tool changes, in order, load the CL data's tools (``LOADTL``); a
+  first tool 1 where the CL data loads none before its first move (what the post adds) is
+  accepted;
+- **end**: the program ends (M30, M2, END PGM), not cut short after its last move.
+
+The program's rows are paired with CL points by the matching of the geometry
+(:func:`urdfpost.verification.match_points`): a row belongs to the first CL point reached at
+or after it, the point it moves toward. Only rows whose CL point and the point before it are
+both reached are compared (with a point missed, the geometry fails anyway and the pairing is
+unsure); inserted rows (subdivision, approach, turns in place) move toward the point they
+belong to, at its feed; rewinds (:func:`urdfpost.program.rewind_moves`) leave the path on
+purpose and are not compared.
+
+The program's spindle is the reader's: the state its :class:`~urdfpost.program.Spindle` blocks
+set (a tool change does not stop it there).
+
+Everything is said of program move and tool change indices (:class:`Fault`); the file lines
+are found on the text afterwards, only for the faults (:func:`located`).
+
+Examples
+--------
+>>> ProcessCheck(faults=(), notes=(), cutting_moves=0, tool_changes=0).ok
+True
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from urdfpost.machine import Machine
+from urdfpost.program import Move, MoveTable, Program, Spindle, ToolChange, rewind_moves
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Motion, Toolpath
+from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
+
+if TYPE_CHECKING:
+    from urdfpost.dialects.dialect import Dialect
+
+log = logging.getLogger(__name__)
+
+_DIRECTIONS = {"off": 0, "cw": 1, "ccw": 2}
+"""Spindle directions as codes (arrays)."""
+
+_LOCATE_LINES = 512
+"""Lines of program text read at a time when the lines of the faults are looked for: the lines
+of a piece holding a fault are read one at a time."""
+
+
+@dataclass(frozen=True)
+class Rounding:
+    """How finely a program writes its process words.
+
+    Attributes
+    ----------
+    feed : float, mm/min
+        One unit of the last decimal of an F word: a written feed is within half of it.
+    feed_unit : float, mm/min
+        What one unit of an F word is (1 in mm programs; 25.4, or Heidenhain 2.54, in inch).
+    speed : float, rpm
+        One unit of the last decimal of an S word.
+    """
+
+    feed: float = 0.1
+    feed_unit: float = 1.0
+    speed: float = 1.0
+
+
+def rounding_of(dialect: Dialect, units: str) -> Rounding:
+    """The :class:`Rounding` of a control's programs in ``units`` ("mm" or "inch")."""
+    spec = dialect.spec
+    return Rounding(
+        feed=dialect.resolution("F", units),
+        feed_unit=spec.feed_inch_unit if units == "inch" else 1.0,
+        speed=spec.rpm.resolution,
+    )
+
+
+def end_words(dialect: Dialect) -> str:
+    """The words that end a program of ``dialect``, for messages: "M30", "M30 / END PGM"."""
+    spec = dialect.spec
+    words = [re.sub(r"\s*\{.*", "", t).strip() for t in (*spec.finish, *spec.program_close)]
+    return " / ".join(w for w in words if w and w != "%") or "M30"
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One way the program's process differs from the CL data.
+
+    Attributes
+    ----------
+    kind : str
+        "feed", "spindle", "tool" or "end".
+    message : str
+        What was found and what the CL data has, without the program line.
+    at : str
+        What the fault is at: "move" (a motion block), "tool" (a tool change) or "end" (the
+        last line of the program).
+    index : int
+        Index of that move (of :meth:`Program.moves`) or tool change (of the program's tool
+        changes), from the start of the program; 0 for "end".
+    count : int
+        Faults of this kind in all (only the first is described).
+    """
+
+    kind: str
+    message: str
+    at: str
+    index: int = 0
+    count: int = 1
+
+    def text(self) -> str:
+        """The message, with the count of the other moves (feed and spindle faults)."""
+        others = self.count - 1
+        if others < 1 or self.at != "move":
+            return self.message
+        return f"{self.message} (and {others} more cutting move{'s' if others > 1 else ''})"
+
+
+@dataclass(frozen=True)
+class ProcessCheck:
+    """The process of a program compared with its CL data.
+
+    Attributes
+    ----------
+    faults : tuple of Fault
+        The first fault of each kind found, in the order feed, spindle, tool, end.
+    notes : tuple of str
+        What was accepted without a value to compare with (feeds or speeds the CL data does
+        not give, the tool 1 the post assumes).
+    cutting_moves : int
+        Program moves compared as cuts.
+    tool_changes : int
+        Tool changes of the program.
+    """
+
+    faults: tuple[Fault, ...]
+    notes: tuple[str, ...]
+    cutting_moves: int
+    tool_changes: int
+
+    @property
+    def ok(self) -> bool:
+        """No fault found."""
+        return not self.faults
+
+    def summary(self) -> str:
+        """One line for people."""
+        if self.ok:
+            tools = f"{self.tool_changes} tool change{'' if self.tool_changes == 1 else 's'}"
+            return (
+                f"process as in the CL data: feeds and spindle at {self.cutting_moves} cutting "
+                f"moves, {tools}, program end"
+            )
+        kinds = ", ".join(f.kind for f in self.faults)
+        return f"process DIFFERS from the CL data: {kinds}"
+
+    def as_dict(self) -> dict:
+        """Plain data for JSON reports (faults without their program lines)."""
+        return {
+            "ok": self.ok,
+            "cutting_moves": self.cutting_moves,
+            "tool_changes": self.tool_changes,
+            "faults": [{"kind": f.kind, "message": f.text()} for f in self.faults],
+            "notes": list(self.notes),
+        }
+
+
+@dataclass
+class _Tools:
+    """Tool numbers seen so far: the program's, and the CL data's with their lines."""
+
+    program: list[int] = field(default_factory=list)
+    cl: list[tuple[int, int]] = field(default_factory=list)  # (number, CL line)
+    assumed: bool = False  # the post adds tool 1 before the first move
+
+
+def _fmt(value: float) -> str:
+    return f"{value:.6g}"
+
+
+class ProcessChecker:
+    """Checks the process of a program given in consecutive pieces (a streamed verification).
+
+    Each piece is a program and the expected CL data it was checked against; a piece after the
+    first starts with the row and the CL point the piece before ended with (as
+    :func:`urdfpost.posting.readback.verify_stream` cuts them). :func:`check_process` is the
+    check of a whole program.
+
+    Parameters
+    ----------
+    machine : Machine
+    tol : Tolerances
+        Of the geometric matching (as the verification's).
+    tool_length : float, mm
+        The tool length machine-coordinate positions include.
+    pivot : float, mm
+        The measured point up the tool axis (as :func:`urdfpost.verification.verify`).
+    rounding : Rounding, optional
+        Of the written F and S words (:func:`rounding_of`); the feeds of the messages are in
+        the program's F units.
+    end : str
+        The words that end a program, for the message (:func:`end_words`).
+    """
+
+    def __init__(
+        self,
+        machine: Machine,
+        *,
+        tol: Tolerances,
+        tool_length: float,
+        pivot: float = 0.0,
+        rounding: Rounding | None = None,
+        end: str = "M30",
+    ) -> None:
+        self.machine = machine
+        self.tol = tol
+        self.tool_length = tool_length
+        self.pivot = pivot
+        self.rounding = rounding or Rounding()
+        self.end = end
+        self._pieces = 0
+        self._row0 = 0  # index of the piece's first move in the whole program
+        self._program_spindle: tuple[int, float] = (0, 0.0)
+        self._cl_spindle: tuple[int, float] = (0, 0.0)
+        self._tools = _Tools()
+        self._first: dict[str, Fault] = {}
+        self._counts: dict[str, int] = {}
+        self._cutting = 0
+        self._free_feed = 0  # cutting moves where the CL data has no feed
+        self._free_speed = 0  # cutting moves where the CL data has no speed
+        self._ended: bool | None = None
+
+    # -- pieces ------------------------------------------------------------------------------
+
+    def add(self, program: Program, expected: Toolpath, *, ended: bool | None = None) -> None:
+        """Check the next piece.
+
+        Parameters
+        ----------
+        program : Program
+            The piece of the program, as read from its text.
+        expected : Toolpath
+            The piece of the CL data, as :func:`urdfpost.posting.process.checked_process`
+            makes it (with the spindle state carried from the piece before).
+        ended : bool, optional
+            The last piece: whether the program text has its end (None: not checked).
+        """
+        continued = self._pieces > 0
+        self._pieces += 1
+        if ended is not None:
+            self._ended = ended
+        table = program.move_table()
+        n_rows = len(table)
+        if not continued:
+            first_tool = min(
+                (e.index for e in expected.events if e.kind == "tool"), default=len(expected) + 1
+            )
+            self._tools.assumed = len(expected) > 0 and first_tool > 0
+        directions, speeds = self._program_state(program)
+        self._tools.cl += [
+            (int(e.data.get("number", 0)), e.line)
+            for e in sorted(expected.events, key=lambda e: e.index)
+            if e.kind == "tool"
+        ]
+        cl_dir, cl_rpm = self._expected_spindle(expected)
+        if n_rows and len(expected):
+            self._compare_rows(
+                program, table, expected, continued, directions, speeds, cl_dir, cl_rpm
+            )
+        if n_rows:
+            self._row0 += n_rows - 1  # the next piece starts with this piece's last row
+
+    def result(self) -> ProcessCheck:
+        """What the pieces added so far show."""
+        faults = [self._counted(k) for k in ("feed", "spindle") if k in self._first]
+        tool = self._tool_fault()
+        if tool is not None:
+            faults.append(tool)
+        if self._ended is False:
+            faults.append(
+                Fault(
+                    "end",
+                    f"no program end ({self.end}) after this line: the program is cut short",
+                    "end",
+                )
+            )
+        notes = []
+        if self._free_feed:
+            notes.append(
+                f"{self._free_feed} cutting moves with no feed in the CL data (--feed when posted):"
+                f" any feed accepted there"
+            )
+        if self._free_speed:
+            notes.append(
+                f"{self._free_speed} cutting moves where the CL data starts no spindle "
+                f"(--spindle when posted): any clockwise speed accepted there"
+            )
+        tools = self._tools
+        if tools.assumed and tools.program[:1] == [1] and self._tools_match(with_first=True):
+            notes.append("no tool change in the CL data before its first move: tool 1 accepted")
+        return ProcessCheck(
+            faults=tuple(faults),
+            notes=tuple(notes),
+            cutting_moves=self._cutting,
+            tool_changes=len(tools.program),
+        )
+
+    # -- the parts of a piece ----------------------------------------------------------------
+
+    def _program_state(self, program: Program) -> tuple[np.ndarray, np.ndarray]:
+        """The program's spindle direction code and speed (rpm) at each move; its tool
+        changes recorded."""
+        sizes: list[int] = []
+        dirs: list[int] = []
+        rpms: list[float] = []
+        state = self._program_spindle
+        for part in program.parts:
+            if isinstance(part, MoveTable | Move):
+                sizes.append(len(part) if isinstance(part, MoveTable) else 1)
+                dirs.append(state[0])
+                rpms.append(state[1])
+            elif isinstance(part, Spindle):
+                code = _DIRECTIONS.get(part.direction, 0)
+                state = (code, float(part.rpm) if code else 0.0)
+            elif isinstance(part, ToolChange):
+                self._tools.program.append(int(part.number))
+        self._program_spindle = state
+        count = np.array(sizes, dtype=np.int64)
+        return (
+            np.repeat(np.array(dirs, dtype=np.int64), count),
+            np.repeat(np.array(rpms, dtype=float), count),
+        )
+
+    def _expected_spindle(self, expected: Toolpath) -> tuple[np.ndarray, np.ndarray]:
+        """The CL data's spindle direction code and speed (rpm, NaN: any) at each point."""
+        n = len(expected)
+        at: list[int] = []
+        states: list[tuple[int, float]] = []
+        state = self._cl_spindle
+        for e in sorted(expected.events, key=lambda e: e.index):
+            if e.kind == "tool":
+                state = (0, 0.0)
+            elif e.kind == "spindle":
+                direction = str(e.data.get("direction", "cw"))
+                rpm = float(e.data.get("rpm", 0.0))
+                code = _DIRECTIONS.get(direction, 1)
+                on = code != 0 and not rpm <= 0  # NaN: a speed the CL data does not give
+                state = (code, rpm) if on else (0, 0.0)
+            else:
+                continue
+            at.append(e.index)
+            states.append(state)
+        start = self._cl_spindle
+        self._cl_spindle = state
+        k = np.searchsorted(np.array(at, dtype=np.int64), np.arange(n), side="right") - 1
+        codes = np.array([start[0]] + [s[0] for s in states], dtype=np.int64)
+        rpms = np.array([start[1]] + [s[1] for s in states], dtype=float)
+        return codes[k + 1], rpms[k + 1]
+
+    def _match(self, program: Program, expected: Toolpath) -> np.ndarray:
+        """The row reaching each CL point, or -1 (:func:`match_points`)."""
+        values, _ = program_joints(self.machine, program)
+        rows = at_pivot(
+            row_poses_at_tip(self.machine, values, program.tcp, self.tool_length), self.pivot
+        )
+        cl_tip = expected.tip + self.pivot * expected.axis
+        return match_points(cl_tip, expected.axis, rows.tip, rows.axis, self.tol)
+
+    def _compare_rows(
+        self,
+        program: Program,
+        table: MoveTable,
+        expected: Toolpath,
+        continued: bool,
+        directions: np.ndarray,
+        speeds: np.ndarray,
+        cl_dir: np.ndarray,
+        cl_rpm: np.ndarray,
+    ) -> None:
+        n_rows, n_cl = len(table), len(expected)
+        match = self._match(program, expected)
+        reached = np.flatnonzero(match >= 0)
+        # the CL point each row moves toward: the first reached at or after it
+        k = np.searchsorted(match[reached], np.arange(n_rows), side="left")
+        inside = k < len(reached)
+        owner = np.full(n_rows, -1)
+        owner[inside] = reached[k[inside]]
+        # compared where the point before the owner is reached too (its span is sure)
+        sure = np.ones(n_cl, dtype=bool)
+        sure[1:] = match[:-1] >= 0
+        if continued:
+            sure[0] = False  # the join point's row was the last of the piece before
+        owner[(owner >= 0) & ~sure[np.maximum(owner, 0)]] = -1
+        o = np.maximum(owner, 0)
+        feed_point = expected.motion == int(Motion.FEED)
+        aside = rewind_moves(program)
+        cutting = ~table.rapid & ~aside & (owner >= 0) & feed_point[o]
+        self._cutting += int(cutting.sum())
+        lines = expected.line
+
+        # feeds: the cutting moves at their point's feed; no rapid arriving at a feed point
+        want = expected.feed[o]
+        got = table.feed
+        free = cutting & ~np.isfinite(want)
+        self._free_feed += int(free.sum())
+        slack = 0.5 * self.rounding.feed + 1e-9 * np.abs(np.where(np.isfinite(want), want, 0.0))
+        off = cutting & ~free & ~(np.abs(got - want) <= slack)  # (NaN: no feed programmed)
+        j = np.flatnonzero((match >= 0) & feed_point & sure)
+        r = match[j]
+        previous = np.where(j > 0, match[np.maximum(j - 1, 0)], -1)
+        arrive = np.zeros(n_rows, dtype=bool)
+        arrive[r[(r != previous) & table.rapid[r] & ~aside[r]]] = True
+        bad = np.flatnonzero(off | arrive)
+        if bad.size:
+            row = int(bad[0])
+            point = int(owner[row]) if owner[row] >= 0 else int(j[np.searchsorted(r, row)])
+            cl_feed = self._feed_words(float(expected.feed[point]))
+            if arrive[row]:
+                message = (
+                    f"a rapid move where the CL has a cutting move at {cl_feed} (CL line "
+                    f"{int(lines[point])})"
+                )
+            elif not math.isfinite(float(got[row])):
+                message = (
+                    f"a cutting move with no feed where the CL has {cl_feed} (CL line "
+                    f"{int(lines[point])})"
+                )
+            else:
+                message = (
+                    f"feed {self._feed_words(float(got[row]))} where the CL has {cl_feed} "
+                    f"(CL line {int(lines[point])})"
+                )
+            self._found("feed", message, row, int(bad.size))
+
+        # spindle: running in the CL's direction at its speed at every cutting move
+        want_dir, want_rpm = cl_dir[o], cl_rpm[o]
+        any_speed = cutting & np.isnan(want_rpm)
+        self._free_speed += int(any_speed.sum())
+        speed_slack = 0.5 * self.rounding.speed + 1e-9 * np.nan_to_num(np.abs(want_rpm))
+        wrong = cutting & (
+            (directions != want_dir) | (~any_speed & ~(np.abs(speeds - want_rpm) <= speed_slack))
+        )
+        bad = np.flatnonzero(wrong)
+        if bad.size:
+            row = int(bad[0])
+            point = int(owner[row])
+            have = self._spindle_words(int(directions[row]), float(speeds[row]))
+            need = self._spindle_words(int(want_dir[row]), float(want_rpm[row]))
+            self._found(
+                "spindle",
+                f"spindle {have} where the CL has {need} (CL line {int(lines[point])})",
+                row,
+                int(bad.size),
+            )
+
+    def _feed_words(self, feed: float) -> str:
+        """A feed (mm/min) as an F word of the program; "any feed" for NaN."""
+        if not math.isfinite(feed):
+            return "any feed (none in the CL data)"
+        return f"F{_fmt(feed / self.rounding.feed_unit)}"
+
+    @staticmethod
+    def _spindle_words(code: int, rpm: float) -> str:
+        """A spindle state as the messages say it: "off", "S9000 CW"."""
+        if code == 0:
+            return "off"
+        direction = "CW" if code == 1 else "CCW"
+        return f"S(any) {direction}" if math.isnan(rpm) else f"S{_fmt(rpm)} {direction}"
+
+    def _found(self, kind: str, message: str, row: int, count: int) -> None:
+        self._counts[kind] = self._counts.get(kind, 0) + count
+        if kind not in self._first:
+            self._first[kind] = Fault(kind, message, "move", self._row0 + row)
+
+    def _counted(self, kind: str) -> Fault:
+        first = self._first[kind]
+        return Fault(first.kind, first.message, first.at, first.index, self._counts[kind])
+
+    # -- tools -------------------------------------------------------------------------------
+
+    def _expected_tools(self, with_first: bool) -> list[tuple[int, int | None]]:
+        first: list[tuple[int, int | None]] = [(1, None)] if with_first else []
+        return first + [(n, line) for n, line in self._tools.cl]
+
+    def _tools_match(self, with_first: bool) -> bool:
+        expected = [n for n, _ in self._expected_tools(with_first)]
+        return self._tools.program == expected
+
+    def _tool_fault(self) -> Fault | None:
+        tools = self._tools
+        options = [True, False] if tools.assumed else [False]
+        if any(self._tools_match(o) for o in options):
+            return None
+        # against the expectation the program follows further
+        program = tools.program
+
+        def agree(with_first: bool) -> int:
+            want = self._expected_tools(with_first)
+            k = 0
+            while k < min(len(want), len(program)) and want[k][0] == program[k]:
+                k += 1
+            return k
+
+        with_first = max(options, key=agree)
+        want = self._expected_tools(with_first)
+        k = agree(with_first)
+        if k < len(want) and k < len(program):
+            number, line = want[k]
+            where = (
+                "loads no tool before its first move: tool 1"
+                if line is None
+                else (f"loads tool {number} (CL line {line})")
+            )
+            message = f"tool T{program[k]} where the CL {where}"
+            return Fault("tool", message, "tool", k, len(program) - k)
+        if k < len(program):
+            loads = ", ".join(str(n) for n, _ in want) or "none"
+            return Fault(
+                "tool",
+                f"tool change T{program[k]} that the CL does not have (it loads {loads})",
+                "tool",
+                k,
+                len(program) - k,
+            )
+        number, line = want[k]
+        return Fault(
+            "tool",
+            f"no tool change to T{number}: the CL loads it at line {line}; the program changes "
+            f"tools {len(program)} times, the CL {len(want)}",
+            "end",
+            0,
+            len(want) - k,
+        )
+
+
+def check_process(
+    program: Program,
+    machine: Machine,
+    expected: Toolpath,
+    *,
+    tol: Tolerances | None = None,
+    tool_length: float | None = None,
+    pivot: float = 0.0,
+    rounding: Rounding | None = None,
+    ended: bool | None = None,
+    end: str = "M30",
+) -> ProcessCheck:
+    """The process of a whole program against the CL data (see the module docstring).
+
+    Parameters
+    ----------
+    program : Program
+        As read from its text.
+    machine : Machine
+    expected : Toolpath
+        The CL data as :func:`urdfpost.posting.process.checked_process` makes it; feeds (and
+        spindle speeds) NaN where the CL data gives none.
+    tol : Tolerances, optional
+        Of the matching (default those of the program's units).
+    tool_length : float, optional, mm
+        Default the program's.
+    pivot : float, mm
+        As :func:`urdfpost.verification.verify`.
+    rounding : Rounding, optional
+        Of the written words (:func:`rounding_of`).
+    ended : bool, optional
+        Whether the program text has its end (:func:`read_with_end`); None: not checked.
+    end : str
+        The words that end a program (:func:`end_words`).
+
+    Returns
+    -------
+    ProcessCheck
+    """
+    checker = ProcessChecker(
+        machine,
+        tol=tol or Tolerances.for_units(program.units),
+        tool_length=program.tool_length if tool_length is None else tool_length,
+        pivot=pivot,
+        rounding=rounding,
+        end=end,
+    )
+    checker.add(program, expected, ended=ended)
+    return checker.result()
+
+
+# -- the program text ------------------------------------------------------------------------
+
+
+def read_with_end(
+    dialect: Dialect, text: str, path: str = "<string>", verbatim: Iterable[str] = ()
+) -> tuple[Program, bool]:
+    """A program read from its text, and whether the text has the program end (M30, M2,
+    END PGM): what :meth:`Dialect.read` gives, and the end it does not say.
+
+    Raises
+    ------
+    ProgramParseError
+        A line that cannot be read.
+    """
+    reader = dialect.reader(path)
+    reader.feed(text, verbatim)
+    return reader.take(), reader.builder.ended
+
+
+def _chunks(texts: Iterable[str]) -> Iterator[list[str]]:
+    """The lines of ``texts`` (pieces cut at line ends), :data:`_LOCATE_LINES` at a time, each
+    with its end of line."""
+    for text in texts:
+        lines = text.splitlines(keepends=True)
+        for start in range(0, len(lines), _LOCATE_LINES):
+            yield lines[start : start + _LOCATE_LINES]
+
+
+def _counts(program: Program) -> tuple[int, int]:
+    """Moves and tool changes of ``program``."""
+    tools = sum(1 for p in program.parts if isinstance(p, ToolChange))
+    return len(program.move_table()), tools
+
+
+def located(
+    check: ProcessCheck,
+    dialect: Dialect,
+    texts: Callable[[], Iterable[str]],
+    path: str,
+    verbatim: Iterable[str] = (),
+) -> list[str]:
+    """The faults of ``check`` as messages ``path:line: message``.
+
+    The text is read twice: once a few hundred lines at a time, counting the moves and tool
+    changes, and again with the pieces that hold a fault read one line at a time.
+
+    Parameters
+    ----------
+    check : ProcessCheck
+    dialect : Dialect
+        Of the program.
+    texts : callable
+        Gives the program text, in pieces cut at line ends, each time it is called.
+    path : str
+        The program file, for the messages.
+    verbatim : iterable of str
+        As :meth:`Dialect.read`.
+
+    Returns
+    -------
+    list of str
+        One per fault, in order; a fault at a move names the line of that move, at a tool
+        change the line of its T word, at the end the last line that is not blank.
+
+    Raises
+    ------
+    ProgramParseError
+        A line that cannot be read (the text is not the one checked).
+    """
+    if check.ok:
+        return []
+    inserts = list(verbatim)
+    wanted = {(f.at, f.index) for f in check.faults if f.at != "end"}
+    holding: set[int] = set()  # chunks with a fault
+    reader = dialect.reader(path)
+    moves = tools = line = last = 0
+    for c, chunk in enumerate(_chunks(texts())):
+        reader.feed("".join(chunk), inserts)
+        m, t = _counts(reader.take())
+        if any(
+            (at == "move" and moves <= i < moves + m) or (at == "tool" and tools <= i < tools + t)
+            for at, i in wanted
+        ):
+            holding.add(c)
+        for k, text in enumerate(chunk):
+            if text.strip():
+                last = line + k + 1
+        moves, tools, line = moves + m, tools + t, line + len(chunk)
+    lines: dict[tuple[str, int], int] = {("end", 0): last}
+    if holding:
+        holding |= {c - 1 for c in holding if c > 0}  # (a T word a line before its M6)
+        reader = dialect.reader(path)
+        moves = tools = line = 0
+        selected: int | None = None  # the line that selected the tool (T word), if read
+        for c, chunk in enumerate(_chunks(texts())):
+            if c not in holding:
+                reader.feed("".join(chunk), inserts)
+                m, t = _counts(reader.take())
+                moves, tools, line = moves + m, tools + t, line + len(chunk)
+                selected = None
+                continue
+            for text in chunk:
+                line += 1
+                tool = reader.builder.tool
+                reader.feed(text, inserts)
+                if reader.builder.tool != tool or re.search(r"(?<![A-Z])T\d", text.upper()):
+                    selected = line
+                m, t = _counts(reader.take())
+                for at, i in wanted:
+                    if at == "move" and moves <= i < moves + m:
+                        lines[at, i] = line
+                    elif at == "tool" and tools <= i < tools + t:
+                        lines[at, i] = line if selected is None else selected
+                if t:
+                    selected = None
+                moves, tools = moves + m, tools + t
+    return [f"{path}:{lines.get((f.at, f.index), last)}: {f.text()}" for f in check.faults]

@@ -1,0 +1,349 @@
+"""``urdfpost verify`` checks the process too: feeds, spindle, tool numbers, program end.
+
+Real jobs are posted for every control with the command line; the intact program verifies, and
+each damage (made with the control's own words) exits 1 naming the program line, though the
+geometry is still within tolerance (issue 23).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import urdfpost.posting.whole as whole
+from urdfpost import load_machine
+from urdfpost.cli import main
+from urdfpost.dialects import DIALECTS
+from urdfpost.errors import ToleranceError
+from urdfpost.posting.options import PostOptions
+from urdfpost.readers import read_cl, read_cl_text
+from urdfpost.toolpath import Motion
+
+ROOT = Path(__file__).resolve().parents[1]
+DOME = ROOT / "examples" / "dome.apt"
+CONTROLLERS = ("heidenhain", "siemens", "fanuc", "linuxcnc")
+
+TWO_TOOLS = """\
+PARTNO TWO TOOLS
+UNITS/MM
+MULTAX/ON
+LOADTL/1
+SPINDL/9000,CLW
+COOLNT/FLOOD
+RAPID
+GOTO/0,0,20,0,0,1
+FEDRAT/MMPM,1200
+GOTO/0,0,2,0,0,1
+GOTO/20,0,2,0.258819,0,0.965926
+GOTO/20,20,2,0.258819,0,0.965926
+LOADTL/2
+GOTO/-10,0,1,0,0.258819,0.965926
+FEDRAT/MMPM,500
+GOTO/-30,0,1,0,0.258819,0.965926
+FINI
+"""
+"""Two tools, the second without a SPINDL of its own (the post restarts the spindle)."""
+
+DEFAULTS = """\
+PARTNO DEFAULTS
+UNITS/MM
+MULTAX/ON
+RAPID
+GOTO/0,0,20,0,0,1
+GOTO/0,0,2,0,0,1
+GOTO/10,0,2,0,0,1
+FEDRAT/MMPM,600
+GOTO/20,0,2,0,0,1
+GOTO/20,20,2,0,0,1
+FINI
+"""
+"""No tool, no spindle, and cuts before the first feed: posted with --feed and --spindle."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """A CL file, and what the damages change in its programs."""
+
+    cl: Path
+    feed: int  # a CL feed (mm/min) whose first F word is changed
+    tool: int  # the last tool loaded
+    tool_line: int  # its LOADTL line
+
+
+@dataclass(frozen=True)
+class Posted:
+    path: Path
+    text: str
+    controller: str
+    job: Job
+
+
+def _lines(text: str) -> list[str]:
+    return text.splitlines()
+
+
+def _line_at(text: str, offset: int) -> int:
+    """1-based line of character ``offset``."""
+    return text.count("\n", 0, offset) + 1
+
+
+def _feed_word(feed: int) -> re.Pattern[str]:
+    """The F word of ``feed`` as every control writes it (Fanuc: ``F1200.``)."""
+    return re.compile(rf"(?<![A-Z])F{feed}\.?(?![\d.])")
+
+
+def _cl_lines(job: Job) -> tuple[int, int]:
+    """CL lines of the first cutting point and of the first point cut at ``job.feed``."""
+    toolpath = read_cl(job.cl)
+    cuts = toolpath.motion == int(Motion.FEED)
+    first = int(toolpath.line[cuts.argmax()])
+    at_feed = int(toolpath.line[(cuts & (toolpath.feed == job.feed)).argmax()])
+    return first, at_feed
+
+
+def _first_cut_line(posted: Posted, text: str) -> int:
+    """The line of the program's first cutting move: the first F word."""
+    match = re.search(r"(?<![A-Z])F\d", text)
+    assert match is not None
+    return _line_at(text, match.start())
+
+
+Damage = Callable[[Posted], tuple[str, int, str]]
+"""Makes the damaged text, the line ``verify`` names and a regular expression of its message."""
+
+
+def feed_changed(posted: Posted) -> tuple[str, int, str]:
+    match = _feed_word(posted.job.feed).search(posted.text)
+    assert match is not None
+    text = posted.text[: match.start()] + "F9999" + posted.text[match.end() :]
+    _, cl_line = _cl_lines(posted.job)
+    want = rf"feed F9999 where the CL has F{posted.job.feed} \(CL line {cl_line}\)"
+    return text, _line_at(text, match.start()), want
+
+
+def spindle_start_deleted(posted: Posted) -> tuple[str, int, str]:
+    # Heidenhain starts the spindle on a line of its own ("12 M3"), the others after the S word
+    own_line = r"^(?:\d+ )?M3\n" if posted.controller == "heidenhain" else r" M3\b"
+    text, n = re.subn(own_line, "", posted.text, count=1, flags=re.M)
+    assert n == 1
+    first, _ = _cl_lines(posted.job)
+    rpm = re.search(r"(?<![A-Z])S(\d+)", posted.text)
+    assert rpm is not None
+    want = rf"spindle off where the CL has S{rpm[1]} CW \(CL line {first}\)"
+    return text, _first_cut_line(posted, text), want
+
+
+def speed_times_ten(posted: Posted) -> tuple[str, int, str]:
+    rpm = re.search(r"(?<![A-Z])S(\d+)", posted.text)
+    assert rpm is not None
+    text = re.sub(r"(?<![A-Z])S(\d+)", lambda m: f"S{int(m[1]) * 10}", posted.text)
+    first, _ = _cl_lines(posted.job)
+    want = rf"spindle S{int(rpm[1]) * 10} CW where the CL has S{rpm[1]} CW \(CL line {first}\)"
+    return text, _first_cut_line(posted, text), want
+
+
+def tool_changed(posted: Posted) -> tuple[str, int, str]:
+    n = posted.job.tool
+    if posted.controller == "heidenhain":
+        word = re.compile(rf"(TOOL CALL ){n}\b")
+    else:  # "T2 M6", "T2 D1", block numbers or not
+        word = re.compile(rf"^((?:N\d+ )?T){n}\b", re.M)
+    match = word.search(posted.text)
+    assert match is not None
+    text = word.sub(r"\g<1>7", posted.text, count=1)
+    want = rf"tool T7 where the CL loads tool {n} \(CL line {posted.job.tool_line}\)"
+    return text, _line_at(text, match.start()), want
+
+
+def end_cut_off(posted: Posted) -> tuple[str, int, str]:
+    """Every line after the last move gone (M30, %, END PGM, M2)."""
+    lines = _lines(posted.text)
+    last = max(i for i, x in enumerate(lines) if re.search(r"(?<![A-Z0-9])[XYZBC][-+]?\d", x))
+    text = "\n".join(lines[: last + 1]) + "\n"
+    return text, last + 1, r"no program end \(M\d+[^)]*\) after this line"
+
+
+DAMAGES: dict[str, Damage] = {
+    "feed 9999": feed_changed,
+    "M3 deleted": spindle_start_deleted,
+    "S times ten": speed_times_ten,
+    "tool 7": tool_changed,
+    "end cut off": end_cut_off,
+}
+
+
+@pytest.fixture(scope="module")
+def jobs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Job]:
+    folder = tmp_path_factory.mktemp("cl")
+    two = folder / "two.apt"
+    two.write_text(TWO_TOOLS)
+    return {
+        "dome": Job(DOME, feed=2000, tool=3, tool_line=5),
+        "two tools": Job(two, feed=1200, tool=2, tool_line=13),
+    }
+
+
+@pytest.fixture(scope="module")
+def posted(
+    jobs: dict[str, Job], tmp_path_factory: pytest.TempPathFactory
+) -> Callable[[str, str], Posted]:
+    """The program of a job for a control, posted once by the command line."""
+    folder = tmp_path_factory.mktemp("programs")
+    done: dict[tuple[str, str], Posted] = {}
+
+    def get(job: str, controller: str) -> Posted:
+        if (job, controller) not in done:
+            ext = DIALECTS[controller].extensions[0]
+            out = folder / f"{job.replace(' ', '_')}_{controller}{ext}"
+            argv = ["post", str(jobs[job].cl), "-m", "dmu50", "-c", controller, "-o", str(out)]
+            assert main([*argv, "-q"]) == 0
+            done[job, controller] = Posted(out, out.read_text(), controller, jobs[job])
+        return done[job, controller]
+
+    return get
+
+
+def _verify(
+    path: Path, job: Job, capsys: pytest.CaptureFixture[str], *extra: str
+) -> tuple[int, str]:
+    capsys.readouterr()
+    argv = ["verify", str(path), "-m", "dmu50", "--cl", str(job.cl), "--angle-tolerance", "2"]
+    code = main([*argv, *extra])
+    return code, capsys.readouterr().out
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize("job", ["dome", "two tools"])
+@pytest.mark.parametrize("damage", ["intact", *DAMAGES])
+def test_verify_compares_the_process_with_the_cl_data(
+    damage: str,
+    job: str,
+    controller: str,
+    posted: Callable[[str, str], Posted],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    program = posted(job, controller)
+    if damage == "intact":
+        code, out = _verify(program.path, program.job, capsys)
+        assert code == 0, out
+        assert "verification within tolerance" in out
+        assert "process as in the CL data" in out
+        return
+    text, line, message = DAMAGES[damage](program)
+    assert text != program.text
+    bad = tmp_path / f"damaged{program.path.suffix}"
+    bad.write_text(text)
+    code, out = _verify(bad, program.job, capsys)
+    assert code == 1, out
+    assert "verification within tolerance" in out  # the geometry did not change
+    assert "process DIFFERS" in out
+    assert re.search(rf"^{re.escape(str(bad))}:{line}: {message}", out, re.M), out
+
+
+@pytest.mark.parametrize("controller", ["heidenhain", "fanuc"])
+@pytest.mark.parametrize("damage", ["intact", *DAMAGES])
+def test_streamed_verify_compares_the_process_too(
+    damage: str,
+    controller: str,
+    posted: Callable[[str, str], Posted],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Checked in pieces of a few CL points, the process gives the same findings, lines and
+    counts as checked whole."""
+    program = posted("dome", controller)
+    path = program.path
+    if damage != "intact":
+        path = tmp_path / f"damaged{program.path.suffix}"
+        path.write_text(DAMAGES[damage](program)[0])
+    whole_code, whole_out = _verify(path, program.job, capsys)
+    code, out = _verify(path, program.job, capsys, "--piece-points", "40")
+    assert code == whole_code == (0 if damage == "intact" else 1)
+
+    def process_lines(text: str) -> list[str]:
+        return [x for x in text.splitlines() if "verification" not in x]
+
+    assert process_lines(out) == process_lines(whole_out)
+
+
+def test_a_feed_the_cl_data_does_not_give_is_any_feed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Cuts before the first FEDRAT were fed with --feed, the spindle started with --spindle
+    and tool 1 assumed: verify accepts them, says so, and still checks the feeds the CL gives."""
+    cl = tmp_path / "defaults.apt"
+    cl.write_text(DEFAULTS)
+    out_path = tmp_path / "defaults.nc"
+    argv = ["post", str(cl), "-m", "dmu50", "-c", "fanuc", "-o", str(out_path), "-q"]
+    assert main([*argv, "--feed", "1000", "--spindle", "8000"]) == 0
+    text = out_path.read_text()
+    job = Job(cl, feed=600, tool=1, tool_line=0)
+    code, out = _verify(out_path, job, capsys)
+    assert code == 0, out
+    assert "2 cutting moves with no feed in the CL data (--feed when posted): any feed" in out
+    assert "any clockwise speed accepted" in out
+    assert "tool 1 accepted" in out
+    # another feed where the CL has none is accepted; where it has one, it is not
+    other = tmp_path / "other.nc"
+    other.write_text(text.replace("F1000.", "F1500.", 1))
+    assert _verify(other, job, capsys)[0] == 0
+    wrong = tmp_path / "wrong.nc"
+    wrong.write_text(text.replace("F600.", "F9999.", 1))
+    code, out = _verify(wrong, job, capsys)
+    assert code == 1
+    assert "feed F9999 where the CL has F600 (CL line 9)" in out
+
+
+def test_the_post_writes_no_program_verify_would_refuse(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The post's own read-back check includes the process: a writer that got the speed
+    wrong is refused, nothing written."""
+    written = whole.written
+
+    def speed_times_ten(posted: Any, job: Any) -> tuple[str, Any, Any]:
+        text, _, checks = written(posted, job)
+        text = re.sub(r"(?<![A-Z])S(\d+)", lambda m: f"S{int(m[1]) * 10}", text)
+        return text, job.dialect.read(text), checks
+
+    monkeypatch.setattr(whole, "written", speed_times_ten)
+    toolpath = read_cl_text(TWO_TOOLS, source="two.apt")
+    with pytest.raises(
+        ToleranceError,
+        match=r"two.apt: the program's process differs from the CL data, nothing written: "
+        r"<fanuc program>:\d+: spindle S90000 CW where the CL has S9000 CW \(CL line 10\)",
+    ):
+        whole.post(toolpath, load_machine("dmu50"), PostOptions(controller="fanuc"))
+
+
+@pytest.mark.parametrize("command", ["post", "verify"])
+@pytest.mark.parametrize(
+    "option",
+    [
+        ["--angle-tolerance", "nan"],
+        ["--angle-tolerance", "-5"],
+        ["--angle-tolerance=-inf"],
+        ["--angle-tolerance=inf"],
+        ["--angle-tolerance", "1e999"],
+    ],
+    ids=" ".join,
+)
+def test_angle_tolerance_is_refused_alike(
+    command: str, option: list[str], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """One validation for both commands: a usage error (exit 2) naming the option and the
+    value. (``verify`` takes 0, its default: the program follows the CL tool axis.)"""
+    argv = {
+        "post": ["post", str(DOME), "-m", "dmu50", "-o", str(tmp_path / "x.nc")],
+        "verify": ["verify", str(tmp_path / "x.nc"), "-m", "dmu50", "--cl", str(DOME)],
+    }[command]
+    with pytest.raises(SystemExit) as exit_:
+        main([*argv, *option])
+    assert exit_.value.code == 2
+    value = option[-1].removeprefix("--angle-tolerance=")
+    err = capsys.readouterr().err
+    assert f"argument --angle-tolerance: expected a non-negative number, got '{value}'" in err
