@@ -191,10 +191,12 @@ def test_every_module_imports_without_matplotlib():
 
 
 def test_plot_without_matplotlib_says_how_to_install_it(tmp_path, monkeypatch):
+    from urdfpost.analysis.compare import Comparison
     from urdfpost.analysis.plot import plot_comparison
 
     for name in ("matplotlib", "matplotlib.figure", "matplotlib.backends.backend_agg"):
         monkeypatch.setitem(sys.modules, name, None)
+    nothing = Comparison("m", "cl", True, "heidenhain", [], [], np.zeros(0))
     with pytest.raises(UrdfpostError, match=r"^compare --plot needs matplotlib: pip install "):
-        plot_comparison([], [], np.zeros(0), tmp_path / "plot.png")
+        plot_comparison(nothing, tmp_path / "plot.png")
     assert not (tmp_path / "plot.png").exists()

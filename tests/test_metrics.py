@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from urdfpost.analysis.compare import compare
 from urdfpost.analysis.metrics import (
-    Metrics,
     block_times,
     cl_path_position,
     measure,
@@ -22,7 +22,6 @@ from urdfpost.analysis.testpaths import great_circle_sweep, hemisphere_raster
 from urdfpost.dialects import dialect_for
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.machine import Machine, load_machine
-from urdfpost.planning.singularity import Span
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import PostResult, post
 from urdfpost.program import Move, Program, Tcp
@@ -244,16 +243,9 @@ def test_as_dict_is_json_ready_and_a_pole_turn_is_counted() -> None:
 
 
 def test_plot_comparison_writes_a_png(tmp_path: Path) -> None:
-    tp = great_circle_sweep(1.0)
-    m = machine("dmu50")
-    results: list[tuple[str, Metrics]] = []
-    for tcp in (True, False):
-        program = post(tp, m, PostOptions(tcp=tcp, strategy="none")).program
-        results.append(("tcp" if tcp else "machine", measure(program, m, tp)))
-    span = Span(15, 27, 25, 37, "pole", 0.017, 60.0, 150.0, 26.6)
+    tp = great_circle_sweep(1.0, points=9)
+    result = compare(tp, machine("dmu50"), ["none", "cone"])
     target = tmp_path / "compare.png"
-    plot_comparison(results, [span], cl_path_position(tp), target, title="sweep 1 deg")
+    plot_comparison(result, target, title="sweep 1 deg")
     assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert [p.name for p in tmp_path.iterdir()] == ["compare.png"]  # no temporary left
-    with pytest.raises(ValueError, match="at least one result"):
-        plot_comparison([], [], cl_path_position(tp), tmp_path / "none.png")

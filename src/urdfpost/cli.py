@@ -398,7 +398,16 @@ def build_parser() -> argparse.ArgumentParser:
         f"{PIECE_POINTS} points when the CL file or the program is over {_STREAM_BYTES >> 20} MB",
     )
 
-    co = sub.add_parser("compare", help="post a CL file with several singularity strategies")
+    co = sub.add_parser(
+        "compare",
+        help="post a CL file with several singularity strategies",
+        description="Post a CL file with several singularity strategies and measure each "
+        "program the same way. A strategy that makes no program, or one that misses its "
+        "tolerance, is a row of the table with its reason; the report and the plot are "
+        "written all the same. Exit status: 0 when at least one strategy makes a verified "
+        "program, 1 when none does (nothing 'urdfpost post' would write) or on an error, 2 "
+        "on a usage error.",
+    )
     co.add_argument("cl", help="CL file")
     co.add_argument("--machine", "-m", required=True, help="machine name or URDF file")
     co.add_argument("--controller", "-c", choices=controllers, help="control dialect")
@@ -427,7 +436,11 @@ def build_parser() -> argparse.ArgumentParser:
     _strategy_arguments(co, single=False)
     co.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     co.add_argument("--report", help="write the figures as JSON here")
-    co.add_argument("--plot", help="write a PNG of rotary angles and speeds here")
+    co.add_argument(
+        "--plot",
+        help="write a PNG of rotary angles and speeds against CL index and time here "
+        "(failing strategies marked)",
+    )
 
     tp = sub.add_parser("testpath", help="write a shipped singular test path as APT")
     tp.add_argument("name", help="path name (see --list)", nargs="?")
@@ -601,11 +614,21 @@ def _cmd_post(args: argparse.Namespace) -> int:
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
+    import math
+
     from urdfpost.dialects import dialect_for
     from urdfpost.machine import load_machine
+    from urdfpost.posting.process import SpindleState, checked_process
     from urdfpost.posting.report import Report
     from urdfpost.tolerances import Tolerances
     from urdfpost.verification import verify
+    from urdfpost.verification.process import (
+        ProcessChecker,
+        end_words,
+        located,
+        read_with_end,
+        rounding_of,
+    )
 
     machine = load_machine(args.machine)
     dialect = dialect_for(args.controller, None if args.controller else args.program)
@@ -613,6 +636,8 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if pieces is None:
         sizes = [Path(f).stat().st_size for f in (args.cl, args.program) if Path(f).is_file()]
         pieces = PIECE_POINTS if max(sizes, default=0) > _STREAM_BYTES else 0
+    text = ""
+    ended = False
     if pieces:  # the program's header (units) from its first piece of text
         from urdfpost.posting.readback import program_texts
 
@@ -624,7 +649,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             text = Path(args.program).read_text(encoding="utf-8", errors="replace")
         except OSError as e:
             raise UrdfpostError(f"{args.program}: cannot read: {e}") from e
-        program = dialect.read(text, path=args.program)
+        program, ended = read_with_end(dialect, text, path=args.program)
         toolpath, chunks = _read_cl(args, machine), None
     scale = mm_per_unit(program.units)
     machine = _job_machine(args, machine, scale)
@@ -639,16 +664,35 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
         pivot = ball_radius(toolpath)  # (the first cutter: the first piece has it)
         tol = bent_tolerances(tol, args.angle_tolerance, pivot)
+    # the process the post makes of the CL data; NaN where the CL data has no feed or speed
+    # (a post fills those from --feed and --spindle, which the program says nothing of)
+    process = ProcessChecker(
+        machine,
+        tol=tol,
+        tool_length=tool_length,
+        pivot=pivot,
+        rounding=rounding_of(dialect, program.units),
+        end=end_words(dialect),
+    )
+
+    def expected(cl: Any, state: Any = None) -> tuple[Any, Any]:
+        cl, state, _ = checked_process(
+            cl, feed=math.nan, spindle=math.nan, units=program.units, state=state
+        )
+        return cl, state
+
     if chunks is not None:
         from dataclasses import replace
 
-        from urdfpost.posting.readback import verify_stream
+        from urdfpost.posting.readback import program_texts, verify_stream
 
         warnings: list[str] = []
 
         def collected(pieces: Iterator[Any]) -> Iterator[Any]:
+            state: SpindleState | None = None
             for piece in pieces:  # every piece's reader warnings, in order
                 warnings.extend(piece.warnings)
+                piece, state = expected(piece, state)
                 yield piece
 
         check, program = verify_stream(
@@ -660,11 +704,18 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             tool_length=tool_length,
             pivot=pivot,
             piece_points=pieces,
+            process=process,
         )
         toolpath = replace(toolpath, warnings=tuple(warnings))
+        process_check = process.result()
+        faults = located(process_check, dialect, lambda: program_texts(args.program), args.program)
     else:
         check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
+        process.add(program, expected(toolpath)[0], ended=ended)
+        process_check = process.result()
+        faults = located(process_check, dialect, lambda: [text], args.program)
     _show_warnings(toolpath.warnings)
+    ok = check.ok and process_check.ok
     if args.report:
         report = Report(
             machine=machine.name,
@@ -675,6 +726,8 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             tool_length_mm=program.tool_length,
             warnings=tuple(toolpath.warnings),
         ).as_json()
+        report["verified"] = ok
+        report["process"] = process_check.as_dict() | {"faults": faults}
         inputs = {"the program": args.program, "the CL file": args.cl}
         roles = {Path(args.report): "the report (--report)"}
         write_texts({Path(args.report): report_json(report)}, _given(inputs), roles)
@@ -684,7 +737,12 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         print(f"missed CL lines: {shown}{' ...' if len(check.missed_lines) > 10 else ''}")
     if not check.ok and check.worst_cl_line:
         print(f"worst deviation near CL line {check.worst_cl_line}")
-    return 0 if check.ok else 1
+    print(f"{args.program}: {process_check.summary()}")
+    for line in faults:
+        print(line)
+    for note in process_check.notes:
+        print(f"{args.program}: note: {note}")
+    return 0 if ok else 1
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
@@ -742,23 +800,24 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if args.plot:
         from urdfpost.analysis.plot import plot_comparison
 
-        plot_comparison(
-            [(o.strategy, o.metrics) for o in result.outcomes if o.metrics is not None],
-            result.spans,
-            result.cl_s,
-            args.plot,
-            title=f"{Path(args.cl).name} on {machine.name}",
-        )
+        plot_comparison(result, args.plot, title=f"{Path(args.cl).name} on {machine.name}")
     print(table(result, units))
     for sp in result.spans:
         print(
-            f"span {sp.kind:5s} CL lines {sp.first_line}-{sp.last_line}: min sigma "
-            f"{sp.min_sigma:.4f}, exact swing {sp.swing_deg:.1f} deg, largest step "
-            f"{sp.max_step_deg:.1f} deg"
+            f"span {sp.kind:5s} CL lines {sp.first_line}-{sp.last_line} (CL index "
+            f"{sp.first}-{sp.last}): min sigma {sp.min_sigma:.4f}, exact swing "
+            f"{sp.swing_deg:.1f} deg, largest step {sp.max_step_deg:.1f} deg"
         )
     for o in result.outcomes:
         if not o.verified and o.error:
             print(f"{o.strategy}: {o.error}")
+    if not result.posted:
+        print(
+            f"urdfpost: no strategy makes a verified program of {args.cl} on {machine.name} "
+            f"({len(result.outcomes)} tried; the reasons are above)",
+            file=sys.stderr,
+        )
+        return 1
     return 0
 
 

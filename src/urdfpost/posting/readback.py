@@ -31,6 +31,7 @@ from urdfpost.verification import (
     row_poses_at_tip,
     verify,
 )
+from urdfpost.verification.process import ProcessChecker
 
 log = logging.getLogger(__name__)
 
@@ -80,10 +81,19 @@ def merge_verifications(parts: list[Verification]) -> Verification:
         mean_tip_deviation=float(mean),
         max_orientation_deviation_deg=max(v.max_orientation_deviation_deg for v in parts),
         max_rotary_step_deg=steps,
-        worst_cl_line=worst.worst_cl_line,
+        worst_cl_line=max(parts, key=_excess).worst_cl_line,
         notes=notes,
         compared=compared,
         rewind_moves=rewinds,
+    )
+
+
+def _excess(v: Verification) -> float:
+    """The larger share of its tolerance a verification's tip or orientation deviation takes
+    (the piece whose :attr:`~Verification.worst_cl_line` a merged verification names)."""
+    return max(
+        v.max_tip_deviation / v.tip_tolerance,
+        v.max_orientation_deviation_deg / v.orientation_tolerance_deg,
     )
 
 
@@ -207,6 +217,7 @@ def verify_stream(
     pivot: float = 0.0,
     piece_points: int = PIECE_POINTS,
     texts: Iterable[str] | None = None,
+    process: ProcessChecker | None = None,
 ) -> tuple[Verification, Program]:
     """:func:`urdfpost.verification.verify` of a program file against CL data given in pieces, in
     bounded memory: the program is read and checked a piece at a time.
@@ -233,6 +244,9 @@ def verify_stream(
         CL points checked per piece, about.
     texts : iterable of str, optional
         The program text in pieces cut at line ends (default: read from ``program_path``).
+    process : ProcessChecker, optional
+        Is given every piece checked, with its CL data (the process of the program,
+        :mod:`urdfpost.verification.process`; the CL pieces are then the expected ones).
 
     Returns
     -------
@@ -282,6 +296,8 @@ def verify_stream(
             parts.append(
                 verify(program, machine, cl, tool_length=tool_length, tol=tol, pivot=pivot)
             )
+            if process is not None:
+                process.add(program, cl, ended=reader.builder.ended)
             break
         cut = _verify_cut(program, machine, cl, tol, tool_length, pivot, want, program_ends)
         if cut is None:  # nowhere to cut yet: a longer piece, and more rows
@@ -295,6 +311,8 @@ def verify_stream(
                 pivot=pivot,
             )
         )  # fmt: skip
+        if process is not None:
+            process.add(head, toolpath_slice(cl, 0, c + 1))
         cl = toolpath_slice(cl, c, len(cl), first_events=False)
         rows_done += r
         points_done += c

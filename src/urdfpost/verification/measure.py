@@ -74,7 +74,8 @@ class Verification:
     tip_tolerance : float, mm
     orientation_tolerance_deg : float
     worst_cl_line : int or None
-        CL line nearest the worst tip deviation.
+        CL line nearest the worst deviation: of the tool axis when the orientation is beyond
+        its tolerance by a larger share than the tip, else of the tool tip.
     tcp : bool
     notes : list of str
     compared : int
@@ -401,12 +402,15 @@ class _Deviation:
         Number of samples.
     chord2 : float
         Largest squared axis chord seen in any block.
+    block_chord2 : ndarray, shape (n,)
+        Largest squared axis chord seen per block (0 where the block is not compared).
     """
 
     tip: np.ndarray
     total: float
     count: int
     chord2: float
+    block_chord2: np.ndarray
 
 
 def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) -> list[_Deviation]:
@@ -500,6 +504,7 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
                 total=total[f],
                 count=compared * len(t),
                 chord2=float(best[f][1].max(initial=0.0)),
+                block_chord2=best[f][1],
             )
         )
     return out
@@ -756,6 +761,17 @@ class _Comparison:
         )
         return float(tip_level), float(chord2_level)
 
+    def _worst_line(
+        self, toolpath: Toolpath, compared: np.ndarray, in_blocks: np.ndarray, at_rows: np.ndarray
+    ) -> int | None:
+        """CL line of the largest of a deviation measured in the ``compared`` feed blocks and
+        at the rows (a block names the CL point it starts from; None: nothing compared)."""
+        if len(compared) and in_blocks.max() >= at_rows.max(initial=0.0):
+            return int(toolpath.line[self.before[compared[int(np.argmax(in_blocks))] - 1]])
+        if at_rows.size:
+            return int(toolpath.line[self.row_span[int(np.argmax(at_rows))]])
+        return None
+
     def verification(
         self,
         program: Program,
@@ -774,11 +790,11 @@ class _Comparison:
         mean_tip = (deviation.total + float(dp.sum())) / max(deviation.count + dp.size, 1)
         max_chord2 = max(deviation.chord2, float(self.row_chord2.max(initial=0.0)))
         max_ori = float(angle_from_chord2(max_chord2))
-        worst_line = None
-        if len(compared) and dmax.max() >= dp.max(initial=0.0):
-            worst_line = int(toolpath.line[self.before[compared[int(np.argmax(dmax))] - 1]])
-        elif dp.size:
-            worst_line = int(toolpath.line[self.row_span[int(np.argmax(dp))]])
+        worst_line = self._worst_line(toolpath, compared, dmax, dp)
+        if max_ori > tol.orientation and max_ori / tol.orientation > max_tip / tol.tip:
+            cmax = deviation.block_chord2
+            cmax = cmax if self.valid is None else cmax[self.valid]
+            worst_line = self._worst_line(toolpath, compared, cmax, self.row_chord2)
         missed_lines = [int(x) for x in toolpath.line[~self.reached]]
         ok = not missed_lines and max_tip <= tol.tip and max_ori <= tol.orientation
         notes = list(notes)
