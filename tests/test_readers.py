@@ -160,7 +160,7 @@ def test_detect_format(text, expected):
 
 def test_read_cl_missing_file(tmp_path):
     missing = tmp_path / "missing.cls"
-    with pytest.raises(CLDataError, match=r"missing\.cls:0: cannot read: ") as info:
+    with pytest.raises(CLDataError, match=r"missing\.cls: cannot read: ") as info:
         read_cl(missing)
     assert info.value.line == 0
     assert info.value.path == str(missing)

@@ -613,7 +613,7 @@ def test_open_record_at_the_end_raises_before_the_first_piece(tmp_path):
 def test_missing_file(tmp_path):
     missing = tmp_path / "missing.cls"
     assert check_file(missing, 5, 64) is None
-    with pytest.raises(CLDataError, match=r"missing\.cls:0: cannot read: "):
+    with pytest.raises(CLDataError, match=r"missing\.cls: cannot read: "):
         next(read_cl_chunks(missing, max_points=5))
 
 

@@ -24,7 +24,8 @@ class CLDataError(UrdfpostError):
     path : str
         File the data came from (``"<string>"`` for text without a file).
     line : int
-        1-based line number of the record at fault.
+        1-based line number of the record at fault; 0 for the file as a whole (it cannot be
+        read): the message then names the file alone.
     message : str
         What was found and what was expected.
     """
@@ -33,7 +34,7 @@ class CLDataError(UrdfpostError):
         self.path = path
         self.line = line
         self.detail = message
-        super().__init__(f"{path}:{line}: {message}")
+        super().__init__(f"{path}:{line}: {message}" if line else f"{path}: {message}")
 
     def __reduce__(self) -> tuple[type, tuple[str, int, str]]:
         # rebuilt from the three parts (a verification worker sends its errors back)
