@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from jobs import TWO_TOOLS
 
 from urdfpost import load_machine
 from urdfpost.cli import main
@@ -38,28 +39,6 @@ from urdfpost.verification import program_joints
 
 CONTROLLERS = ("heidenhain", "siemens", "fanuc", "linuxcnc")
 MACHINES = ("dmu50", "gantry-ca", "monoblock")
-
-#: Two tools; the second has no SPINDL of its own (the post restarts the first's speed) and
-#: starts with a feed move, not a rapid.
-TWO_TOOLS = """\
-PARTNO TWO TOOLS
-UNITS/MM
-MULTAX/ON
-LOADTL/1
-SPINDL/9000,CLW
-COOLNT/FLOOD
-RAPID
-GOTO/0,0,20,0,0,1
-FEDRAT/MMPM,800
-GOTO/0,0,2,0,0,1
-GOTO/20,0,2,0.258819,0,0.965926
-GOTO/20,20,2,0.258819,0,0.965926
-LOADTL/2
-GOTO/-10,0,1,0,0.258819,0.965926
-FEDRAT/MMPM,500
-GOTO/-30,0,1,0,0.258819,0.965926
-FINI
-"""
 
 
 def two_tools():

@@ -30,6 +30,7 @@ from functools import cache
 from pathlib import Path
 
 import pytest
+from jobs import TWO_TOOLS
 from rs274 import AXES, Call, Rs274Error, Rs274Result, run_rs274
 
 from urdfpost.cli import main
@@ -39,28 +40,6 @@ from urdfpost.units import mm_per_unit
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"
 TOL = 1e-3
-
-# Two tools, spindle and coolant, two feeds (as tests/test_job.py's TWO_TOOLS). The second tool
-# has no SPINDL of its own: the post restarts the spindle at the speed before the change.
-TWO_TOOLS = """\
-PARTNO TWO TOOLS
-UNITS/MM
-MULTAX/ON
-LOADTL/1
-SPINDL/9000,CLW
-COOLNT/FLOOD
-RAPID
-GOTO/0,0,20,0,0,1
-FEDRAT/MMPM,800
-GOTO/0,0,2,0,0,1
-GOTO/20,0,2,0.258819,0,0.965926
-GOTO/20,20,2,0.258819,0,0.965926
-LOADTL/2
-GOTO/-10,0,1,0,0.258819,0.965926
-FEDRAT/MMPM,500
-GOTO/-30,0,1,0,0.258819,0.965926
-FINI
-"""
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from jobs import two_tools
 
 import urdfpost.posting.whole as whole
 from urdfpost import load_machine
@@ -27,26 +28,7 @@ from urdfpost.toolpath import Motion
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"
 CONTROLLERS = ("heidenhain", "siemens", "fanuc", "linuxcnc")
-
-TWO_TOOLS = """\
-PARTNO TWO TOOLS
-UNITS/MM
-MULTAX/ON
-LOADTL/1
-SPINDL/9000,CLW
-COOLNT/FLOOD
-RAPID
-GOTO/0,0,20,0,0,1
-FEDRAT/MMPM,1200
-GOTO/0,0,2,0,0,1
-GOTO/20,0,2,0.258819,0,0.965926
-GOTO/20,20,2,0.258819,0,0.965926
-LOADTL/2
-GOTO/-10,0,1,0,0.258819,0.965926
-FEDRAT/MMPM,500
-GOTO/-30,0,1,0,0.258819,0.965926
-FINI
-"""
+TWO_TOOLS = two_tools(1200.0)  # the issue's feed, which a damage turns into 9999
 """Two tools, the second without a SPINDL of its own (the post restarts the spindle)."""
 
 DEFAULTS = """\

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.program import Program, ToolChange
+from urdfpost.program import Move, MoveTable, Program, ToolChange
 from urdfpost.units import mm_per_unit
 
 if TYPE_CHECKING:
@@ -61,16 +61,22 @@ class HeaderFigures:
 
     def add(self, program: Program) -> HeaderFigures:
         """Take in the moves and tool calls of ``program`` (a whole program or a piece)."""
-        table = program.move_table()
-        if len(table.position):
-            with np.errstate(invalid="ignore"):
-                low = np.nanmin(np.where(np.isnan(table.position), np.inf, table.position), 0)
-                high = np.nanmax(np.where(np.isnan(table.position), -np.inf, table.position), 0)
-            np.minimum(self.low, low, out=self.low)
-            np.maximum(self.high, high, out=self.high)
-        for part in program.parts:
+        for part in program.parts:  # the tables as they are: no joined copy of the moves
             if isinstance(part, ToolChange) and part.number not in self.tools:
                 self.tools[part.number] = (part.diameter, part.length)
+                continue
+            if isinstance(part, MoveTable):
+                position = part.position
+            elif isinstance(part, Move):
+                position = np.asarray([part.position], dtype=float)
+            else:
+                continue
+            if len(position):
+                known = ~np.isnan(position)
+                low = np.where(known, position, np.inf).min(axis=0)
+                high = np.where(known, position, -np.inf).max(axis=0)
+                np.minimum(self.low, low, out=self.low)
+                np.maximum(self.high, high, out=self.high)
         return self
 
 

@@ -1440,6 +1440,14 @@ class _AptInterpreter:
         return handler
 
 
+def _read_units(units: str | None, declared: tuple[str, int] | None) -> str:
+    """The units a file is read in: those given (``units``), else those it declares
+    (``declared``: units and line), else mm."""
+    if units is not None or declared is None:
+        return normalise_units(units)
+    return declared[0]
+
+
 def _forced_message(says: str, line: int, units: str) -> str:
     """The warning for a file that says ``says`` at ``line`` and is read in ``units``."""
     return f"CL file says {says} at line {line}; read as {units} (--cl-units)"
@@ -1510,13 +1518,12 @@ def read_apt_text(
     CLDataError
         For data that cannot be read (message names the line and what was expected).
     """
-    forced = units is not None
-    given = normalise_units(units)
+    normalise_units(units)  # bad units refused before reading
     if not (math.isfinite(chord_tolerance) and chord_tolerance > 0.0):
         raise ValueError(f"chord_tolerance: expected a positive length, got {chord_tolerance!r}")
     scan = scan_text(text, source)
     declared = _file_units(scan.records)
-    file_units = given if forced or declared is None else declared[0]
+    file_units = _read_units(units, declared)
     nx = scan.listing_lines > 0 or any(is_nx_record(r) for r in scan.records)
     runs = [r for r in scan.records if isinstance(r, GotoRun)]
     logger.debug(
@@ -1537,7 +1544,7 @@ def read_apt_text(
         chord_tolerance,
         nx,
         declared=declared,
-        forced=forced,
+        forced=units is not None,
         separate_mcs=separate_mcs,
     )
     interpreter.run(scan.records)
@@ -1684,11 +1691,10 @@ def read_apt_stream(
     separate_mcs: bool = False,
 ) -> Iterator[Toolpath]:
     """:func:`read_apt_text` of a file, in pieces (``FORMAT.read_stream``)."""
-    forced = units is not None
-    given = normalise_units(units)
+    normalise_units(units)  # bad units refused before reading
     check_chord_tolerance(chord_tolerance)
     declared, nx = _apt_facts(source, text_piece)
-    file_units = given if forced or declared is None else declared[0]
+    file_units = _read_units(units, declared)
     logger.debug("%s: units %s, dialect %s", source, file_units, "NX CLSF" if nx else "APT")
     interpreter = _AptInterpreter(
         source,
@@ -1696,7 +1702,7 @@ def read_apt_stream(
         chord_tolerance,
         nx,
         declared=declared,
-        forced=forced,
+        forced=units is not None,
         separate_mcs=separate_mcs,
     )
     builder = interpreter.builder
