@@ -287,6 +287,7 @@ def _cl_units_argument(p: argparse.ArgumentParser, *aliases: str) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for documentation and tests)."""
+    from urdfpost.analysis.view import COLOR_BY as VIEW_COLORS
     from urdfpost.dialects import DIALECTS
     from urdfpost.readers import FORMATS
 
@@ -341,6 +342,16 @@ def build_parser() -> argparse.ArgumentParser:
     po.add_argument("--block-numbers", action="store_true", help="number the blocks")
     po.add_argument("--name", help="program name (default: PARTNO or URDFPOST)")
     po.add_argument("--report", help="write a JSON report here")
+    po.add_argument(
+        "--view",
+        metavar="HTML",
+        help="also write the 3-D view of the program (as 'urdfpost view' does)",
+    )
+    po.add_argument(
+        "--view-color",
+        choices=VIEW_COLORS,
+        help="with --view: colour the tool-tip trace by deviation or by axis speed",
+    )
     po.add_argument(
         "--piece-points",
         type=_piece_points,
@@ -397,6 +408,43 @@ def build_parser() -> argparse.ArgumentParser:
         "the same figures, but for the mean deviation); 0: never. Default: pieces of "
         f"{PIECE_POINTS} points when the CL file or the program is over {_STREAM_BYTES >> 20} MB",
     )
+
+    vw = sub.add_parser(
+        "view",
+        help="write a 3-D view of the machine running a program (one HTML file)",
+        description="Write one self-contained HTML file that shows the machine from its URDF "
+        "visuals, the stock, the tool, the CL path and the tool-tip trace, and plays the "
+        "program (play/pause, timeline, speed, the current block and its NC line, the axis "
+        "values; singular spans, rewinds and the worst deviation marked). It opens offline.",
+    )
+    vw.add_argument("program", help="NC program in any supported dialect")
+    vw.add_argument("--machine", "-m", required=True, help="machine name or URDF file")
+    vw.add_argument("--cl", help="the CL file the program was made from (drawn, and measured)")
+    vw.add_argument(
+        "--controller",
+        "-c",
+        choices=controllers,
+        help="dialect of the program (default: from its extension)",
+    )
+    vw.add_argument(
+        "--stock", help="stock or part mesh (STL, OBJ, ...), workpiece frame, program units"
+    )
+    vw.add_argument(
+        "--color",
+        choices=VIEW_COLORS,
+        help="colour the tool-tip trace by its distance to the CL path (needs --cl) or by the "
+        "largest axis speed as a fraction of its limit",
+    )
+    _cl_units_argument(vw, "--units")
+    vw.add_argument(
+        "--tool-length",
+        type=_non_negative,
+        help="tool length in program units (default: the machine file's)",
+    )
+    vw.add_argument("--tolerance", type=_positive, help=argparse.SUPPRESS)
+    vw.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
+    _setup_argument(vw, "the program's units")
+    vw.add_argument("-o", "--output", required=True, help="the HTML file to write")
 
     co = sub.add_parser(
         "compare",
@@ -541,7 +589,13 @@ def _cmd_post(args: argparse.Namespace) -> int:
         "the stock mesh": args.stock,
         "the machine file": machine.path,
     }
-    outputs = _given({"the program (-o)": out, "the report (--report)": args.report})
+    outputs = _given(
+        {
+            "the program (-o)": out,
+            "the report (--report)": args.report,
+            "the view (--view)": args.view,
+        }
+    )
     check_distinct(outputs, _given(inputs))  # before any work: all or nothing
     targets = [output_target(path) for path in outputs.values()]
     roles = {Path(path): role for role, path in outputs.items()}
@@ -586,9 +640,17 @@ def _cmd_post(args: argparse.Namespace) -> int:
             files[out] = whole.text
             result = whole
     report = result.report
+    view = None
     _show_warnings(list(report.warnings))
     if args.report:
         files[Path(args.report)] = report_json(report.as_json())
+    if args.view:  # the program as written, read back
+        text = files[out] if out in files else Path(staged[out]).read_text(encoding="utf-8")
+        cl = toolpath if chunks is None else None  # (a streamed post holds no whole CL)
+        files[Path(args.view)], view = _view_html(
+            machine, dialect, text, str(out), cl, args.stock, report.tool_length_mm,
+            args.view_color,
+        )  # fmt: skip
     write_texts(files, _given(inputs), roles, staged)
     mode = "TCP" if args.tcp else "machine coordinates"
     print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
@@ -610,6 +672,8 @@ def _cmd_post(args: argparse.Namespace) -> int:
             f"({' and '.join(hits.nearest or [])}) at CL line {hits.at_cl_line}"
         )
     print(result.verification.summary(units))
+    if view is not None:
+        print(_view_summary(Path(args.view), view))
     return 0
 
 
@@ -931,7 +995,78 @@ def _cmd_machine(args: argparse.Namespace) -> int:
     return 0
 
 
+def _view_html(
+    machine: Any,
+    dialect: Any,
+    text: str,
+    path: str,
+    cl: Any,
+    stock: str | None,
+    tool_length: float | None,
+    color: str | None,
+    program: Any = None,
+) -> tuple[str, dict[str, Any]]:
+    """The 3-D view of a program text, read back (unless ``program`` is that already) as
+    ``verify`` reads it."""
+    from urdfpost.analysis.view import view_data, view_html
+
+    if program is None:
+        program = dialect.read(text, path=path)
+    data = view_data(
+        machine, program, text, dialect, cl=cl, stock=stock, tool_length=tool_length, color=color
+    )
+    return view_html(data), data
+
+
+def _view_summary(path: Path, data: dict[str, Any]) -> str:
+    kinds = [m["kind"] for m in data["marks"]]
+    marks = ", ".join(
+        f"{kinds.count(k)} {label}"
+        for k, label in (("singular", "singular"), ("rewind", "rewind"), ("worst", "worst"))
+        if k in kinds
+    )
+    return (
+        f"wrote {path}: the 3-D view of {data['moves']} moves in {data['samples']} samples"
+        f"{' (' + marks + ' marked)' if marks else ''}"
+    )
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    from urdfpost.dialects import dialect_for
+    from urdfpost.machine import load_machine
+
+    if args.color == "deviation" and not args.cl:
+        raise UsageError("--color deviation measures the trace against the CL data: give --cl")
+    machine = load_machine(args.machine)
+    dialect = dialect_for(args.controller, None if args.controller else args.program)
+    try:
+        text = Path(args.program).read_text(encoding="utf-8", errors="replace")
+    except OSError as e:
+        raise UrdfpostError(f"{args.program}: cannot read: {e.strerror or e}") from e
+    program = dialect.read(text, path=args.program)
+    scale = mm_per_unit(program.units)
+    machine = _job_machine(args, machine, scale)
+    cl = _read_cl(args, machine) if args.cl else None
+    tool_length = None if args.tool_length is None else args.tool_length * scale
+    out = Path(args.output)
+    inputs = {
+        "the program": args.program,
+        "the CL file": args.cl,
+        "the stock mesh": args.stock,
+        "the machine file": machine.path,
+    }
+    check_distinct({"the view (-o)": out}, _given(inputs))
+    output_target(out)
+    page, data = _view_html(
+        machine, dialect, text, args.program, cl, args.stock, tool_length, args.color, program
+    )
+    write_texts({out: page}, _given(inputs), {out: "the view (-o)"})
+    print(_view_summary(out, data))
+    return 0
+
+
 COMMANDS = {
+    "view": _cmd_view,
     "post": _cmd_post,
     "verify": _cmd_verify,
     "machines": _cmd_machines,

@@ -241,8 +241,8 @@ def _geometry(shape: Any, where: str, source: str) -> Geometry:
     return geometry
 
 
-def link_shapes(root: Any, source: str) -> tuple[LinkShape, ...]:
-    """The ``<collision>`` elements of every link, in file order.
+def link_shapes(root: Any, source: str, element: str = "collision") -> tuple[LinkShape, ...]:
+    """The ``<collision>`` (or ``<visual>``) elements of every link, in file order.
 
     Parameters
     ----------
@@ -250,6 +250,9 @@ def link_shapes(root: Any, source: str) -> tuple[LinkShape, ...]:
         The ``<robot>`` element of the parsed machine file.
     source : str
         The file's name, for messages and for finding mesh files.
+    element : str
+        ``"collision"`` (what the collision checks use) or ``"visual"`` (what the 3-D view
+        draws); both have the same ``<origin>`` and ``<geometry>``.
 
     Returns
     -------
@@ -258,15 +261,15 @@ def link_shapes(root: Any, source: str) -> tuple[LinkShape, ...]:
     Raises
     ------
     GeometryError
-        For a ``<collision>`` without geometry, an unknown shape, a size or origin that is not
+        For an element without geometry, an unknown shape, a size or origin that is not
         the right count of finite numbers, a negative or zero size, a mesh without a file name
         or whose file is not found. Each message names the file, the line and the link.
     """
     shapes: list[LinkShape] = []
     for link in root.findall("link"):
         lname = link.get("name")
-        for el in link.findall("collision"):
-            where = f"{source}:{el.sourceline}: link {lname!r} <collision>"
+        for el in link.findall(element):
+            where = f"{source}:{el.sourceline}: link {lname!r} <{element}>"
             origin = _origin(el, where)
             origin.setflags(write=False)
             geom_el = el.find("geometry")
