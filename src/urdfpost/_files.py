@@ -1,8 +1,16 @@
-"""Files written through a temporary file and renamed into place."""
+"""Files written through a temporary file and renamed into place.
+
+A temporary file is hidden beside the file it becomes and named after it and after the process
+that made it: ``.NAME.PID-XXXXXXXX.part`` (a streamed program) or ``.tmp`` (any other output).
+A process killed outright (``SIGKILL``, a power cut) cannot remove its own; the next one that
+writes ``NAME`` in that folder removes those whose process is gone (:func:`temp_file`).
+"""
 
 from __future__ import annotations
 
+import logging
 import os
+import re
 import shutil
 import stat
 import tempfile
@@ -11,6 +19,95 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from urdfpost.errors import UrdfpostError
+
+log = logging.getLogger(__name__)
+
+_TEMP = re.compile(r"\.(?P<base>.+)\.(?P<pid>[0-9]+)-[a-z0-9_]{8}\.(?:part|tmp)")
+"""The name of a temporary file of :func:`temp_file` (``tempfile`` draws the eight characters
+from ``[a-z0-9_]``)."""
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (a zombie that its parent has not reaped does too)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process (EPERM)
+        return True
+    return True
+
+
+def remove_stale_temps(folder: str | os.PathLike[str], name: str) -> list[Path]:
+    """Remove the temporary files of output ``name`` in ``folder`` left by processes that no
+    longer run (killed before they could remove them), and return them.
+
+    A file of a process that still runs is another post of the same output at work: it stays.
+    Only POSIX systems can tell (elsewhere nothing is removed: a signal 0 is no question there).
+    """
+    if os.name != "posix":
+        return []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return []
+    removed = []
+    for entry in entries:
+        found = _TEMP.fullmatch(entry.name)
+        if found is None or found["base"] != name or _alive(int(found["pid"])):
+            continue
+        path = Path(entry.path)
+        try:
+            path.unlink()
+        except OSError as e:  # removed meanwhile by another post, or not ours to remove
+            log.debug("stale temporary file %s not removed: %s", path, e)
+            continue
+        log.info("removed %s, left by process %s", path, found["pid"])
+        removed.append(path)
+    return removed
+
+
+def temp_file(
+    target: str | os.PathLike[str],
+    suffix: str = ".part",
+    folder: str | os.PathLike[str] | None = None,
+) -> tuple[int, Path]:
+    """Create a temporary file for ``target``, hidden in its folder (or in ``folder``), after
+    removing the stale ones of ``target`` there (:func:`remove_stale_temps`).
+
+    The temporary file of a temporary file of this module is one more of the same output
+    (``.x.h.PID-XXXXXXXX.part`` again, not ``..x.h.PID-XXXXXXXX.part.PID-YYYYYYYY.part``), so
+    that the next post of ``x.h`` finds it.
+
+    Parameters
+    ----------
+    target : path
+        The file the temporary file becomes.
+    suffix : str
+        ``".part"`` or ``".tmp"``.
+    folder : path, optional
+        Where the temporary file goes; default the folder of ``target``.
+
+    Returns
+    -------
+    fd : int
+        The open file descriptor (mode 0600, as :func:`tempfile.mkstemp` makes it).
+    path : Path
+
+    Raises
+    ------
+    OSError
+        The file cannot be created.
+    """
+    target = Path(target)
+    where = Path(folder) if folder is not None else target.parent
+    found = _TEMP.fullmatch(target.name)
+    name = found["base"] if found is not None else target.name
+    remove_stale_temps(where, name)
+    fd, path = tempfile.mkstemp(prefix=f".{name}.{os.getpid()}-", suffix=suffix, dir=where)
+    return fd, Path(path)
 
 
 def give_mode(tmp: str | os.PathLike[str], target: str | os.PathLike[str]) -> None:
@@ -180,13 +277,11 @@ def write_texts(
             if not target.regular:
                 continue
             try:
-                fd, name = tempfile.mkstemp(
-                    prefix=f".{target.real.name}.", suffix=".tmp", dir=target.real.parent
-                )
+                fd, name = temp_file(target.real, ".tmp")
             except OSError as e:
                 raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
-            made.append(Path(name))
-            temps[Path(path)] = Path(name)
+            made.append(name)
+            temps[Path(path)] = name
             try:
                 with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
                     f.write(text)

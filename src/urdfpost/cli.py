@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from urdfpost import __version__
-from urdfpost._files import check_distinct, output_target, write_texts
+from urdfpost._files import check_distinct, output_target, temp_file, write_texts
 from urdfpost.errors import UrdfpostError
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.strict_json import report_json
@@ -617,7 +618,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
             # device), moved into place with the report
             target = targets[0]
             folder = target.real.parent if target.regular else Path(tempfile.gettempdir())
-            fd, stage = tempfile.mkstemp(prefix=f".{target.real.name}.", suffix=".part", dir=folder)
+            fd, stage = temp_file(target.real, folder=folder)  # (stale ones removed)
             os.close(fd)
             staged[out] = Path(stage)
             try:
@@ -641,17 +642,22 @@ def _cmd_post(args: argparse.Namespace) -> int:
             result = whole
     report = result.report
     view = None
-    _show_warnings(list(report.warnings))
-    if args.report:
-        files[Path(args.report)] = report_json(report.as_json())
-    if args.view:  # the program as written, read back
-        text = files[out] if out in files else Path(staged[out]).read_text(encoding="utf-8")
-        cl = toolpath if chunks is None else None  # (a streamed post holds no whole CL)
-        files[Path(args.view)], view = _view_html(
-            machine, dialect, text, str(out), cl, args.stock, report.tool_length_mm,
-            args.view_color,
-        )  # fmt: skip
-    write_texts(files, _given(inputs), roles, staged)
+    try:
+        _show_warnings(list(report.warnings))
+        if args.report:
+            files[Path(args.report)] = report_json(report.as_json())
+        if args.view:  # the program as written, read back
+            text = files[out] if out in files else Path(staged[out]).read_text(encoding="utf-8")
+            cl = toolpath if chunks is None else None  # (a streamed post holds no whole CL)
+            files[Path(args.view)], view = _view_html(
+                machine, dialect, text, str(out), cl, args.stock, report.tool_length_mm,
+                args.view_color,
+            )  # fmt: skip
+        write_texts(files, _given(inputs), roles, staged)
+    except BaseException:  # Ctrl-C, SIGTERM before write_texts took the staged program
+        for stage_path in staged.values():
+            stage_path.unlink(missing_ok=True)
+        raise
     mode = "TCP" if args.tcp else "machine coordinates"
     print(f"wrote {out} ({dialect.name}, {mode}, {units}) for machine {machine.name}")
     strat = report.strategy
@@ -1094,6 +1100,7 @@ def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     restore = _setup_logging(args.verbose)
+    signals = _stop_on_sigterm()
     try:
         code = COMMANDS[args.command](args)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
@@ -1104,11 +1111,54 @@ def _run(argv: Sequence[str] | None) -> int:
     except UrdfpostError as e:
         print(f"urdfpost: {e}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:  # Ctrl-C or SIGTERM: the files are cleaned up by now
+        _ignore_stops()  # a second one would interrupt the message
+        if isinstance(e, Terminated):
+            print("urdfpost: terminated", file=sys.stderr)
+            return 128 + signal.SIGTERM
         print("urdfpost: interrupted", file=sys.stderr)
-        return 130
+        return 128 + signal.SIGINT
     finally:
+        signals()
         restore()
+
+
+class Terminated(KeyboardInterrupt):
+    """``SIGTERM`` received: raised in the main thread so that the run stops as at Ctrl-C,
+    temporary files removed and the verification worker stopped (exit 143)."""
+
+
+def _stop_on_sigterm() -> Callable[[], None]:
+    """Make ``SIGTERM`` raise :class:`Terminated` (once) in the main thread; returns what
+    restores the handlers of ``SIGTERM`` and ``SIGINT`` as they were. Nothing changes when
+    :func:`main` runs in another thread (only the main thread may handle signals) or when
+    ``SIGTERM`` is not at its default (ignored by whoever started us, or a caller's handler),
+    as Python leaves an ignored ``SIGINT`` alone. (The handlers are put back also after
+    :func:`_ignore_stops`.)"""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    saved = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGINT)}
+
+    def terminated(signum: int, frame: object) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once: the cleanup is not cut short
+        raise Terminated
+
+    if saved[signal.SIGTERM] is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, terminated)
+
+    def restore() -> None:
+        for s, handler in saved.items():
+            if handler is not None:  # (None: set outside Python, cannot be put back)
+                signal.signal(s, handler)
+
+    return restore
+
+
+def _ignore_stops() -> None:
+    """Ignore further Ctrl-C and ``SIGTERM`` (in the main thread) until :func:`_run` ends."""
+    if threading.current_thread() is threading.main_thread():
+        for s in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(s, signal.SIG_IGN)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -48,14 +48,13 @@ from __future__ import annotations
 import logging
 import os
 import shutil
-import tempfile
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from urdfpost._files import give_mode
+from urdfpost._files import give_mode, temp_file
 from urdfpost.dialects import Dialect
 from urdfpost.geometry import angle_between
 from urdfpost.machine import Machine
@@ -276,8 +275,7 @@ def post_stream(
     count = 0
     tool_length = job.tool_length
     coolant: str | None = None  # on where the next piece starts
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
-    tmp = Path(tmp_name)
+    fd, tmp = temp_file(out)  # (and the ones a killed post of ``out`` left, removed)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
             want = piece_points  # CL points of the next piece (more where no cut was found)
@@ -437,8 +435,7 @@ def _with_header(
     writer = dialect.writer(program, block_numbers=job.block_numbers)
     writer.open(job_header(job, header, tool_length), stock_box(job))
     opening = writer.take()
-    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent or ".")
-    final = Path(name)
+    fd, final = temp_file(out)
     try:
         with os.fdopen(fd, "wb") as dst, open(tmp, "rb") as src:
             dst.write(opening.encode("utf-8"))

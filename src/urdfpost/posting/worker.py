@@ -5,18 +5,29 @@ machine with more than one core a worker process reads the texts back in order w
 (its modal state carries on from piece to piece) and checks each against its CL points while
 the next piece is planned; otherwise the pieces are checked here, one after the other. Either
 way the check is :func:`urdfpost.posting.check.check_piece`, the one of every post.
+
+The worker never outlives the post: it ignores Ctrl-C (the post stops it), takes the default
+action on ``SIGTERM`` (:meth:`Checks.close` terminates it) and leaves when the post's process is
+gone, even killed outright: on Linux the kernel kills it then (``PR_SET_PDEATHSIG``); elsewhere
+it sees the post's end of the connection close, or its parent change, within
+:data:`PARENT_POLL` seconds of the piece it checks. It holds the caller's standard output and
+error no longer than that.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import logging
 import multiprocessing
+import os
 import pickle
+import signal
 import sys
 import threading
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from multiprocessing.connection import Connection
+from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
 from typing import TYPE_CHECKING, Any
 
@@ -37,6 +48,14 @@ log = logging.getLogger(__name__)
 FORK = sys.platform.startswith("linux")
 """Whether verification workers are forked (where forking a process that runs numpy is safe);
 elsewhere pieces are verified in the worker only when asked for, in a spawned process."""
+
+PARENT_POLL = 1.0
+"""Seconds between the idle worker's checks that the post's process still runs (where the
+kernel does not stop the worker with it, and a fork of the post keeps the end of the
+connection open that would tell)."""
+
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+_STOPS = {signal.SIGINT, signal.SIGTERM}  # what stops a post (Ctrl-C, kill)
 
 
 def _prepended(program: Program, axes: tuple[str, ...], row: np.ndarray) -> Program:
@@ -110,11 +129,88 @@ class PieceVerifier:
         return check, intent
 
 
-def _serve(conn: Connection, *args: Any) -> None:
+@contextlib.contextmanager
+def _stops_held() -> Iterator[None]:
+    """Hold back Ctrl-C and ``SIGTERM`` in this thread while a worker is forked, so that none
+    reaches the worker before it has set its own handlers (the post's, which a fork copies,
+    would raise there and print the worker's traceback); released, they take effect here."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
+def _die_with_parent(parent: int) -> bool:
+    """Ask the kernel to kill this process when its parent (process ``parent``) ends; returns
+    whether the parent still runs (it may have ended before the request). Where there is no
+    ``prctl`` (not Linux) only the check is made.
+
+    The kernel acts when the thread that forked this process ends: the one that runs
+    :func:`~urdfpost.posting.stream.post_stream`, which stops the worker before it returns.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) != 0:
+                log.debug("prctl(PR_SET_PDEATHSIG) failed: errno %d", ctypes.get_errno())
+        except (OSError, AttributeError) as e:  # a libc without prctl
+            log.debug("no prctl: %s", e)
+    return os.getppid() == parent
+
+
+def _detach(post_end: Connection | None) -> bool:
+    """What a worker does first: its own signal handling, the post's end of the connection
+    closed (a fork inherits it: the worker would never see the end of the connection), death
+    with the post's process. Returns whether that process still runs."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the post, which stops us
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # held while forking (_stops_held)
+    if post_end is not None:
+        post_end.close()
+    parent = multiprocessing.parent_process()
+    return parent is not None and parent.pid is not None and _die_with_parent(parent.pid)
+
+
+def _next_job(conn: Connection) -> PieceJob | None:
+    """The next job, or None when the post says so or its process is gone."""
+    parent = multiprocessing.parent_process()
+    assert parent is not None
+    while True:
+        ready = wait([conn, parent.sentinel], timeout=PARENT_POLL)
+        if parent.sentinel in ready or os.getppid() != parent.pid:
+            log.debug("the post's process %d is gone: the worker stops", parent.pid)
+            return None
+        if ready:
+            try:
+                job: PieceJob | None = conn.recv()
+            except (EOFError, OSError):  # the post's end closed
+                return None
+            return job
+
+
+def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
     """A verification worker: checks the jobs it receives with one :class:`PieceVerifier` and
-    sends back ``(True, result)`` or ``(False, exception)``, until it receives None."""
+    sends back ``(True, result)`` or ``(False, exception)``, until it receives None or the post
+    is gone (module docstring).
+
+    Parameters
+    ----------
+    conn : Connection
+        The worker's end of the connection.
+    post_end : Connection or None
+        The post's end, which a forked worker inherits and closes; None when spawned.
+    *args
+        Those of :class:`PieceVerifier`.
+    """
+    if not _detach(post_end):
+        return
     verifier = PieceVerifier(*args)
-    while (job := conn.recv()) is not None:
+    while (job := _next_job(conn)) is not None:
         try:
             answer: tuple[bool, Any] = (True, verifier.check(job))
         except Exception as exc:  # sent back to be raised where the post runs
@@ -123,7 +219,10 @@ def _serve(conn: Connection, *args: Any) -> None:
                 pickle.dumps(exc)
             except Exception:
                 answer = (False, UrdfpostError(f"verification failed: {exc!r}"))
-        conn.send(answer)
+        try:
+            conn.send(answer)
+        except OSError:  # the post is gone
+            return
 
 
 class Checks:
@@ -160,9 +259,17 @@ class Checks:
             multiprocessing.get_context("fork") if FORK else multiprocessing.get_context("spawn")
         )
         self.conn, child = context.Pipe()
-        self.process = context.Process(target=_serve, args=(child, *args), daemon=True)
-        self.process.start()
-        child.close()
+        post_end = self.conn if FORK else None  # for a forked worker to close
+        self.process = context.Process(target=_serve, args=(child, post_end, *args), daemon=True)
+        try:
+            with _stops_held():
+                self.process.start()
+        except BaseException:  # (a Ctrl-C held back while forking shows here)
+            if self.process.pid is not None:  # started: stopped again
+                self.close()
+            raise
+        finally:
+            child.close()
         log.info("streamed pieces are verified in worker process %d", self.process.pid)
 
     def submit(self, job: PieceJob) -> None:
@@ -218,9 +325,12 @@ class Checks:
         )
 
     def _join_sender(self) -> None:
-        if self.sender is not None:
-            self.sender.join()
-            self.sender = None
+        sender, self.sender = self.sender, None
+        if sender is not None:
+            # a start cut short (Ctrl-C) leaves a thread that cannot be joined: it never ran,
+            # or its write fails once the worker is gone
+            with contextlib.suppress(RuntimeError):
+                sender.join()
 
     def close(self) -> None:
         """Stop the worker (at once when a check is still running: the post has failed)."""
