@@ -37,6 +37,21 @@ def apt(text: str, **kwargs):
     return read_cl_text(text, source="src.apt", format="apt", **kwargs)
 
 
+APT_SENSE = "counter-clockwise about the circle axis (right-hand rule), the APT convention"
+NX_SENSE = "clockwise about the circle axis, the NX CLSF convention"
+
+
+def sense_note(line: int, reason: str = "", source: str = "src.apt") -> str:
+    """The warning of the first CIRCLE (line ``line``) on the sense inferred: APT when
+    ``reason`` is "", else NX CLSF for that reason ("the NX record TOOL PATH at line 1")."""
+    sense = NX_SENSE if reason else APT_SENSE
+    return (
+        f"{source}:{line}: CIRCLE sense inferred, not declared: arcs turn {sense} "
+        f"({reason or 'no NX CLSF record in the file'}); each arc is checked against the feed "
+        "moves before and after it"
+    )
+
+
 # -- an independent, minimal view of an NX listing, for cross-checking the reader -------------
 
 
@@ -253,7 +268,8 @@ def test_nx_project2_counts_and_units(project2):
     assert len(circle_lines) == 146
     assert tp.units == "inch"
     assert tp.multiaxis
-    assert tp.warnings == ()
+    # the sense of the first CIRCLE is said once; every arc is tangent to its feed moves in it
+    assert tp.warnings == (sense_note(22, "an NX listing line at line 2", str(path)),)
     # every GOTO that does not end an arc is one point on its own line, in file order
     ends = set()
     for (_, first), (line, second) in itertools.pairwise(records):
@@ -364,6 +380,7 @@ def test_nx_project2_events(project2):
     ]
     assert [round(e.data["diameter"] / MM_PER_INCH, 4) for e in tools] == [0.75, 0.375, 0.75, 0.24]
     assert [e.line for e in tools] == [13, 4632, 4737, 5323]
+    assert [e.data["adjust"] for e in tools] == [1, 2, 1, 3]  # LOAD/TOOL,n,ADJUST,n
     operations = [e.data["name"] for e in tp.events if e.kind == "operation"]
     assert len(operations) == 15
     assert operations[0] == "CAVITY_MILL" and operations[-1] == "ROTARY_FLOOR"
@@ -376,7 +393,7 @@ def test_nx_project2_events(project2):
     assert len(msys) == 15
     assert {(e.data["mcs"], e.data["transformed"]) for e in msys} == {(0, False)}
     assert {e.data["origin"] for e in msys} == {(0.0, 0.0, 0.0)}
-    assert tp.warnings == ()
+    assert len(tp.warnings) == 1 and "CIRCLE sense inferred" in tp.warnings[0]
     # each tool event precedes the first motion of its operation
     for event in tools:
         assert tp.line[event.index] > event.line
@@ -424,6 +441,8 @@ def test_catia_sample():
     assert tp.warnings == (
         f"{src}:12: unknown record 'TPRINT/T1 End Mill D 10,T1 End Mill D 10,MfgTool.1' "
         "carried as a comment",
+        f"{src}:13: LOADTL: '1,1' after the tool number not understood; ignored (LENGTH and "
+        "ADJUST are read)",
     )
     np.testing.assert_allclose(
         tp.tip, [[0, 0, 100], [10, 10, 20], [10, 10, 0], [50, 10, 0], [60, 10, 0]]
@@ -571,7 +590,7 @@ def test_unknown_record_is_comment_and_warning():
     ],
 )
 def test_partly_understood_records_are_unknown(record):
-    tp = apt(record + "\n")
+    tp = apt(record + "\nGOTO/0,0,0\n")
     assert [e.kind for e in tp.events] == ["unknown"]
     assert tp.warnings == (f"src.apt:1: unknown record '{record}' carried as a comment",)
 
@@ -672,7 +691,14 @@ def test_tool_records():
         (
             "tool",
             0,
-            {"number": 3, "name": "EM10", "diameter": 10.0, "corner_radius": 1.0, "length": 50.0},
+            {
+                "number": 3,
+                "name": "EM10",
+                "diameter": 10.0,
+                "corner_radius": 1.0,
+                "length": 50.0,
+                "adjust": 3,
+            },
         ),
         # CUTTER right after the tool change (no motion between) completes it
         ("tool", 1, {"number": 4, "diameter": 6.0}),
@@ -753,7 +779,7 @@ def test_circle_apt_right_hand_rule(normal, end, sweep):
     assert np.all(tp.motion[idx] == Motion.FEED)
     np.testing.assert_allclose(tp.feed[idx], 200.0)
     assert len(tp) == 1 + len(idx)
-    assert tp.warnings == ()
+    assert tp.warnings == (sense_note(3),)
 
 
 def test_circle_nx_turns_clockwise_about_axis():
@@ -801,6 +827,7 @@ def test_circle_times_adds_turns():
 def test_circle_radius_mismatch_warns():
     tp = apt("GOTO/10.5,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n")
     assert tp.warnings == (
+        sense_note(2),
         "src.apt:2: arc end points are 0.5 mm off the CIRCLE radius 10 mm; "
         "the arc is blended between them",
     )
@@ -808,8 +835,12 @@ def test_circle_radius_mismatch_warns():
 
 def test_circle_against_incoming_move_warns():
     tp = apt("GOTO/10,10,0\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n")
-    assert len(tp.warnings) == 1
-    assert tp.warnings[0].startswith("src.apt:3: arc starts against the move before it")
+    assert tp.warnings == (
+        sense_note(3),
+        "src.apt:3: arc turns against the feed moves around it (start tangent cosine -1.00): "
+        f"the other sense, {NX_SENSE}, would continue them; the CIRCLE sense was inferred (no "
+        "NX CLSF record in the file): check the CIRCLE direction convention",
+    )
 
 
 def test_circle_may_be_separated_by_paint_and_comments():
@@ -1243,3 +1274,343 @@ def test_a_rule_line_is_no_evidence_of_nx(rule):
     angles = np.degrees(np.arctan2(ruled.tip[:, 1], ruled.tip[:, 0]))
     assert angles[-1] == pytest.approx(90.0)
     assert np.all(np.diff(angles) > 0)  # counter-clockwise, the short way
+
+
+# -- junk: files that are not CL data, records of megabytes (issue 22) -------------------------
+
+
+def printable_junk(size: int, seed: int) -> str:
+    """``size`` characters of random printable ASCII (with its line breaks)."""
+    import random
+    import string
+
+    rng = random.Random(seed)
+    return "".join(rng.choice(string.printable) for _ in range(size))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_random_text_is_not_a_cl_file(tmp_path, seed):
+    """100 KB of printable random text named .apt: refused at its first unknown record,
+    whole and streamed, with the count of unknown records."""
+    path = tmp_path / "junk.apt"
+    path.write_text(printable_junk(100_000, seed), newline="")
+    got = read_whole_and_streamed(path)
+    assert got[0] == got[1]
+    assert isinstance(got[0], tuple), got[0]
+    line, message = got[0]
+    found = re.fullmatch(
+        rf"{re.escape(str(path))}:(\d+): not a CL file: (?:no motion record, and )?(\d+) of "
+        r"(\d+) records are unknown, the first at line (\d+); expected APT/CLSF records such as "
+        r"GOTO, FEDRAT, CIRCLE",
+        message,
+    )
+    assert found, message
+    assert int(found[1]) == int(found[4]) == line
+    assert int(found[2]) > 0.5 * int(found[3]) > 10
+
+
+@pytest.mark.parametrize(
+    ("unknown", "gotos", "refused"),
+    [
+        (20, 1, False),  # few unknown records: carried, whatever their share
+        (21, 20, True),  # more than 20, and more than half
+        (21, 21, False),  # exactly half: CL data with many odd words
+        (1, 0, True),  # no motion, and mostly unknown
+        (2, 0, True),  # (after a $$ comment)
+    ],
+)
+def test_unknown_records_refused_when_they_dominate(tmp_path, unknown, gotos, refused):
+    lines = ["$$ header"] if gotos == 0 and unknown == 2 else []
+    lines += [f"FROB/{k}" for k in range(unknown)] + [f"GOTO/{k},0,0" for k in range(gotos)]
+    path = tmp_path / "odd.apt"
+    path.write_text("\n".join(lines) + "\n")
+    for got in read_whole_and_streamed(path):
+        if refused:
+            assert isinstance(got, tuple), got
+            first = 2 if lines[0] == "$$ header" else 1
+            assert got[0] == first
+            assert f"of {len(lines)} records are unknown, the first at line {first};" in got[1]
+        else:
+            assert isinstance(got, list), got
+            assert sum(len(tp.warnings) for tp in got) == unknown
+
+
+def test_no_motion_and_few_unknown_records_is_read():
+    tp = apt("PARTNO X\n$$ nothing to cut yet\nFROB/1\n")
+    assert len(tp) == 0 and [e.kind for e in tp.events] == ["partno", "comment", "unknown"]
+
+
+@pytest.mark.parametrize(
+    "path",
+    [*sorted((Path(__file__).parent / "data" / "cl").iterdir()), PROJECT2, BALLMILL],
+    ids=lambda p: p.name,
+)
+def test_real_files_are_not_refused(path):
+    """Every CL file of tests/data and ../shared is CL data: none is refused as junk."""
+    for got in read_whole_and_streamed(real_file(path)):
+        assert isinstance(got, list), got
+
+
+def test_a_junk_line_of_megabytes_is_quoted_and_carried_short(tmp_path):
+    """A 5 MB junk line between two GOTOs: the warning quotes 80 characters and says how
+    many more there are; the comment carried into the program keeps 200 (said in the
+    warning)."""
+    junk = "Q" + "x" * 5_000_000
+    path = tmp_path / "long.apt"
+    path.write_text(f"GOTO/0,0,0\n{junk}\nGOTO/1,0,0\n")
+    for got in read_whole_and_streamed(path):
+        assert isinstance(got, list), got
+        warnings = [w for tp in got for w in tp.warnings]
+        assert warnings == [
+            f"{path}:2: unknown record '{junk[:80]}... ({len(junk) - 80} more characters)' "
+            f"carried as a comment, shortened to its first 200 characters "
+            f"({len(junk) - 200} more dropped)"
+        ]
+        (event,) = [e for tp in got for e in tp.events]
+        assert event.kind == "unknown" and event.data == {"text": junk[:200]}
+        assert sum(len(tp) for tp in got) == 2
+
+
+@pytest.mark.parametrize(
+    ("record", "kind", "name"),
+    [
+        ("$$ " + "c" * 300, "comment", "$$ comment"),
+        ("PPRINT " + "c" * 300, "comment", "PPRINT"),
+        ("PARTNO " + "c" * 300, "partno", "PARTNO"),
+    ],
+)
+def test_a_long_comment_is_carried_short(record, kind, name):
+    tp = apt(f"{record}\nGOTO/0,0,0\n")
+    assert [(e.kind, e.data["text"]) for e in tp.events] == [(kind, "c" * 200)]
+    assert tp.warnings == (
+        f"src.apt:1: {name} carried as a comment, shortened to its first 200 characters "
+        "(100 more dropped)",
+    )
+
+
+def test_a_long_insert_is_verbatim():
+    tp = apt("INSERT " + "G1 X1 " * 100 + "\nGOTO/0,0,0\n")
+    assert len(tp.events[0].data["text"]) == 599 and tp.warnings == ()
+
+
+def test_a_comment_of_200_characters_is_whole():
+    tp = apt("$$ " + "c" * 200 + "\nGOTO/0,0,0\n")
+    assert tp.events[0].data["text"] == "c" * 200 and tp.warnings == ()
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "GOTO/1,2," + "9x" * 5000 + "\n",
+        "GOTO/1,0,0\nCIRCLE/0,0,0,0,0,1,10\n" + "Z" * 10_000 + "\n",
+        "GOTO/1,0,0\nCIRCLE/0,0,0,0,0,1," + "-" * 10_000 + "\n",
+        "LOADTL/" + "7" * 5000 + "x\n",
+        "1 2 " + "3" * 5000 + "x\n",
+    ],
+)
+def test_an_error_quotes_a_long_value_short(text):
+    with pytest.raises(CLDataError) as info:
+        read_cl_text(text, source="src.apt")
+    assert len(str(info.value)) < 300
+    assert re.search(r"\.\.\. \(\d+ more characters\)", str(info.value))
+
+
+# -- the CIRCLE sense: inferred, said once, checked against the tangents (issue 22) -----------
+
+#: A 90-degree arc counter-clockwise about +Z from (10,0) to (0,10), between a feed move
+#: along +Y into it and one along -X out of it: tangent to both. NX CLSF writes it with the
+#: circle axis -Z (it turns clockwise about its axis), APT with +Z.
+TANGENT_ARC = "FEDRAT/100\nGOTO/10,-10,0\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,{k},10\nGOTO/0,10,0\n"
+TANGENT_ARC += "GOTO/-10,10,0\n"
+
+
+def quarter_arc_points(tp, line: int) -> np.ndarray:
+    """The points of the arc of CIRCLE line ``line``, with the point before it."""
+    idx = np.flatnonzero(tp.line == line)
+    return tp.tip[idx[0] - 1 : idx[-1] + 1]
+
+
+@pytest.mark.parametrize(
+    ("head", "k", "reason"),
+    [
+        ("", "1", ""),  # APT: counter-clockwise about +Z
+        (
+            "TOOL PATH/OP,TOOL,T\n",
+            "-1",
+            "the NX record TOOL PATH at line 1",
+        ),  # NX: clockwise about -Z
+    ],
+)
+def test_a_tangent_arc_in_each_convention(head, k, reason):
+    """Each convention reads its own arc as the quarter turn between the two lines; the sense
+    is said once (the first CIRCLE), and the tangents agree: no other warning."""
+    line = 4 + bool(head)
+    tp = apt(head + TANGENT_ARC.format(k=k))
+    assert tp.warnings == (sense_note(line, reason),)
+    arc = quarter_arc_points(tp, line)
+    angles = np.unwrap(np.arctan2(arc[:, 1], arc[:, 0]))
+    assert np.all(np.diff(angles) > 0) and angles[-1] - angles[0] == pytest.approx(math.pi / 2)
+
+
+@pytest.mark.parametrize(
+    ("head", "k", "reason", "other"),
+    [
+        ("", "-1", "no NX CLSF record in the file", NX_SENSE),  # NX data read as APT
+        ("TOOL PATH/OP,TOOL,T\n", "1", "the NX record TOOL PATH at line 1", APT_SENSE),
+    ],
+)
+def test_an_arc_against_its_tangents_warns(tmp_path, head, k, reason, other):
+    """The arc of the other convention: read in the inferred sense it is the long way round,
+    backwards at both lines; the warning names the CIRCLE line and both cosines, whole and
+    streamed (the end is only known at the move after the arc)."""
+    line = 4 + bool(head)
+    path = tmp_path / "against.apt"
+    path.write_text(head + TANGENT_ARC.format(k=k) + "GOTO/-20,10,0\n")
+    for got in read_whole_and_streamed(path):
+        assert isinstance(got, list), got
+        warnings = [w for tp in got for w in tp.warnings]
+        assert warnings == [
+            sense_note(line, "" if not head else reason, str(path)),
+            f"{path}:{line}: arc turns against the feed moves around it (start tangent cosine "
+            f"-1.00, end tangent cosine -1.00): the other sense, {other}, would continue them; "
+            f"the CIRCLE sense was inferred ({reason}): check the CIRCLE direction convention",
+        ]
+    arc = quarter_arc_points(read_cl(path), line)  # the sense inferred is kept: 270 degrees
+    angles = np.unwrap(np.arctan2(arc[:, 1], arc[:, 0]))
+    assert abs(angles[-1] - angles[0]) == pytest.approx(3 * math.pi / 2)
+
+
+@pytest.mark.parametrize(
+    ("text", "warned"),
+    [
+        # plunge into the arc, retract out of it: square to it, no evidence
+        ("GOTO/10,0,5\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1,10\nGOTO/0,10,0\nGOTO/0,10,5\n", False),
+        # against at the start only, the end move square to the arc
+        ("GOTO/10,-10,0\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1,10\nGOTO/0,10,0\nGOTO/0,10,5\n", True),
+        # against at the end only, no move before the arc but the first point
+        ("GOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1,10\nGOTO/0,10,0\nGOTO/-10,10,0\n", True),
+        # along at the start, against at the end: a corner, not a question of the sense
+        ("GOTO/10,-10,0\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\nGOTO/10,10,0\n", False),
+        # a rapid out of the arc is no evidence
+        ("GOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1,10\nGOTO/0,10,0\nRAPID\nGOTO/-10,10,0\n", False),
+        # arc after arc: the second has no linear move into it, the first none out of it
+        (
+            "GOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\nCIRCLE/0,0,0,0,0,1,10\n"
+            "GOTO/-10,0,0\n",
+            False,
+        ),
+    ],
+)
+def test_the_tangent_check_needs_evidence(text, warned):
+    tp = apt("FEDRAT/100\n" + text)
+    assert tp.warnings[0].startswith("src.apt:")
+    assert "CIRCLE sense inferred" in tp.warnings[0]
+    assert any("arc turns against" in w for w in tp.warnings[1:]) is warned
+    assert len(tp.warnings) == 1 + warned
+
+
+def test_a_file_without_arcs_gets_no_sense_warning():
+    assert apt("GOTO/0,0,0\nGOTO/1,0,0\n").warnings == ()
+
+
+# -- LOADTL ADJUST (issue 22) --------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("record", "data"),
+    [
+        ("LOADTL/3,ADJUST,7", {"number": 3, "adjust": 7}),
+        ("LOADTL / 3, adjust, 7", {"number": 3, "adjust": 7}),
+        ("LOAD/TOOL,3,ADJUST,7", {"number": 3, "adjust": 7}),
+        ("SELECT/TOOL,3,ADJUST,0", {"number": 3, "adjust": 0}),
+        ("LOADTL/3,LENGTH,50,ADJUST,7.0", {"number": 3, "length": 50.0, "adjust": 7}),
+        ("LOADTL/3,ADJUST,7,LENGTH,50", {"number": 3, "adjust": 7, "length": 50.0}),
+        ("LOADTL/3", {"number": 3}),
+    ],
+)
+def test_loadtl_adjust_is_the_length_offset_register(record, data):
+    tp = apt(f"{record}\nGOTO/0,0,0\n")
+    (event,) = tp.events
+    assert event.kind == "tool" and event.data == data
+    assert isinstance(event.data.get("adjust", 0), int)
+    assert tp.warnings == ()
+
+
+@pytest.mark.parametrize(
+    ("record", "message"),
+    [
+        ("LOADTL/3,ADJUST", "the 3rd value of LOADTL after ADJUST, got nothing"),
+        ("LOADTL/3,ADJUST,", "the 3rd value of LOADTL after ADJUST, got nothing"),
+        ("LOADTL/3,ADJUST,-1", "got '-1'"),
+        ("LOADTL/3,ADJUST,2.5", "got '2.5'"),
+        ("LOADTL/3,ADJUST,nan", "got 'nan'"),
+        ("LOADTL/3,ADJUST,H7", "got 'H7'"),
+        ("LOAD/TOOL,3,ADJUST,X", "the 4th value of LOAD after ADJUST, got 'X'"),
+        ("LOADTL/3,ADJUST,1,ADJUST,2", "expected one ADJUST in LOADTL, got two"),
+    ],
+)
+def test_a_bad_adjust_is_an_error_at_the_record(record, message):
+    with pytest.raises(CLDataError, match=r"^src\.apt:2: ") as info:
+        apt(f"GOTO/0,0,0\n{record}\nGOTO/1,0,0\n")
+    assert message in str(info.value)
+    if "one ADJUST" not in message:
+        assert "expected a length-offset register (a whole number >= 0)" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("record", "ignored"),
+    [("LOADTL/3,IN", "IN"), ("LOADTL/3,ADJUST,7,MILL,2", "MILL,2"), ("LOADTL/1,1,1", "1,1")],
+)
+def test_other_loadtl_words_are_warned_not_dropped(record, ignored):
+    tp = apt(f"{record}\nGOTO/0,0,0\n")
+    assert tp.warnings == (
+        f"src.apt:1: LOADTL: '{ignored}' after the tool number not understood; ignored "
+        "(LENGTH and ADJUST are read)",
+    )
+    assert [e.kind for e in tp.events] == ["tool"]
+
+
+# -- GODLTA: a motion record, never carried as a comment (found with the fuzzing, issue 22) ------
+
+
+def test_godlta_moves_by_a_delta_or_along_the_tool_axis():
+    tp = apt(
+        "FEDRAT/100\nGOTO/1,2,3\nGODLTA/0,0,5\nGODLTA/-2\nGOTO/1,2,3,0.6,0,0.8\nGODLTA/10\n"
+        "RAPID\nGODLTA/1,1,1\n"
+    )
+    np.testing.assert_allclose(
+        tp.tip, [[1, 2, 3], [1, 2, 8], [1, 2, 6], [1, 2, 3], [7, 2, 11], [8, 3, 12]]
+    )
+    assert list(tp.line) == [2, 3, 4, 5, 6, 8]
+    assert list(tp.motion) == [Motion.FEED] * 5 + [Motion.RAPID]
+    np.testing.assert_allclose(tp.feed[:5], 100.0)
+    np.testing.assert_allclose(tp.axis[-1], [0.6, 0, 0.8])
+    assert tp.events == () and tp.warnings == ()
+
+
+def test_godlta_in_inch_and_in_a_second_mcs():
+    tp = apt("UNITS/INCHES\nGOTO/1,0,0\nGODLTA/0,0,1\n")
+    np.testing.assert_allclose(tp.tip[-1], [25.4, 0, 25.4])
+    # the second MCS turned 90 degrees about Z: its +X is the first's +Y
+    tp = apt(
+        "MSYS/0,0,0,1,0,0,0,1,0\nGOTO/0,0,0\nMSYS/0,0,0,0,1,0,-1,0,0\nGODLTA/1,0,0\n",
+    )
+    np.testing.assert_allclose(tp.tip[-1], [0, 1, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "message"),
+    [
+        ("GODLTA/0,0,1\n", 1, "expected a motion before GODLTA (it moves from there), got none"),
+        ("GOTO/0,0,0\nGODLTA/1,2\n", 2, "expected 1 value (a distance along the tool axis) or 3"),
+        ("GOTO/0,0,0\nGODLTA\n", 2, "or 3 (dx, dy, dz) in GODLTA, got 0"),
+        ("GOTO/0,0,0\nGODLTA/nan\n", 2, "expected a finite number for the 1st value of GODLTA"),
+        ("GOTO/0,0,0\nGODLTA/1,x,1\n", 2, "expected a number for the 2nd value of GODLTA"),
+        ("GOTO/0,0,0\nGODLTA/0,0,1e300\n", 2, "GODLTA: dz 1e300 mm is beyond the largest"),
+        ("GOTO/1,0,0\nCIRCLE/0,0,0,0,0,1,1\nGODLTA/1\n", 2, "expected a GOTO after CIRCLE"),
+    ],
+)
+def test_godlta_errors(text, line, message):
+    with pytest.raises(CLDataError, match=rf"^src\.apt:{line}: ") as info:
+        apt(text)
+    assert message in str(info.value)

@@ -238,6 +238,9 @@ def test_shared_file_other_arguments():
     assert pieces is not None and pieces[0].units == "mm"
     assert pieces[0].warnings == (
         f"{path}:21: CL file says inch at line 21; read as mm (--cl-units)",
+        f"{path}:22: CIRCLE sense inferred, not declared: arcs turn clockwise about the circle "
+        "axis, the NX CLSF convention (an NX listing line at line 2); each arc is checked "
+        "against the feed moves before and after it",
     )
     assert [w for p in pieces[1:] for w in p.warnings] == []
 
@@ -319,6 +322,9 @@ _other = st.sampled_from(
         "FOO/1,2",
         "  GOTO/1,2,3",
         "FROM/0,0,50",
+        "GODLTA/0,0,5",
+        "GODLTA/-2",
+        "LOADTL/3,ADJUST,7",
         "GOHOME",
         "Tool Path Listing has 99 lines.",
     ]
@@ -366,9 +372,9 @@ _text_pieces = st.sampled_from([1, 2, 3, 5, 7, 16, 64, 4096])
 def whole_file_facts(text: str, source: str) -> object:
     """Units declared and NX dialect, as read_apt_text finds them in the whole text."""
 
-    def facts() -> tuple[tuple[str, int] | None, bool]:
+    def facts() -> tuple[tuple[str, int] | None, tuple[int, str] | None]:
         scan = apt_module.scan_text(text, source)
-        nx = scan.listing_lines > 0 or any(apt_module.is_nx_record(r) for r in scan.records)
+        nx = apt_module.nx_evidence(scan.records, scan.first_listing)
         return apt_module._file_units(scan.records), nx
 
     return outcome(facts)
@@ -394,17 +400,25 @@ def test_generated_apt(tmp_path_factory, text, max_points, text_piece, bulk_piec
 @pytest.mark.parametrize(
     ("text", "facts"),
     [
-        # (units, line that declares them), NX dialect
-        ("GOTO/1,2,3\n" * 5 + "GOTO/1,2,IPM\n" + "GOTO/1,2,3\n" * 5, (("inch", 6), False)),
-        ("goto / 1, 2, 3\n  GOTO/1,2,3,0,0,mmpr\n", (("mm", 2), False)),
-        ("FEDRAT/IPM,1\nGOTO/1,2,3\nUNITS/MM\n", (("mm", 3), False)),
-        ("FEDRAT/$\nIPM,5\nGOTO/1,2,3\n", (("inch", 1), False)),
-        ("PPRINT x $\n" + "GOTO/1,2,3\n" * 4, (None, False)),
-        ("PPRINT x $\nGOTO/1,2,3\nUNITS/INCHES\n", (("inch", 3), False)),
-        ("GOTO/1,2,3\nTLDATA/MILL,1\n", (None, True)),
-        ("GOTO/1,2,3\nMSYS/0,0,0,1,0,0,0,1,0\n", (None, True)),
-        ("GOTO/1,2,3\nTool Path Listing has 3 lines.\n", (None, True)),
-        ("GOTO/1,2,3\nFINI\nUNITS/INCHES\nPAINT/X\n", (None, False)),
+        # (units, line that declares them), where the file shows NX CLSF
+        ("GOTO/1,2,3\n" * 5 + "GOTO/1,2,IPM\n" + "GOTO/1,2,3\n" * 5, (("inch", 6), None)),
+        ("goto / 1, 2, 3\n  GOTO/1,2,3,0,0,mmpr\n", (("mm", 2), None)),
+        ("FEDRAT/IPM,1\nGOTO/1,2,3\nUNITS/MM\n", (("mm", 3), None)),
+        ("FEDRAT/$\nIPM,5\nGOTO/1,2,3\n", (("inch", 1), None)),
+        ("PPRINT x $\n" + "GOTO/1,2,3\n" * 4, (None, None)),
+        ("PPRINT x $\nGOTO/1,2,3\nUNITS/INCHES\n", (("inch", 3), None)),
+        ("GOTO/1,2,3\nTLDATA/MILL,1\n", (None, (2, "the NX record TLDATA"))),
+        ("GOTO/1,2,3\nMSYS/0,0,0,1,0,0,0,1,0\n", (None, (2, "the NX record MSYS"))),
+        ("GOTO/1,2,3\nTool Path Listing has 3 lines.\n", (None, (2, "an NX listing line"))),
+        (
+            "Tool Path Listing has 3 lines.\n" + "GOTO/1,2,3\n" * 40 + "PAINT/X\n",
+            (None, (1, "an NX listing line")),
+        ),
+        (
+            "GOTO/1,2,3\n" * 40 + "PAINT/X\nTool Path Listing has 3 lines.\n",
+            (None, (41, "the NX record PAINT")),
+        ),
+        ("GOTO/1,2,3\nFINI\nUNITS/INCHES\nPAINT/X\n", (None, None)),
         ("GOTO/1,2,3\n" * 3 + "GOTO/1,2,$\n", ("CLDataError", 4)),
     ],
 )
@@ -481,7 +495,8 @@ def test_text_piece_boundaries_everywhere(tmp_path, max_points):
     path = tmp_path / "straddle.apt"
     path.write_bytes(STRADDLING.encode())
     whole = read_cl(path)
-    assert whole.units == "inch" and len(whole.warnings) == 2  # unknown record, junk after FINI
+    # the CIRCLE sense, an unknown record, junk after FINI
+    assert whole.units == "inch" and len(whole.warnings) == 3
     assert whole.warnings[-1].endswith(":16: 2 non-blank line(s) after FINI ignored")
     for text_piece in [*range(1, 40), 64, 1 << 23]:
         check_file(path, max_points, text_piece)
@@ -673,8 +688,10 @@ def test_format_detected_on_the_whole_file(tmp_path):
     late, cr_only = tmp_path / "late.cl", tmp_path / "cr.cl"
     late.write_text("1 2 3\n" * 30 + "$$ an APT comment\n")
     cr_only.write_text("1 2 3\rGOTO/1,2,3\r")  # no line start after CR: read as plain
-    pieces = check_file(late, 4, 16)
-    assert pieces is not None and len(pieces[-1].warnings) == 30  # unknown APT records
+    # APT (a $$ comment), so 30 unknown records and no motion: refused, whole and in pieces
+    assert check_file(late, 4, 16) is None
+    with pytest.raises(CLDataError, match=r"late.cl:1: not a CL file: no motion record, and 30 of"):
+        read_cl(late)
     for text_piece in (1, 6, 7, 64):
         assert check_file(cr_only, 4, text_piece) is None  # plain: "GOTO/1" is not a number
 
@@ -749,3 +766,47 @@ def test_benchmark_job_in_default_text_pieces(tmp_path):
     for max_points in (250_000, 30_000):
         pieces = check_file(path, max_points, 1 << 23)
         assert pieces is not None and all(p.multiaxis for p in pieces)
+
+
+# -- found by fuzzing (tests/test_fuzz_readers.py) ---------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("data", "format"),
+    [
+        (b"\x01\r\x00", "plain"),  # a bad line, then a NUL in the next piece
+        (b"1 2\n" + b"1 2 3\n" * 20 + b"\x00", "plain"),
+        (b"GOTO/1,2\nFINI\n\x00", "apt"),  # a bad record, then a NUL after FINI
+        (b"GOTO/1,2,3\nFEDRAT/-1\n" + b"GOTO/1,2,3\n" * 50 + b"FINI\nx\x00", None),
+    ],
+)
+@pytest.mark.parametrize("text_piece", [1, 4, 1 << 23])
+def test_a_nul_after_a_bad_record_is_the_error(tmp_path, data, format, text_piece):
+    """read_cl refuses a NUL anywhere before it reads a record; the pieces raise the same
+    error, not the error of a record before the NUL."""
+    path = tmp_path / "nul.cl"
+    path.write_bytes(data)
+    with pytest.raises(CLDataError, match="a NUL byte"):
+        read_cl(path, format=format)
+    assert check_file(path, 1, text_piece, format=format) is None
+
+
+@pytest.mark.parametrize("text_piece", [1, 2, 3, 64])
+@pytest.mark.parametrize(
+    ("data", "text"),
+    [
+        ("\ufeffGOTO/1,2,3\n".encode("utf-16-le"), "GOTO/1,2,3\n"),
+        # a second mark is text (a zero-width no-break space), whole and in pieces
+        ("\ufeff\ufeffGOTO/1,2,3\n".encode("utf-16-le"), "\ufeffGOTO/1,2,3\n"),
+        (b"\xff\xfeGOTO/", None),  # an odd byte: replaced
+    ],
+)
+def test_a_wide_file_in_pieces_of_one_character(tmp_path, data, text, text_piece):
+    """The byte-order mark of a UTF-16 file read one character at a time: its piece is empty
+    once the mark is dropped, which is not the end of the file (the whole text was lost)."""
+    path = tmp_path / "wide.apt"
+    path.write_bytes(data)
+    expected = data[2:].decode("utf-16-le", "replace")
+    assert text is None or expected == text
+    assert "".join(text_pieces(str(path), text_piece)) == expected
+    check_file(path, 1, text_piece)

@@ -340,7 +340,10 @@ def read_cl_chunks(
         The error :func:`read_cl` raises, with the same file, line and message, when the
         iteration reaches it: pieces before the bad record may have been handed out already.
         (A continued record cut off by the end of an APT file, and a file that cannot be
-        opened, are found before the first piece, as :func:`read_cl` finds them first.)
+        opened, are found before the first piece, as :func:`read_cl` finds them first; a NUL
+        byte after the bad record is the error, as for :func:`read_cl`, which refuses it
+        before reading any record; a file refused as not CL data, mostly unknown records, is
+        refused at its end, see :mod:`urdfpost.readers.apt`.)
 
     Examples
     --------
@@ -400,11 +403,18 @@ def _read_chunks(
     if format is None:
         format = detect_file_format(source, text_piece)
         logger.debug("%s: detected format %s", source, format)
-    yield from FORMATS[format].read_stream(
-        source,
-        max_points=max_points,
-        units=units,
-        chord_tolerance=chord_tolerance,
-        text_piece=text_piece,
-        **_mcs_option(separate_mcs),
-    )
+    try:
+        yield from FORMATS[format].read_stream(
+            source,
+            max_points=max_points,
+            units=units,
+            chord_tolerance=chord_tolerance,
+            text_piece=text_piece,
+            **_mcs_option(separate_mcs),
+        )
+    except CLDataError:
+        # read_cl refuses a NUL anywhere in the file before it reads a record: so does this,
+        # when a record before the NUL was at fault (the rest of the file is read only then)
+        for _ in text_pieces(source, text_piece):
+            pass
+        raise

@@ -42,7 +42,44 @@ MAX_LENGTH_MM = 1e9
 #: length, bounded by :data:`MAX_LENGTH_MM` per revolution.
 MAX_FEED_MM_PER_MIN = MAX_LENGTH_MM
 
+#: Characters of a record's text a message quotes: a junk line of megabytes would otherwise
+#: become a warning of megabytes. The rest is counted: "... (N more characters)".
+QUOTE_CHARS = 80
+#: Characters of text a carried comment keeps (an unknown record, a ``$$`` comment, PPRINT,
+#: PARTNO, an NX operation name): more than any real comment, so a real one is never cut,
+#: while a junk line does not become a comment of megabytes in the program. The text beyond
+#: it is kept nowhere; the record's warning says that it was shortened.
+COMMENT_CHARS = 200
+
 _UNIT_NAMES = {"mm": "mm", "inch": "inch", "in": "inch", "inches": "inch"}
+
+
+def quote(text: str, limit: int = QUOTE_CHARS) -> str:
+    """``text`` for a message, at most ``limit`` characters of it.
+
+    Examples
+    --------
+    >>> quote("GOTO/1,2,3")
+    'GOTO/1,2,3'
+    >>> quote("x" * 100, 10)
+    'xxxxxxxxxx... (90 more characters)'
+    """
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text) - limit} more characters)"
+
+
+def shorten(text: str, limit: int = COMMENT_CHARS) -> tuple[str, int]:
+    """``text`` cut to ``limit`` characters, and how many were cut off (0 when none).
+
+    Examples
+    --------
+    >>> shorten("abcdef", 4)
+    ('abcd', 2)
+    """
+    if len(text) <= limit:
+        return text, 0
+    return text[:limit], len(text) - limit
 
 
 def ordinal(n: int) -> str:
@@ -94,7 +131,7 @@ def parse_number(token: str, *, source: str, line: int, what: str) -> float:
     """
     text = token.strip()
     if not _NUMBER.fullmatch(text):
-        raise CLDataError(source, line, f"expected a number for {what}, got '{text}'")
+        raise CLDataError(source, line, f"expected a number for {what}, got '{quote(text)}'")
     return float(text)
 
 
@@ -211,7 +248,7 @@ def check_coordinates(
                 source,
                 line,
                 f"expected a finite number for the {ordinal(k + 1)} value{of}, "
-                f"got '{tokens[k].strip()}'",
+                f"got '{quote(tokens[k].strip())}'",
             )
         check_length(value, scale, units=units, source=source, line=line, what=prefix + name)
 

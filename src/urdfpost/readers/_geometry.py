@@ -113,12 +113,15 @@ class Arc:
         point from the circle axis.
     start_tangent : ndarray, shape (3,)
         Unit direction of motion at the start, in the plane of the circle.
+    end_tangent : ndarray, shape (3,)
+        Unit direction of motion at the end, in the plane of the circle.
     """
 
     points: np.ndarray
     sweep: float
     radius_error: float
     start_tangent: np.ndarray
+    end_tangent: np.ndarray
 
 
 def max_arc_step(radius: float, chord_tolerance: float) -> float:
@@ -229,4 +232,5 @@ def interpolate_arc(
         sweep=sweep,
         radius_error=max(abs(r_s - radius), abs(r_e - radius)),
         start_tangent=e2,
+        end_tangent=np.cross(m, u_e / r_e),
     )

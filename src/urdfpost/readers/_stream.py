@@ -133,15 +133,16 @@ def _wide_text_pieces(source: str, codec: str, size: int) -> Iterator[str]:
         raise CLDataError(source, 0, f"cannot read: {exc.strerror or exc}") from exc
     with handle:
         rest, line = "", 1
+        mark = True  # the byte-order mark is still to be dropped (once: a second is text)
         while True:
             try:
                 got = handle.read(size)
             except OSError as exc:
                 raise CLDataError(source, 0, f"cannot read: {exc.strerror or exc}") from exc
-            if line == 1 and not rest:
-                got = got.removeprefix("\ufeff")
             if not got:
                 break
+            if mark:  # (a piece of one character may be the mark alone: then nothing is left)
+                got, mark = got.removeprefix("\ufeff"), False
             rest += got
             cut = max(rest.rfind("\n"), rest.rfind("\r", 0, len(rest) - 1)) + 1
             if not cut:

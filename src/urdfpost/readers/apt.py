@@ -14,9 +14,11 @@ A file is read in three steps:
    (:func:`urdfpost.units.units_doubt`).
 
 Coordinates (NX ``MSYS``): GOTO, CIRCLE and tool-axis values are in the MCS, the program zero,
-and are kept as written. ``MSYS/x,y,z,xi,xj,xk,yi,yj,yk`` says where that MCS lies in the
-part's absolute frame; it is recorded (an ``msys`` event) and changes no point while every
-MSYS of the file gives the same MCS (equal within 1e-9, relative). After an MSYS of another
+and are kept as written (``GODLTA/dx,dy,dz`` moves by that much from the last point, in the
+MCS's axes; ``GODLTA/d`` moves ``d`` along the tool axis).
+``MSYS/x,y,z,xi,xj,xk,yi,yj,yk`` says where that MCS lies in the part's absolute frame; it
+is recorded (an ``msys`` event) and changes no point while every MSYS of the file gives the
+same MCS (equal within 1e-9, relative). After an MSYS of another
 MCS, the points, tool axes and arcs are transformed into the first MCS (``p_first = F1^-1 F2
 p``), with the warning "MSYS at line L differs from the first MCS (line K): points
 transformed into the first MCS"; with ``separate_mcs`` they are left in their MCS and the
@@ -48,7 +50,10 @@ Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
   NX ``TLDATA/MILL``). The same values are also put into the ``"tool"`` event of the tool
   change they belong to (the next one, or the last one when no motion came in between).
 - ``"tool"``: ``number`` (int), and ``diameter``, ``corner_radius``, ``length``, ``name`` when
-  known (``LOADTL/``, NX ``LOAD/TOOL``, ``SELECT/TOOL``)
+  known (``LOADTL/``, NX ``LOAD/TOOL``, ``SELECT/TOOL``), and ``adjust`` (int: the
+  length-offset register, ``LOADTL/3,ADJUST,7`` or ``LOAD/TOOL,3,ADJUST,7``) when given;
+  ``LENGTH,l`` gives ``length``. Other values after the tool number get a warning and are
+  ignored; an ADJUST that is not a whole number >= 0 is an error at the record
 - ``"spindle"``: ``rpm`` (float; 0.0 for off, NaN for ``SPINDL/ON`` with no speed yet) and
   ``direction`` ("cw", "ccw", "off")
 - ``"coolant"``: ``mode`` ("flood", "mist", "through", "air", "off")
@@ -61,11 +66,36 @@ Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
   it as a comment)
 - ``"unknown"``: ``text`` (the record as written; a warning is added too)
 
+Text carried into the program as a comment (``comment``, ``partno`` and ``unknown`` texts, an
+``operation``'s names) keeps at most :data:`~urdfpost.readers._common.COMMENT_CHARS` (200)
+characters; a longer one is cut there, with a warning at its line that says so (the rest is
+kept nowhere). ``insert`` text is NC code and is never cut. A warning or error quotes at most
+:data:`~urdfpost.readers._common.QUOTE_CHARS` (80) characters of a record, then "... (N more
+characters)".
+
+Junk: a file that is mostly not CL data is refused at the end of the reading (whole or in
+pieces alike) with a :class:`~urdfpost.errors.CLDataError` at its first unknown record: when
+more than half of its records are unknown (:data:`UNKNOWN_SHARE_REFUSED`) and either more than
+:data:`UNKNOWN_RECORDS_ALLOWED` (20) of them are or it has no motion record ("not a CL file:
+2170 of 2300 records are unknown, the first at line 1; expected APT/CLSF records such as GOTO,
+FEDRAT, CIRCLE"). Fewer unknown records are carried as comments, each with a warning.
+
 Arc direction (``CIRCLE/xc,yc,zc,i,j,k,r``): generic APT arcs turn counter-clockwise seen from
 the tip of (i,j,k) (right-hand rule). NX CLSF arcs turn the other way, clockwise about (i,j,k):
 in the 146 CIRCLE records of a real NX file every arc whose neighbouring linear moves are not
 perpendicular to it continues them tangentially only with that sense, and its ``TIMES,7``
 helical ramps come out at exactly the 3.00 degree ramp angle only with it.
+
+No record declares the sense: it is inferred from the dialect, NX CLSF when the file has an NX
+listing line or an NX-only record, else APT. So the first CIRCLE gets one warning that says
+which sense was inferred and why ("CIRCLE sense inferred, not declared: arcs turn clockwise
+about the circle axis, the NX CLSF convention (the NX record TOOL PATH at line 3); ..."), and each
+arc is checked against the linear feed moves into and out of it: when the tangent of the arc
+at a move agrees with the other sense (cosine <= -:data:`TANGENT_EVIDENCE`) and at no move
+with the inferred one, the arc gets a warning at its CIRCLE line ("arc turns against the feed
+moves around it (start tangent cosine -1.00, end tangent cosine -1.00): the other sense ...").
+The inferred sense is kept (the warning names each arc; a file's arcs are not turned on the
+evidence of neighbouring moves, which are not always tangent).
 """
 
 from __future__ import annotations
@@ -86,6 +116,7 @@ from urdfpost.units import MM_PER_INCH, other_units, units_doubt
 
 from ._common import (
     AXIS_LENGTH_SLACK,
+    COMMENT_CHARS,
     MAX_FEED_MM_PER_MIN,
     MAX_LENGTH_MM,
     ZERO_AXIS,
@@ -97,7 +128,9 @@ from ._common import (
     normalise_units,
     ordinal,
     parse_number,
+    quote,
     scale_of,
+    shorten,
     unit_vector,
 )
 from ._format import Format
@@ -167,6 +200,21 @@ APT_LINE = re.compile(
 )
 _KEYWORD = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 _NOT_KEYWORDS = frozenset({"NAN", "INF", "INFINITY"})
+
+#: Words of the records that move the tool.
+_MOTION_WORDS = frozenset({"GOTO", "FROM", "GODLTA", "CIRCLE"})
+#: A file is refused as not CL data when more than this share of its records are unknown and
+#: either more than :data:`UNKNOWN_RECORDS_ALLOWED` are or it has no motion record: random text
+#: is nearly all unknown records, a real CL file nearly all GOTO records.
+UNKNOWN_SHARE_REFUSED = 0.5
+#: Unknown records a file with motion may have whatever their share (a short hand-written
+#: file with a few machine-specific words is still CL data).
+UNKNOWN_RECORDS_ALLOWED = 20
+
+#: Cosine between an arc's tangent and the linear feed move touching it from which the move
+#: counts as evidence of the arc's sense (60 degrees): tangent moves give 1, the other sense
+#: -1, moves square to the arc (plunges, retracts) about 0 and no evidence.
+TANGENT_EVIDENCE = 0.5
 
 #: Fewest consecutive one-line GOTO records read in bulk; shorter runs are read record by
 #: record (numpy's set-up cost would exceed the saving).
@@ -266,6 +314,7 @@ class _Scan:
 
     records: list[Record | GotoRun] = field(default_factory=list)
     listing_lines: int = 0
+    first_listing: int = 0  # line of the first listing line (0: none)
     trailing_comments: int = 0
     after_fini: list[int] = field(default_factory=list)
 
@@ -316,6 +365,7 @@ class _Scanner:
                 continue
             if self.pending is None and _LISTING_LINE.match(stripped):
                 scan.listing_lines += 1
+                scan.first_listing = scan.first_listing or number
                 continue
             if self.pending is None and _SEPARATOR_LINE.match(stripped):
                 continue
@@ -635,6 +685,30 @@ def is_nx_record(record: Record | GotoRun) -> bool:
     return record.word in _NX_WORDS
 
 
+def nx_evidence(
+    records: Iterable[Record | GotoRun], first_listing: int = 0
+) -> tuple[int, str] | None:
+    """Where a file first shows that it is an NX CLSF listing, or None.
+
+    Parameters
+    ----------
+    records : iterable of Record or GotoRun
+        The file's records, in order (read until the first NX-only record).
+    first_listing : int
+        Line of the file's first NX listing line, 0 for none.
+
+    Returns
+    -------
+    (int, str) or None
+        The line and what is there ("the NX record TOOL PATH", "an NX listing line"): the
+        first NX-only record or listing line, whichever comes first.
+    """
+    found = next(((r.line, f"the NX record {r.word}") for r in records if is_nx_record(r)), None)
+    if first_listing and (found is None or first_listing < found[0]):
+        return first_listing, "an NX listing line"
+    return found
+
+
 def _split_tokens(record: Record, source: str) -> tuple[list[str], list[float]]:
     """Keywords (upper case) and numbers of a record's arguments, in their own order.
 
@@ -652,6 +726,29 @@ def _split_tokens(record: Record, source: str) -> tuple[list[str], list[float]]:
             what = f"the {ordinal(position)} value of {record.word}"
             numbers.append(parse_number(token, source=source, line=record.line, what=what))
     return words, numbers
+
+
+@dataclass(frozen=True)
+class _ArcCheck:
+    """An arc whose sense is checked against the moves around it, waiting for the next move.
+
+    Attributes
+    ----------
+    line : int
+        Line of the CIRCLE record.
+    end : ndarray, shape (3,), mm
+        End point of the arc (workpiece frame).
+    end_tangent : ndarray, shape (3,)
+        Unit direction of motion at the end.
+    start_cosine : float or None
+        Cosine between the feed move into the arc and its start tangent; None when there is
+        no such move (the arc follows an arc, a rapid, or nothing).
+    """
+
+    line: int
+    end: np.ndarray
+    end_tangent: np.ndarray
+    start_cosine: float | None
 
 
 @dataclass(frozen=True)
@@ -676,8 +773,9 @@ class _AptInterpreter:
         Units the values are read in ("mm" or "inch").
     chord_tolerance : float, mm
         Chord error allowed when interpolating arcs.
-    nx : bool
-        NX CLSF dialect (arcs turn clockwise about the circle axis).
+    nx : tuple of (int, str), or None
+        Where the file shows that it is NX CLSF (:func:`nx_evidence`): then arcs turn
+        clockwise about the circle axis. None: APT, counter-clockwise.
     declared : tuple of (str, int), optional
         The units the file declares and the line that says so (None: it says nothing).
     forced : bool
@@ -694,7 +792,7 @@ class _AptInterpreter:
         source: str,
         units: str,
         chord_tolerance: float,
-        nx: bool,
+        nx: tuple[int, str] | None,
         *,
         declared: tuple[str, int] | None = None,
         forced: bool = False,
@@ -705,6 +803,9 @@ class _AptInterpreter:
         self.scale = scale_of(units)
         self.chord_tolerance = chord_tolerance
         self.arc_sense = -1.0 if nx else 1.0
+        self.nx = nx
+        self.sense_noted = False  # whether the warning on the inferred sense was given
+        self.arc_end: _ArcCheck | None = None  # the last arc, until the move after it
         self.builder = ToolpathBuilder(source)
         self.declared = declared
         self.forced = forced
@@ -735,10 +836,17 @@ class _AptInterpreter:
         self.circle: _PendingCircle | None = None
         self.last_point_on_arc = False
         self.ignored: dict[str, int] = {}
+        # records interpreted (a run of k GOTO records counts k), motion records among them,
+        # unknown ones and the line of the first: for the refusal of a file of junk
+        self.record_count = 0
+        self.motion_count = 0
+        self.unknown_count = 0
+        self.first_unknown = 0
         self.handlers: dict[str, Callable[[Record], None]] = {
             "$$": self._comment,
             "GOTO": self._goto,
             "FROM": self._from,
+            "GODLTA": self._godlta,
             "CIRCLE": self._circle,
             "RAPID": self._rapid,
             "FEDRAT": self._fedrat,
@@ -776,29 +884,36 @@ class _AptInterpreter:
     def step(self, record: Record | GotoRun) -> None:
         """Interpret one record (or run of GOTO records)."""
         if isinstance(record, GotoRun):
+            self.record_count += len(record)
+            self.motion_count += len(record)
             self._goto_run(record)
             return
+        self.record_count += 1
+        self.motion_count += record.word in _MOTION_WORDS
         if self.circle is not None and record.word not in ("GOTO", "PAINT", "$$"):
             raise CLDataError(
                 self.source,
                 self.circle.line,
-                f"expected a GOTO after CIRCLE, got '{record.text}' on line {record.line}",
+                f"expected a GOTO after CIRCLE, got '{quote(record.text)}' on line {record.line}",
             )
         self.handlers.get(record.word, self._unknown)(record)
 
     def finish(self) -> None:
-        """Check the end of the file: no CIRCLE waiting for its GOTO; warn when the figures
-        (feeds, cutter, extents) look like the other unit (:func:`~urdfpost.units.units_doubt`).
+        """Check the end of the file: it is CL data (:meth:`_check_not_junk`), no CIRCLE waits
+        for its GOTO; warn when the figures (feeds, cutter, extents) look like the other unit
+        (:func:`~urdfpost.units.units_doubt`).
 
         Raises
         ------
         CLDataError
-            When a CIRCLE has no GOTO after it.
+            For a file that is mostly not CL data, or when a CIRCLE has no GOTO after it.
         """
+        self._check_not_junk()
         if self.circle is not None:
             raise CLDataError(
                 self.source, self.circle.line, "expected a GOTO after CIRCLE, got the end of file"
             )
+        self._check_arc(None, Motion.FEED)
         if self.ignored:
             logger.debug("%s: ignored records %s", self.source, self.ignored)
         self._check_units()
@@ -828,13 +943,58 @@ class _AptInterpreter:
             f"check its units (--cl-units {other} reads it in {other})",
         )
 
+    def _check_not_junk(self) -> None:
+        """Refuse a file that is mostly not CL data (random text, a file of another kind).
+
+        It is refused when more than :data:`UNKNOWN_SHARE_REFUSED` of its records are unknown
+        and either more than :data:`UNKNOWN_RECORDS_ALLOWED` of them are or it has no motion
+        record at all. A real CL file is mostly GOTO records; its few unknown records (a
+        machine-specific word) are carried as comments with a warning each.
+
+        Raises
+        ------
+        CLDataError
+            At the first unknown record's line, naming how many of how many are unknown.
+        """
+        unknown, records = self.unknown_count, self.record_count
+        if not unknown or unknown <= UNKNOWN_SHARE_REFUSED * records:
+            return
+        if unknown <= UNKNOWN_RECORDS_ALLOWED and self.motion_count:
+            return
+        motion = "" if self.motion_count else "no motion record, and "
+        raise CLDataError(
+            self.source,
+            self.first_unknown,
+            f"not a CL file: {motion}{unknown} of {records} records are unknown, the first at "
+            f"line {self.first_unknown}; expected APT/CLSF records such as GOTO, FEDRAT, "
+            "CIRCLE",
+        )
+
     def error(self, record: Record, message: str) -> CLDataError:
         """A CLDataError for ``record``."""
         return CLDataError(self.source, record.line, message)
 
     def _unknown(self, record: Record) -> None:
-        self.builder.add_event("unknown", record.line, text=record.text)
-        self.builder.warn(record.line, f"unknown record '{record.text}' carried as a comment")
+        """A record not understood: an ``unknown`` event (its text, at most
+        :data:`~urdfpost.readers._common.COMMENT_CHARS` characters) and a warning."""
+        self.unknown_count += 1
+        self.first_unknown = self.first_unknown or record.line
+        text, cut = shorten(record.text)
+        self.builder.add_event("unknown", record.line, text=text)
+        self.builder.warn(
+            record.line,
+            f"unknown record '{quote(record.text)}' carried as a comment{_shortened(cut)}",
+        )
+
+    def _carried(self, record: Record, text: str) -> str:
+        """The text of a comment carried into the program: ``text``, shortened to
+        :data:`~urdfpost.readers._common.COMMENT_CHARS` characters with a warning."""
+        kept, cut = shorten(text)
+        if cut:
+            self.builder.warn(
+                record.line, f"{_record_name(record)} carried as a comment{_shortened(cut)}"
+            )
+        return kept
 
     def _ignore(self, record: Record) -> None:
         """Records that carry nothing for the program (display, end markers)."""
@@ -914,6 +1074,7 @@ class _AptInterpreter:
         if self.circle is not None:
             self._finish_arc(record, tip, axis_before, has_axis)
             return
+        self._check_arc(tip, Motion.RAPID if self.rapid_next else Motion.FEED)
         if self.rapid_next:
             self.builder.add_point(tip, self.axis, math.nan, Motion.RAPID, record.line)
             self.rapid_next = False
@@ -944,6 +1105,7 @@ class _AptInterpreter:
                 self._goto(record)
             return
         tip, axis = points
+        self._check_arc(tip[0], Motion.FEED)
         self.builder.add_arrays(
             tip,
             axis,
@@ -1002,7 +1164,53 @@ class _AptInterpreter:
 
     def _from(self, record: Record) -> None:
         tip, _ = self._point(record)
+        self._check_arc(tip, Motion.RAPID)
         self.builder.add_point(tip, self.axis, math.nan, Motion.RAPID, record.line)
+        self.last_point_on_arc = False
+
+    def _godlta(self, record: Record) -> None:
+        """``GODLTA/dx,dy,dz``: a move by that much (MCS axes, file units) from the last
+        point; ``GODLTA/d``: a move of ``d`` along the tool axis. A feed move, or a rapid
+        after RAPID, as a GOTO.
+
+        Raises
+        ------
+        CLDataError
+            For other than 1 or 3 values, one that is not a finite length, or no point
+            before it to move from.
+        """
+        args = record.args or []
+        if len(args) not in (1, 3):
+            raise self.error(
+                record,
+                "expected 1 value (a distance along the tool axis) or 3 (dx, dy, dz) in "
+                f"GODLTA, got {len(args)}",
+            )
+        names = ("distance",) if len(args) == 1 else ("dx", "dy", "dz")
+        deltas = []
+        for k, (token, name) in enumerate(zip(args, names, strict=True), start=1):
+            what = f"the {ordinal(k)} value of GODLTA"
+            value = parse_number(token, source=self.source, line=record.line, what=what)
+            if not math.isfinite(value):
+                raise self.error(
+                    record, f"expected a finite number for {what}, got '{quote(token.strip())}'"
+                )
+            deltas.append(self._length(record, value, name))
+        start = self.builder.last_tip
+        if start is None:
+            raise self.error(
+                record, "expected a motion before GODLTA (it moves from there), got none"
+            )
+        if len(deltas) == 1:
+            delta = tuple(deltas[0] * a for a in self.axis)
+        else:
+            delta = self.frame.vector(deltas)
+        tip = (start[0] + delta[0], start[1] + delta[1], start[2] + delta[2])
+        motion = Motion.RAPID if self.rapid_next else Motion.FEED
+        self._check_arc(tip, motion)
+        feed = math.nan if self.rapid_next else self._current_feed()
+        self.builder.add_point(tip, self.axis, feed, motion, record.line)
+        self.rapid_next = False
         self.last_point_on_arc = False
 
     def _rapid(self, record: Record) -> None:
@@ -1028,7 +1236,8 @@ class _AptInterpreter:
         radius = values[6]
         if not (math.isfinite(radius) and radius > 0.0):
             raise self.error(
-                record, f"expected a positive radius for the 7th value of CIRCLE, got '{args[6]}'"
+                record,
+                f"expected a positive radius for the 7th value of CIRCLE, got '{quote(args[6])}'",
             )
         radius_mm = self._length(record, radius, "radius")
         axis = unit_vector(values[3:6], builder=self.builder, line=record.line, what="circle axis")
@@ -1040,6 +1249,15 @@ class _AptInterpreter:
         if self.rapid_next:
             self.builder.warn(record.line, "RAPID before CIRCLE ignored: arcs are feed moves")
             self.rapid_next = False
+        self._check_arc(None, Motion.FEED)  # an arc after an arc: no linear move to compare
+        if not self.sense_noted:
+            self.sense_noted = True
+            self.builder.warn(
+                record.line,
+                f"CIRCLE sense inferred, not declared: arcs turn {self._sense_text(1)} "
+                f"({self._sense_reason()}); each arc is checked against the feed moves before "
+                "and after it",
+            )
         world_axis = self.frame.vector(axis)
         self.circle = _PendingCircle(
             line=record.line,
@@ -1062,7 +1280,7 @@ class _AptInterpreter:
             )
             if not (math.isfinite(n) and n >= 1 and n == int(n)):
                 raise self.error(
-                    record, f"expected a whole number of turns after TIMES, got '{value}'"
+                    record, f"expected a whole number of turns after TIMES, got '{quote(value)}'"
                 )
             turns = int(n)
         return turns
@@ -1103,7 +1321,12 @@ class _AptInterpreter:
                 f"arc end points are {arc.radius_error:.4g} mm off the CIRCLE radius "
                 f"{circle.radius:.6g} mm; the arc is blended between them",
             )
-        self._check_arc_start(circle.line, start, arc.start_tangent)
+        self.arc_end = _ArcCheck(
+            circle.line,
+            np.asarray(end, dtype=float),
+            arc.end_tangent,
+            self._incoming_cosine(arc.start_tangent),
+        )
         self.builder.add_points(
             arc.points, axis_before, self._current_feed(), Motion.FEED, circle.line
         )
@@ -1116,24 +1339,70 @@ class _AptInterpreter:
                 )
         self.last_point_on_arc = True
 
-    def _check_arc_start(
-        self, line: int, start: tuple[float, float, float], tangent: np.ndarray
-    ) -> None:
-        """Warn when an arc starts backwards against the linear move before it."""
-        if self.last_point_on_arc or len(self.builder) < 2:
-            return
+    def _incoming_cosine(self, tangent: np.ndarray) -> float | None:
+        """Cosine between the feed move into the last point and ``tangent``; None when the
+        last point is not the end of a linear feed move (or the move is too short)."""
+        if (
+            self.last_point_on_arc
+            or len(self.builder) < 2
+            or self.builder.last_motion() != Motion.FEED
+        ):
+            return None
         before = self.builder.last_tips(2)
         incoming = before[1] - before[0]
         length = float(np.linalg.norm(incoming))
-        if length < 1e-6:
+        if not length >= 1e-6:
+            return None
+        return float(incoming @ tangent) / length
+
+    def _check_arc(self, tip: Sequence[float] | np.ndarray | None, motion: Motion) -> None:
+        """Check the sense of the last arc, now that the move after it is known.
+
+        Called before the point ``tip`` is added (None: no linear move follows the arc: a
+        CIRCLE, or the end of the file). Each tangent of the arc is compared with the feed
+        move that touches it: a cosine of at least :data:`TANGENT_EVIDENCE` agrees with the
+        sense, one of at most ``-TANGENT_EVIDENCE`` agrees with the other (the other sense
+        turns the same arc the other way round: every tangent reversed). An arc that only
+        the other sense continues gets a warning at its CIRCLE line; the sense used stays the
+        inferred one (a file's arcs are not turned on the evidence of its neighbouring moves:
+        a warning names each arc that disagrees).
+        """
+        check = self.arc_end
+        if check is None:
             return
-        cosine = float(incoming @ tangent) / length
-        if cosine < -0.5:
-            self.builder.warn(
-                line,
-                f"arc starts against the move before it (cosine {cosine:.2f}); "
-                "check the CIRCLE direction convention",
-            )
+        self.arc_end = None
+        end_cosine = None
+        if tip is not None and motion == Motion.FEED:
+            outgoing = np.asarray(tip, dtype=float) - check.end
+            length = float(np.linalg.norm(outgoing))
+            if length >= 1e-6:
+                end_cosine = float(outgoing @ check.end_tangent) / length
+        cosines = {"start": check.start_cosine, "end": end_cosine}
+        known = {k: c for k, c in cosines.items() if c is not None and math.isfinite(c)}
+        if any(c >= TANGENT_EVIDENCE for c in known.values()) or not any(
+            c <= -TANGENT_EVIDENCE for c in known.values()
+        ):
+            return
+        figures = ", ".join(f"{k} tangent cosine {c:.2f}" for k, c in known.items())
+        self.builder.warn(
+            check.line,
+            f"arc turns against the feed moves around it ({figures}): the other sense, "
+            f"{self._sense_text(-1)}, would continue them; the CIRCLE sense was inferred "
+            f"({self._sense_reason()}): check the CIRCLE direction convention",
+        )
+
+    def _sense_text(self, which: int) -> str:
+        """The arc sense in words: the one used (``which`` 1) or the other (-1)."""
+        if self.arc_sense * which > 0:
+            return "counter-clockwise about the circle axis (right-hand rule), the APT convention"
+        return "clockwise about the circle axis, the NX CLSF convention"
+
+    def _sense_reason(self) -> str:
+        """Why the sense is the one used: the NX evidence, or its absence."""
+        if self.nx is None:
+            return "no NX CLSF record in the file"
+        line, what = self.nx
+        return f"{what} at line {line}"
 
     # -- feeds, spindle, coolant ----------------------------------------------------------
 
@@ -1238,24 +1507,76 @@ class _AptInterpreter:
     # -- tools ----------------------------------------------------------------------------
 
     def _tool_change(self, record: Record, tokens: Sequence[str], position: int) -> None:
-        """Tool change: ``tokens[0]`` is the tool number (the ``position``-th value)."""
+        """Tool change: ``tokens[0]`` is the tool number (the ``position``-th value), then
+        ``LENGTH,l`` (mm: ``length``) and ``ADJUST,h`` (the length-offset register:
+        ``adjust``), each at most once, in any order. Other values get a warning with the line
+        and are ignored.
+
+        Raises
+        ------
+        CLDataError
+            For a tool number or an ADJUST register that is not a whole number >= 0 (or is
+            missing), a LENGTH that is not a finite length, or LENGTH or ADJUST given twice.
+        """
         what = f"the {ordinal(position)} value of {record.word}"
         token = tokens[0] if tokens else ""
         number = parse_number(token, source=self.source, line=record.line, what=what)
         if not (math.isfinite(number) and number >= 0 and number == int(number)):
-            raise self.error(record, f"expected a tool number for {what}, got '{token}'")
+            raise self.error(record, f"expected a tool number for {what}, got '{quote(token)}'")
         data: dict[str, object] = {"number": int(number), **self.tool_data}
-        upper = [t.upper() for t in tokens]
-        if "LENGTH" in upper:
-            k = upper.index("LENGTH")
-            value = tokens[k + 1] if k + 1 < len(tokens) else ""
+        given: set[str] = set()
+        ignored: list[str] = []
+        k = 1
+        while k < len(tokens):
+            word = tokens[k].upper()
+            if word not in ("LENGTH", "ADJUST"):
+                ignored.append(tokens[k])
+                k += 1
+                continue
+            if word in given:
+                raise self.error(record, f"expected one {word} in {record.word}, got two")
+            given.add(word)
             what = f"the {ordinal(position + k + 1)} value of {record.word}"
-            length = parse_number(value, source=self.source, line=record.line, what=what)
-            if not math.isfinite(length):
-                raise self.error(record, f"expected a finite tool length for {what}, got '{value}'")
-            data["length"] = self._length(record, length, "length")
+            value = tokens[k + 1] if k + 1 < len(tokens) else ""
+            if word == "ADJUST":
+                data["adjust"] = self._register(record, value, what)
+            else:
+                length = parse_number(value, source=self.source, line=record.line, what=what)
+                if not math.isfinite(length):
+                    raise self.error(
+                        record, f"expected a finite tool length for {what}, got '{quote(value)}'"
+                    )
+                data["length"] = self._length(record, length, "length")
+            k += 2
+        if ignored:
+            self.builder.warn(
+                record.line,
+                f"{record.word}: '{quote(','.join(ignored))}' after the tool number not "
+                "understood; ignored (LENGTH and ADJUST are read)",
+            )
         self.tool_data = {}
         self.builder.add_event("tool", record.line, **data)
+
+    def _register(self, record: Record, token: str, what: str) -> int:
+        """The length-offset register after ``ADJUST`` (``what``: which value it is).
+
+        Raises
+        ------
+        CLDataError
+            When ``token`` is missing or not a whole number >= 0.
+        """
+        expected = (
+            f"expected a length-offset register (a whole number >= 0) for {what} after ADJUST"
+        )
+        if not token:
+            raise self.error(record, f"{expected}, got nothing")
+        try:
+            value = parse_number(token, source=self.source, line=record.line, what=what)
+        except CLDataError:
+            value = math.nan
+        if not (math.isfinite(value) and value >= 0 and value == int(value)):
+            raise self.error(record, f"{expected}, got '{quote(token)}'")
+        return int(value)
 
     def _loadtl(self, record: Record) -> None:
         self._tool_change(record, record.args or [], 1)
@@ -1313,10 +1634,10 @@ class _AptInterpreter:
         if not args or not args[0]:
             self._unknown(record)
             return
-        data = {"name": args[0]}
+        data = {"name": self._carried(record, args[0])}
         if len(args) >= 3 and args[1].upper() == "TOOL":
-            data["tool_name"] = args[2]
-            self.tool_data["name"] = args[2]
+            data["tool_name"] = self._carried(record, args[2])
+            self.tool_data["name"] = data["tool_name"]
         self.builder.add_event("operation", record.line, **data)
 
     # -- frames, modes, units -------------------------------------------------------------
@@ -1422,11 +1743,13 @@ class _AptInterpreter:
 
     def _comment(self, record: Record) -> None:
         if record.rest:
-            self.builder.add_event("comment", record.line, text=record.rest)
+            self.builder.add_event("comment", record.line, text=self._carried(record, record.rest))
 
     def _text_event(self, kind: str) -> Callable[[Record], None]:
         def handler(record: Record) -> None:
-            self.builder.add_event(kind, record.line, text=record.rest)
+            # INSERT is NC code, verbatim: never cut
+            text = record.rest if kind == "insert" else self._carried(record, record.rest)
+            self.builder.add_event(kind, record.line, text=text)
 
         return handler
 
@@ -1438,6 +1761,19 @@ class _AptInterpreter:
             self.builder.add_event(kind, record.line, **data)
 
         return handler
+
+
+def _shortened(cut: int) -> str:
+    """The end of the warning about a carried comment that was shortened by ``cut``
+    characters ("" when it was not)."""
+    if not cut:
+        return ""
+    return f", shortened to its first {COMMENT_CHARS} characters ({cut} more dropped)"
+
+
+def _record_name(record: Record) -> str:
+    """How a warning names a record: "$$ comment", "PPRINT", "TOOL PATH"."""
+    return "$$ comment" if record.word == "$$" else record.word
 
 
 def _read_units(units: str | None, declared: tuple[str, int] | None) -> str:
@@ -1524,7 +1860,7 @@ def read_apt_text(
     scan = scan_text(text, source)
     declared = _file_units(scan.records)
     file_units = _read_units(units, declared)
-    nx = scan.listing_lines > 0 or any(is_nx_record(r) for r in scan.records)
+    nx = nx_evidence(scan.records, scan.first_listing)
     runs = [r for r in scan.records if isinstance(r, GotoRun)]
     logger.debug(
         "%s: %d records (%d GOTO in %d runs read in bulk), units %s, dialect %s, "
@@ -1581,7 +1917,7 @@ def _apt_parts(source: str, text_piece: int) -> Iterator[str]:
         del text
 
 
-def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, bool]:
+def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[int, str] | None]:
     """What an APT file says of itself before FINI: declared units and NX dialect.
 
     The records are those of :func:`~urdfpost.readers.apt.scan_text`, except that blocks of
@@ -1593,8 +1929,9 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, bool]:
     units : tuple of (str, int), or None
         As ``_file_units`` of the whole file: the units of the first UNITS record, else of the
         first feed-unit keyword, and its line; else None.
-    nx : bool
-        Whether the file has NX listing lines or NX-only records.
+    nx : tuple of (int, str), or None
+        As :func:`nx_evidence` of the whole file: where it first shows that it is an NX CLSF
+        listing (a listing line or an NX-only record); None when it does not.
 
     Raises
     ------
@@ -1605,7 +1942,7 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, bool]:
     scanner = _Scanner(source)
     declared: tuple[str, int] | None = None
     in_feeds: tuple[str, int] | None = None
-    nx = False
+    nx: tuple[int, str] | None = None
     line = 1
     for text in _apt_parts(source, size):
         count = line_count(text)
@@ -1616,14 +1953,16 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, bool]:
                 declared = (units, record.line)
             if in_feeds is None and (units := feed_units(record)):
                 in_feeds = (units, record.line)
-            nx = nx or is_nx_record(record)
+        nx = nx or nx_evidence(scanner.scan.records)
         scanner.scan.records.clear()
         if scanner.fini:
             break
         line += count
         del text
     scan = scanner.finish()
-    return declared or in_feeds, nx or scan.listing_lines > 0
+    if scan.first_listing and (nx is None or scan.first_listing < nx[0]):
+        nx = (scan.first_listing, "an NX listing line")
+    return declared or in_feeds, nx
 
 
 def _only_plain_gotos(text: str, count: int) -> bool:
