@@ -662,6 +662,39 @@ def test_bad_file_caught_before_pinocchio(tmp_path, capfd, case, text, fragments
     assert capfd.readouterr().err == ""  # Pinocchio's parser printed nothing
 
 
+@pytest.mark.parametrize(
+    ("mimic", "other"), [("C", "B"), ("B", "C"), ("X", "Y")], ids=["C-B", "B-C", "X-Y"]
+)
+def test_mimic_joint_on_the_chain_is_refused_at_its_line(tmp_path, capfd, mimic, other):
+    """Issue 22: C mimicking B was read as an independent axis (the program had B-20 C0). The
+    kinematics has independent axes only: refused at the <mimic> line, naming both joints."""
+    text = edit_joint(
+        GOOD, mimic, "</joint>", f'\n  <mimic joint="{other}" multiplier="1" offset="0"/></joint>'
+    )
+    path = tmp_path / "mimic.urdf"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(MachineDefinitionError) as info:
+        load_machine(path)
+    msg = str(info.value)
+    assert msg.startswith(f"{path}:{line_of(text, '<mimic')}: "), msg
+    assert f"joint {mimic!r} mimics joint {other!r} (<mimic>)" in msg
+    assert "must move on its own" in msg
+    assert capfd.readouterr().err == ""
+
+
+def test_mimic_joint_off_the_chain_is_no_machine_axis(tmp_path):
+    """A mimic joint off the chain (a door following another) takes no part: accepted."""
+    text = WITH_DOOR.replace(
+        "</robot>",
+        '<link name="door2"/><joint name="door_follow" type="prismatic"><parent link="base"/>'
+        '<child link="door2"/><axis xyz="1 0 0"/>'
+        '<limit lower="0" upper="0.5" effort="1" velocity="1"/>'
+        '<mimic joint="door_slide" multiplier="-1"/></joint>\n</robot>',
+    )
+    m = machine_from_urdf(text)
+    assert m.axis_names == machine_from_urdf(GOOD).axis_names
+
+
 # Issue 22: <urdfpost> settings that were accepted (and blamed on the CL file later) or said
 # the wrong thing: id, settings, fragment
 BAD_SETTINGS = [

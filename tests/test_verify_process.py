@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -20,10 +20,13 @@ import urdfpost.posting.whole as whole
 from urdfpost import load_machine
 from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
+from urdfpost.dialects.writer import ProgramWriter
 from urdfpost.errors import ToleranceError
 from urdfpost.posting.options import PostOptions
+from urdfpost.posting.stream import post_stream
+from urdfpost.program import Spindle
 from urdfpost.readers import read_cl, read_cl_text
-from urdfpost.toolpath import Motion
+from urdfpost.toolpath import Motion, toolpath_pieces
 
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"
@@ -150,12 +153,30 @@ def end_cut_off(posted: Posted) -> tuple[str, int, str]:
     return text, last + 1, r"no program end \(M\d+[^)]*\) after this line"
 
 
+def end_marker_deleted(posted: Posted) -> tuple[str, int, str]:
+    """The program's last line gone: Fanuc's ``%`` and Heidenhain's ``END PGM`` after M30,
+    Siemens' M30, LinuxCNC's M2 (issue 23: a program with M30 but no closing ``%`` or ``END
+    PGM`` was taken as whole)."""
+    lines = _lines(posted.text)
+    last = max(i for i, x in enumerate(lines) if x.strip())
+    text = "\n".join(lines[:last]) + "\n"
+    before = max(i for i, x in enumerate(lines[:last]) if x.strip())
+    words = {
+        "fanuc": r"M30 and %",
+        "heidenhain": r"M30 and END PGM",
+        "siemens": r"M30",
+        "linuxcnc": r"M2",
+    }[posted.controller]
+    return text, before + 1, rf"no program end \({words}\) after this line"
+
+
 DAMAGES: dict[str, Damage] = {
     "feed 9999": feed_changed,
     "M3 deleted": spindle_start_deleted,
     "S times ten": speed_times_ten,
     "tool 7": tool_changed,
     "end cut off": end_cut_off,
+    "end marker deleted": end_marker_deleted,
 }
 
 
@@ -254,6 +275,105 @@ def test_streamed_verify_compares_the_process_too(
     assert process_lines(out) == process_lines(whole_out)
 
 
+@pytest.mark.parametrize("closed", [True, False])
+def test_a_linuxcnc_program_opened_with_percent_must_close_with_it(
+    closed: bool,
+    posted: Callable[[str, str], Posted],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """LinuxCNC writes no ``%``, but a file that starts with one must end with one (its
+    interpreter: "percent sign missing from end of file")."""
+    program = posted("dome", "linuxcnc")
+    text = "%\n" + program.text + ("%\n" if closed else "")
+    path = tmp_path / "percent.ngc"
+    path.write_text(text)
+    code, out = _verify(path, program.job, capsys)
+    if closed:
+        assert code == 0, out
+        return
+    assert code == 1, out
+    line = len(text.splitlines())
+    assert re.search(rf"^{re.escape(str(path))}:{line}: no program end \(M2\)", out, re.M), out
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_a_spindle_running_through_a_tool_change_is_refused(
+    controller: str,
+    posted: Callable[[str, str], Posted],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Issue 23: the M5 before ``T2 M6`` deleted, the spindle runs through the tool change; the
+    cuts are still at the CL's speed, but the post stops the spindle before every change."""
+    program = posted("two tools", controller)
+    change = re.compile(r"^(?:\d+ )?TOOL CALL 2\b|^(?:N\d+ )?T2\b", re.M).search(program.text)
+    assert change is not None
+    stops = list(re.finditer(r"^(?:\d+ |N\d+ )?M5\n", program.text[: change.start()], re.M))
+    assert stops, "the post stops the spindle before the tool change"
+    stop = stops[-1]
+    text = program.text[: stop.start()] + program.text[stop.end() :]
+    bad = tmp_path / f"damaged{program.path.suffix}"
+    bad.write_text(text)
+    code, out = _verify(bad, program.job, capsys)
+    assert code == 1, out
+    assert "verification within tolerance" in out
+    assert "process DIFFERS from the CL data: tool change" in out
+    line = _line_at(text, change.start() - (stop.end() - stop.start()))
+    want = (
+        rf"^{re.escape(str(bad))}:{line}: tool change to T2 with the spindle running "
+        r"\(S9000 CW\); expected it stopped \(M5\) before the tool change"
+    )
+    assert re.search(want, out, re.M), out
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_the_length_offset_register_is_compared_with_adjust(
+    controller: str,
+    posted: Callable[[str, str], Posted],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Issue 22: ``LOADTL/2,ADJUST,7`` asks for register 7. Fanuc and LinuxCNC programs
+    with H2 there are refused at the H word's line; Heidenhain and Siemens have no register
+    (the post refuses such an ADJUST): their program, with the tool's own length, is refused
+    against that CL data at the TCP switch."""
+    tool = read_cl_text("LOADTL/3,ADJUST,7\nGOTO/0,0,0\n", source="a.apt").events[0]
+    if tool.data.get("adjust") != 7:
+        pytest.skip("the APT reader does not give LOADTL ADJUST yet")
+    cl = tmp_path / "adjust.apt"
+    cl.write_text(TWO_TOOLS.replace("LOADTL/2", "LOADTL/2,ADJUST,7"))
+    job = Job(cl, feed=1200, tool=2, tool_line=13)
+    ext = DIALECTS[controller].extensions[0]
+    if controller in ("fanuc", "linuxcnc"):
+        good = tmp_path / f"adjust{ext}"
+        argv = ["post", str(cl), "-m", "dmu50", "-c", controller, "-o", str(good), "-q"]
+        assert main(argv) == 0
+        code, out = _verify(good, job, capsys)
+        assert code == 0, out
+        word = re.compile(r"(?<![A-Z])H7\b")
+        match = word.search(good.read_text())
+        assert match is not None
+        text = word.sub("H2", good.read_text())
+        line, have = _line_at(text, match.start()), 2
+    else:  # posted without the ADJUST: the tool's own length
+        text = posted("two tools", controller).text
+        tcp = {"heidenhain": "FUNCTION TCPM", "siemens": "TRAORI"}[controller]
+        change = text.index("TOOL CALL 2" if controller == "heidenhain" else "T2 D1")
+        line, have = _line_at(text, text.index(tcp, change)), 2
+    bad = tmp_path / f"damaged{ext}"
+    bad.write_text(text)
+    code, out = _verify(bad, job, capsys)
+    assert code == 1, out
+    assert "verification within tolerance" in out
+    assert "process DIFFERS from the CL data: register" in out
+    want = (
+        rf"^{re.escape(str(bad))}:{line}: length offset register {have} for T2 where the CL "
+        r"has ADJUST,7 \(CL line 13\)"
+    )
+    assert re.search(want, out, re.M), out
+
+
 def test_a_feed_the_cl_data_does_not_give_is_any_feed(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -300,6 +420,41 @@ def test_the_post_writes_no_program_verify_would_refuse(monkeypatch: pytest.Monk
         r"<fanuc program>:\d+: spindle S90000 CW where the CL has S9000 CW \(CL line 10\)",
     ):
         whole.post(toolpath, load_machine("dmu50"), PostOptions(controller="fanuc"))
+
+
+@pytest.mark.parametrize("parallel", [False, True], ids=["here", "worker"])
+def test_a_streamed_post_checks_the_process_as_a_whole_post(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, parallel: bool
+) -> None:
+    """A streamed post (pieces of 50 CL points) checked only the geometry of its pieces: a
+    writer that got the speed wrong was written. It is refused as the whole post refuses it,
+    with the same message, and nothing is written."""
+    write_spindle = ProgramWriter.write_spindle
+
+    def speed_times_ten(self: ProgramWriter, block: Spindle) -> None:
+        write_spindle(self, replace(block, rpm=block.rpm * 10))
+
+    monkeypatch.setattr(ProgramWriter, "write_spindle", speed_times_ten)
+    toolpath = read_cl(DOME)
+    machine = load_machine("dmu50")
+    options = PostOptions(controller="fanuc")
+    with pytest.raises(ToleranceError) as refused:
+        whole.post(toolpath, machine, options)
+    message = str(refused.value)
+    assert re.match(
+        rf"{re.escape(str(DOME))}: the program's process differs from the CL data, nothing "
+        r"written: <fanuc program>:\d+: spindle S\d+0 CW where the CL has S\d+ CW",
+        message,
+    ), message
+    out = tmp_path / "dome.nc"
+    with pytest.raises(ToleranceError) as streamed:
+        post_stream(
+            toolpath_pieces(toolpath, 40), machine, out, options, piece_points=50,
+            parallel=parallel,
+        )  # fmt: skip
+    assert str(streamed.value) == message
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("command", ["post", "verify"])

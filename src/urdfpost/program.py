@@ -70,12 +70,15 @@ class Move:
 
 @dataclass(frozen=True)
 class ToolChange:
-    """Tool change: ``number``, optional ``length`` (mm), ``diameter`` (mm), ``name``."""
+    """Tool change: ``number``, optional ``length`` (mm), ``diameter`` (mm), ``name``, and
+    ``offset``: the tool length offset register the program selects for the tool (the CL's
+    ``LOADTL ADJUST``, the ``H`` word of the TCP switch); None: the tool number."""
 
     number: int
     length: float | None = None
     diameter: float | None = None
     name: str | None = None
+    offset: int | None = None
 
 
 @dataclass(frozen=True)
@@ -109,9 +112,16 @@ class Insert:
 
 @dataclass(frozen=True)
 class Tcp:
-    """Tool-centre-point control on (``on=True``) or off."""
+    """Tool-centre-point control on (``on=True``) or off.
+
+    ``offset``, in a program read from text: the tool length offset register the switch
+    selects (the ``H`` word of ``G43.4 H7`` / ``G43 H7``; on controls without such registers,
+    Heidenhain and Siemens, the tool called), None where the text gives none. The program a
+    post builds leaves it None (the writer writes the tool change's register); not compared.
+    """
 
     on: bool
+    offset: int | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ Written::
     G90 G17 G40 G49 G80 G94
     T1 M6
     S12000 M3
-    G43.4 H1            (TCP on with the tool's length offset; G49 off)
+    G43.4 H1            (TCP on with the tool's length offset: LOADTL ADJUST, else the tool
+                         number; G49 off)
     G0 X10.000 Y-5.000 Z50.000 B0.0000 C90.0000
     G1 Z2.000 F500.
     G28 G91 Z0.         (home: Z first, then X Y, back to G90)
@@ -79,7 +80,10 @@ SPEC = DialectSpec(
     g_codes=G_CODES,
     m_codes=STANDARD_M_CODES,
     tool_change=("T{tool} M6",),
-    tcp_on=("G43.4 H{tool}",),
+    tool_numbers=(1, 99999999),  # the T word: 8 digits at most (parameter 3032)
+    # H: offset memory of 999 registers (system variables #11001-#11999); H0 is no offset
+    length_offsets=(1, 999),
+    tcp_on=("G43.4 H{offset}",),
     tcp_off=("G49",),
     home=("G28 G91 Z0.", "G28 X0. Y0.", "G90"),
     machine_move="G53 G0 {words}",

@@ -114,6 +114,7 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
         return
     if _END.match(code):
         builder.end()
+        builder.close()
         return
     builder.code()
     words = code.split()
@@ -261,6 +262,8 @@ SPEC = DialectSpec(
     unit_words=MappingProxyType({"mm": "MM", "inch": "INCH"}),
     m_codes=M_CODES,
     tool_change=("TOOL CALL {tool} Z",),
+    # 0 is the zero tool (no tool, length 0); no length offset register: the tool table row
+    tool_numbers=(1, 32767),
     tool_change_speed=("TOOL CALL {tool} Z S{rpm}",),
     spindle_speed="TOOL CALL Z S{rpm}",
     spindle_on="{code}",

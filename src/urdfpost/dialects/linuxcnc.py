@@ -7,7 +7,8 @@ Written (no ``%`` delimiters)::
     G90 G17 G40 G49 G80 G94
     T1 M6
     S12000 M3
-    G43 H1              (TCP on: tool length offset, then the TCP kinematics)
+    G43 H1              (TCP on: tool length offset, LOADTL ADJUST else the tool number,
+                         then the TCP kinematics)
     M428
     G0 X10.000 Y-5.000 Z50.000 A0.0000 C90.0000
     G1 Z2.000 F500
@@ -93,7 +94,11 @@ SPEC = DialectSpec(
     g_codes=G_CODES,
     m_codes=M_CODES,
     tool_change=("T{tool} M6",),
-    tcp_on=("G43 H{tool}", "M428"),
+    # tool numbers and G43 H (a tool table entry): the interpreter's int; rs274 refuses
+    # T2147483648 ("Negative tool id"), T0 is the empty spindle
+    tool_numbers=(1, 2147483647),
+    length_offsets=(1, 2147483647),
+    tcp_on=("G43 H{offset}", "M428"),
     tcp_off=("M429", "G49"),
     home=("G28 G91 Z0", "G28 X0 Y0", "G90"),
     block_max=99999,

@@ -147,13 +147,15 @@ class ProgramBuilder:
         self.tcp_at_first_feed: bool | None = None
         self.cut_without_tcp: int | None = None  # line of the first X/Y/Z feed move, TCP off
         self.tool: int | None = None
+        self.offset: int | None = None  # the H word since the last tool change
         self.rpm = 0.0
         self.spindle_state: tuple[str, float] = ("off", 0.0)
         self._speed_change: Block | _ReadMove | _ReadMoves | None = None
         self.continuous = False
         self.work_offset: str | None = None
         self.cycle: int | None = None  # a cycle whose parameters follow on the next lines
-        self.ended = False
+        self.finished = False  # the program end (M30, M2, END PGM) was read
+        self.closed = not spec.program_close  # its closing line (Fanuc %, END PGM) too
         self.code_seen = False
         self.items: list[Block | _ReadMove | _ReadMoves] = []
 
@@ -174,7 +176,7 @@ class ProgramBuilder:
         return value if address in ROTARY_ADDRESSES else value * self.linear_scale
 
     def _add(self, item: Block | _ReadMove | _ReadMoves) -> None:
-        if self.ended and not isinstance(item, Comment):
+        if self.finished and not isinstance(item, Comment):
             raise self.error("code after the program end; expected nothing but comments")
         self.items.append(item)
 
@@ -182,7 +184,7 @@ class ProgramBuilder:
 
     def code(self) -> None:
         """Note that the current line holds code (the name comment must come first)."""
-        if self.ended:
+        if self.finished:
             raise self.error("code after the program end; expected nothing but comments")
         self.code_seen = True
 
@@ -272,7 +274,7 @@ class ProgramBuilder:
             False, with nothing done, when the blocks need the block-by-block reader (the
             program has ended, incremental mode, no motion mode yet).
         """
-        if self.ended or not self.absolute:
+        if self.finished or not self.absolute:
             return False
         k = rows.stop - rows.start
         code = lines.code[rows]
@@ -328,12 +330,17 @@ class ProgramBuilder:
         """T word (tool selection, executed by the tool change)."""
         self.tool = number
 
+    def select_offset(self, register: int) -> None:
+        """H word (a tool length offset register, with the TCP or length offset switch)."""
+        self.offset = register
+
     def tool_change(self, number: int | None = None) -> None:
         """Tool change (M6, TOOL CALL)."""
         if number is not None:
             self.tool = number
         if self.tool is None:
             raise self.error("tool change without a tool number; expected T<number>")
+        self.offset = None
         self._add(ToolChange(self.tool))
 
     def set_speed(self, rpm: float) -> None:
@@ -363,11 +370,17 @@ class ProgramBuilder:
         self._add(Coolant(mode))
 
     def set_tcp(self, on: bool) -> None:
-        """TCP on/off (a block only when the state changes)."""
+        """TCP on/off (a block only when the state changes).
+
+        TCP on says the tool length offset register it uses (:attr:`Tcp.offset`): the H word
+        since the tool change on controls that have such registers (None without one), the
+        tool called on the others (they take the length from its tool table row).
+        """
         if on != self.tcp:
             self.tcp = on
             self.tcp_ever |= on
-            self._add(Tcp(on))
+            register = self.offset if self.spec.length_offsets is not None else self.tool
+            self._add(Tcp(on, register if on else None))
 
     def insert(self, text: str) -> None:
         """A line inserted verbatim, taken on trust."""
@@ -380,7 +393,29 @@ class ProgramBuilder:
 
     def end(self) -> None:
         """Program end (M2, M30, END PGM)."""
-        self.ended = True
+        self.finished = True
+
+    def close(self) -> None:
+        """The line that closes a program after its end (Fanuc ``%``, Heidenhain ``END PGM``:
+        the control's ``program_close``)."""
+        if self.finished:
+            self.closed = True
+
+    def percent(self) -> None:
+        """A ``%`` line: after the program end it closes the program; before any code it is
+        the tape start, which a ``%`` after the end must then close (LinuxCNC: "percent sign
+        missing from end of file"), whatever the control writes itself."""
+        if self.finished:
+            self.closed = True
+        elif not self.code_seen:
+            self.closed = False
+
+    @property
+    def ended(self) -> bool:
+        """The program has its end and, where the control writes one, its closing line after
+        it (a Fanuc program without its last ``%``, a Heidenhain one without ``END PGM`` has
+        not ended: the file is cut short)."""
+        return self.finished and self.closed
 
     # -- result ------------------------------------------------------------------------------
 
@@ -613,6 +648,7 @@ def parse_gcode_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> No
     text, comments = split_comments(spec, builder, raw)
     text = text.strip().upper()
     if spec.percent_lines and text == "%":
+        builder.percent()
         text = ""
     if text.startswith("/"):  # block delete: the block runs unless the operator skips it
         text = text[1:]
@@ -664,6 +700,8 @@ def _execute(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
         builder.set_feed(builder.number("F", block.words["F"].text))
     if "T" in block.words:
         builder.select_tool(_integer(builder, "T", block.words["T"].text))
+    if "H" in block.words:  # (only with tcp_on or length_on: _check_words)
+        builder.select_offset(_integer(builder, "H", block.words["H"].text))
     if "S" in block.words and not dwell:
         builder.set_speed(builder.number("S", block.words["S"].text))
     for action in block.actions & {"tcp_on", "tcp_off"}:  # G-codes and keywords

@@ -75,7 +75,10 @@ SPEC = DialectSpec(
     keywords=KEYWORDS,
     assignments=True,
     extra_words=frozenset({"D"}),
+    # T1 to T32000 without tool management; D1 is the tool's first edge, whose length the
+    # control takes from the tool offset memory of the tool called: no separate register
     tool_change=("T{tool} D1", "M6"),
+    tool_numbers=(1, 32000),
     tcp_on=("TRAORI",),
     tcp_off=("TRAFOOF",),
     home=("G75 FP=1 Z1=0", "G75 FP=1 X1=0 Y1=0"),

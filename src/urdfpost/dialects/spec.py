@@ -258,6 +258,14 @@ class DialectSpec:
         The reader accepts an ``O1000 (NAME)`` program number line (Fanuc).
     tool_change : tuple of str
         Tool change lines (``{tool}``).
+    tool_numbers : (int, int)
+        The lowest and highest tool number the tool change can call (the control's T word or
+        tool table); a tool number outside is refused.
+    length_offsets : (int, int) or None
+        The tool length offset registers the TCP lines can select (``{offset}``, the ``H``
+        word: the CL's ``LOADTL ADJUST``, else the tool number); None: the control has no such
+        register, it takes the length of the tool it calls from its tool table (an ADJUST
+        other than the tool number cannot be honoured and is refused).
     tool_change_speed : tuple of str or None
         Tool change with spindle speed merged in (Heidenhain ``TOOL CALL 1 Z S12000``).
     spindle_speed : str or None
@@ -265,7 +273,8 @@ class DialectSpec:
     spindle_on : str
         Spindle start (``{rpm}``, ``{code}``).
     tcp_on, tcp_off : tuple of str
-        TCP switching lines (``{tool}`` is the last tool change number).
+        TCP switching lines (``{tool}`` is the last tool change number, ``{offset}`` its
+        length offset register).
     home : tuple of str
         Lines written for a :class:`Home` block.
     home_comment : str or None
@@ -342,6 +351,8 @@ class DialectSpec:
     extra_words: frozenset[str] = frozenset()
     program_number_line: bool = False
     tool_change: tuple[str, ...] = ("T{tool} M6",)
+    tool_numbers: tuple[int, int] = (1, 9999)
+    length_offsets: tuple[int, int] | None = None
     tool_change_speed: tuple[str, ...] | None = None
     spindle_speed: str | None = None
     spindle_on: str = "S{rpm} {code}"
@@ -390,6 +401,60 @@ class DialectSpec:
             if act == action:
                 return f"M{code}"
         raise DialectError(f"{self.name}: no M-code for {action!r}")
+
+    def tool_fault(self, number: int, offset: int | None = None, *, tcp: bool = True) -> str | None:
+        """What is wrong with calling tool ``number`` with length offset register ``offset``
+        on this control, or None.
+
+        Parameters
+        ----------
+        number : int
+            The tool number.
+        offset : int, optional
+            The length offset register asked for (the CL's ``LOADTL ADJUST``); None: the tool
+            number.
+        tcp : bool
+            A TCP program: its TCP lines select the register. Without TCP the positions hold
+            the tool length and no register is selected: only the tool number is checked.
+
+        Returns
+        -------
+        str or None
+            The fault, for a message (:attr:`tool_numbers`, :attr:`length_offsets`).
+
+        Examples
+        --------
+        >>> spec = DialectSpec("x", (".x",), "(", ")", tool_numbers=(1, 99))
+        >>> spec.tool_fault(100)
+        'tool number 100 is outside the tool numbers of x (1 to 99)'
+        >>> spec.tool_fault(3, 7) is None, spec.tool_fault(3, 7, tcp=False) is None
+        (False, True)
+        """
+        low, high = self.tool_numbers
+        if not low <= number <= high:
+            return (
+                f"tool number {number} is outside the tool numbers of {self.name} ({low} to {high})"
+            )
+        if not tcp:
+            return None
+        registers = self.length_offsets
+        if registers is None:
+            if offset is None or offset == number:
+                return None
+            return (
+                f"length offset register {offset} (ADJUST) for tool {number}: {self.name} has "
+                f"no length offset register, it takes the length of the tool it calls from its "
+                f"tool table; expected ADJUST,{number} or none"
+            )
+        register = number if offset is None else offset
+        low, high = registers
+        if not low <= register <= high:
+            given = "ADJUST" if offset is not None else "the tool number: no ADJUST given"
+            return (
+                f"length offset register H{register} ({given}) is outside the registers of "
+                f"{self.name} (H{low} to H{high})"
+            )
+        return None
 
     def unit_code(self, units: str) -> str:
         """The units word for the program frame or setup (``G21``, ``G710``, ``MM``)."""

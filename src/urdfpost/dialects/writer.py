@@ -76,6 +76,7 @@ class _Modal:
     motion: bool | None = None  # True rapid, False linear, None unknown
     feed: str | None = None
     tool: int | None = None
+    offset: int | None = None  # the tool's length offset register
     rpm: str | None = None
     spindle: str = "off"
     force: bool = True
@@ -574,9 +575,11 @@ class ProgramWriter:
 
     def write_tool_change(self, index: int, block: ToolChange) -> None:
         """Tool change, with the next spindle speed merged in when the control does that."""
-        if block.number < 0:
-            raise DialectError(f"tool number {block.number} must not be negative")
+        fault = self.spec.tool_fault(block.number, block.offset, tcp=self.program.tcp)
+        if fault is not None:
+            raise DialectError(fault)
         self.modal.tool = block.number
+        self.modal.offset = block.number if block.offset is None else block.offset
         merged = self.program.parts[self._merges[index]] if index in self._merges else None
         if isinstance(merged, Spindle) and self.spec.tool_change_speed is not None:
             rpm = self.spec.rpm.format(merged.rpm)
@@ -622,14 +625,16 @@ class ProgramWriter:
         self.emit(self.spec.m_code_for(action))
 
     def write_tcp(self, block: Tcp) -> None:
-        """TCP on or off; the on lines may need the current tool number."""
+        """TCP on or off; the on lines may need the current tool number and its length offset
+        register (:attr:`ToolChange.offset`, else the tool number)."""
         templates = self.spec.tcp_on if block.on else self.spec.tcp_off
-        if any("{tool}" in t for t in templates) and self.modal.tool is None:
+        needs = any("{tool}" in t or "{offset}" in t for t in templates)
+        if needs and self.modal.tool is None:
             raise DialectError(
                 f"{self.spec.name}: switching TCP {'on' if block.on else 'off'} needs the tool "
                 "length offset number; put a ToolChange before the Tcp block"
             )
-        self.emit_templates(templates, tool=self.modal.tool)
+        self.emit_templates(templates, tool=self.modal.tool, offset=self.modal.offset)
         self.modal.invalidate()
 
 

@@ -47,6 +47,9 @@ class JointSpec:
     velocity: float | None
     line: int
     side: str = ""
+    mimic: tuple[str, int] | None = None
+    """The joint this one mimics (``<mimic joint>``) and the line of the ``<mimic>``; None
+    for an independent joint."""
 
 
 @dataclass(frozen=True)
@@ -338,6 +341,7 @@ def check_joint(source: str, el: etree._Element) -> JointSpec:
                 f"{_where(source, other.sourceline)}: joint {name!r}: <{tag}> needs "
                 f"{' or '.join(needs)}"
             )
+    mimic = sub.get("mimic")
     return JointSpec(
         name=name,
         type=jtype,
@@ -348,6 +352,7 @@ def check_joint(source: str, el: etree._Element) -> JointSpec:
         upper=upper,
         velocity=velocity,
         line=el.sourceline,
+        mimic=None if mimic is None else (str(mimic.get("joint")), mimic.sourceline),
     )
 
 
@@ -392,8 +397,10 @@ def check_chain(doc: UrdfDoc, source: str) -> JointChain:
     Raises
     ------
     MachineDefinitionError
-        Missing links, floating/planar joints on the chain, wrong joint count, bad names,
-        inverted limits, no travel, a velocity that is not positive.
+        Missing links, floating/planar joints on the chain, a moving joint on the chain that
+        mimics another (``<mimic>``, at its line: the kinematics has independent axes only),
+        wrong joint count, bad names, inverted limits, no travel, a velocity that is not
+        positive.
     """
     for link in ("workpiece", "tool"):
         if link not in doc.links:
@@ -425,6 +432,16 @@ def check_chain(doc: UrdfDoc, source: str) -> JointChain:
                 "be prismatic, revolute or continuous (fixed joints are allowed too)"
             )
     moving = [j for j in chain if j.type != "fixed"]
+    for j in moving:
+        if j.mimic is not None:
+            other, line = j.mimic
+            raise MachineDefinitionError(
+                f"{_where(source, line)}: joint {j.name!r} mimics joint {other!r} (<mimic>): "
+                "a machine axis between 'workpiece' and 'tool' must move on its own; urdfpost's "
+                "kinematics (the closed-form inverse kinematics of independent rotary axes) "
+                f"cannot keep {j.name} coupled to {other}, so the program would move it "
+                f"independently; make {j.name!r} independent, or a fixed joint"
+            )
     n_lin = sum(j.type == "prismatic" for j in moving)
     n_rot = len(moving) - n_lin
     if n_lin != 3 or n_rot not in (1, 2):

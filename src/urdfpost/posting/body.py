@@ -71,6 +71,7 @@ def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]
                 length=data.get("length"),
                 diameter=data.get("diameter"),
                 name=data.get("name"),
+                offset=None if data.get("adjust") is None else int(data["adjust"]),
             )
         )
     elif kind == "cutter":

@@ -1,4 +1,9 @@
-"""The process state of a job checked before anything is planned: feed and spindle.
+"""The process state of a job checked before anything is planned: tools, feed and spindle.
+
+Every tool change calls a tool the control has, with a length offset register it can select
+(:meth:`urdfpost.dialects.spec.DialectSpec.tool_fault`: the control's tool numbers, and in TCP
+programs the CL's ``LOADTL ADJUST`` register, or the tool number): else the post stops with
+the file and the line of the tool change (:class:`~urdfpost.errors.CLDataError`).
 
 A cutting move (a CL feed move) needs a programmed feed and a running spindle. Where the CL
 data gives neither, the post stops with the file and line (:class:`~urdfpost.errors.CLDataError`),
@@ -15,6 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from urdfpost.dialects.spec import DialectSpec
 from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Event, Motion, Toolpath
 from urdfpost.units import mm_per_unit
@@ -65,6 +71,47 @@ def _feeds(toolpath: Toolpath, feed: float | None, units: str) -> tuple[np.ndarr
     ]
 
 
+def check_tools(toolpath: Toolpath, spec: DialectSpec, tcp: bool) -> None:
+    """Refuse a tool change the control cannot make as the CL data asks.
+
+    Parameters
+    ----------
+    toolpath : Toolpath
+    spec : DialectSpec
+        The control's (:attr:`~DialectSpec.tool_numbers`, :attr:`~DialectSpec.length_offsets`).
+    tcp : bool
+        A TCP program (its TCP lines select the length offset register).
+
+    Raises
+    ------
+    CLDataError
+        At the line of the first tool change (``LOADTL``) whose tool number is outside the
+        control's, or whose length offset register (``ADJUST``, else the tool number) the
+        control cannot select.
+
+    Examples
+    --------
+    >>> from urdfpost.dialects import DIALECTS
+    >>> from urdfpost.readers import read_cl_text
+    >>> tp = read_cl_text("LOADTL/123456\\nGOTO/0,0,0\\n", source="a.apt")
+    >>> check_tools(tp, DIALECTS["heidenhain"].spec, tcp=True)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    urdfpost.errors.CLDataError: a.apt:1: tool number 123456 is outside the tool numbers of ...
+    """
+    for e in toolpath.events:
+        if e.kind != "tool":
+            continue
+        adjust = e.data.get("adjust")
+        fault = spec.tool_fault(
+            int(e.data.get("number", 0)), None if adjust is None else int(adjust), tcp=tcp
+        )
+        if fault is not None:
+            if "; expected" not in fault:
+                fault += "; expected a tool the control has"
+            raise CLDataError(toolpath.source, e.line, fault)
+
+
 def checked_process(
     toolpath: Toolpath,
     *,
@@ -72,6 +119,8 @@ def checked_process(
     spindle: float | None,
     units: str,
     state: SpindleState | None = None,
+    spec: DialectSpec | None = None,
+    tcp: bool = True,
 ) -> tuple[Toolpath, SpindleState, list[str]]:
     """``toolpath`` with every cutting move fed and cut with the spindle on.
 
@@ -86,6 +135,11 @@ def checked_process(
         Program units, for the warnings.
     state : SpindleState, optional
         The spindle where ``toolpath`` starts (a piece of a streamed post); default off.
+    spec : DialectSpec, optional
+        The control the program is for: its tool changes are checked (:func:`check_tools`);
+        None: not checked (``urdfpost verify`` compares the program's tools instead).
+    tcp : bool
+        A TCP program (:func:`check_tools`).
 
     Returns
     -------
@@ -98,8 +152,11 @@ def checked_process(
     Raises
     ------
     CLDataError
-        A cutting move with no feed or with the spindle off, and no default for it.
+        A tool the control cannot call as asked (:func:`check_tools`); a cutting move with no
+        feed or with the spindle off, and no default for it.
     """
+    if spec is not None:
+        check_tools(toolpath, spec, tcp)
     state = state or SpindleState()
     feeds, warnings = _feeds(toolpath, feed, units)
     cuts = np.flatnonzero(toolpath.motion == int(Motion.FEED))

@@ -35,7 +35,10 @@ How the pieces join:
   before: every block of the program is checked once. The figures are merged. On a machine
   with more than one core this runs in a worker process, one piece behind the planning, so
   the two share the work (a piece is handed over when the one before is checked: one piece
-  waits at most). A piece that misses its tolerance stops the post all the same.
+  waits at most). A piece that misses its tolerance stops the post all the same. The process
+  (feeds, spindle, tools, length offsets) is checked here as each piece is written, read back
+  with a reader of its own (:class:`urdfpost.verification.process.PieceProcess`), and refused
+  at the end with the message of a whole post.
 
 The singular spans of the report are numbered along the pieces' plan paths joined (each join
 once), as :func:`post` numbers them along its plan's path. Figures that depend on the whole job
@@ -56,6 +59,7 @@ import numpy as np
 
 from urdfpost._files import give_mode, temp_file
 from urdfpost.dialects import Dialect
+from urdfpost.errors import ToleranceError
 from urdfpost.geometry import angle_between
 from urdfpost.machine import Machine
 from urdfpost.planning.strategies import STRATEGIES, Plan, tool_axis_of
@@ -65,13 +69,14 @@ from urdfpost.posting.header import HeaderFigures, job_header, stock_box
 from urdfpost.posting.options import Job, PostOptions, resolve
 from urdfpost.posting.piece import Continuation, make_problem, post_piece
 from urdfpost.posting.process import checked_process
-from urdfpost.posting.readback import merge_verifications
+from urdfpost.posting.readback import merge_verifications, program_texts
 from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
 from urdfpost.posting.worker import FORK, Checks, PieceJob
 from urdfpost.program import Program
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath, joined, toolpath_slice
 from urdfpost.verification import Verification
+from urdfpost.verification.process import PieceProcess, located, rounding_of
 
 log = logging.getLogger(__name__)
 
@@ -267,10 +272,17 @@ def post_stream(
     last_piece: Toolpath | None = None
     reader_warnings = list(buffer.warnings)  # the job's, in order
     buffer, spindle, notes = checked_process(
-        replace(buffer, warnings=()), feed=job.feed, spindle=job.spindle, units=job.units
+        replace(buffer, warnings=()),
+        feed=job.feed,
+        spindle=job.spindle,
+        units=job.units,
+        spec=dialect.spec,
+        tcp=job.tcp,
     )
     reader_warnings += notes
     checks: Checks | None = None
+    process: PieceProcess | None = None  # the process check of ``urdfpost verify``, by piece
+    inserts: list[str] = []  # the texts of the program's inserted blocks
     unsettled: list[int] = []  # CL lines of the joins whose branch choice rests on the lookahead
     count = 0
     tool_length = job.tool_length
@@ -293,6 +305,8 @@ def post_stream(
                             spindle=job.spindle,
                             units=job.units,
                             state=spindle,
+                            spec=dialect.spec,
+                            tcp=job.tcp,
                         )
                         reader_warnings += notes
                         pending.append(more)
@@ -346,7 +360,19 @@ def post_stream(
                     writer.close()
                 text = opening + writer.take()
                 handle.write(text)
-                checks.submit(PieceJob.of(text, posted))
+                piece_job = PieceJob.of(text, posted)
+                checks.submit(piece_job)
+                if process is None:  # feeds, spindle, tools as a whole post checks them
+                    process = PieceProcess(
+                        dialect,
+                        machine,
+                        f"<{dialect.name} program>",
+                        tol=tol,
+                        tool_length=posted.target.tool_length,
+                        rounding=rounding_of(dialect, units),
+                    )
+                process.add(text, piece_job.inserts, posted.target.intended or posted.target.cl)
+                inserts += piece_job.inserts
                 found = posted.figures
                 figures = found if figures is None else figures.joined(found, offset)
                 offset += len(posted.plan.toolpath) - 1
@@ -364,6 +390,15 @@ def post_stream(
                 )
         assert checks is not None
         results = checks.finish()
+        assert process is not None and last_piece is not None
+        process_check = process.result()
+        if not process_check.ok:  # as :func:`urdfpost.posting.whole.post` says it
+            path = f"<{dialect.name} program>"
+            faults = located(process_check, dialect, lambda: program_texts(tmp), path, inserts)
+            raise ToleranceError(
+                f"{last_piece.source}: the program's process differs from the CL data, nothing "
+                f"written: {'; '.join(faults)}"
+            )
         verification = merge_verifications([check for check, _ in results])
         intents = [intent for _, intent in results if intent is not None]
         assert figures is not None and last_piece is not None

@@ -109,7 +109,12 @@ def post(
     """
     job = resolve(options, machine, toolpath.units)
     toolpath, _, notes = checked_process(
-        toolpath, feed=job.feed, spindle=job.spindle, units=job.units
+        toolpath,
+        feed=job.feed,
+        spindle=job.spindle,
+        units=job.units,
+        spec=job.dialect.spec,
+        tcp=job.tcp,
     )
     if notes:
         toolpath = replace(toolpath, warnings=toolpath.warnings + tuple(notes))

@@ -1,4 +1,4 @@
-"""The process of a program against its CL data: feeds, spindle, tool numbers, program end.
+"""The process of a program against its CL data: feeds, spindle, tools, program end.
 
 The geometry of a program (:mod:`urdfpost.verification.measure`) says nothing of how it cuts: a
 feed, a spindle speed or a tool number changed by hand moves no axis. This module compares
@@ -15,8 +15,13 @@ spindle restarts added where the CL data has none):
   clockwise speed is accepted, and said;
 - **tools**: the program's tool changes, in order, load the CL data's tools (``LOADTL``); a
   first tool 1 where the CL data loads none before its first move (what the post adds) is
-  accepted;
-- **end**: the program ends (M30, M2, END PGM), not cut short after its last move.
+  accepted; at every tool change the spindle is stopped (the post writes M5 before each);
+- **length offset registers**: every TCP switch selects the register the CL data asks for the
+  tool (``LOADTL/3,ADJUST,7``: 7; no ADJUST: the tool number), as the reader finds it
+  (:attr:`urdfpost.program.Tcp.offset`: the H word, or the tool called on controls without
+  registers);
+- **end**: the program ends (M30, M2, END PGM) and, where the control writes one, has its
+  closing line after it (Fanuc's ``%``, Heidenhain's ``END PGM``): not cut short.
 
 The program's rows are paired with CL points by the matching of the geometry
 (:func:`urdfpost.verification.match_points`): a row belongs to the first CL point reached at
@@ -44,13 +49,22 @@ import logging
 import math
 import re
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from urdfpost.machine import Machine
-from urdfpost.program import Move, MoveTable, Program, Spindle, ToolChange, rewind_moves
+from urdfpost.program import (
+    Blocks,
+    Move,
+    MoveTable,
+    Program,
+    Spindle,
+    Tcp,
+    ToolChange,
+    rewind_moves,
+)
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
@@ -98,10 +112,17 @@ def rounding_of(dialect: Dialect, units: str) -> Rounding:
 
 
 def end_words(dialect: Dialect) -> str:
-    """The words that end a program of ``dialect``, for messages: "M30", "M30 / END PGM"."""
+    """The words that end a program of ``dialect``, for messages: "M30", "M30 and END PGM"
+    (the end, then the line that closes the program where the control has one: Fanuc's ``%``,
+    Heidenhain's ``END PGM``)."""
     spec = dialect.spec
-    words = [re.sub(r"\s*\{.*", "", t).strip() for t in (*spec.finish, *spec.program_close)]
-    return " / ".join(w for w in words if w and w != "%") or "M30"
+
+    def words(templates: tuple[str, ...]) -> str:
+        found = [re.sub(r"\s*\{.*", "", t).strip() for t in templates]
+        return " ".join(w for w in found if w)
+
+    end, close = words(spec.finish) or "M30", words(spec.program_close)
+    return f"{end} and {close}" if close else end
 
 
 @dataclass(frozen=True)
@@ -111,15 +132,16 @@ class Fault:
     Attributes
     ----------
     kind : str
-        "feed", "spindle", "tool" or "end".
+        "feed", "spindle", "tool change" (the spindle running at one), "tool", "register"
+        (a TCP switch's length offset register) or "end".
     message : str
         What was found and what the CL data has, without the program line.
     at : str
-        What the fault is at: "move" (a motion block), "tool" (a tool change) or "end" (the
-        last line of the program).
+        What the fault is at: "move" (a motion block), "tool" (a tool change), "tcp" (a TCP
+        switch on) or "end" (the last line of the program).
     index : int
-        Index of that move (of :meth:`Program.moves`) or tool change (of the program's tool
-        changes), from the start of the program; 0 for "end".
+        Index of that move (of :meth:`Program.moves`), tool change or TCP switch on (of the
+        program's), from the start of the program; 0 for "end".
     count : int
         Faults of this kind in all (only the first is described).
     """
@@ -145,7 +167,8 @@ class ProcessCheck:
     Attributes
     ----------
     faults : tuple of Fault
-        The first fault of each kind found, in the order feed, spindle, tool, end.
+        The first fault of each kind found, in the order feed, spindle, tool change, tool or
+        register (registers are compared when the tools agree), end.
     notes : tuple of str
         What was accepted without a value to compare with (feeds or speeds the CL data does
         not give, the tool 1 the post assumes).
@@ -193,7 +216,12 @@ class _Tools:
 
     program: list[int] = field(default_factory=list)
     cl: list[tuple[int, int]] = field(default_factory=list)  # (number, CL line)
+    adjust: list[int | None] = field(default_factory=list)  # the CL's ADJUST of each
     assumed: bool = False  # the post adds tool 1 before the first move
+    # the program's TCP switches on: (its index among them, the tool change before it, -1
+    # for none, the length offset register it selects, None: none)
+    registers: list[tuple[int, int, int | None]] = field(default_factory=list)
+    tcp_on: int = 0  # TCP switches on so far
 
 
 def _fmt(value: float) -> str:
@@ -222,6 +250,10 @@ class ProcessChecker:
         the program's F units.
     end : str
         The words that end a program, for the message (:func:`end_words`).
+    stop_at_tool_change : bool
+        The spindle must be stopped at every tool change: the post stops it (M5) before each
+        one, for every control (:meth:`urdfpost.posting.transitions.Transitions.leave`), and
+        does not count on the control's tool change to do it.
     """
 
     def __init__(
@@ -233,8 +265,10 @@ class ProcessChecker:
         pivot: float = 0.0,
         rounding: Rounding | None = None,
         end: str = "M30",
+        stop_at_tool_change: bool = True,
     ) -> None:
         self.machine = machine
+        self.stop_at_tool_change = stop_at_tool_change
         self.tol = tol
         self.tool_length = tool_length
         self.pivot = pivot
@@ -279,10 +313,10 @@ class ProcessChecker:
             )
             self._tools.assumed = len(expected) > 0 and first_tool > 0
         directions, speeds = self._program_state(program)
-        self._tools.cl += [
-            (int(e.data.get("number", 0)), e.line)
-            for e in sorted(expected.events, key=lambda e: e.index)
-            if e.kind == "tool"
+        loads = [e for e in sorted(expected.events, key=lambda e: e.index) if e.kind == "tool"]
+        self._tools.cl += [(int(e.data.get("number", 0)), e.line) for e in loads]
+        self._tools.adjust += [
+            None if e.data.get("adjust") is None else int(e.data["adjust"]) for e in loads
         ]
         cl_dir, cl_rpm = self._expected_spindle(expected)
         if n_rows and len(expected):
@@ -294,10 +328,14 @@ class ProcessChecker:
 
     def result(self) -> ProcessCheck:
         """What the pieces added so far show."""
-        faults = [self._counted(k) for k in ("feed", "spindle") if k in self._first]
+        faults = [self._counted(k) for k in ("feed", "spindle", "tool change") if k in self._first]
         tool = self._tool_fault()
         if tool is not None:
             faults.append(tool)
+        else:
+            register = self._register_fault()
+            if register is not None:
+                faults.append(register)
         if self._ended is False:
             faults.append(
                 Fault(
@@ -345,7 +383,13 @@ class ProcessChecker:
                 code = _DIRECTIONS.get(part.direction, 0)
                 state = (code, float(part.rpm) if code else 0.0)
             elif isinstance(part, ToolChange):
+                if state[0] and self.stop_at_tool_change:
+                    self._running_change(int(part.number), state)
                 self._tools.program.append(int(part.number))
+            elif isinstance(part, Tcp) and part.on:
+                tools = self._tools
+                tools.registers.append((tools.tcp_on, len(tools.program) - 1, part.offset))
+                tools.tcp_on += 1
         self._program_spindle = state
         count = np.array(sizes, dtype=np.int64)
         return (
@@ -475,6 +519,20 @@ class ProcessChecker:
                 int(bad.size),
             )
 
+    def _running_change(self, number: int, state: tuple[int, float]) -> None:
+        """A tool change (the next of the program's) with the spindle running."""
+        kind = "tool change"
+        self._counts[kind] = self._counts.get(kind, 0) + 1
+        if kind not in self._first:
+            running = self._spindle_words(*state)
+            self._first[kind] = Fault(
+                kind,
+                f"tool change to T{number} with the spindle running ({running}); expected it "
+                "stopped (M5) before the tool change, as the post writes it",
+                "tool",
+                len(self._tools.program),
+            )
+
     def _feed_words(self, feed: float) -> str:
         """A feed (mm/min) as an F word of the program; "any feed" for NaN."""
         if not math.isfinite(feed):
@@ -499,6 +557,35 @@ class ProcessChecker:
         return Fault(first.kind, first.message, first.at, first.index, self._counts[kind])
 
     # -- tools -------------------------------------------------------------------------------
+
+    def _register_fault(self) -> Fault | None:
+        """The first TCP switch whose length offset register is not the CL's (its ADJUST,
+        else the tool number), when the program's tools are the CL's."""
+        tools = self._tools
+        with_first = tools.assumed and self._tools_match(with_first=True)
+        want = self._expected_tools(with_first)
+        adjust = ([None] if with_first else []) + tools.adjust
+        wrong: list[tuple[int, str]] = []
+        for at, tool, register in tools.registers:
+            if tool < 0:
+                continue  # TCP on before any tool: the geometry (no tool length) tells
+            number, line = want[tool]
+            asked = adjust[tool]
+            expected = number if asked is None else asked
+            if register == expected:
+                continue
+            where = "" if line is None else f" (CL line {line})"
+            cl = (
+                f"ADJUST,{asked}{where}"
+                if asked is not None
+                else f"tool {number} and no ADJUST{where}: register {number}"
+            )
+            have = "none" if register is None else str(register)
+            wrong.append((at, f"length offset register {have} for T{number} where the CL has {cl}"))
+        if not wrong:
+            return None
+        at, message = wrong[0]
+        return Fault("register", message, "tcp", at, len(wrong))
 
     def _expected_tools(self, with_first: bool) -> list[tuple[int, int | None]]:
         first: list[tuple[int, int | None]] = [(1, None)] if with_first else []
@@ -606,6 +693,65 @@ def check_process(
     return checker.result()
 
 
+class PieceProcess:
+    """The process check of a program written in pieces (a streamed post): each piece's
+    text is read back with one reader (its modal state carries on) and checked against the
+    piece's expected CL data, from the last row of the piece before, as a whole program is
+    by :func:`check_process`.
+
+    Parameters
+    ----------
+    dialect : Dialect
+        Of the program.
+    machine : Machine
+    path : str
+        The program, for the reader's messages.
+    tol, tool_length, rounding
+        As :class:`ProcessChecker`.
+    """
+
+    def __init__(
+        self,
+        dialect: Dialect,
+        machine: Machine,
+        path: str,
+        *,
+        tol: Tolerances,
+        tool_length: float,
+        rounding: Rounding | None = None,
+    ) -> None:
+        self.checker = ProcessChecker(
+            machine, tol=tol, tool_length=tool_length, rounding=rounding, end=end_words(dialect)
+        )
+        self.reader = dialect.reader(path)
+        self._last: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
+
+    def add(self, text: str, inserts: Iterable[str], expected: Toolpath) -> None:
+        """Check the next piece: its text (whole lines), the texts of its inserted blocks and
+        its expected CL data (starting with the CL point the piece before ended with).
+
+        Raises
+        ------
+        ProgramParseError
+            A line that cannot be read.
+        """
+        self.reader.feed(text, inserts)
+        program = self.reader.take()
+        if self._last is not None:
+            axes, row = self._last
+            position = np.array([row[axes.index(a)] if a in axes else np.nan for a in program.axes])
+            start = MoveTable(position[None], np.zeros(1, bool), np.full(1, np.nan), np.full(1, -1))
+            program = replace(program, blocks=Blocks((start, *program.parts)))
+        self.checker.add(program, expected)
+        table = program.move_table()
+        if len(table):
+            self._last = (program.axes, np.asarray(table.position[-1]))
+
+    def result(self) -> ProcessCheck:
+        """What the pieces so far show."""
+        return self.checker.result()
+
+
 # -- the program text ------------------------------------------------------------------------
 
 
@@ -634,10 +780,11 @@ def _chunks(texts: Iterable[str]) -> Iterator[list[str]]:
             yield lines[start : start + _LOCATE_LINES]
 
 
-def _counts(program: Program) -> tuple[int, int]:
-    """Moves and tool changes of ``program``."""
+def _counts(program: Program) -> tuple[int, int, int]:
+    """Moves, tool changes and TCP switches on of ``program``."""
     tools = sum(1 for p in program.parts if isinstance(p, ToolChange))
-    return len(program.move_table()), tools
+    tcps = sum(1 for p in program.parts if isinstance(p, Tcp) and p.on)
+    return len(program.move_table()), tools, tcps
 
 
 def located(
@@ -668,7 +815,8 @@ def located(
     -------
     list of str
         One per fault, in order; a fault at a move names the line of that move, at a tool
-        change the line of its T word, at the end the last line that is not blank.
+        change the line of its T word, at a TCP switch the line of its H word (else of the
+        switch), at the end the last line that is not blank.
 
     Raises
     ------
@@ -681,31 +829,34 @@ def located(
     wanted = {(f.at, f.index) for f in check.faults if f.at != "end"}
     holding: set[int] = set()  # chunks with a fault
     reader = dialect.reader(path)
-    moves = tools = line = last = 0
+    moves = tools = tcps = line = last = 0
     for c, chunk in enumerate(_chunks(texts())):
         reader.feed("".join(chunk), inserts)
-        m, t = _counts(reader.take())
+        m, t, p = _counts(reader.take())
         if any(
-            (at == "move" and moves <= i < moves + m) or (at == "tool" and tools <= i < tools + t)
+            (at == "move" and moves <= i < moves + m)
+            or (at == "tool" and tools <= i < tools + t)
+            or (at == "tcp" and tcps <= i < tcps + p)
             for at, i in wanted
         ):
             holding.add(c)
         for k, text in enumerate(chunk):
             if text.strip():
                 last = line + k + 1
-        moves, tools, line = moves + m, tools + t, line + len(chunk)
+        moves, tools, tcps, line = moves + m, tools + t, tcps + p, line + len(chunk)
     lines: dict[tuple[str, int], int] = {("end", 0): last}
     if holding:
         holding |= {c - 1 for c in holding if c > 0}  # (a T word a line before its M6)
         reader = dialect.reader(path)
-        moves = tools = line = 0
+        moves = tools = tcps = line = 0
         selected: int | None = None  # the line that selected the tool (T word), if read
+        register: int | None = None  # the line of the H word before a TCP switch, if read
         for c, chunk in enumerate(_chunks(texts())):
             if c not in holding:
                 reader.feed("".join(chunk), inserts)
-                m, t = _counts(reader.take())
-                moves, tools, line = moves + m, tools + t, line + len(chunk)
-                selected = None
+                m, t, p = _counts(reader.take())
+                moves, tools, tcps, line = moves + m, tools + t, tcps + p, line + len(chunk)
+                selected = register = None
                 continue
             for text in chunk:
                 line += 1
@@ -713,13 +864,19 @@ def located(
                 reader.feed(text, inserts)
                 if reader.builder.tool != tool or re.search(r"(?<![A-Z])T\d", text.upper()):
                     selected = line
-                m, t = _counts(reader.take())
+                if re.search(r"(?<![A-Z])H\d", text.upper()):
+                    register = line  # (LinuxCNC: G43 H7 the line before M428)
+                m, t, p = _counts(reader.take())
                 for at, i in wanted:
                     if at == "move" and moves <= i < moves + m:
                         lines[at, i] = line
+                    elif at == "tcp" and tcps <= i < tcps + p:
+                        lines[at, i] = line if register is None else register
                     elif at == "tool" and tools <= i < tools + t:
                         lines[at, i] = line if selected is None else selected
                 if t:
                     selected = None
-                moves, tools = moves + m, tools + t
+                if p:
+                    register = None
+                moves, tools, tcps = moves + m, tools + t, tcps + p
     return [f"{path}:{lines.get((f.at, f.index), last)}: {f.text()}" for f in check.faults]
