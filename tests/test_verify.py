@@ -21,7 +21,7 @@ from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
 from urdfpost.geometry import Arcs, Segments, angle_between, cos_sin
 from urdfpost.kinematics.forward import tip_and_axis, tip_and_axis_along
-from urdfpost.linearize import RowPoses, _error_bounds
+from urdfpost.linearize import RowPoses, _error_bounds, _orientation_error
 from urdfpost.machine import Machine
 from urdfpost.posting.options import PostOptions, resolve
 from urdfpost.posting.piece import post_piece
@@ -389,9 +389,17 @@ def _match_sequential(
                 k = start + int(hit[0])
                 # (row-wise norms, as the search: the loop took the 1-D norm, a BLAS dot whose
                 # last bit may differ, which only matters for rows exactly as near as the next)
-                dist = float(np.linalg.norm(tip[k] - cl_tip[j], axis=-1))
+
+                def near(k: int, j: int = j) -> float:
+                    """Larger share of the tip and the orientation tolerance."""
+                    d = float(np.linalg.norm(tip[k] - cl_tip[j], axis=-1)) / tol.tip
+                    chord = float(np.linalg.norm(axis[k] - cl_axis[j], axis=-1))
+                    a = float(np.arcsin(np.array([min(0.5 * chord, 1.0)]))[0])
+                    return max(d, a * (2.0 / tol.orientation))
+
+                dist = near(k)
                 while k + 1 < n:
-                    nxt = float(np.linalg.norm(tip[k + 1] - cl_tip[j], axis=-1))
+                    nxt = near(k + 1)
                     if nxt >= dist:
                         break
                     k, dist = k + 1, nxt
@@ -510,13 +518,15 @@ def _random_moves(
 @pytest.mark.parametrize("pivot", [0.0, 3.0])
 @pytest.mark.parametrize("samples", [10, 18])
 @pytest.mark.parametrize("shift", [0.0, 0.3])
+@pytest.mark.parametrize("squeeze", [1.0, 1e-4])
 def test_verify_block_bounds_hold(
-    name: str, tcp: bool, pivot: float, samples: int, shift: float
+    name: str, tcp: bool, pivot: float, samples: int, shift: float, squeeze: float
 ) -> None:
     """The bounds that decide which blocks verification refines are above the deviation
     anywhere in the block (dense samples). With ``shift`` the CL points move along the path
     by that share of a step, so the projection on a CL segment leaves [0, 1] inside blocks
-    (the clip's kink is between samples)."""
+    (the clip's kink is between samples). With ``squeeze`` the CL tips are drawn together to
+    micrometre segments, shorter than the window of the orientation comparison."""
     m = machine(name)
     rng = np.random.default_rng(11)
     for scale in (0.002, 0.05, 0.5):
@@ -524,6 +534,7 @@ def test_verify_block_bounds_hold(
         tip, axis = tip_and_axis(m, q, 100.0)
         along = np.gradient(tip, axis=0) * rng.uniform(-shift, shift, (len(tip), 1))
         cl_tip = tip + along + rng.normal(0.0, 0.01, tip.shape) + pivot * axis
+        cl_tip = cl_tip[0] + squeeze * (cl_tip - cl_tip[0])
         values = q.copy()
         if tcp:
             values[:, list(m.linear_columns)] = tip
@@ -538,6 +549,7 @@ def test_verify_block_bounds_hold(
             tcp=tcp,
             tool_length=100.0,
             pivot=pivot,
+            window=0.01,
         )
         blocks = np.arange(len(q) - 1)
         t = np.linspace(0.0, 1.0, samples)
@@ -550,38 +562,45 @@ def test_verify_block_bounds_hold(
 
 
 def _largest_errors(
-    m: Machine, q: np.ndarray, seg: Segments, arc: Arcs, t: np.ndarray, tcp: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """Largest squared tip distance and axis chord at t in the blocks joining rows of q."""
-    p, v = tip_and_axis_along(m, q[:-1], q[1:], t, 100.0)
-    angle = t[:, None] * arc.omega
-    chord2 = arc.chord2(v, np.cos(angle), np.sin(angle))
-    dist2 = np.zeros_like(chord2) if tcp else seg.distance2(p)[0]
-    return dist2.max(axis=0), chord2.max(axis=0)
+    m: Machine, q: np.ndarray, seg: Segments, arc: Arcs, t: np.ndarray, tcp: bool, window: float
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """Largest squared tip distance, axis chord at t (TCP only) and orientation error at t in
+    the blocks joining rows of q."""
+    p, v = tip_and_axis_along(m, q[:-1], q[1:], t, 100.0, with_tip=not tcp)
+    dist2, chord2, path2 = _orientation_error(seg, arc, p, v, t[:, None], tcp, window)
+    return (
+        np.zeros(path2.shape[1]) if dist2 is None else dist2.max(axis=0),
+        None if chord2 is None else chord2.max(axis=0),
+        path2.max(axis=0),
+    )
 
 
 @pytest.mark.parametrize("name", ["dmu50", "dmu50-nutating", "gantry-ca", "vf2-4axis"])
 @pytest.mark.parametrize("tcp", [False, True])
-def test_subdivision_block_bounds_hold(name: str, tcp: bool) -> None:
-    """Likewise for the bounds that decide which blocks the subdivision refines."""
+@pytest.mark.parametrize("squeeze", [1.0, 1e-4])
+def test_subdivision_block_bounds_hold(name: str, tcp: bool, squeeze: float) -> None:
+    """Likewise for the bounds that decide which blocks the subdivision refines (``squeeze``
+    as above)."""
     m = machine(name)
     rng = np.random.default_rng(12)
     samples = Tolerances().samples_per_block
+    window = 0.008
     for scale in (0.002, 0.05, 0.5):
         q, cl_axis = _random_moves(m, rng, 60, scale)
         tip, _ = tip_and_axis(m, q, 100.0)
         cl_tip = tip + rng.normal(0.0, 0.01, tip.shape)
+        cl_tip = cl_tip[0] + squeeze * (cl_tip - cl_tip[0])
         seg = Segments.between(cl_tip[:-1], cl_tip[1:])
         arc = Arcs.between(cl_axis[:-1], cl_axis[1:])
         poses = RowPoses.of(m, q, 100.0)
         ends = (poses.take(slice(0, -1)), poses.take(slice(1, None)))
 
         t = np.arange(1, samples + 1) / (samples + 1)
-        sampled = _largest_errors(m, q, seg, arc, t, tcp)
-        bound = _error_bounds(m, q[:-1], q[1:], seg, arc, ends, *sampled, t[0], tcp)
-        dense = _largest_errors(m, q, seg, arc, np.linspace(0.0, 1.0, 2001), tcp)
+        sampled = _largest_errors(m, q, seg, arc, t, tcp, window)
+        bound = _error_bounds(m, q[:-1], q[1:], seg, arc, ends, *sampled, t[0], tcp, window)
+        dense = _largest_errors(m, q, seg, arc, np.linspace(0.0, 1.0, 2001), tcp, window)
         assert np.all(np.sqrt(dense[0]) <= bound[0] + 1e-12)
-        assert np.all(np.sqrt(dense[1]) <= bound[1] + 1e-12)
+        assert np.all(np.sqrt(dense[2]) <= bound[1] + 1e-12)
 
 
 def _refine_everywhere(monkeypatch: pytest.MonkeyPatch) -> None:

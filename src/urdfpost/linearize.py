@@ -28,10 +28,11 @@ import numpy as np
 from urdfpost.geometry import (
     Arcs,
     Segments,
+    Temporaries,
+    VecArrays,
     angle_from_chord2,
     chunks,
     coords,
-    cos_sin,
     may_reach,
     refine_max,
     slerp,
@@ -41,7 +42,6 @@ from urdfpost.kinematics.forward import (
     PoeChain,
     Scratch,
     chain_of,
-    cos_sin_along,
     interpolation_bounds,
     tip_and_axis_along,
     tip_axis_and_reach,
@@ -62,7 +62,8 @@ class BlockError:
     tip : ndarray, shape (n,), mm
         Maximum distance of the tool tip from the CL segment.
     orientation : ndarray, shape (n,), rad
-        Maximum angle between the tool axis and the CL axis (slerp) at the same parameter.
+        Maximum angle between the tool axis and the CL orientation path near the tip, as
+        verification measures it (:func:`orientation_path_chord2`).
     """
 
     tip: np.ndarray
@@ -134,6 +135,7 @@ def _block_errors(
     """
     n = q0.shape[0]
     samples = tol.samples_per_block
+    window = tol.tip * tol.interpolation_share  # the tip target: the verifier's window, scaled
     tip_err, ori_err = np.empty(n), np.empty(n)
     chain, scratch = chain_of(machine), Scratch()
     poses, first, last = None, 0, -1  # poses of the rows first .. last of consecutive blocks
@@ -152,7 +154,9 @@ def _block_errors(
                 assert poses is not None
                 k, at = part.stop - part.start, part.start - first
                 pose = (poses.take(slice(at, at + k)), poses.take(slice(at + 1, at + k + 1)))
-            slack = _Slack.of(chain, q0[part], q1[part], seg, arc, pose, 1.0 / (samples + 1), tcp)
+            slack = _Slack.of(
+                chain, q0[part], q1[part], seg, arc, pose, 1.0 / (samples + 1), tcp, window
+            )
         tip_err[part], ori_err[part] = _sampled_errors(
             chain,
             scratch,
@@ -165,6 +169,7 @@ def _block_errors(
             tcp,
             samples,
             targets,
+            window,
         )
     return BlockError(tip=tip_err, orientation=ori_err)
 
@@ -175,14 +180,18 @@ class _Slack:
 
     See :func:`_error_bounds`. Per block (arrays of shape (n,)): the larger of the squared tip
     distances at the two block ends and the room the tip's curvature leaves between samples
-    (both None in TCP programs, where the tip is on the segment), and likewise for the squared
-    chord of the orientation error.
+    (both None in TCP programs, where the tip is on the segment), likewise for the squared
+    chord to the CL axis at the block parameter (``end_chord2``, ``chord_room``; a bound on
+    the orientation error in TCP programs only, where the tip's parameter is the block's),
+    and for the orientation error itself (``end_path2``, ``path_room``).
     """
 
     end_dist2: np.ndarray | None
     tip_room: np.ndarray | None
     end_chord2: np.ndarray
     chord_room: np.ndarray
+    end_path2: np.ndarray
+    path_room: np.ndarray
 
     @classmethod
     def of(
@@ -195,9 +204,11 @@ class _Slack:
         ends: tuple[RowPoses, RowPoses],
         h: float,
         tcp: bool,
+        window: float,
     ) -> _Slack:
-        """The slack of blocks from ``q0`` to ``q1`` (n, m) with samples ``h`` apart."""
-        _, tip_curv, _, axis_curv = interpolation_bounds(
+        """The slack of blocks from ``q0`` to ``q1`` (n, m) with samples ``h`` apart, the
+        orientation compared within ``window`` (mm) of the tip (:func:`_orientation_error`)."""
+        tip_speed, tip_curv, axis_speed, axis_curv = interpolation_bounds(
             machine, q0, q1, ends[0].reach, ends[1].reach, ends[0].swing, ends[1].swing
         )
         at_ends = [
@@ -206,10 +217,23 @@ class _Slack:
         ]
         room = h * h / 8.0
         end_chord2, chord_room = np.maximum(*at_ends), (axis_curv + arc.omega**2) * room
+        # the window follows the tip's parameter u: at the block's own speed with TCP, at most
+        # |p'| / |d| without; the nearest CL axis in it moves by at most omega times that
+        # (and never by more than the whole arc), the tool axis by |a'|
+        u_speed = np.ones_like(arc.omega) if tcp else tip_speed * np.sqrt(seg.inv_dd)
+        path_room = axis_speed * (h / 2.0) + np.minimum(arc.omega * u_speed * (h / 2.0), arc.omega)
+        end_path2 = np.maximum(
+            *(
+                _orientation_error(seg, arc, coords(e.tip), coords(e.axis), t, tcp, window)[2]
+                for e, t in ((ends[0], 0.0), (ends[1], 1.0))
+            )
+        )
         if tcp:
-            return cls(None, None, end_chord2, chord_room)
+            return cls(None, None, end_chord2, chord_room, end_path2, path_room)
         at_ends = [seg.distance2(coords(e.tip))[0] for e in ends]
-        return cls(np.maximum(*at_ends), tip_curv * room, end_chord2, chord_room)
+        return cls(
+            np.maximum(*at_ends), tip_curv * room, end_chord2, chord_room, end_path2, path_room
+        )
 
     def take(self, index: slice) -> _Slack:
         """The slack of the blocks at ``index``."""
@@ -218,15 +242,23 @@ class _Slack:
             None if self.tip_room is None else self.tip_room[index],
             self.end_chord2[index],
             self.chord_room[index],
+            self.end_path2[index],
+            self.path_room[index],
         )
 
-    def bounds(self, dist2: np.ndarray, chord2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def bounds(
+        self, dist2: np.ndarray, chord2: np.ndarray | None, path2: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Bounds on the tip error (mm; 0 in TCP programs) and the chord of the orientation
-        error of blocks whose largest samples are ``dist2`` and ``chord2`` (n,)."""
-        chord = np.sqrt(np.maximum(chord2, self.end_chord2)) + self.chord_room
+        error of blocks whose largest samples are ``dist2``, ``chord2`` (to the CL axis at the
+        block parameter; used in TCP programs only) and ``path2`` (the orientation error),
+        shape (n,)."""
+        path = np.sqrt(np.maximum(path2, self.end_path2)) + self.path_room
         if self.end_dist2 is None or self.tip_room is None:
-            return np.zeros_like(chord), chord
-        return np.sqrt(np.maximum(dist2, self.end_dist2)) + self.tip_room, chord
+            assert chord2 is not None  # (TCP)
+            chord = np.sqrt(np.maximum(chord2, self.end_chord2)) + self.chord_room
+            return np.zeros_like(path), np.minimum(chord, path)
+        return np.sqrt(np.maximum(dist2, self.end_dist2)) + self.tip_room, path
 
 
 def _error_bounds(
@@ -237,9 +269,11 @@ def _error_bounds(
     arc: Arcs,
     ends: tuple[RowPoses, RowPoses],
     dist2: np.ndarray,
-    chord2: np.ndarray,
+    chord2: np.ndarray | None,
+    path2: np.ndarray,
     h: float,
     tcp: bool,
+    window: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Upper bounds on the tip error (mm) and on the chord of the orientation error over whole
     blocks, from evenly spaced samples.
@@ -251,27 +285,92 @@ def _error_bounds(
       function of p; p stays within ``M h^2 / 8`` of the chord between the two samples when
       ``|p''| <= M``, and on that chord the distance is at most the larger of the two sampled
       ones; so the tip error is at most the largest sample plus ``M h^2 / 8``;
-    - likewise the chord ``|a(t) - e(t)|`` between the tool axis a and the slerp e: a convex
-      function of ``a - e``, whose second derivative is at most ``|a''| + omega^2`` (e runs at
-      the constant speed omega on its great circle). The angle increases with the chord.
+    - the orientation error f(t) is the chord from the tool axis a(t) to the nearest CL axis
+      e(s) in a window of parameters about the tip's parameter u(t)
+      (:func:`orientation_path_chord2`). Moving from a sample by dt moves a by at most
+      ``|a'| dt``, and the window's ends by at most ``|u'| dt`` (and 1), so the nearest CL
+      axis by at most ``omega`` times that: f is at most the nearest sample plus
+      ``(|a'| + omega |u'|) h / 2``, with ``|u'| = 1`` in TCP programs (the tip on the
+      segment at the block parameter) and at most ``|p'| / |d|`` otherwise;
+    - in TCP programs also (u = t, inside the window) f is at most the chord ``|a(t) -
+      e(t)|``, a convex function of ``a - e`` whose second derivative is at most ``|a''| +
+      omega^2`` (e runs at the constant speed omega on its great circle): at most the largest
+      sample plus ``(|a''| + omega^2) h^2 / 8``. The angle increases with the chord.
 
-    M and ``|a''|`` come from :func:`urdfpost.kinematics.forward.interpolation_bounds`; the
-    terms that do not depend on the samples are :class:`_Slack`.
+    ``|p'|``, M, ``|a'|`` and ``|a''|`` come from
+    :func:`urdfpost.kinematics.forward.interpolation_bounds`; the terms that do not depend on
+    the samples are :class:`_Slack`.
 
     Parameters
     ----------
-    dist2, chord2 : ndarray, shape (n,)
-        Largest squared tip distance and squared chord sampled inside each block.
+    dist2, chord2, path2 : ndarray, shape (n,)
+        Largest squared tip distance, squared chord to the CL axis at the block parameter and
+        squared orientation error sampled inside each block.
     h : float
         Sample spacing (the first sample is h from the block start).
     tcp : bool
         The tip is on the segment (its bound is 0).
+    window : float, mm
+        Of :func:`_orientation_error`.
 
     Returns
     -------
     tip, chord : ndarray, shape (n,)
     """
-    return _Slack.of(machine, q0, q1, seg, arc, ends, h, tcp).bounds(dist2, chord2)
+    slack = _Slack.of(machine, q0, q1, seg, arc, ends, h, tcp, window)
+    return slack.bounds(dist2, chord2, path2)
+
+
+def _orientation_error(
+    seg: Segments,
+    arc: Arcs,
+    tip: VecArrays | None,
+    axis: VecArrays,
+    t: np.ndarray | float,
+    tcp: bool,
+    window: float,
+    scratch: Temporaries | None = None,
+) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
+    """Tip distance and orientation error of samples of blocks, as verification measures them.
+
+    The tool axis is compared with the CL orientation within ``window`` (mm, along the
+    segment) of the tip's place on the segment (:func:`orientation_path_chord2`): in TCP
+    programs the block parameter ``t`` itself (the control moves the tip on the segment), else
+    the projection of the tip onto the segment.
+
+    Parameters
+    ----------
+    seg, arc : Segments, Arcs
+        The blocks' CL segments and arcs (n,).
+    tip : VecArrays or None
+        The tool tips, coordinate arrays of shape (s, n) or (n,) (None with ``tcp``).
+    axis : VecArrays
+        The tool axes, of the same shape.
+    t : ndarray or float
+        The block parameters of the samples, broadcast against the coordinates.
+    tcp, window : bool, float
+    scratch : Temporaries, optional
+        For the tip distance (:meth:`Segments.distance2`).
+
+    Returns
+    -------
+    dist2 : ndarray or None
+        Squared tip distance from the segment (None with ``tcp``), mm^2.
+    chord2 : ndarray or None
+        Squared chord to the CL axis at ``t`` (with ``tcp`` only, where it bounds ``path2``:
+        ``t`` is in the window).
+    path2 : ndarray
+        Squared chord to the nearest CL axis in the window: the orientation error.
+    """
+    half = np.where(seg.inv_dd > 0, window * np.sqrt(seg.inv_dd), np.inf)  # window / |d|
+    if tcp or tip is None:
+        u = np.broadcast_to(np.asarray(t, dtype=float), np.shape(axis[0]))
+        chord2, path2 = orientation_path_chord2(arc, axis, u, half)
+        return None, chord2, path2
+    outside: list[np.ndarray] = []
+    dist2, s = seg.distance2(tip, outside, scratch)
+    u = np.where(s >= 1.0, 1.0 + outside[0], s - outside[0])  # not clipped
+    return dist2, None, orientation_path_chord2(arc, axis, u, half)[1]
 
 
 def _sampled_errors(
@@ -286,11 +385,14 @@ def _sampled_errors(
     tcp: bool,
     samples: int,
     targets: tuple[float, float] | None,
+    window: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tip (mm) and orientation (rad) errors of one chunk of blocks; see :func:`_block_errors`.
 
-    The samples' temporaries come from ``scratch``, the same arrays for every chunk.
-    ``slack`` (with ``targets`` only) completes the bounds of :func:`_error_bounds`.
+    The orientation error is the one verification measures (:func:`_orientation_error`, the
+    CL orientation compared within ``window`` mm of the tip). The samples' temporaries come
+    from ``scratch``, the same arrays for every chunk. ``slack`` (with ``targets`` only)
+    completes the bounds of :func:`_error_bounds`.
 
     A block is refined where :func:`_error_bounds` does not keep it below the target. The
     golden-section search only ever reports values of the function, at most its maximum, so
@@ -301,19 +403,16 @@ def _sampled_errors(
     t = np.arange(1, samples + 1) / (samples + 1)
     scratch.start((samples, n))
     tip, axis = tip_and_axis_along(chain, q0, q1, t, tool_length, with_tip=not tcp, scratch=scratch)
-    cos, sin = cos_sin_along(np.zeros(n), arc.omega, t, out=(scratch.take(), scratch.take()))
-    chord2 = arc.chord2(axis, cos, sin, scratch)
-    if tcp:  # the control keeps the tip on the segment
-        dist2, best = None, (np.zeros(n), _column_max(chord2))
+    dist2, chord2, path2 = _orientation_error(seg, arc, tip, axis, t[:, None], tcp, window, scratch)
+    if dist2 is None:  # TCP: the control keeps the tip on the segment
+        best = (np.zeros(n), _column_max(path2))
     else:
-        assert tip is not None
-        dist2 = seg.distance2(tip, scratch=scratch)[0]
-        best = (_column_max(dist2), _column_max(chord2))
+        best = (_column_max(dist2), _column_max(path2))
     if targets is None:
         wanted = (np.full(n, not tcp), np.ones(n, dtype=bool))
     else:
         assert slack is not None
-        bound = slack.bounds(best[0], best[1])
+        bound = slack.bounds(best[0], None if chord2 is None else _column_max(chord2), best[1])
         want_tip = np.zeros(n, dtype=bool) if tcp else may_reach(bound[0], targets[0])
         wanted = (want_tip, may_reach(bound[1], 2.0 * np.sin(targets[1] / 2.0)))
 
@@ -321,11 +420,16 @@ def _sampled_errors(
         p, v = tip_and_axis_along(
             chain, q0[blocks], q1[blocks], tt[None, :], tool_length, with_tip=not tcp
         )
-        sub = arc.take(blocks)
-        c2 = sub.chord2((v[0][0], v[1][0], v[2][0]), *cos_sin(tt * sub.omega))
-        if p is None:
-            return np.zeros(len(blocks)), c2
-        return seg.take(blocks).distance2((p[0][0], p[1][0], p[2][0]))[0], c2
+        d2, _, c2 = _orientation_error(
+            seg.take(blocks),
+            arc.take(blocks),
+            None if p is None else (p[0][0], p[1][0], p[2][0]),
+            (v[0][0], v[1][0], v[2][0]),
+            tt,
+            tcp,
+            window,
+        )
+        return (np.zeros(len(blocks)) if d2 is None else d2), c2
 
     log.debug(
         "%d blocks: tip refined in %d, orientation in %d", n, wanted[0].sum(), wanted[1].sum()
@@ -333,10 +437,214 @@ def _sampled_errors(
     # the worst sample only where the search starts from it
     worst = (
         np.zeros(n, dtype=np.intp) if dist2 is None else _first_largest(dist2, wanted[0]),
-        _first_largest(chord2, wanted[1]),
+        _first_largest(path2, wanted[1]),
     )
     best = refine_max(errors, t, worst, best, wanted)
     return np.sqrt(best[0]), angle_from_chord2(best[1])
+
+
+def orientation_path_chord2(
+    arc: Arcs,
+    v: VecArrays,
+    u: np.ndarray,
+    half: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Squared chord from tool axes to the CL orientation path near a tip parameter.
+
+    A CL segment moves the tip ``P(s)`` (straight) and the axis ``e(s)`` (slerp) together on
+    one parameter ``s`` in [0, 1]. A tool axis ``v`` measured where the tip's parameter is
+    ``u`` is compared with the part of the arc whose tip lies within the window radius of
+    that place along the segment: ``e([clip(u - half), clip(u + half)])`` with ``half`` the
+    radius over the segment's length (infinite for a segment of no length, a reorientation in
+    place: the whole arc). The distance to that part of a great circle has a closed form:
+    in the frame ``(v0, normal, v0 x normal)`` of the arc, the nearest point of the whole
+    circle is the direction of ``v``'s projection onto its plane; it is the nearest of the
+    part when inside its wedge, else the nearer end is. See ``docs/verification.md``.
+
+    Parameters
+    ----------
+    arc : Arcs
+        One arc per column (block), angle ``omega`` rad.
+    v : VecArrays
+        Unit tool axes, coordinate arrays of shape (s, n) (s samples of n blocks) or (n,).
+    u : ndarray, shape of ``v[0]``
+        The tip's parameter on the segment (the projection, not clipped; in [0, 1] for a tip
+        on it).
+    half : ndarray, shape (n,)
+        Window radius over the segment length (``inf`` for a segment of no length).
+
+    Returns
+    -------
+    at : ndarray, shape of ``v[0]``
+        ``|v - e(clip(u))|^2``: the chord at the tip's parameter itself (an upper bound on
+        ``path``; what the bounds between samples are worked out for).
+    path : ndarray, shape of ``v[0]``
+        The squared chord to the nearest point of the window; the angle is
+        :func:`urdfpost.geometry.angle_from_chord2` of it.
+
+    Examples
+    --------
+    A reorientation in place (no tip motion) from +Z to +X; the axis halfway along the arc
+    is on it, wherever the tip parameter says it is:
+
+    >>> from urdfpost.geometry import Arcs, coords
+    >>> arc = Arcs.between(np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))
+    >>> v = coords(np.array([[np.sqrt(0.5), 0.0, np.sqrt(0.5)]]))
+    >>> at, path = orientation_path_chord2(arc, v, np.zeros(1), np.full(1, np.inf))
+    >>> round(float(at[0]), 6), float(path[0])
+    (0.585786, 0.0)
+    """
+    omega = arc.omega
+    v0, normal, across = _frame(arc)
+    # v = x v0 + y normal + z across; |v - e(theta)|^2 = z^2 + (1 - rho)^2 + 4 rho
+    # sin^2((theta - nearest) / 2), where rho and nearest are the length and the angle of v's
+    # projection onto the plane: the nearest point of the whole great circle is at that angle
+    x, y, base = _dot(v, v0), _dot(v, normal), _dot(v, across)
+    base *= base  # z^2
+    gap = _one_minus_rho(base)  # 1 - rho, from z^2 (v is a unit vector)
+    rho = np.subtract(1.0, gap)
+    gap *= gap
+    base += gap
+    nearest = np.arctan2(y, x, out=x)
+    at = np.clip(u, 0.0, 1.0, out=y)
+    at *= omega
+    at -= nearest
+    _turn_chord2(at, gap)
+    at *= rho
+    at += base
+    # turned to within pi of the window's middle (the window is less than pi wide) and clipped
+    # to the window, it is the window's nearest point
+    lo = np.subtract(u, half)
+    np.clip(lo, 0.0, 1.0, out=lo)
+    lo *= omega
+    hi = np.add(u, half)
+    np.clip(hi, 0.0, 1.0, out=hi)
+    hi *= omega
+    mid = np.add(lo, hi, out=gap)
+    mid *= 0.5
+    mid -= np.pi
+    np.add(nearest, 2.0 * np.pi, out=nearest, where=nearest < mid)
+    path = np.clip(nearest, lo, hi, out=lo)
+    path -= nearest
+    _turn_chord2(path, hi)
+    path *= rho
+    path += base
+    np.minimum(path, at, out=path)
+    return at, path
+
+
+def _frame(arc: Arcs) -> tuple[VecArrays, VecArrays, VecArrays]:
+    """An orthonormal frame of each arc: v0, the normal towards the arc's end in its plane, and
+    their cross product.
+
+    The normal is made orthogonal to v0 again; where it is rounding noise or zero (an arc of
+    next to no angle), any unit vector orthogonal to v0 stands in for it.
+    """
+    v0 = arc.v0
+    dot = _dot(arc.normal, v0)
+    normal = [arc.normal[i] - dot * v0[i] for i in range(3)]
+    length = np.sqrt(_dot(normal, normal))
+    lost = length < 0.5
+    if lost.any():  # v0 x the coordinate axis least along it
+        least = np.argmin(np.abs(np.stack(v0)), axis=0)
+        other = [np.where(least == i, 1.0, 0.0) for i in range(3)]
+        stand_in = _cross(v0, other)
+        normal = [np.where(lost, stand_in[i], normal[i]) for i in range(3)]
+        length = np.sqrt(_dot(normal, normal))
+    nx, ny, nz = (c / length for c in normal)
+    return v0, (nx, ny, nz), _cross(v0, (nx, ny, nz))
+
+
+def _dot(a: VecArrays | list[np.ndarray], b: VecArrays | list[np.ndarray]) -> np.ndarray:
+    """Dot products of vectors given as coordinate arrays (broadcast), in a new array."""
+    out = np.multiply(a[0], b[0])
+    part = np.multiply(a[1], b[1])
+    out += part
+    np.multiply(a[2], b[2], out=part)
+    out += part
+    return out
+
+
+def _cross(a: VecArrays | list[np.ndarray], b: VecArrays | list[np.ndarray]) -> VecArrays:
+    """Cross products of vectors given as coordinate arrays."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _one_minus_rho(z2: np.ndarray) -> np.ndarray:
+    """``1 - sqrt(1 - z2)`` in a new array, accurate for small ``z2`` (in [0, 1]).
+
+    A Taylor polynomial where ``z2`` is at most 1e-4 (the terms left out are below 6e-18 of
+    the result), ``z2 / (1 + sqrt(1 - z2))`` elsewhere: faster than a square root for every
+    sample of tool axes near the CL orientation's great circle.
+    """
+    out = np.multiply(z2, 7.0 / 256.0)
+    out += 5.0 / 128.0
+    out *= z2
+    out += 1.0 / 16.0
+    out *= z2
+    out += 1.0 / 8.0
+    out *= z2
+    out += 0.5
+    out *= z2
+    if z2.max(initial=0.0) > 1e-4:
+        far = np.flatnonzero(z2 > 1e-4)
+        w = np.minimum(z2.flat[far], 1.0)
+        out.flat[far] = w / (1.0 + np.sqrt(1.0 - w))
+    return out
+
+
+_SMALL_TURN = 0.1
+"""Turns up to this (rad) get their squared chord from a Taylor polynomial in
+:func:`_turn_chord2`."""
+
+_TURN_TERMS = (1.0, -1.0 / 12.0, 1.0 / 360.0, -1.0 / 20160.0, 1.0 / 1814400.0)
+"""Coefficients of ``4 sin^2(t / 2) = t^2 (1 - t^2 / 12 + t^4 / 360 - ...)`` in powers of
+``t^2`` (the next, ``-2 / 12!``, is below 5e-19 of the result for turns up to
+:data:`_SMALL_TURN`)."""
+
+
+def _turn_chord2(turn: np.ndarray, scratch: np.ndarray) -> np.ndarray:
+    """Squared chord ``4 sin^2(turn / 2)`` between unit vectors ``turn`` (rad) apart on a great
+    circle, in place of ``turn``.
+
+    Where ``|turn|`` is at most :data:`_SMALL_TURN`, the Taylor polynomial to ``turn^10``
+    (the next term is below 5e-19 of the result), several times faster than ``np.sin``; the
+    rest through ``np.sin``.
+
+    Parameters
+    ----------
+    turn : ndarray, any shape, rad
+        Overwritten with the result.
+    scratch : ndarray, shape of ``turn``
+        Overwritten.
+
+    Returns
+    -------
+    ndarray
+        ``turn``.
+
+    Examples
+    --------
+    >>> round(float(_turn_chord2(np.array([np.pi / 2]), np.empty(1))[0]), 12)  # chord sqrt(2)
+    2.0
+    """
+    t2 = np.multiply(turn, turn, out=scratch)
+    largest = float(t2.max(initial=0.0))
+    large = np.flatnonzero(t2 > _SMALL_TURN**2) if largest > _SMALL_TURN**2 else None
+    if large is not None:
+        big = turn.flat[large]
+    # as many terms as the largest turn needs for the next to stay below 1e-17 of the result
+    terms, reach = 1, min(largest, _SMALL_TURN**2)
+    while terms < len(_TURN_TERMS) and abs(_TURN_TERMS[terms]) * reach**terms > 1e-17:
+        terms += 1
+    turn.fill(_TURN_TERMS[terms - 1])
+    for c in _TURN_TERMS[terms - 2 :: -1]:
+        turn *= t2
+        turn += c
+    turn *= t2
+    if large is not None:
+        turn.flat[large] = 4.0 * np.sin(0.5 * big) ** 2
+    return turn
 
 
 def _column_max(values: np.ndarray) -> np.ndarray:

@@ -17,6 +17,10 @@ The paths and their closed-form facts (``../shared/docs/singularity-research.md`
   chosen angular distance (0: through it).
 - :func:`nutating_edge`: the tilt from vertical runs up to the edge of a 45-degree nutating
   table's reach (90 degrees on ``dmu50-nutating``) and back.
+- :func:`micro_pole`: five CL points micrometres apart, coordinates rounded to 0.001 mm, the
+  tool axis passing within a fraction of a degree of vertical (the pole of a C table) and
+  turning by degrees between them: a stand-in for the seed paper's Table 1, whose rows we do
+  not have.
 
 :data:`PATHS` names the shipped variants.
 
@@ -48,6 +52,7 @@ __all__ = [
     "PATHS",
     "great_circle_sweep",
     "hemisphere_raster",
+    "micro_pole",
     "nutating_edge",
     "to_apt",
 ]
@@ -300,6 +305,68 @@ def nutating_edge(
     )
 
 
+def micro_pole(
+    tilt_deg: Sequence[float] = (2.0, 1.2, 0.6, 1.2, 2.0),
+    azimuth_deg: Sequence[float] = (-40.0, -20.0, 0.0, 20.0, 40.0),
+    step: Sequence[float] = (0.003, 0.001, 0.0),
+    start: Sequence[float] = (20.0, 10.0, 5.0),
+    feed: float = 500.0,
+    digits: int = 3,
+) -> Toolpath:
+    """A few CL points micrometres apart near the pole, the tool axis turning by degrees.
+
+    A stand-in for the seed paper's Table 1 (five GOTO rows near vertical, posted on a
+    45-degree B table), whose rows we do not have: it has the properties that made that
+    example hard to verify. The tip steps are a few micrometres (``step``, rounded to
+    ``digits`` decimals of a millimetre as a CL file writes them), far shorter than the tip
+    tolerance, while the tool axis turns by a degree or more between points and passes within
+    ``min(tilt_deg)`` of vertical, where the C table of ``dmu50-nutating`` turns by tens of
+    degrees per point. On segments this short the tip's place on the segment is rounding
+    noise: a verifier that compares the tool axis at the tip's projection parameter rejects
+    the posts (machine coordinates), one that compares it with the CL orientation path near
+    the tip does not (``docs/verification.md``).
+
+    Parameters
+    ----------
+    tilt_deg, azimuth_deg : sequence of float, degrees
+        Tool axis of each point: angle from +Z and azimuth from +X (the same length, at least
+        2).
+    step : sequence of 3 float, mm
+        Tip step from one point to the next.
+    start : sequence of 3 float, mm
+        The first tip.
+    feed : float, mm/min
+    digits : int
+        Decimals (of a millimetre) the tips are rounded to.
+
+    Returns
+    -------
+    Toolpath
+        Source ``"<micro pole>"``.
+
+    Raises
+    ------
+    ValueError
+        For tilts and azimuths of different lengths, fewer than 2 points, or a feed that is not
+        positive.
+    """
+    tilt, azimuth = (
+        np.radians(np.asarray(tilt_deg, float)),
+        np.radians(np.asarray(azimuth_deg, float)),
+    )
+    if tilt.shape != azimuth.shape or tilt.ndim != 1 or len(tilt) < 2 or feed <= 0:
+        raise ValueError(
+            f"expected as many tilts as azimuths, at least 2, and a positive feed; got "
+            f"{len(tilt)} tilts, {len(azimuth)} azimuths, feed {feed:g}"
+        )
+    axis = np.stack(
+        [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)], axis=1
+    )
+    offsets = np.arange(len(tilt))[:, None] * np.asarray(step, dtype=float).reshape(1, 3)
+    tip = np.round(np.asarray(start, dtype=float).reshape(1, 3) + offsets, digits)
+    return _assemble([(tip, axis, "MICROMETRE STEPS NEAR THE POLE")], name="micro pole", feed=feed)
+
+
 #: The shipped variants by stable name.
 PATHS: dict[str, Callable[[], Toolpath]] = {
     "hemisphere": hemisphere_raster,
@@ -308,6 +375,7 @@ PATHS: dict[str, Callable[[], Toolpath]] = {
     "sweep-1": lambda: great_circle_sweep(1.0),
     "sweep-5": lambda: great_circle_sweep(5.0),
     "nutating-edge": nutating_edge,
+    "micro-pole": micro_pole,
 }
 
 

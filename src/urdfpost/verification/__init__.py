@@ -3,8 +3,9 @@
 Every block end of the program goes through the forward kinematics; between feed blocks the
 axes are interpolated as the control does, sampled, and refined where it can matter. The result
 is compared with the CL path: the tool-tip distance to the CL polyline, the tool-axis angle to
-the CL axis interpolated (slerp) at the same place, and which CL points the program reaches, in
-order.
+the CL orientation path near the tip (the slerp of the CL axes, within the tip tolerance of the
+tip's place along the segment: ``docs/verification.md``), and which CL points the program
+reaches, in order.
 
 Modules
 -------

@@ -237,16 +237,65 @@ def _first_reaching(
     return out
 
 
-def _walk(cl_tip: VecArrays, tip: VecArrays, js: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """Rows ``k`` moved on while the next row is strictly nearer to CL points ``js`` (distances
-    computed as the search computes them), a few rows at a time and then more."""
+def _nearness(
+    tip: VecArrays,
+    cl_tip: VecArrays,
+    axis: VecArrays,
+    cl_axis: VecArrays,
+    tol: Tolerances,
+    rows: np.ndarray,
+    js: np.ndarray,
+) -> np.ndarray:
+    """How near program rows are to CL points, in shares of the tolerances: the larger of the
+    tip distance over ``tol.tip`` and the axis angle over ``tol.orientation`` (at most 1 for a
+    row that reaches the point).
+
+    Both count: where the tip stands still (a reorientation in place) the tip distances of
+    the rows differ by rounding only, and the axis tells which row is at the CL point.
+
+    Parameters
+    ----------
+    tip, cl_tip : VecArrays
+        Coordinate arrays of the program rows' and the CL points' tips, mm.
+    axis, cl_axis : VecArrays
+        Of their unit tool axes.
+    tol : Tolerances
+    rows : ndarray, shape (k, w), int
+    js : ndarray, shape (k, 1), int
+
+    Returns
+    -------
+    ndarray, shape (k, w)
+    """
+    dist = _distance(tip, cl_tip, rows, js)
+    dist /= tol.tip
+    chord = _distance(axis, cl_axis, rows, js)  # the angle is 2 arcsin(chord / 2)
+    chord *= 0.5
+    np.minimum(chord, 1.0, out=chord)
+    angle = np.arcsin(chord, out=chord)
+    angle *= 2.0 / tol.orientation
+    return np.maximum(dist, angle, out=dist)
+
+
+def _walk(
+    cl_tip: VecArrays,
+    tip: VecArrays,
+    cl_axis: VecArrays,
+    axis: VecArrays,
+    tol: Tolerances,
+    js: np.ndarray,
+    k: np.ndarray,
+) -> np.ndarray:
+    """Rows ``k`` moved on while the next row is strictly nearer to CL points ``js``
+    (:func:`_nearness`), a few rows at a time and then more."""
     n = len(tip[0])
     k = k.copy()
     active = np.arange(len(k))
     width = 4
     while active.size:
         rows = k[active, None] + np.arange(width)
-        dist = _distance(tip, cl_tip, np.minimum(rows, n - 1), js[active, None])
+        safe = np.minimum(rows, n - 1)
+        dist = _nearness(tip, cl_tip, axis, cl_axis, tol, safe, js[active, None])
         dist[rows >= n] = np.inf  # past the end: not nearer
         stop = ~(dist[:, 1:] < dist[:, :-1])
         stops = stop.any(axis=1)
@@ -279,14 +328,14 @@ def match_points(
     tol: Tolerances,
 ) -> np.ndarray:
     """For each CL point, the program point at or after the previous match that reaches it (tip
-    within tolerance, axis within orientation tolerance; the nearest of a run of such points),
-    or -1.
+    within tolerance, axis within orientation tolerance; the nearest of a run of such points in
+    shares of the tolerances, :func:`_nearness`), or -1.
 
     The definition is sequential: with ``ptr = 0``, for each CL point j in turn, ``m_j`` is the
     first row in ``[ptr, ptr + REACH)`` that reaches it, walked on while the next row is
-    strictly nearer (CL points closer together than the tolerance); ``ptr = m_j`` when there
-    is one, else ``ptr`` stays. So ``m_j = F_j(ptr_j)``, a function of the start alone, and
-    ``ptr_{j+1}`` is the last match up to j.
+    strictly nearer (CL points closer together than the tolerance, or the rows of a
+    reorientation in place); ``ptr = m_j`` when there is one, else ``ptr`` stays. So ``m_j =
+    F_j(ptr_j)``, a function of the start alone, and ``ptr_{j+1}`` is the last match up to j.
 
     It is computed for runs of CL points at once as a fixed point. Guess every start (one row
     per CL point after the last match known), evaluate ``F_j`` there over the first rows only
@@ -324,13 +373,14 @@ def match_points(
     out = np.full(n_cl, -1)
     ptr, j0, size = 0, 0, 1024
     cl_xyz, xyz = coords(cl_tip), coords(tip)
+    cl_ijk, ijk = coords(cl_axis), coords(axis)
 
     def evaluate(i: np.ndarray, start: np.ndarray, windows: tuple[int, ...]) -> None:
         """Results of points i from the given starts: first row reaching, and walked on."""
         hit = _first_reaching(cl_xyz, cl_axis, xyz, axis, tol, js[i], start, windows)
         first[i], done_for[i] = hit, start
         ok = hit >= 0
-        hit[ok] = _walk(cl_xyz, xyz, js[i][ok], hit[ok])
+        hit[ok] = _walk(cl_xyz, xyz, cl_ijk, ijk, tol, js[i][ok], hit[ok])
         m[i] = hit
 
     def holds(i: np.ndarray | int, start: np.ndarray | int) -> np.ndarray | bool:

@@ -7,8 +7,11 @@ feed blocks the axes are interpolated linearly as the control does (in TCP progr
 moves on the straight line and the rotary axes interpolate linearly), sampled densely, and the
 worst sample refined by golden-section search in every block where that could change the
 result (elsewhere a bound on the deviation between samples rules it out). The result is
-compared with the CL path: tool-tip distance to the CL polyline, tool-axis angle to the CL axis
-interpolated (slerp) at the same place, and which CL points the program reaches, in order
+compared with the CL path: tool-tip distance to the CL polyline, tool-axis angle to the CL
+orientation path near the tip (:func:`_span_deviation`: on every CL segment the tip and the axis
+move together on one parameter, and the axis is compared with the part of the segment's slerp
+whose tip is within the tip tolerance of the sample's; the whole arc for a reorientation in
+place; ``docs/verification.md``), and which CL points the program reaches, in order
 (:mod:`urdfpost.verification.match`). Everything runs on arrays, in chunks of blocks.
 """
 
@@ -27,12 +30,11 @@ from urdfpost.geometry import (
     angle_from_chord2,
     chunks,
     coords,
-    cos_sin,
     may_reach,
     refine_max,
 )
 from urdfpost.kinematics.forward import interpolation_bounds, tip_and_axis_along
-from urdfpost.linearize import RowPoses
+from urdfpost.linearize import RowPoses, orientation_path_chord2
 from urdfpost.machine import Machine
 from urdfpost.program import Program, rewind_moves
 from urdfpost.tolerances import Tolerances
@@ -181,12 +183,15 @@ class _Polyline:
 
 @dataclass(frozen=True)
 class _FirstSpan:
-    """The first CL segment and arc of the spans of blocks, and how far the projection
-    parameter of samples on that segment falls outside [0, 1] (shape (s, n); 0 inside)."""
+    """The first CL segment and arc of the spans of blocks, how far the projection parameter
+    of samples on that segment falls outside [0, 1] (shape (s, n); 0 inside), and the
+    squared chord from their tool axes to the CL axis at that parameter (clipped; shape
+    (s, n)), which bounds the deviation measured (:func:`orientation_path_chord2`)."""
 
     segments: Segments
     arcs: Arcs
     outside: np.ndarray
+    at: np.ndarray
 
 
 def _span_deviation(
@@ -195,10 +200,20 @@ def _span_deviation(
     polyline: _Polyline,
     ja: np.ndarray,
     jb: np.ndarray,
+    window: float,
     first: list[_FirstSpan] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Distance of sample points from the CL polyline between CL indices ``ja`` and ``jb``, and
-    of their tool axes from the CL axis interpolated (slerp) at the nearest place.
+    of their tool axes from the CL orientation path there.
+
+    On each CL segment the tip and the axis move together on one parameter (straight tip,
+    slerp axis). The tip deviation is the distance to the nearest segment of the span; the
+    axis deviation is the angle to the part of a segment's arc whose tip lies within
+    ``window`` of the sample's, along the segment, of its projection
+    (:func:`urdfpost.linearize.orientation_path_chord2`; the whole arc for a segment shorter
+    than the window, such as a reorientation in place), the smallest over the segments whose
+    tip is within ``window`` of the sample, or that of the nearest segment when none is
+    (``docs/verification.md``).
 
     Parameters
     ----------
@@ -207,38 +222,49 @@ def _span_deviation(
     polyline : _Polyline
     ja, jb : ndarray, shape (n,), int
         CL span of each block (``jb >= ja``).
+    window : float, mm
+        How far along a segment from the sample's tip the CL orientation is compared (the
+        tip tolerance).
     first : list, optional
-        When given, the span's first segment and arc, and how far the projection parameter
-        on that segment falls outside [0, 1], are appended to it (:class:`_FirstSpan`).
+        When given, the span's first segment and arc, how far the projection parameter on
+        that segment falls outside [0, 1], and the chord at that parameter are appended to it
+        (:class:`_FirstSpan`).
 
     Returns
     -------
     dist2 : ndarray, shape (s, n), mm^2
         Squared distance from the nearest segment of the span (the first of equals).
     chord2 : ndarray, shape (s, n)
-        Squared chord between the tool axis and the CL axis there (see
-        :func:`urdfpost.geometry.angle_from_chord2`).
+        Squared chord between the tool axis and the nearest CL orientation in the window
+        (see :func:`urdfpost.geometry.angle_from_chord2`).
     """
     span = np.maximum(jb - ja, 1)
     last = len(polyline) - 1
-    dist2 = chord2 = np.zeros(0)
+    window2 = window * window
+    dist2 = chord2 = within = np.zeros(0)
     for off in range(int(span.max(initial=1))):
         cols = np.flatnonzero(span > off) if off else slice(None)
         a = np.minimum(ja[cols] + off, last)
         pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
         axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
         seg, arc = polyline.take(a)
-        outside: list[np.ndarray] | None = [] if off == 0 and first is not None else None
-        d2, u = seg.distance2(pts, outside)
-        if outside and first is not None:  # (outside is only ever filled when first is given)
-            first.append(_FirstSpan(seg, arc, outside[0]))
-        c2 = arc.chord2(axs, *cos_sin(u * arc.omega))
+        outside: list[np.ndarray] = []
+        d2, s = seg.distance2(pts, outside)
+        u = np.where(s >= 1.0, 1.0 + outside[0], s - outside[0])  # not clipped
+        half = np.where(seg.inv_dd > 0, window * np.sqrt(seg.inv_dd), np.inf)  # window / |d|
+        at, c2 = orientation_path_chord2(arc, axs, u, half)
         if off == 0:
+            if first is not None:
+                first.append(_FirstSpan(seg, arc, outside[0], at))
             dist2, chord2 = d2, c2
+            within = np.where(d2 <= window2, c2, np.inf)  # best chord of the segments near
             continue
         better = d2 < dist2[:, cols]
         dist2[:, cols] = np.where(better, d2, dist2[:, cols])
         chord2[:, cols] = np.where(better, c2, chord2[:, cols])
+        within[:, cols] = np.minimum(within[:, cols], np.where(d2 <= window2, c2, np.inf))
+    if int(span.max(initial=1)) > 1:
+        chord2 = np.where(np.isfinite(within), within, chord2)
     return dist2, chord2
 
 
@@ -247,7 +273,8 @@ class _Blocks:
     """The feed blocks of a program, and how to evaluate them anywhere.
 
     Block i moves from program row ``start[i]`` to ``start[i] + 1`` and is compared with the CL
-    span ``ja[i] .. jb[i]``, where ``valid[i]`` (None: every block).
+    span ``ja[i] .. jb[i]``, where ``valid[i]`` (None: every block); ``window`` (mm) is the
+    window of :func:`_span_deviation`.
     """
 
     machine: Machine
@@ -260,6 +287,7 @@ class _Blocks:
     tcp: bool
     tool_length: float
     pivot: float
+    window: float
     valid: np.ndarray | None = None
 
     def along(self, blocks: np.ndarray, t: np.ndarray) -> tuple[VecArrays | None, VecArrays]:
@@ -312,6 +340,7 @@ class _Blocks:
             self.polyline,
             self.ja[blocks],
             self.jb[blocks],
+            self.window,
             first,
         )
 
@@ -335,9 +364,11 @@ class _Blocks:
           function of p: it is at most the largest sample plus ``M h^2 / 8`` (p stays that
           close to the chord between two samples, and on the chord the distance is at most the
           larger of theirs);
-        - the axis deviation is the chord ``|a(t) - e(s(t))|`` to the CL slerp e (angle omega,
-          speed omega) at the clipped projection parameter ``s = clip(u)``, ``u = (p - A).d /
-          |d|^2``. Without the clip, ``f = a - e(u)`` is smooth with ``|f''| <= M_a + omega^2
+        - the axis deviation (the chord to the nearest CL axis of the window about u, ``u =
+          (p - A).d / |d|^2``, :func:`_span_deviation`) is at most the chord ``|a(t) -
+          e(s(t))|`` to the CL slerp e (angle omega, speed omega) at the clipped projection
+          parameter ``s = clip(u)``, which is in the window (its samples are
+          ``span.at``). Without the clip, ``f = a - e(u)`` is smooth with ``|f''| <= M_a + omega^2
           u'^2 + omega |u''|``, ``|u'| <= L / |d|``, ``|u''| <= M / |d|``, so ``|f|`` is at
           most its largest sample plus ``|f''| h^2 / 8``; the clip moves e by at most omega
           times how far u is outside [0, 1], which between samples exceeds the largest sampled
@@ -345,7 +376,11 @@ class _Blocks:
           omega times the largest sampled excess, plus ``(M_a + omega^2 L^2 / |d|^2 + 2 omega
           M / |d|) h^2 / 8``. A first-order bound holds too (the chord changes at most at the
           speed ``L_a + omega L / |d|``: between two samples at most their mean plus that speed
-          times h / 2); the smaller of the two is taken.
+          times h / 2). And the deviation itself moves, from the nearest sample, by at most
+          the axis' motion ``L_a h / 2`` plus omega times the motion of the window's ends,
+          which follow u and stay in [0, 1]: ``min(omega L / |d| h / 2, omega)`` (the bound
+          that keeps blocks on micrometre segments, where ``L / |d|`` is huge, from being
+          refined for nothing). The smallest of the three is taken.
 
         A block compared with more than one CL segment gets no bound (infinite).
 
@@ -355,8 +390,8 @@ class _Blocks:
         dist2, chord2 : ndarray, shape (s, k)
             Samples from :meth:`errors`.
         span : _FirstSpan
-            The blocks' first CL segments and arcs, and how far the projection parameter falls
-            outside [0, 1] at the samples (from :meth:`errors`).
+            The blocks' first CL segments and arcs, how far the projection parameter falls
+            outside [0, 1] at the samples and the chord at it (from :meth:`errors`).
         h : float
 
         Returns
@@ -378,14 +413,19 @@ class _Blocks:
         inv_length = np.sqrt(span.segments.inv_dd)  # 0 for a point
         omega = span.arcs.omega
         spin = omega * tip_speed * inv_length
-        g = np.sqrt(chord2)
+        g = np.sqrt(span.at)
         room = h * h / 8.0
         tip_bound = np.sqrt(dist2.max(axis=0)) + tip_curv * room
         first = 0.5 * (g[1:] + g[:-1]).max(axis=0) + (axis_speed + spin) * (h / 2.0)
         curv = axis_curv + spin * spin + 2.0 * omega * tip_curv * inv_length
         second = g.max(axis=0) + 2.0 * omega * span.outside.max(axis=0) + curv * room
+        # the deviation itself moves by at most the axis' motion plus omega times the window's
+        # (at most the speed of u, and never more than the whole arc)
+        moves = axis_speed * (h / 2.0) + np.minimum(spin * (h / 2.0), omega)
+        third = np.sqrt(chord2.max(axis=0)) + moves
+        chord_bound = np.minimum(np.minimum(first, second), third)
         one = self.jb[blocks] - ja <= 1
-        return np.where(one, tip_bound, np.inf), np.where(one, np.minimum(first, second), np.inf)
+        return np.where(one, tip_bound, np.inf), np.where(one, chord_bound, np.inf)
 
 
 @dataclass
@@ -627,6 +667,7 @@ def verify_checks(
             tcp=program.tcp,
             tool_length=tool_length,
             pivot=c.pivot,
+            window=c.tol.tip,
             valid=part.valid,
         )
         for c, part in zip(checks, parts, strict=True)
@@ -726,7 +767,7 @@ class _Comparison:
         dp2, op2 = np.empty(len(rows.tip)), np.empty(len(rows.tip))
         for part in chunks(len(rows.tip), 1):
             at_rows = (_sampled_once(rows.tip[part]), _sampled_once(rows.axis[part]))
-            d2, c2 = _span_deviation(*at_rows, polyline, ja_pt[part], jb_pt[part])
+            d2, c2 = _span_deviation(*at_rows, polyline, ja_pt[part], jb_pt[part], check.tol.tip)
             dp2[part], op2[part] = d2[0], c2[0]
         feed_pts = ~rapid | (owner >= 0)
 
