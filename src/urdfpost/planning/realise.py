@@ -10,12 +10,14 @@ plan's curve, or from exact inverse kinematics where the plan has none
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 
 import numpy as np
 
 from urdfpost.geometry import angle_between
 from urdfpost.kinematics.inverse import assemble, nearest_solution, solve_linear
+from urdfpost.machine import Machine
 from urdfpost.planning.problem import (
     Plan,
     Problem,
@@ -25,7 +27,10 @@ from urdfpost.planning.problem import (
     tool_axis_of,
 )
 from urdfpost.planning.rewinds import LIFT, RETURN, TURN, rewind_rows
+from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
+
+log = logging.getLogger(__name__)
 
 
 def realise(problem: Problem, plan: Plan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -93,13 +98,64 @@ def midpoint_solver(
         exact = np.isnan(rot).any(axis=1)
         if exact.any():
             _, ax = at_param(plan.toolpath, param[exact], 0.0)
-            rot[exact] = nearest_solution(machine, ax, guess[exact], tol)
+            rot[exact] = _exact_or_across(machine, ax, qa[exact][:, cols], qb[exact][:, cols], tol)
         lift = (
             np.interp(param, lift_param, lift_value) if lift_value.any() else np.zeros(len(param))
         )
         return solve_rows(problem, plan.toolpath, param, rot, lift, bent=~exact)
 
     return solve
+
+
+NO_PROGRESS = 0.25
+"""A bisected block whose exact midpoint leaves a half at least ``1 - NO_PROGRESS`` of the
+block's rotary step long (the midpoint near an end, or beyond one) makes no progress there: it
+may join two branches (:func:`_exact_or_across`)."""
+
+
+def _exact_or_across(
+    machine: Machine, axis: np.ndarray, rot_a: np.ndarray, rot_b: np.ndarray, tol: Tolerances
+) -> np.ndarray:
+    """Rotary angles of the midpoints of blocks: exact, or across a branch switch.
+
+    A block whose ends lie on two inverse kinematics branches (near a pole the planner may
+    switch there: the first rotary axis turns by about half a turn and the tilt changes sign
+    while the tool axis hardly moves) has no exact solution between them: the exact midpoint
+    is one of its ends again (or beyond one), and bisecting never shortens the joint move,
+    which then carries the tool tip off the path. Where the exact midpoint leaves a half
+    nearly as long as the block (:data:`NO_PROGRESS`), the midpoint is the middle of the joint
+    move itself (its X, Y, Z are solved to keep the tip on the path like any row), provided its
+    tool axis stays within the orientation tolerance of the programmed one (the tolerance
+    :func:`with_rewinds` lifts a turn beyond); the tilt then runs through the pole by the
+    distance the path misses it.
+
+    Parameters
+    ----------
+    machine : Machine
+    axis : ndarray, shape (k, 3)
+        Programmed tool axes at the midpoints.
+    rot_a, rot_b : ndarray, shape (k, r), rad
+        Rotary angles at the block ends.
+    tol : Tolerances
+
+    Returns
+    -------
+    ndarray, shape (k, r), rad
+    """
+    guess = 0.5 * (rot_a + rot_b)
+    rot = nearest_solution(machine, axis, guess, tol)
+    step = np.abs(rot_b - rot_a).max(axis=1, initial=0.0)
+    longer = np.maximum(
+        np.abs(rot - rot_a).max(axis=1, initial=0.0), np.abs(rot - rot_b).max(axis=1, initial=0.0)
+    )
+    stuck = (step > tol.orientation) & (longer >= (1.0 - NO_PROGRESS) * step)
+    if stuck.any():
+        off = angle_between(tool_axis_of(machine, guess[stuck]), axis[stuck])
+        across = np.flatnonzero(stuck)[off <= tol.orientation]
+        if across.size:
+            log.debug("%d midpoints across a branch switch (joint-space middle)", across.size)
+            rot[across] = guess[across]
+    return rot
 
 
 def with_rewinds(

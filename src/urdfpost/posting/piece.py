@@ -305,7 +305,9 @@ def post_piece(
         whole = param == np.round(param)
         owner = np.where(whole, np.round(param), np.ceil(param)).astype(int)
         first = whole.copy()
-        first[1:] &= owner[1:] != owner[:-1]  # the row arriving at its CL point
+        # the row arriving at its CL point: not a repeat of the whole row before it (a turn
+        # in place), though it may follow rows inserted on the segment to it
+        first[1:] &= ~(whole[:-1] & (owner[1:] == owner[:-1]))
         rot = q[:, list(machine.rotary_columns)]
         branch_switches = int(
             np.sum(np.abs(np.diff(rot[:, -1])) > np.pi / 2) if len(rot) > 1 else 0

@@ -77,7 +77,11 @@ class Selection:
     rewind : ndarray, shape (n,), bool
         Points where the path stops, lifts off, turns from ``arrive`` to ``q`` (the other
         branch, or the same orientation a turn back) and returns: no continuous solution
-        within travel (or clear of collisions) goes on from there.
+        within travel (or clear of collisions) goes on from there. The strategies also mark
+        so the points they insert where a branch switch next to a pole is made a turn at one
+        point (:func:`urdfpost.planning.strategies._common.split_at_switches`); a turn that
+        does not swing the tool axis beyond the orientation tolerance is made without the
+        lift (:func:`urdfpost.planning.realise.with_rewinds`).
     notes : list of str
         Why candidates were passed over (collisions), for the report.
     settled : int or None

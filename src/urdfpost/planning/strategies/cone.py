@@ -6,98 +6,103 @@
     velocity-limited path through the band of angles the cone allows, closest to the exact
     angles (:func:`_tube`). The orientations keep within the angle tolerance: where a
     non-orthogonal machine deviates more than the small-angle formula predicts, the band is
-    halved there (up to four times).
+    halved there (up to four times, then the point is exact), and where the curve between two
+    rows leaves it, a point is inserted on that CL segment and the cone planned again
+    (:data:`ROUNDS`). Without a programmed feed there is no time to rate the axis by: it is
+    bent only inside the singular spans, to the least turn per unit path the cone allows.
 """
 
 from __future__ import annotations
 
+import itertools
+import logging
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 
 from urdfpost.geometry import angle_between
+from urdfpost.machine import Machine
+from urdfpost.planning.branches import Selection
 from urdfpost.planning.problem import (
     Plan,
     Problem,
+    arc_length,
     at_param,
-    exact_selection,
+    entry_mask,
     tool_axis_of,
 )
-from urdfpost.planning.singularity import feed_runs
+from urdfpost.planning.singularity import Span, feed_runs
 from urdfpost.planning.strategies._common import (
     _plain,
     _spans,
     _turn_at_poles,
     best_tilt,
+    exact_split,
+    insert_points,
     split_at_pole_crossings,
 )
 from urdfpost.planning.strategies._registry import strategy
+from urdfpost.toolpath import Motion, Toolpath
+
+log = logging.getLogger(__name__)
+
+
+HALVINGS = 4
+"""Times the band of a point whose orientation leaves the cone is halved (a non-orthogonal
+machine deviates more than the small-angle formula predicts, a tilt clipped to its travel
+too); after them the point keeps its exact angles."""
+
+CURVE_SAMPLES = 8
+"""Positions per CL segment (at ``k / CURVE_SAMPLES``) where the cone's curve between its rows
+is checked against the angle tolerance."""
+
+ROUNDS = 4
+"""Rounds of points inserted where the curve between two rows leaves the angle tolerance."""
+
+GEOMETRIC_SHARE = 1e-3
+"""Without a feed, the step limits the tube starts from, as a share of the exact path's peak
+turn per unit path measure (the tube raises them to the least that fits the cone)."""
 
 
 @strategy("cone", rank=60)
 def strategy_cone(problem: Problem) -> Plan:
-    """Keep the first rotary axis within its velocity limit by moving the tool axis in a cone."""
-    machine, tol = problem.machine, problem.tol
-    tp = split_at_pole_crossings(problem.toolpath, machine, tol.pole_crossing)
-    sel = exact_selection(problem, tp)
-    spans = _spans(problem, tp, sel)
-    if len(machine.rotary) < 2:
-        return _plain(problem, tp, sel, spans)
-    rot = sel.q[:, list(machine.rotary_columns)].copy()
-    k1 = machine.rotary[0].direction
-    vmax = machine.rotary[0].velocity
-    if not np.isfinite(vmax):
-        return _plain(problem, tp, sel, spans)
-    length = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
-    feed = np.nan_to_num(tp.feed[1:], nan=np.inf) / 60.0  # mm/s
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dt = np.where(feed > 0, length / feed, 0.0)
-    step_max = 0.95 * vmax * dt
-    sin_phi = np.sqrt(np.clip(1.0 - (tp.axis @ k1) ** 2, 0.0, None))
-    changed = False
-    for s, e in feed_runs(tp):
-        exact = rot[s : e + 1, 0].copy()
-        if np.all(np.abs(np.diff(exact)) <= step_max[s:e] + 1e-12) or sel.rewind[s : e + 1].any():
-            continue
-        scale = np.ones(e - s + 1)
-        for _ in range(4):
-            ratio = np.sin(problem.angle_tolerance) * scale / np.maximum(sin_phi[s : e + 1], 1e-12)
-            half = np.where(ratio >= 1.0, np.pi, np.arcsin(np.clip(ratio, 0.0, 1.0)))
-            half[[0, -1]] = 0.0  # the run's ends stay exact
-            theta = _tube(exact, half, step_max[s:e])
-            t2 = best_tilt(machine, tp.axis[s : e + 1], theta, rot[s : e + 1, 1])
-            cand = np.stack([theta, t2], axis=1)
-            dev = angle_between(tool_axis_of(machine, cand), tp.axis[s : e + 1])
-            over = dev > problem.angle_tolerance * (1 + 1e-9)
-            if not over.any():
-                break
-            scale = np.where(over, scale * 0.5, scale)
-        lo2, hi2 = machine.rotary[1].lower, machine.rotary[1].upper
-        cand[:, 1] = np.clip(cand[:, 1], lo2, hi2)
-        if np.abs(cand - rot[s : e + 1]).max() > 1e-12:
-            changed = True
-        rot[s : e + 1] = cand
-    if not changed:
-        return _plain(problem, tp, sel, spans)
-    # rows are the CL points, with a turn in place where a row stands on the pole
-    q = sel.q.copy()
-    q[:, list(machine.rotary_columns)] = rot
-    param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
+    """Keep the first rotary axis within its velocity limit by moving the tool axis in a cone.
 
-    turns = param[1:][param[1:] == param[:-1]]
+    The rows are the CL points; between two of them the first rotary angle runs linearly and
+    the tilt is the closest to the programmed axis (the plan's curve). Where that curve leaves
+    the angle tolerance between two rows (long CL segments near a pole, where the programmed
+    orientation turns faster in the first rotary angle mid-segment than at the ends), a point
+    is inserted on the segment where it leaves it most, and the cone is planned again, up to
+    :data:`ROUNDS` times.
 
-    def curve(x: np.ndarray) -> np.ndarray:
-        t1 = np.interp(x, param, rot[:, 0])
-        ref = np.interp(x, param, rot[:, 1])
-        _, ax = at_param(tp, x, 0.0)
-        t2 = np.clip(
-            best_tilt(machine, ax, t1, ref), machine.rotary[1].lower, machine.rotary[1].upper
-        )
-        out = np.stack([t1, t2], axis=1)
-        # a turn in place on the pole: exact solution (the first angle between the two rows)
-        out[np.isin(x, turns)] = np.nan
-        return out
-
+    A cutting move with no feed has no time to rate the first rotary axis by: in a feed run
+    with such a move, the axis is bent only inside the singular spans, to the least peak turn
+    per unit path measure the cone allows there (what any constant feed would need least),
+    and the plan says so once (its notes).
+    """
+    machine = problem.machine
+    tp = split_at_pole_crossings(problem.toolpath, machine, problem.tol.pole_crossing)
+    for round_ in range(ROUNDS + 1):
+        tp, sel = exact_split(problem, tp)
+        spans = _spans(problem, tp, sel)
+        if len(machine.rotary) < 2 or not np.isfinite(machine.rotary[0].velocity):
+            return _plain(problem, tp, sel, spans)
+        bent, notes = _bend(problem, tp, sel, spans)
+        if bent is None:
+            _say(notes)
+            return replace(_plain(problem, tp, sel, spans), notes=[*sel.notes, *notes])
+        # rows are the CL points, with a turn in place where a row stands on the pole
+        q = sel.q.copy()
+        q[:, list(machine.rotary_columns)] = bent
+        param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
+        curve = _curve(machine, tp, param, rot)
+        over = _beyond(problem, tp, curve)
+        if not over.size or round_ == ROUNDS:
+            break
+        log.debug("cone: %d points inserted where the curve leaves the cone", over.size)
+        tp = insert_points(tp, over, problem.pivot)[0]
+    _say(notes)
     return Plan(
         toolpath=tp,
         param=param,
@@ -106,9 +111,176 @@ def strategy_cone(problem: Problem) -> Plan:
         curve=curve,
         spans=spans,
         bent=True,
-        notes=list(sel.notes),
+        notes=[*sel.notes, *notes],
         settled=sel.settled,
     )
+
+
+def _say(notes: list[str]) -> None:
+    """Log the plan's notes once, as warnings: a post always has a feed (``posting.process``
+    fills it in or refuses the job), a comparison or a script may not, and a comparison shows
+    no plan notes."""
+    for note in notes:
+        log.warning(note)
+
+
+def _bend(
+    problem: Problem, tp: Toolpath, sel: Selection, spans: list[Span]
+) -> tuple[np.ndarray | None, list[str]]:
+    """The cone's rotary angles at the CL points of ``tp``, shape (n, 2) rad, or None where
+    nothing is bent; and the notes (a feed run with no feed)."""
+    machine = problem.machine
+    rot = sel.q[:, list(machine.rotary_columns)].copy()
+    k1 = machine.rotary[0].direction
+    vmax = machine.rotary[0].velocity
+    length = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
+    feed = tp.feed[1:] / 60.0  # mm/s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dt = np.where(feed > 0, length / feed, 0.0)
+    step_max = 0.95 * vmax * dt
+    measure = np.diff(arc_length(tp))
+    inside = np.zeros(len(tp), dtype=bool)  # strictly inside a span (its ends stay exact)
+    for sp in spans:
+        inside[sp.first + 1 : sp.last] = True
+    sin_phi = np.sqrt(np.clip(1.0 - (tp.axis @ k1) ** 2, 0.0, None))
+    arrive = sel.arrive[:, list(machine.rotary_columns)]
+    changed = False
+    unfed: int | None = None
+    for a, b in _stretches(tp, sel):
+        # a stretch ends on a rewind (or branch switch) point with the angles it arrives with
+        arrives = bool(sel.rewind[b])
+        exact, tilt = rot[a : b + 1, 0].copy(), rot[a : b + 1, 1].copy()
+        if arrives:
+            exact[-1], tilt[-1] = arrive[b]
+        step = step_max[a:b]
+        allowed = np.ones(b - a + 1, dtype=bool)
+        if not (feed[a:b] > 0).all():  # no time to rate the axis by: the geometric cone
+            unfed = a if unfed is None else min(unfed, a)
+            allowed = inside[a : b + 1]
+            ds = np.maximum(measure[a:b], 1e-12)
+            rate = np.abs(np.diff(exact)) / ds
+            if not allowed.any() or not rate.max(initial=0.0) > 0:
+                continue
+            step = GEOMETRIC_SHARE * float(rate.max()) * ds
+        if np.all(np.abs(np.diff(exact)) <= step + 1e-12):
+            continue
+        cand = _in_cone(problem, tp.axis[a : b + 1], exact, tilt, sin_phi[a : b + 1], step, allowed)
+        upto = b if arrives else b + 1  # the point's own (leaving) angles stay
+        if np.abs(cand[: upto - a] - rot[a:upto]).max(initial=0.0) > 1e-12:
+            changed = True
+            rot[a:upto] = cand[: upto - a]
+    notes = []
+    if unfed is not None:
+        note = (
+            f"{tp.source}:{int(tp.line[min(unfed + 1, len(tp) - 1)])}: cone: cutting moves "
+            "with no feed, so no time to rate the first rotary axis by; there it is bent only "
+            "inside the singular spans, to the least turn per unit path the angle tolerance "
+            "allows"
+        )
+        notes.append(note)
+    return (rot if changed else None), notes
+
+
+def _stretches(tp: Toolpath, sel: Selection) -> list[tuple[int, int]]:
+    """The stretches [a, b] of the feed runs between their rewind points (where the selection
+    arrives with one solution and leaves with another: a rewind, or a branch switch made a
+    turn at a point): the cone bends each on its own, its ends exact."""
+    out = []
+    for s, e in feed_runs(tp):
+        cuts = [s, *(np.flatnonzero(sel.rewind[s + 1 : e + 1]) + s + 1).tolist()]
+        if cuts[-1] != e:
+            cuts.append(e)
+        out += [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
+    return out
+
+
+def _in_cone(
+    problem: Problem,
+    axis: np.ndarray,
+    exact: np.ndarray,
+    tilt: np.ndarray,
+    sin_phi: np.ndarray,
+    step: np.ndarray,
+    allowed: np.ndarray,
+) -> np.ndarray:
+    """Rotary angles of one stretch within the cone, shape (k, 2) rad.
+
+    Parameters
+    ----------
+    axis : ndarray, shape (k, 3)
+        Programmed tool axes.
+    exact, tilt : ndarray, shape (k,), rad
+        The exact first rotary angles, and the tilts to stay near.
+    sin_phi : ndarray, shape (k,)
+        Sine of each axis' angle from the pole.
+    step : ndarray, shape (k - 1,), rad
+        Largest change of the first angle between neighbours.
+    allowed : ndarray, shape (k,), bool
+        Points that may be bent (the stretch's ends never are).
+    """
+    machine = problem.machine
+    scale = np.ones(len(exact))
+    for attempt in range(HALVINGS + 1):
+        ratio = np.sin(problem.angle_tolerance) * scale / np.maximum(sin_phi, 1e-12)
+        half = np.where(ratio >= 1.0, np.pi, np.arcsin(np.clip(ratio, 0.0, 1.0)))
+        half[[0, -1]] = 0.0  # the stretch's ends stay exact
+        half[~allowed] = 0.0
+        theta = _tube(exact, half, step)
+        t2 = best_tilt(machine, axis, theta, tilt)
+        t2 = np.clip(t2, machine.rotary[1].lower, machine.rotary[1].upper)
+        cand = np.stack([theta, t2], axis=1)
+        dev = angle_between(tool_axis_of(machine, cand), axis)
+        over = dev > problem.angle_tolerance * (1 + 1e-9)
+        if not over.any():
+            break
+        # halved where the orientation left the cone; after HALVINGS, exact there
+        scale = np.where(over, 0.0 if attempt == HALVINGS - 1 else scale * 0.5, scale)
+    return cand
+
+
+def _curve(
+    machine: Machine, tp: Toolpath, param: np.ndarray, rot: np.ndarray
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The cone's joint curve through its rows: the first rotary angle linear in the position,
+    the tilt closest to the programmed axis; NaN at a turn in place on the pole (the exact
+    solution between its two rows)."""
+    turns = param[1:][param[1:] == param[:-1]]
+    lo2, hi2 = machine.rotary[1].lower, machine.rotary[1].upper
+
+    def curve(x: np.ndarray) -> np.ndarray:
+        t1 = np.interp(x, param, rot[:, 0])
+        ref = np.interp(x, param, rot[:, 1])
+        _, ax = at_param(tp, x, 0.0)
+        t2 = np.clip(best_tilt(machine, ax, t1, ref), lo2, hi2)
+        out = np.stack([t1, t2], axis=1)
+        out[np.isin(x, turns)] = np.nan
+        return out
+
+    return curve
+
+
+def _beyond(
+    problem: Problem, tp: Toolpath, curve: Callable[[np.ndarray], np.ndarray]
+) -> np.ndarray:
+    """Positions where the curve leaves the angle tolerance most, one per CL segment that it
+    leaves between its rows (sampled at :data:`CURVE_SAMPLES` per segment), shape (k,)."""
+    n = len(tp)
+    if n < 2:
+        return np.zeros(0)
+    feed = np.flatnonzero((tp.motion[1:] == Motion.FEED) & ~entry_mask(tp)[1:])
+    if not feed.size:
+        return np.zeros(0)
+    frac = np.arange(1, CURVE_SAMPLES) / CURVE_SAMPLES
+    x = (feed[:, None] + frac[None, :]).ravel()
+    rot = curve(x)
+    _, prog = at_param(tp, x, 0.0)
+    dev = np.zeros(len(x))
+    ok = np.isfinite(rot).all(axis=1)
+    dev[ok] = angle_between(tool_axis_of(problem.machine, rot[ok]), prog[ok])
+    per_segment = dev.reshape(len(feed), len(frac))
+    worst = np.argmax(per_segment, axis=1)
+    bad = per_segment[np.arange(len(feed)), worst] > problem.angle_tolerance * (1 + 1e-9)
+    return feed[bad] + frac[worst[bad]]
 
 
 def _rounding(a: np.ndarray, b: np.ndarray, step: np.ndarray) -> float:

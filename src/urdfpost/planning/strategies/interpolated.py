@@ -27,7 +27,6 @@ from urdfpost.planning.problem import (
     Problem,
     arc_length,
     at_param,
-    exact_selection,
     tool_axis_of,
 )
 from urdfpost.planning.strategies._common import (
@@ -35,6 +34,8 @@ from urdfpost.planning.strategies._common import (
     _spans,
     _turn_at_poles,
     best_tilt,
+    exact_split,
+    rows_on_points,
     split_at_pole_crossings,
 )
 from urdfpost.planning.strategies._registry import strategy
@@ -57,7 +58,7 @@ def _interpolated(problem: Problem, shape: str) -> Plan:
     """``linear`` and ``spline``: the first rotary angle along a curve across each span."""
     machine = problem.machine
     tp = split_at_pole_crossings(problem.toolpath, machine, problem.tol.pole_crossing)
-    sel = exact_selection(problem, tp)
+    tp, sel = exact_split(problem, tp)
     spans = _spans(problem, tp, sel)
     if len(machine.rotary) < 2 or not spans:
         return _plain(problem, tp, sel, spans)
@@ -109,7 +110,7 @@ def _interpolated(problem: Problem, shape: str) -> Plan:
                 out[inside] = f(x[inside])
         return out
 
-    return Plan(
+    plan = Plan(
         toolpath=tp,
         param=param,
         rotary=rot,
@@ -120,6 +121,8 @@ def _interpolated(problem: Problem, shape: str) -> Plan:
         notes=list(sel.notes),
         settled=sel.settled,
     )
+    # the rows the spline inserts along a segment become points of the toolpath
+    return rows_on_points(plan, problem.pivot)
 
 
 def _span_rows(

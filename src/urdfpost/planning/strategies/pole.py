@@ -28,6 +28,7 @@ from urdfpost.planning.strategies._common import (
     _plain,
     _spans,
     _with_arrivals,
+    exact_split,
     split_at_pole_crossings,
 )
 from urdfpost.planning.strategies._registry import strategy
@@ -58,7 +59,7 @@ def strategy_none(problem: Problem) -> Plan:
 def strategy_recursive(problem: Problem) -> Plan:
     """Exact inverse kinematics, exact pole crossings, bisection by the generic subdivision."""
     tp = split_at_pole_crossings(problem.toolpath, problem.machine, problem.tol.pole_crossing)
-    sel = exact_selection(problem, tp)
+    tp, sel = exact_split(problem, tp)
     return _plain(problem, tp, sel, _spans(problem, tp, sel))
 
 
@@ -69,21 +70,22 @@ def strategy_branch_flip(problem: Problem) -> Plan:
     if len(machine.rotary) < 2:
         return strategy_recursive(problem)
     base = split_at_pole_crossings(problem.toolpath, machine, problem.tol.pole_crossing)
-    spans = _spans(problem, base, exact_selection(problem, base))
+    base, base_sel = exact_split(problem, base)
+    spans = _spans(problem, base, base_sel)
     bent_tp = _bend_through_pole(problem, problem.toolpath)
     tp = split_at_pole_crossings(
         bent_tp, machine, problem.angle_tolerance, snap_points=True, pivot=problem.pivot
     )
-    sel = exact_selection(problem, tp)
-    plan = _plain(problem, tp, sel, spans)
     bent = tp is not problem.toolpath and (
         len(tp) != len(problem.toolpath) or not np.array_equal(tp.axis, problem.toolpath.axis)
     )
+    tp, sel = exact_split(problem, tp)
+    plan = _plain(problem, tp, sel, spans)
     if not bent:
         return plan
     # bending pays only where the travel lets the tilt change sign: otherwise the first axis
     # turns half a turn in place on the pole, more than the exact path turns
-    exact = _plain(problem, base, exact_selection(problem, base), spans)
+    exact = _plain(problem, base, base_sel, spans)
     travel_bent = np.abs(np.diff(plan.rotary, axis=0)).sum()
     travel_exact = np.abs(np.diff(exact.rotary, axis=0)).sum()
     if travel_bent >= travel_exact:
