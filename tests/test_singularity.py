@@ -14,6 +14,7 @@ from urdfpost.analysis.testpaths import great_circle_sweep, hemisphere_raster, n
 from urdfpost.errors import MachineDefinitionError
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.machine import load_machine, machine_from_urdf
+from urdfpost.planning.problem import arc_length
 from urdfpost.planning.singularity import conditioning, detect, orientation_jacobian
 from urdfpost.planning.strategies import (
     DEFAULT_STRATEGY,
@@ -150,7 +151,15 @@ def test_detector_finds_the_edge_of_a_nutating_machine() -> None:
 
 
 def test_registry_and_default() -> None:
-    assert set(STRATEGIES) == {"none", "recursive", "branch-flip", "linear", "spline", "cone"}
+    assert set(STRATEGIES) == {
+        "none",
+        "recursive",
+        "branch-flip",
+        "linear",
+        "spline",
+        "cone",
+        "optimised",
+    }
     assert DEFAULT_STRATEGY == "cone"
 
 
@@ -221,9 +230,17 @@ def test_spline_has_no_rate_step_at_the_span_ends() -> None:
     s = plan.param
     c = plan.rotary[:, 0]
     k = int(np.flatnonzero(s == span.first)[0])
-    outside = (c[k] - c[k - 1]) / (s[k] - s[k - 1])
+    # rates per unit of path measure (the rows the spline inserts are points of its toolpath,
+    # so a unit of position is a different length inside the span than outside)
+    measure = arc_length(plan.toolpath)
+
+    def along(x: np.ndarray) -> np.ndarray:
+        return np.interp(x, np.arange(len(measure)), measure)
+
+    outside = (c[k] - c[k - 1]) / (along(s[k : k + 1]) - along(s[k - 1 : k]))[0]
     h = 1e-6
-    inside = (plan.curve(np.array([s[k] + h]))[0, 0] - c[k]) / h
+    x = np.array([s[k], s[k] + h])
+    inside = (plan.curve(x[1:])[0, 0] - c[k]) / float(np.diff(along(x))[0])
     # the curve leaves the entry at the rate of the block before it (equal CL steps)
     assert inside == pytest.approx(outside, rel=1e-3)
     # rows every 2 degrees of C at most

@@ -187,14 +187,27 @@ def _job_machine(args: argparse.Namespace, machine: Any, scale: float) -> Any:
 
 
 def _strategy_arguments(p: argparse.ArgumentParser, single: bool) -> None:
-    from urdfpost.planning.strategies import DEFAULT_STRATEGY, STRATEGIES
+    from urdfpost.planning.singularity import DEFAULT_DETECTOR, DETECTORS
+    from urdfpost.planning.strategies import DEFAULT_STRATEGY
+    from urdfpost.planning.strategies._registry import registered
 
     if single:
+        # checked when the command runs (_checked_strategy), not here: the plug-ins load then,
+        # with logging set up, and the strategies a script registered after import count
         p.add_argument(
             "--strategy",
-            choices=sorted(STRATEGIES),
-            help=f"singularity strategy (default: the machine file's, else {DEFAULT_STRATEGY})",
+            metavar="NAME",
+            help=f"singularity strategy: {', '.join(registered())} or an installed plug-in's "
+            f"(entry-point group urdfpost.strategies; default: the machine file's, else "
+            f"{DEFAULT_STRATEGY})",
         )
+    p.add_argument(
+        "--detector",
+        choices=DETECTORS,
+        help="how singular spans are found: 'geometric' (tool axis near a pole or the tilt "
+        "edge, large rotary steps) or 'rate' (a rotary axis faster than its velocity limit at "
+        f"the programmed feed; geometric where a cut has no feed) (default {DEFAULT_DETECTOR})",
+    )
     p.add_argument(
         "--angle-tolerance",
         type=_positive,
@@ -214,6 +227,23 @@ def _strategy_arguments(p: argparse.ArgumentParser, single: bool) -> None:
         default=0.0,
         help="lift along the tool axis inside singular spans, program units (spline; default 0)",
     )
+
+
+def _checked_strategy(name: str | None) -> str | None:
+    """The ``--strategy`` name, checked against every strategy, plug-ins included.
+
+    Raises
+    ------
+    UsageError
+        No strategy has that name (the message lists them).
+    UrdfpostError
+        A plug-in's name clashes with another strategy's.
+    """
+    from urdfpost.planning.strategies import STRATEGIES
+
+    if name is None or name in STRATEGIES:
+        return name
+    raise UsageError(f"--strategy: unknown {name!r}; expected one of {', '.join(STRATEGIES)}")
 
 
 def _planning_arguments(p: argparse.ArgumentParser) -> None:
@@ -545,6 +575,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
     # no monitor thread: a streamed post forks its verification worker, best from one thread
     tqdm.monitor_interval = 0
 
+    strategy = _checked_strategy(args.strategy)  # a usage error before any work
     machine = load_machine(args.machine)
     pieces = args.piece_points
     if pieces is None:
@@ -569,7 +600,8 @@ def _cmd_post(args: argparse.Namespace) -> int:
         prefer=_check_prefer(args.prefer, machine),
         block_numbers=args.block_numbers,
         program_name=args.name,
-        strategy=args.strategy,
+        strategy=strategy,
+        detector=args.detector,
         angle_tolerance=args.angle_tolerance,
         planner=args.planner,
         lift=args.lift,
@@ -845,6 +877,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         tool_length=None if args.tool_length is None else args.tool_length * scale,
         tolerance=args.tolerance,
         prefer=_check_prefer(args.prefer, machine),
+        detector=args.detector,
         angle_tolerance=args.angle_tolerance,
         planner=args.planner,
         lift=args.lift,

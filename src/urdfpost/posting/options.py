@@ -14,6 +14,7 @@ from urdfpost.errors import MachineDefinitionError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.planning.branches import Preference
 from urdfpost.planning.rewinds import DEFAULT_RETRACT
+from urdfpost.planning.singularity import DEFAULT_DETECTOR, DETECTORS, with_detector
 from urdfpost.planning.strategies import DEFAULT_STRATEGY, STRATEGIES
 from urdfpost.posting.transitions import DEFAULT_CLEARANCE
 from urdfpost.tolerances import Tolerances
@@ -47,6 +48,11 @@ class PostOptions:
     strategy : str or None
         Singularity strategy (:data:`urdfpost.planning.strategies.STRATEGIES`); default the
         machine file's, else :data:`~urdfpost.planning.strategies.DEFAULT_STRATEGY`.
+    detector : str or None
+        Singularity detector (:data:`urdfpost.planning.singularity.DETECTORS`): "geometric"
+        (conditioning and swing thresholds) or "rate" (axis speed at the programmed feed over
+        the velocity limit); default
+        :data:`~urdfpost.planning.singularity.DEFAULT_DETECTOR`.
     angle_tolerance : float
         How far a strategy may bend the tool axis from the programmed one, degrees.
     planner : str
@@ -88,6 +94,7 @@ class PostOptions:
     block_numbers: bool = False
     program_name: str | None = None
     strategy: str | None = None
+    detector: str | None = None
     angle_tolerance: float = 2.0
     planner: str = "global"
     lift: float = 0.0
@@ -115,7 +122,9 @@ class Job:
     units : str
         Program units ("mm" or "inch").
     tol : Tolerances
-        In mm and radians.
+        In mm and radians; a
+        :class:`~urdfpost.planning.singularity.DetectorTolerances` carrying the singularity
+        detector.
     strategy : str
         Name of the singularity strategy.
     tcp : bool
@@ -202,6 +211,23 @@ def strategy_name(machine: Machine, name: str | None = None) -> str:
     return settings.strategy
 
 
+def detector_name(name: str | None = None) -> str:
+    """The singularity detector a post uses: ``name``, else the default.
+
+    Raises
+    ------
+    UrdfpostError
+        ``name`` is not a detector.
+    """
+    if name is None:
+        return DEFAULT_DETECTOR
+    if name not in DETECTORS:
+        raise UrdfpostError(
+            f"unknown singularity detector {name!r}; expected one of {', '.join(DETECTORS)}"
+        )
+    return name
+
+
 def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job:
     """The settings of a post: ``options``, else the machine file's, else the defaults.
 
@@ -222,7 +248,7 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
     DialectError
         An unknown control.
     UrdfpostError, MachineDefinitionError
-        An unknown strategy (:func:`strategy_name`).
+        An unknown strategy (:func:`strategy_name`) or detector (:func:`detector_name`).
     """
     options = options or PostOptions()
     units = program_units(options.units, machine.settings.units, cl_units)
@@ -242,7 +268,9 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         machine=machine,
         dialect=dialect,
         units=units,
-        tol=Tolerances.for_units(units, options.tolerance),
+        tol=with_detector(
+            Tolerances.for_units(units, options.tolerance), detector_name(options.detector)
+        ),
         strategy=strategy_name(machine, options.strategy),
         tcp=options.tcp,
         tool_length=settings.tool_length if options.tool_length is None else options.tool_length,
