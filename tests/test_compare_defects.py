@@ -1,9 +1,12 @@
 """Regression tests of ``compare`` (issue 18): a job no strategy can post, span indices after
-inserted pole points, the CL line named for a failed orientation, and what the plot shows."""
+inserted pole points, the CL line named for a failed orientation, what the plot shows, one
+acceptance rule and one planner for every strategy, and the per-block data."""
 
 from __future__ import annotations
 
+import csv
 import functools
+import io
 import json
 import re
 from dataclasses import replace
@@ -12,8 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from urdfpost.analysis.compare import Comparison, compare, spans_on_cl
-from urdfpost.analysis.plot import comparison_figure
+from urdfpost.analysis.compare import (
+    FIXED_PLANNER,
+    Comparison,
+    compare,
+    per_block_csv,
+    spans_on_cl,
+    table,
+)
+from urdfpost.analysis.plot import TIME_LABEL, comparison_figure
 from urdfpost.analysis.testpaths import great_circle_sweep, to_apt
 from urdfpost.cli import main
 from urdfpost.dialects import dialect_for
@@ -84,7 +94,9 @@ def test_compare_command_without_any_program_writes_report_and_plot_and_exits_1(
     assert "Traceback" not in err
     assert err.startswith("urdfpost: no strategy makes a verified program of "), err
     for name in ("none", "cone"):
-        assert re.search(rf"^{name} +no +failed: .*outside the linear travel", out, re.M), out
+        assert re.search(
+            rf"^{name} +no +(local|global) +failed: .*outside the linear travel", out, re.M
+        ), out
     data = json.loads(report.read_text(encoding="utf-8"))
     assert data["posted"] is False
     assert [s["strategy"] for s in data["strategies"]] == ["none", "cone"]
@@ -236,7 +248,7 @@ def test_plot_has_a_legend_entry_for_every_strategy_marker_and_band(
     xlabels = {ax.get_xlabel() for ax in fig.axes} - {""}
     assert xlabels == {
         "CL index (0 .. 4, CL points as read)",
-        "time from the first CL point (s, estimated)",
+        TIME_LABEL,
     }
     # every line drawn is a strategy's, a limit or a marker with an entry
     colours = {line.get_color() for ax in fig.axes for line in ax.get_lines()}
@@ -252,3 +264,121 @@ def test_cl_index_of_rows_runs_over_the_cl_points() -> None:
     assert len(o.cl_index) == len(o.metrics.profile.s)
     assert x[0] == 0 and x[-1] == len(tp) - 1
     assert np.all(np.diff(x) >= 0)
+
+
+# -- one acceptance rule, one planner, figures that carry information (issue 18) -------------------
+
+
+def test_every_strategy_is_accepted_by_one_rule_with_tip_and_ball_deviation() -> None:
+    """Bent strategies were measured at the ball centre and exact ones at the tip; now every
+    strategy reports both, and the rule's tolerances are in the report."""
+    tp = great_circle_sweep(0.1, points=21)
+    result = compare(tp, machine("gantry-ca"), list(STRATEGIES))
+    acc = result.acceptance
+    assert acc["ball_radius"] > 0 and acc["angle"] == pytest.approx(2.0)
+    assert acc["tip"] > 0 and acc["axis"] > 0
+    for o in result.outcomes:
+        m = o.metrics
+        assert m is not None, o.strategy
+        assert m.max_ball_deviation is not None, o.strategy
+        # the ball centre of an exact program is off by at most the tip plus r times the axis
+        if not o.bent:
+            bound = m.max_tip_deviation + acc["ball_radius"] * np.radians(
+                m.max_orientation_deviation_deg
+            )
+            assert m.max_ball_deviation <= bound + 1e-6, o.strategy
+    data = result.as_dict()
+    assert data["acceptance"] == acc
+    assert set(data["limits"]["C"]) == {"velocity", "acceleration", "jerk"}
+
+
+def test_the_planner_column_tells_the_truth() -> None:
+    """``none`` plans point by point whatever the job says: its row says "local", the others
+    run with the job's planner."""
+    tp = great_circle_sweep(0.1, points=21)
+    m = machine("gantry-ca")
+    texts = {
+        planner: post(tp, m, PostOptions(strategy="none", planner=planner)).text
+        for planner in ("global", "local")
+    }
+    assert texts["global"] == texts["local"]  # FIXED_PLANNER["none"] is what the strategy does
+    result = compare(tp, m, ["none", "recursive"], PostOptions(planner="global"))
+    assert [o.planner for o in result.outcomes] == [FIXED_PLANNER["none"], "global"]
+    local = compare(tp, m, ["recursive"], PostOptions(planner="local"))
+    assert local.outcomes[0].planner == "local"
+
+
+def test_table_drops_the_velocity_that_equals_the_limit_and_counts_turns() -> None:
+    """ "C vel" was the velocity limit by construction; "C demand" left out turns in place
+    without saying so."""
+    tp = pole_at_the_end()
+    result = compare(tp, machine("dmu50"), ["recursive"])
+    text = table(result)
+    head = text.splitlines()[1].split()
+    assert "vel" not in head and "turns" in head and "sing" in head
+    row = text.splitlines()[3].split()
+    assert int(row[head.index("turns")]) == result.outcomes[0].metrics.turns_in_place >= 1
+    assert "ball dev" in text.splitlines()[1] and "accepted:" in text.splitlines()[0]
+
+
+def test_time_in_singular_spans_is_part_of_the_timed_path() -> None:
+    tp = great_circle_sweep(0.1, points=21)
+    result = compare(tp, machine("gantry-ca"), ["recursive", "cone"])
+    assert result.spans
+    for o in result.outcomes:
+        assert o.metrics is not None and o.singular_time_s is not None
+        assert 0 < o.singular_time_s < o.metrics.time_s
+    assert result.as_dict()["strategies"][0]["singular_time_s"] == pytest.approx(
+        result.outcomes[0].singular_time_s
+    )
+
+
+# -- per-block data -----------------------------------------------------------------------------
+
+
+def test_per_block_csv_has_a_row_per_program_row_per_strategy() -> None:
+    tp = great_circle_sweep(0.1, points=21)
+    result = compare(tp, machine("gantry-ca"), ["linear", "spline"])
+    rows = list(csv.DictReader(io.StringIO(per_block_csv(result))))
+    for o in result.outcomes:
+        mine = [r for r in rows if r["strategy"] == o.strategy]
+        assert o.metrics is not None and o.metrics.profile is not None
+        prof = o.metrics.profile
+        assert len(mine) == len(prof.s)
+        assert [int(r["block"]) for r in mine] == list(range(len(mine)))
+        t = np.array([float(r["t_s"]) for r in mine])
+        assert np.all(np.diff(t) >= 0) and t[-1] == pytest.approx(prof.t[-1])
+        c = np.array([float(r["q_C"]) for r in mine])
+        np.testing.assert_allclose(c, prof.q[:, prof.column("C")], rtol=1e-8, atol=1e-9)
+        ci = np.array([float(r["cl_index"]) if r["cl_index"] else np.nan for r in mine])
+        finite = ci[np.isfinite(ci)]
+        assert finite[0] == 0 and finite[-1] == len(tp) - 1 and np.all(np.diff(finite) >= 0)
+        on_cl = [r for r in mine if r["cl_index"] and not int(r["rapid"])]
+        tip = np.array([float(r["tip_dev_mm"]) for r in on_cl])
+        axis = np.array([float(r["axis_dev_deg"]) for r in on_cl])
+        # sampled per block, the axis at the nearest CL place; the verification refines every
+        # block and compares the axis at its own place along the path: the maxima of the
+        # report are the verification's, the per-block figures close to them
+        assert tip.max() <= o.metrics.max_tip_deviation * (1 + 1e-4) + 1e-9
+        assert axis.max() == pytest.approx(o.metrics.max_orientation_deviation_deg, rel=0.05)
+        speed = np.array([float(r["tip_speed_mm_s"]) for r in on_cl])
+        feed = np.array([float(r["feed_mm_s"]) for r in on_cl])
+        assert np.all(speed <= feed * (1 + 1e-3))
+
+
+def test_compare_command_writes_the_csv_and_refuses_one_file_for_two(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cl = tmp_path / "sweep.apt"
+    cl.write_text(to_apt(great_circle_sweep(0.1, points=21)), encoding="utf-8")
+    out = tmp_path / "blocks.csv"
+    argv = ["compare", str(cl), "-m", "gantry-ca", "--strategies", "linear,spline"]
+    assert main([*argv, "--csv", str(out)]) == 0
+    text = out.read_text(encoding="utf-8")
+    assert text.startswith("strategy,verified,block,cl_index,")
+    assert {r["strategy"] for r in csv.DictReader(io.StringIO(text))} == {"linear", "spline"}
+    capsys.readouterr()
+    same = tmp_path / "same"
+    assert main([*argv, "--csv", str(same), "--report", str(same)]) == 2
+    assert "--csv and --report name the same file" in capsys.readouterr().err
+    assert not same.exists()

@@ -4,29 +4,30 @@
 and the original CL data, and returns :class:`Metrics` (``../shared/docs/singularity-research.md``
 section 6, option 1):
 
-Timing
+Timed kinematics
+    The program is run as fast as the axes' velocity and acceleration limits and the programmed
+    feed (a cap on the tool-tip speed) allow: a time-optimal parameterisation of its joint path
+    (TOPP-RA, :mod:`urdfpost.analysis.timing`), then a jerk filter. ``time_s``, the peak
+    velocity, acceleration and jerk per axis, the feed ratio (mean tip speed over programmed
+    feed) and the share of the path slowed down come from that timed trajectory.
+
+Velocity-only estimate (the former model, kept for comparison)
     Block ``k`` joins program points ``k - 1`` and ``k``. It lasts
     ``T_k = max(L_k / F_k, max_j |dq_jk| / vmax_j)``: ``L_k`` is the straight distance between
     the programmed tool tips of its ends (the X Y Z words of a TCP program; forward kinematics of
     the axis values otherwise), ``F_k`` its feed (the program's feeds are mm/min whatever its
     units, see :class:`~urdfpost.program.Move`) and ``vmax_j`` each axis' velocity limit from the
     URDF (``inf`` when none is given). A rapid lasts ``max_j |dq_jk| / vmax_j``: the machine's
-    rapid traverse is taken as every axis at its limit, there is no separate rapid rate.
-
-Axis kinematics
-    Figures are for the machine's axes: for a TCP program the linear axes are solved from the
-    tool tip and the rotary angles (what the control does at the block ends). Per feed block the
-    velocity is ``dq_k / T_k`` (at the middle of the block); the acceleration at the junction of
-    blocks ``k - 1`` and ``k`` is ``(v_k - v_{k-1}) / ((T_{k-1} + T_k) / 2)``, and the jerk over
-    block ``k`` is ``(a_{k+1} - a_k) / T_k``. Differences are taken within a feed run only (a
-    rapid, or the program start, separates runs) and skip blocks that take no time. The
-    *demanded* velocity ``|dq_k| / (L_k / F_k)`` is what the feed alone would ask of an axis
-    (the closed-form ``F / y0`` of the hemisphere raster); it is not defined for blocks that do
-    not move the tip (less than :data:`STILL`).
+    rapid traverse is taken as every axis at its limit, there is no separate rapid rate; rapids
+    are timed this way in both models. The *demanded* velocity ``|dq_k| / (L_k / F_k)`` is what
+    the feed alone would ask of an axis (the closed-form ``F / y0`` of the hemisphere raster);
+    it is not defined for blocks that do not move the tip (less than :data:`STILL`): those are
+    the turns in place, counted in ``turns_in_place``.
 
 Accuracy and conditioning
     Tool-tip and tool-axis deviation come from :func:`urdfpost.verification.verify` (between
-    blocks, as the control interpolates); the conditioning of the orientation Jacobian
+    blocks, as the control interpolates), at the tip and, for a ball-end tool, at the ball
+    centre; the conditioning of the orientation Jacobian
     (:func:`urdfpost.planning.singularity.conditioning`) is taken at every end of a feed block.
 
 Angles are reported in degrees and lengths in mm, whatever the program units.
@@ -41,15 +42,17 @@ from typing import Any
 
 import numpy as np
 
+from urdfpost.analysis.timing import Timing, time_program
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
+from urdfpost.machine.load import AxisLimits, axis_limits
 from urdfpost.planning.singularity import conditioning
 from urdfpost.program import Program
 from urdfpost.strict_json import json_ready
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verification import program_joints, verify
+from urdfpost.verification import Check, program_joints, verify_checks
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +66,7 @@ STILL = 1e-6
 
 @dataclass(frozen=True, eq=False)
 class Profile:
-    """The program as a time-parameterised trajectory, one row per motion block (for plots).
+    """The program as a trajectory, one row per motion block (for plots and per-block data).
 
     Row ``k`` describes program point ``k`` and the block that ends there (row 0: the first
     point, no block).
@@ -78,12 +81,18 @@ class Profile:
         Path position: cumulative straight distance between consecutive programmed tool tips,
         rapids included (comparable with :func:`cl_path_position` of the CL data).
     t : ndarray, shape (N,), s
-        Time at each point, rapids included.
+        Time at each point on the timed trajectory (:mod:`urdfpost.analysis.timing`), rapids
+        included.
     q : ndarray, shape (N, m), deg / mm
         Machine axis positions (for TCP programs the linear axes the control drives).
-    velocity : ndarray, shape (N, m), deg/s / mm/s
-        Velocity over the block ending at the row, with the axis limits (0 at row 0 and for
-        blocks that take no time).
+    velocity, acceleration, jerk : ndarray, shape (N, m), deg / mm per s, s^2, s^3
+        On the timed trajectory at each point (0 and NaN at rows between rapids).
+    tip_speed : ndarray, shape (N,), mm/s
+        Tool-tip speed at each point on the timed trajectory.
+    feed : ndarray, shape (N,), mm/s
+        Programmed feed of the block ending at the row (NaN for rapids).
+    t_velocity_only : ndarray, shape (N,), s
+        Time at each point in the velocity-only estimate (the module docstring).
     demand : ndarray, shape (N, m), deg/s / mm/s
         Speed ``|dq| / (L / F)`` the feed alone would demand over the block: ``inf`` where a
         feed block moves the axis without moving the tool tip, NaN for rapids.
@@ -99,6 +108,11 @@ class Profile:
     t: np.ndarray
     q: np.ndarray
     velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+    tip_speed: np.ndarray
+    feed: np.ndarray
+    t_velocity_only: np.ndarray
     demand: np.ndarray
     rapid: np.ndarray
     limit: np.ndarray
@@ -127,41 +141,59 @@ class Metrics:
         ``max(blocks - cl_points, 0)``.
     max_step_deg, mean_step_deg, travel_deg : dict of str to float
         Largest, mean and summed ``|step|`` of each rotary axis over the feed blocks.
-    peak_velocity, p95_velocity, peak_acceleration, peak_jerk : dict of str to float
-        Of ``|q'|``, ``|q''|``, ``|q'''|`` per axis at the programmed feed within the axis
-        velocity limits (``inf`` where a block turns an axis with no limit in no time).
+    peak_velocity, peak_acceleration, peak_jerk : dict of str to float
+        Largest ``|q'|``, ``|q''|``, ``|q'''|`` per axis on the timed trajectory of the feed
+        runs (:mod:`urdfpost.analysis.timing`): within the velocity and acceleration limits at
+        TOPP-RA's gridpoints, within the jerk limit by the jerk filter where the acceleration
+        is (between gridpoints it may exceed a little: ``jerk_over_limit_s``).
+    jerk_over_limit_s : dict of str to float
+        Time each axis spends above its jerk limit (0 for an axis without one).
     peak_demand_velocity : dict of str to float
         Largest ``|dq| / (L / F)`` per axis over the feed blocks that move the tool tip: what
         the feed alone would demand (turns in place are counted in ``turns_in_place``).
-    velocity_limit : dict of str to float
-        Each axis' limit (``inf`` when the URDF gives none).
+    velocity_limit, acceleration_limit, jerk_limit : dict of str to float
+        Each axis' limits (``inf`` when the machine file gives none).
     time_s : float
-        Estimated time of the feed blocks.
+        Machining time: the feed runs on the timed trajectory.
     rapid_time_s : float
-        Estimated time of the rapid blocks (every axis at its limit).
+        Time of the rapid blocks (every axis at its velocity limit).
     nominal_time_s : float
         Sum of ``L / F`` over the feed blocks.
     slowdown : float
-        ``time_s / nominal_time_s`` (1 when nothing is slowed down, or there is no feed motion).
+        ``time_s / nominal_time_s`` (1 with no feed motion).
+    feed_ratio : float
+        ``nominal_time_s / time_s``: the mean tip speed as a share of the programmed feed.
+    slow_fraction : float
+        Share of the tip path run below 95 % of the programmed feed.
+    velocity_only_time_s : float
+        The feed blocks' time in the velocity-only estimate (no acceleration).
     velocity_limited_blocks : int
-        Feed blocks whose duration an axis velocity limit set rather than the feed.
+        Feed blocks whose duration an axis velocity limit set rather than the feed, in the
+        velocity-only estimate.
     turns_in_place : int
         Feed blocks that move an axis without moving the tool tip.
     max_tip_deviation : float, mm
+        At the tool tip, whatever the tool.
+    max_ball_deviation : float or None, mm
+        At the ball centre of a ball-end tool (None for other tools).
     max_orientation_deviation_deg : float
     cl_points_reached : int
     verified : bool
-        Verification found every CL point reached and the deviations within tolerance.
+        Verification (at the tolerances and the point the caller gave) found every CL point
+        reached and the deviations within tolerance.
     min_sigma : float
         Smallest singular value of the orientation Jacobian at the feed block ends.
     max_kappa : float
         Largest condition number there.
+    timing_failed_runs : int
+        Feed runs the time-optimal parameterisation could not time (timed by the velocity
+        limits only; their acceleration and jerk are not in the peaks).
     lifts : int
         Retracts a strategy added (given by the caller).
     notes : tuple of str
         What the figures could not take into account (feed blocks with no feed, ...).
     profile : Profile or None
-        The trajectory, for plots; not part of :meth:`as_dict`.
+        The trajectory, for plots and per-block data; not part of :meth:`as_dict`.
     """
 
     machine: str
@@ -173,23 +205,30 @@ class Metrics:
     mean_step_deg: dict[str, float]
     travel_deg: dict[str, float]
     peak_velocity: dict[str, float]
-    p95_velocity: dict[str, float]
     peak_acceleration: dict[str, float]
     peak_jerk: dict[str, float]
+    jerk_over_limit_s: dict[str, float]
     peak_demand_velocity: dict[str, float]
     velocity_limit: dict[str, float]
+    acceleration_limit: dict[str, float]
+    jerk_limit: dict[str, float]
     time_s: float
     rapid_time_s: float
     nominal_time_s: float
     slowdown: float
+    feed_ratio: float
+    slow_fraction: float
+    velocity_only_time_s: float
     velocity_limited_blocks: int
     turns_in_place: int
     max_tip_deviation: float
+    max_ball_deviation: float | None
     max_orientation_deviation_deg: float
     cl_points_reached: int
     verified: bool
     min_sigma: float
     max_kappa: float
+    timing_failed_runs: int = 0
     lifts: int = 0
     notes: tuple[str, ...] = ()
     profile: Profile | None = field(default=None, repr=False, compare=False)
@@ -248,35 +287,6 @@ def block_times(
     return np.maximum(nominal, axis_time), axis_time > nominal
 
 
-def _derivatives(
-    velocity: np.ndarray, time: np.ndarray, run: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Junction accelerations and block jerks within runs (see the module docstring).
-
-    Parameters
-    ----------
-    velocity : ndarray, shape (k, m)
-        Per block, in time order; only blocks with ``time > 0`` are passed.
-    time : ndarray, shape (k,), s
-    run : ndarray, shape (k,), int
-        Feed-run id of each block.
-
-    Returns
-    -------
-    acceleration : ndarray, shape (a, m)
-    jerk : ndarray, shape (j, m)
-    """
-    m = velocity.shape[1]
-    if len(velocity) < 2:
-        return np.zeros((0, m)), np.zeros((0, m))
-    same = run[1:] == run[:-1]
-    # acc[i]: at the junction of blocks i and i + 1, half a block from either middle
-    acc = (velocity[1:] - velocity[:-1]) / ((time[1:] + time[:-1]) / 2.0)[:, None]
-    # jerk[i]: over block i + 1, between the junctions at its two ends
-    jerk = (acc[1:] - acc[:-1]) / time[1:-1, None]
-    return acc[same], jerk[same[:-1] & same[1:]]
-
-
 def measure(
     program: Program,
     machine: Machine,
@@ -285,7 +295,9 @@ def measure(
     tool_length: float | None = None,
     tol: Tolerances | None = None,
     pivot: float = 0.0,
+    ball_radius: float = 0.0,
     lifts: int = 0,
+    limits: AxisLimits | None = None,
 ) -> Metrics:
     """Measure a program against its machine and the original CL data.
 
@@ -301,10 +313,16 @@ def measure(
     tol : Tolerances, optional
         For verification (default: for the program's units).
     pivot : float, mm
-        Passed to :func:`~urdfpost.verification.verify`: deviations are measured this far up
-        the tool axis (the ball centre for a strategy that bends the axis about it).
+        Where :attr:`Metrics.verified` is decided: this far up the tool axis (the ball centre
+        in the acceptance rule of :mod:`urdfpost.analysis.compare`).
+    ball_radius : float, mm
+        Ball radius of a ball-end tool (0 for other tools): the deviation is also measured at
+        the ball centre, this far up the tool axis.
     lifts : int
         Retracts the strategy added, reported as is.
+    limits : AxisLimits, optional
+        Axis velocity, acceleration and jerk limits (default: the machine file's,
+        :func:`urdfpost.machine.load.axis_limits`).
 
     Returns
     -------
@@ -323,7 +341,16 @@ def measure(
     (True, 0.444)
     """
     tool_length = program.tool_length if tool_length is None else tool_length
-    check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
+    tol = tol or Tolerances.for_units(program.units)
+    limits = axis_limits(machine) if limits is None else limits
+    checks = [Check(toolpath, tol, pivot)]
+    at_check = {pivot: 0}
+    for at in (0.0, ball_radius):
+        if at not in at_check:
+            at_check[at] = len(checks)
+            checks.append(Check(toolpath, tol, at))
+    found = verify_checks(program, machine, checks, tool_length)
+    check = found[0]
     values, rapid = program_joints(machine, program)
     moves = program.moves()
     # the strategy's path only: not the post's own approach before the first CL point and
@@ -349,7 +376,7 @@ def measure(
     else:
         tip, _ = tip_and_axis(machine, values, tool_length) if n else (np.zeros((0, 3)), None)
         q = values
-    limit = np.array([a.velocity for a in machine.axes], dtype=float)
+    limit = limits.velocity
 
     # feeds, mm/s; modal where a feed block has none
     feed = np.full(n, np.nan)
@@ -372,30 +399,30 @@ def measure(
     blk_rapid = rapid[1:]
     time, limited = block_times(dq, length, blk_feed, limit)
     with np.errstate(divide="ignore", invalid="ignore"):
-        velocity = np.where(time[:, None] > 0, dq / time[:, None], 0.0)
-        velocity = np.where((time[:, None] == 0) & (dq != 0), np.inf * np.sign(dq), velocity)
         nominal = np.where(blk_rapid | ~np.isfinite(blk_feed), 0.0, length / blk_feed)
         demand = np.where((~blk_rapid & (nominal > 0))[:, None], np.abs(dq) / nominal[:, None], 0.0)
         demand = np.where((~blk_rapid & (nominal == 0))[:, None] & (dq != 0), np.inf, demand)
         demand = np.where(blk_rapid[:, None], np.nan, demand)
     is_feed = ~blk_rapid
-    moving = is_feed & (time > 0)
-    run = np.cumsum(blk_rapid)  # feed blocks between two rapids share an id
-    acc, jerk = _derivatives(velocity[moving], time[moving], run[moving])
-
     scale = np.where([a.rotary for a in machine.axes], 180.0 / math.pi, 1.0)
-    fv = np.abs(velocity[is_feed]) * scale
-    acc, jerk = np.abs(acc) * scale, np.abs(jerk) * scale
+    timing: Timing = time_program(
+        machine,
+        values,
+        rapid,
+        feed,
+        limits,
+        tcp=program.tcp,
+        tool_length=tool_length,
+        rapid_time=time,
+    )
+    if timing.failed_runs:
+        notes.append(
+            f"{timing.failed_runs} feed runs could not be timed under the acceleration limits: "
+            "timed by the velocity limits only"
+        )
 
-    def per_axis(a: np.ndarray, reduce: str) -> dict[str, float]:
-        out = {}
-        for j, name in enumerate(names):
-            col = a[:, j][~np.isnan(a[:, j])]
-            if col.size == 0:
-                out[name] = 0.0
-            else:
-                out[name] = float(col.max() if reduce == "max" else np.percentile(col, 95))
-        return out
+    def per_axis(a: np.ndarray) -> dict[str, float]:
+        return {name: float(v) for name, v in zip(names, a * scale, strict=True)}
 
     rot_steps = np.degrees(np.abs(dq[is_feed][:, rot]))
     demand_deg = demand[is_feed & (length > 0)] * scale
@@ -408,33 +435,42 @@ def measure(
     else:
         min_sigma, max_kappa = math.nan, math.nan
 
-    feed_time = float(time[is_feed].sum())
+    velocity_only_time = float(time[is_feed].sum())
     nominal_time = float(nominal[is_feed].sum())
+    feed_time = timing.feed_time_s
     slowdown = feed_time / nominal_time if nominal_time > 0 else 1.0
     turns = int(np.sum(is_feed & (length == 0) & (np.abs(dq).max(axis=1, initial=0.0) > 0)))
 
     s = np.concatenate([[0.0], np.cumsum(length)]) if n else np.zeros(0)
-    t = np.concatenate([[0.0], np.cumsum(time)]) if n else np.zeros(0)
+    t_vel = np.concatenate([[0.0], np.cumsum(time)]) if n else np.zeros(0)
     zero_row = np.zeros((min(n, 1), len(names)))
     profile = Profile(
         axes=names,
         rotary=rotary_names,
         s=s,
-        t=t,
+        t=timing.t,
         q=q * scale,
-        velocity=np.concatenate([zero_row, velocity * scale]),
+        velocity=timing.velocity * scale,
+        acceleration=timing.acceleration * scale,
+        jerk=timing.jerk * scale,
+        tip_speed=timing.tip_speed,
+        feed=np.where(np.isfinite(feed) & ~rapid, feed, np.nan),
+        t_velocity_only=t_vel,
         demand=np.concatenate([np.full_like(zero_row, np.nan), demand * scale]),
         rapid=np.concatenate([[True], blk_rapid]) if n else np.zeros(0, dtype=bool),
         limit=limit * scale,
     )
     log.debug(
-        "metrics of %s on %s: %d blocks, time %.3f s (nominal %.3f s)",
+        "metrics of %s on %s: %d blocks, time %.3f s (velocity only %.3f s, nominal %.3f s)",
         program.name,
         machine.name,
         n,
         feed_time,
+        velocity_only_time,
         nominal_time,
     )
+    tip_check = found[at_check[0.0]]
+    ball_check = found[at_check[ball_radius]] if ball_radius > 0 else None
     return Metrics(
         machine=machine.name,
         tcp=program.tcp,
@@ -449,24 +485,35 @@ def measure(
             for i, a in enumerate(rotary_names)
         },
         travel_deg={a: float(rot_steps[:, i].sum()) for i, a in enumerate(rotary_names)},
-        peak_velocity=per_axis(fv, "max"),
-        p95_velocity=per_axis(fv, "p95"),
-        peak_acceleration=per_axis(acc, "max"),
-        peak_jerk=per_axis(jerk, "max"),
-        peak_demand_velocity=per_axis(demand_deg, "max"),
-        velocity_limit={a: float(v) for a, v in zip(names, limit * scale, strict=True)},
+        peak_velocity=per_axis(timing.peak_velocity),
+        peak_acceleration=per_axis(timing.peak_acceleration),
+        peak_jerk=per_axis(timing.peak_jerk),
+        jerk_over_limit_s={
+            name: float(v) for name, v in zip(names, timing.jerk_over_limit_s, strict=True)
+        },
+        peak_demand_velocity={
+            name: float(demand_deg[:, j].max(initial=0.0)) for j, name in enumerate(names)
+        },
+        velocity_limit=per_axis(limit),
+        acceleration_limit=per_axis(limits.acceleration),
+        jerk_limit=per_axis(limits.jerk),
         time_s=feed_time,
-        rapid_time_s=float(time[blk_rapid].sum()),
+        rapid_time_s=timing.rapid_time_s,
         nominal_time_s=nominal_time,
         slowdown=float(slowdown),
+        feed_ratio=float(timing.feed_ratio),
+        slow_fraction=float(timing.slow_fraction),
+        velocity_only_time_s=velocity_only_time,
         velocity_limited_blocks=int(np.sum(limited & is_feed)),
         turns_in_place=turns,
-        max_tip_deviation=check.max_tip_deviation,
+        max_tip_deviation=tip_check.max_tip_deviation,
+        max_ball_deviation=None if ball_check is None else ball_check.max_tip_deviation,
         max_orientation_deviation_deg=check.max_orientation_deviation_deg,
         cl_points_reached=check.reached,
         verified=check.ok,
         min_sigma=min_sigma,
         max_kappa=max_kappa,
+        timing_failed_runs=timing.failed_runs,
         lifts=int(lifts),
         notes=tuple(notes + check.notes),
         profile=profile,

@@ -27,6 +27,8 @@ log = logging.getLogger(__name__)
 __all__ = ["comparison_figure", "plot_comparison", "require_matplotlib"]
 
 _LOG_RATIO = 30.0  # speed axis turns logarithmic when the peak exceeds the median this often
+#: Label of the time axis: the timed trajectory (:mod:`urdfpost.analysis.timing`).
+TIME_LABEL = "time from the first CL point (s, timed: axis velocity, acceleration limits)"
 _TURN_LABEL = "turn in place: infinite speed demanded (colour of the strategy)"
 
 
@@ -114,7 +116,9 @@ def comparison_figure(comparison: Comparison, title: str = "") -> Figure:
     turn the axis without moving the tool tip, which demand an infinite speed, are marked by a
     triangle at the top of the panel). The left column is against the CL index (the CL points
     as read, 0 .. n - 1, fractional between them: :attr:`Outcome.cl_index`), with the singular
-    spans shaded; the right one against the estimated time (s), when the metrics have time.
+    spans shaded; the right one against the time on the timed trajectory (s: the axis velocity
+    and acceleration limits and the feed, :mod:`urdfpost.analysis.timing`), its speed panels
+    showing the axis speed on that trajectory.
 
     One line per strategy: solid when its program is verified, dashed and labelled "NOT
     verified: reason" when it misses its tolerance. A strategy that made no program has a
@@ -161,7 +165,7 @@ def comparison_figure(comparison: Comparison, title: str = "") -> Figure:
         handles.setdefault(label, handle)
 
     for r, axis_name in enumerate(rotary):
-        speeds = []
+        speeds: list[list[np.ndarray]] = [[] for _ in range(cols)]
         for c in range(cols):
             ax_q, ax_v = grid[2 * r, c], grid[2 * r + 1, c]
             for o in drawn:
@@ -176,11 +180,13 @@ def comparison_figure(comparison: Comparison, title: str = "") -> Figure:
                 colour = colours[o.strategy]
                 (line,) = ax_q.plot(x, prof.q[:, col], color=colour, lw=1.0, ls=style)
                 keep(label, line)
-                speed = np.abs(prof.demand[:, col])
+                # left: what the feed demands over each block; right: the timed motion
+                speed = np.abs(prof.demand[:, col] if c == 0 else prof.velocity[:, col])
                 infinite = np.isinf(speed)
                 speed = np.where(np.isfinite(speed), speed, np.nan)
-                speeds.append(speed)
-                ax_v.plot(x, speed, color=colour, lw=1.0, ls=style, drawstyle="steps-pre")
+                speeds[c].append(speed)
+                draw = "steps-pre" if c == 0 else "default"
+                ax_v.plot(x, speed, color=colour, lw=1.0, ls=style, drawstyle=draw)
                 if infinite.any():
                     ax_v.plot(
                         x[infinite],
@@ -200,10 +206,14 @@ def comparison_figure(comparison: Comparison, title: str = "") -> Figure:
                 label = f"{axis_name} velocity limit"
                 keep(label, ax_v.axhline(limit, color="k", ls="--", lw=0.8))
             ax_q.set_ylabel(f"{axis_name} (deg)")
-            ax_v.set_ylabel(f"{axis_name} speed at feed (deg/s)")
-        scale = _speed_scale(speeds)
+            what = "demanded at feed" if c == 0 else "timed"
+            ax_v.set_ylabel(f"{axis_name} speed {what} (deg/s)")
         for c in range(cols):
+            scale = _speed_scale(speeds[c])
             grid[2 * r + 1, c].set_yscale(scale)
+            if scale == "log":  # a timed speed comes down to 0 at every stop: show 4 decades
+                top = max(float(np.nanmax(v, initial=0.0)) for v in speeds[c])
+                grid[2 * r + 1, c].set_ylim(bottom=top * 1e-4)
     if not rotary:  # no strategy made a program: say so where the curves would be
         for ax in grid.ravel():
             ax.set_yticks([])
@@ -229,7 +239,7 @@ def comparison_figure(comparison: Comparison, title: str = "") -> Figure:
         ax.grid(True, lw=0.3, alpha=0.5)
     grid[-1, 0].set_xlabel(f"CL index (0 .. {max(n_cl - 1, 0)}, CL points as read)")
     if cols > 1:
-        grid[-1, 1].set_xlabel("time from the first CL point (s, estimated)")
+        grid[-1, 1].set_xlabel(TIME_LABEL)
     if handles:
         fig.legend(
             list(handles.values()),

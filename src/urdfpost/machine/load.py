@@ -9,6 +9,8 @@ load time, with no per-machine code:
 - the chain from workpiece to tool as screws in the workpiece frame at home (product of
   exponentials), which the vectorised forward and inverse kinematics use;
 - travel limits, velocities and the post settings of the ``<urdfpost>`` extension element;
+- the axes' acceleration and jerk limits of that element (:func:`axis_limits`), which URDF's
+  ``<limit>`` has no attribute for;
 - which axes carry each link, and the links' ``<collision>`` shapes (as data).
 
 A job may put the program zero elsewhere than the file does (:class:`~urdfpost.machine.setup.
@@ -22,12 +24,16 @@ the result.
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import logging
+import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from lxml import etree
 
 from urdfpost.errors import GeometryError, MachineDefinitionError
 from urdfpost.machine.model import NC_ADDRESSES, ROTARY_TYPES, Axis, Machine, Settings
@@ -117,7 +123,7 @@ def load_machine(name_or_path: str | os.PathLike[str], setup: Setup | None = Non
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
-        raise MachineDefinitionError(f"{path}: cannot read: {e}") from e
+        raise MachineDefinitionError(f"{path}: cannot read: {e.strerror or e}") from e
     return machine_from_urdf(text, source=str(path), name=path.stem, setup=setup)
 
 
@@ -150,6 +156,7 @@ def machine_from_urdf(
     chain = check_chain(doc, source)
     check_tree(doc, source)
     settings = parse_settings(doc, source, chain.joints)
+    _parse_axis_limits(doc.root, source, {j.name: j.type for j in chain.joints})
     mount = _mount(doc, source, setup or Setup())
     return _build(text, source, name, doc, chain, settings, mount)
 
@@ -338,3 +345,135 @@ def check_geometry(machine: Machine, source: str) -> None:
             f"{source}: rotary joint {last.name!r} is parallel to the tool axis at home, so it "
             "cannot change the tool orientation"
         )
+
+
+#: Attributes of ``<urdfpost><axis_limits .../>``: URDF units (m/s^2, m/s^3 for a linear axis,
+#: rad/s^2, rad/s^3 for a rotary one).
+AXIS_LIMIT_ATTRIBUTES = ("axis", "acceleration", "jerk")
+
+
+@dataclass(frozen=True, eq=False)
+class AxisLimits:
+    """Velocity, acceleration and jerk limit of every axis of a machine.
+
+    The velocity is the joint's URDF ``<limit velocity>``; acceleration and jerk come from the
+    ``<axis_limits axis="C" acceleration="..." jerk="..."/>`` children of the ``<urdfpost>``
+    element (URDF units: m and rad per second squared and cubed). A limit the file does not give
+    is ``inf`` (no limit).
+
+    Attributes
+    ----------
+    axes : tuple of str
+        Axis names, in :attr:`Machine.axes` order (the columns of a joint vector).
+    velocity : ndarray, shape (m,), mm/s or rad/s
+    acceleration : ndarray, shape (m,), mm/s^2 or rad/s^2
+    jerk : ndarray, shape (m,), mm/s^3 or rad/s^3
+    """
+
+    axes: tuple[str, ...]
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+
+    def as_dict(self, rotary: frozenset[str] = frozenset()) -> dict[str, dict[str, float]]:
+        """Per axis ``{"velocity", "acceleration", "jerk"}``; the axes in ``rotary`` in degrees
+        (per second, squared, cubed), the others in mm."""
+        out = {}
+        for j, name in enumerate(self.axes):
+            scale = math.degrees(1.0) if name in rotary else 1.0
+            out[name] = {
+                "velocity": float(self.velocity[j] * scale),
+                "acceleration": float(self.acceleration[j] * scale),
+                "jerk": float(self.jerk[j] * scale),
+            }
+        return out
+
+
+def _parse_axis_limits(
+    root: etree._Element, source: str, joint_types: dict[str, str]
+) -> dict[str, tuple[float, float]]:
+    """The ``<axis_limits>`` elements of ``<urdfpost>``: ``{axis: (acceleration, jerk)}`` in
+    mm or rad per second squared and cubed (``inf`` where not given).
+
+    Raises
+    ------
+    MachineDefinitionError
+        At the element's line: an axis that is not a moving joint of the chain, an axis given
+        twice, an unknown attribute, or a limit that is not a finite number > 0.
+    """
+    out: dict[str, tuple[float, float]] = {}
+    settings = root.find("urdfpost")
+    if settings is None:
+        return out
+    for el in settings.findall("axis_limits"):
+        where = f"{source}:{el.sourceline}" if el.sourceline else source
+        unknown = [k for k in el.keys() if k not in AXIS_LIMIT_ATTRIBUTES]
+        if unknown:
+            raise MachineDefinitionError(
+                f"{where}: <axis_limits {unknown[0]}=...>: unknown attribute; expected "
+                f"{', '.join(AXIS_LIMIT_ATTRIBUTES)}"
+            )
+        axis = el.get("axis")
+        if axis not in joint_types:
+            raise MachineDefinitionError(
+                f"{where}: <axis_limits axis={axis!r}>: expected a moving joint of the chain "
+                f"({' '.join(joint_types)})"
+            )
+        if axis in out:
+            raise MachineDefinitionError(f"{where}: <axis_limits axis={axis!r}> given twice")
+        scale = 1.0 if joint_types[axis] in ROTARY_TYPES else M_TO_MM
+        values = []
+        for attr in ("acceleration", "jerk"):
+            raw = el.get(attr)
+            if raw is None:
+                values.append(math.inf)
+                continue
+            try:
+                value = float(raw)
+            except ValueError:
+                value = math.nan
+            if not (math.isfinite(value) and value > 0):
+                unit = "rad/s" if scale == 1.0 else "m/s"
+                power = "^2" if attr == "acceleration" else "^3"
+                raise MachineDefinitionError(
+                    f"{where}: <axis_limits axis={axis!r} {attr}={raw!r}>: expected a finite "
+                    f"number > 0 ({unit}{power})"
+                )
+            values.append(value * scale)
+        out[axis] = (values[0], values[1])
+    return out
+
+
+@functools.lru_cache(maxsize=32)
+def _limits_of_text(
+    text: str, source: str, joint_types: tuple[tuple[str, str], ...]
+) -> dict[str, tuple[float, float]]:
+    parser = etree.XMLParser(
+        remove_comments=True, resolve_entities=False, load_dtd=False, no_network=True
+    )
+    root = etree.fromstring(text.encode("utf-8"), parser=parser)
+    return _parse_axis_limits(root, source, dict(joint_types))
+
+
+def axis_limits(machine: Machine) -> AxisLimits:
+    """The velocity, acceleration and jerk limits of ``machine``'s axes (see :class:`AxisLimits`).
+
+    Read from the machine's file (its text, checked when the machine was loaded).
+
+    Examples
+    --------
+    >>> from urdfpost.machine import load_machine
+    >>> limits = axis_limits(load_machine("dmu50"))
+    >>> limits.axes, round(float(limits.acceleration[0]))
+    (('X', 'Y', 'Z', 'B', 'C'), 5000)
+    """
+    types = tuple((a.name, a.kind) for a in machine.axes)
+    given = _limits_of_text(machine.urdf_text, machine.path, types)
+    names = machine.axis_names
+    inf = (math.inf, math.inf)
+    return AxisLimits(
+        axes=names,
+        velocity=np.array([a.velocity for a in machine.axes], dtype=float),
+        acceleration=np.array([given.get(n, inf)[0] for n in names], dtype=float),
+        jerk=np.array([given.get(n, inf)[1] for n in names], dtype=float),
+    )
