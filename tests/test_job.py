@@ -110,8 +110,8 @@ def test_work_offset_beyond_the_control_is_refused(tmp_path: Path, capsys) -> No
     cl.write_text(TWO_TOOLS)
     out = tmp_path / "two.mpf"
     argv = ["post", str(cl), "-m", "dmu50", "-c", "siemens", "-o", str(out), "-q"]
-    assert main([*argv, "--work-offset", "5"]) == 1
-    assert "work offset 5: siemens has work offsets 1 to 4" in capsys.readouterr().err
+    assert main([*argv, "--work-offset", "5"]) == 2  # a usage error, before any work
+    assert "--work-offset 5: siemens has work offsets 1 to 4" in capsys.readouterr().err
     assert not out.exists()
     assert main([*argv, "--work-offset", "4"]) == 0
     assert "\nG57\n" in out.read_text()

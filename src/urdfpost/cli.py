@@ -516,6 +516,11 @@ def build_parser() -> argparse.ArgumentParser:
     co.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     co.add_argument("--report", help="write the figures as JSON here")
     co.add_argument(
+        "--csv",
+        help="write per-block data as CSV here: one row per program row per strategy (CL "
+        "index, time, axis positions, velocities, accelerations, jerks, tip feed, deviations)",
+    )
+    co.add_argument(
         "--plot",
         help="write a PNG of rotary angles and speeds against CL index and time here "
         "(failing strategies marked)",
@@ -591,6 +596,11 @@ def _cmd_post(args: argparse.Namespace) -> int:
     dialect = dialect_for(
         args.controller or (None if args.output else machine.settings.controller), args.output
     )
+    offsets = dialect.spec.work_offsets
+    if not 1 <= args.work_offset <= offsets:
+        raise UsageError(
+            f"--work-offset {args.work_offset}: {dialect.name} has work offsets 1 to {offsets}"
+        )
     options = PostOptions(
         controller=dialect.name,
         tcp=args.tcp,
@@ -750,7 +760,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         try:
             text = Path(args.program).read_text(encoding="utf-8", errors="replace")
         except OSError as e:
-            raise UrdfpostError(f"{args.program}: cannot read: {e}") from e
+            raise UrdfpostError(f"{args.program}: cannot read: {e.strerror or e}") from e
         program, ended = read_with_end(dialect, text, path=args.program)
         toolpath, chunks = _read_cl(args, machine), None
     scale = mm_per_unit(program.units)
@@ -858,11 +868,14 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     names = [n.strip() for n in names if n.strip()]
     unknown = [n for n in names if n not in STRATEGIES]
     if unknown:
-        raise UrdfpostError(
+        raise UsageError(
             f"--strategies: unknown {', '.join(unknown)}; expected 'all' or names from "
             f"{', '.join(STRATEGIES)}"
         )
-    if args.plot:  # before the comparison, which can take minutes
+    from urdfpost.analysis.timing import require_toppra
+
+    require_toppra()  # before the comparison, which can take minutes
+    if args.plot:
         from urdfpost.analysis.plot import require_matplotlib
 
         require_matplotlib()
@@ -895,6 +908,13 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if args.report:
         files[Path(args.report)] = report_json(result.as_dict())
         roles[Path(args.report)] = "the report (--report)"
+    if args.csv:
+        from urdfpost.analysis.compare import per_block_csv
+
+        if Path(args.csv) in files:
+            raise UsageError("--csv and --report name the same file")
+        files[Path(args.csv)] = per_block_csv(result)
+        roles[Path(args.csv)] = "the per-block data (--csv)"
     if args.plot:
         output_target(args.plot)
         outputs = {"the plot (--plot)": args.plot} | {r: p for p, r in roles.items()}
@@ -933,7 +953,7 @@ def _cmd_testpath(args: argparse.Namespace) -> int:
             print(f"{name:16s} {len(tp):5d} points  {tp.source}")
         return 0
     if args.name not in PATHS:
-        raise UrdfpostError(f"unknown test path {args.name!r}; expected one of {', '.join(PATHS)}")
+        raise UsageError(f"unknown test path {args.name!r}; expected one of {', '.join(PATHS)}")
     if args.output == "-":  # the usual name for standard output
         sys.stdout.write(to_apt(PATHS[args.name]()))
         return 0
