@@ -123,7 +123,8 @@ def load_machine(name_or_path: str | os.PathLike[str], setup: Setup | None = Non
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
-        raise MachineDefinitionError(f"{path}: cannot read: {e.strerror or e}") from e
+        why = e.strerror if isinstance(e, OSError) and e.strerror else e
+        raise MachineDefinitionError(f"{path}: cannot read: {why}") from e
     return machine_from_urdf(text, source=str(path), name=path.stem, setup=setup)
 
 
