@@ -137,6 +137,20 @@ def test_streamed_tcp_program_within_rounding_of_the_whole_post(
     assert result.verification.ok
 
 
+def test_streamed_figures_name_the_tolerances_of_the_whole_post(tmp_path: Path) -> None:
+    """The dome job bends the tool axis in some pieces only: the streamed summary names the
+    tolerances those pieces met (bent: 2.5 deg, the ball-centre tip tolerance), as the whole
+    post's does, not the plain ones of the first piece."""
+    dome = read_cl(str(Path(__file__).resolve().parents[1] / "examples" / "dome.apt"))
+    options = PostOptions(controller="heidenhain", tcp=True)
+    whole = post(dome, load_machine("dmu50"), options)
+    _, result = streamed_text(tmp_path, dome, options, piece_points=50)
+    assert result.verification.max_orientation_deviation_deg > 0.5  # (a bent piece)
+    for v in (whole.verification, result.verification):
+        assert v.orientation_tolerance_deg == pytest.approx(2.5)
+    assert result.verification.tip_tolerance == pytest.approx(whole.verification.tip_tolerance)
+
+
 def test_worker_and_serial_checks_agree(tmp_path: Path, raster: Toolpath) -> None:
     """Pieces verified in the worker process or here, one after the other: the same program
     and the same figures."""

@@ -82,6 +82,11 @@ def merge_verifications(parts: list[Verification]) -> Verification:
         max_orientation_deviation_deg=max(v.max_orientation_deviation_deg for v in parts),
         max_rotary_step_deg=steps,
         worst_cl_line=max(parts, key=_excess).worst_cl_line,
+        # each piece is within its own: a piece whose strategy bent the tool axis was checked
+        # with the bent tolerances (as a whole post checks the whole program), the others with
+        # the plain ones; the figures name the loosest, which every piece met
+        tip_tolerance=max(v.tip_tolerance for v in parts),
+        orientation_tolerance_deg=max(v.orientation_tolerance_deg for v in parts),
         notes=notes,
         compared=compared,
         rewind_moves=rewinds,
