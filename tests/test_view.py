@@ -140,6 +140,23 @@ def test_marks_and_lines(dome_posts: dict[str, Path]) -> None:
         assert text[int(k) - 1] == shown
 
 
+@pytest.mark.parametrize("mode", ["tcp", "machine"])
+def test_move_lines_are_those_of_reading_line_by_line(
+    dome_posts: dict[str, Path], mode: str
+) -> None:
+    """The reader's note of each move's line agrees with feeding the text one line at a time
+    and counting the moves each line gives (the slow, obvious way)."""
+    path = dome_posts[mode]
+    dialect = dialect_for(None, str(path))
+    text = path.read_text()
+    reader = dialect.reader(str(path))
+    slow: list[int] = []
+    for number, line in enumerate(text.splitlines(keepends=True), start=1):
+        reader.feed(line)
+        slow += [number] * len(reader.take().move_table())
+    assert move_lines(dialect, text, str(path)).tolist() == slow
+
+
 def test_rewind_marked(tmp_path: Path) -> None:
     """A job whose C travel runs out rewinds; the rewind is marked on the timeline."""
     cl = tmp_path / "wind.apt"

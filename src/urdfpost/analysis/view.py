@@ -380,6 +380,9 @@ def _tip_deviation(tip: np.ndarray, cl: Toolpath) -> np.ndarray:
 def move_lines(dialect: Any, text: str, path: str, inserts: list[str] | None = None) -> np.ndarray:
     """The NC text line (1-based) of each move of a program, in the order of its moves.
 
+    The program is read once by the control's reader, which notes the line of every move it
+    reads (:attr:`urdfpost.dialects.reader.ProgramBuilder.move_lines`).
+
     Parameters
     ----------
     dialect : Dialect
@@ -396,12 +399,13 @@ def move_lines(dialect: Any, text: str, path: str, inserts: list[str] | None = N
     ndarray, shape (N,), int
     """
     reader = dialect.reader(path)
-    verbatim = list(inserts or ())
-    out: list[int] = []
-    for number, line in enumerate(text.splitlines(keepends=True), start=1):
-        reader.feed(line, verbatim)
-        out.extend([number] * len(reader.take().move_table()))
-    return np.array(out, dtype=np.int64)
+    reader.feed(text, list(inserts or ()))
+    moves = len(reader.take().move_table())
+    noted = reader.builder.move_lines
+    lines = np.concatenate([np.atleast_1d(x) for x in noted]) if noted else np.zeros(0)
+    if len(lines) != moves:  # (every move is read by one of the two ways that note it)
+        raise AssertionError(f"{path}: {len(lines)} move lines for {moves} moves")
+    return lines.astype(np.int64)
 
 
 def _cutter(cl: Toolpath | None) -> float:

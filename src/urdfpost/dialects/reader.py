@@ -158,6 +158,8 @@ class ProgramBuilder:
         self.closed = not spec.program_close  # its closing line (Fanuc %, END PGM) too
         self.code_seen = False
         self.items: list[Block | _ReadMove | _ReadMoves] = []
+        # the text line of every move read, in order (the 3-D view shows each block's line)
+        self.move_lines: list[int | np.ndarray] = []
 
     # -- helpers -----------------------------------------------------------------------------
 
@@ -256,6 +258,7 @@ class ProgramBuilder:
             if any(a not in ROTARY_ADDRESSES for a in values):
                 self.cut_without_tcp = self.line
         self._add(_ReadMove(rapid, position, None if rapid else self.feed))
+        self.move_lines.append(self.line)
 
     def moves(self, lines: _bulk.MotionLines, rows: slice, first_line: int) -> bool:
         """Plain motion blocks, read at once: as :meth:`move` (and the feed and motion code of
@@ -315,6 +318,7 @@ class ProgramBuilder:
         if not np.isnan(feed_words).all():
             self.feed = float(feed[-1])
         self._add(_ReadMoves(position, rapid, np.where(rapid, math.nan, feed)))
+        self.move_lines.append(np.arange(first_line, first_line + k))
         return True
 
     def home(self, axes: list[str]) -> None:
