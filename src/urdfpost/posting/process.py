@@ -245,3 +245,48 @@ def checked_process(
         after = max((i for i, e in enumerate(merged) if e.index <= extra.index), default=-1)
         merged.insert(after + 1, extra)
     return replace(toolpath, feed=feeds, events=tuple(merged)), end, warnings
+
+
+def one_tool_length(
+    toolpath: Toolpath, tool_length: float, units: str, seen: frozenset[int] = frozenset()
+) -> tuple[list[str], frozenset[int]]:
+    """The warnings of a machine-coordinate job with more than one tool.
+
+    Machine-coordinate positions include the tool length, and the post computes every tool
+    with the job's one length (``--tool-length``, else the machine file's): a tool whose gauge
+    length differs would be placed wrong by the difference (the CL data's tool lengths,
+    ``LOADTL LENGTH`` or ``TLDATA``, are not used: per-tool lengths are not posted yet). One
+    warning per tool number after the first.
+
+    Parameters
+    ----------
+    toolpath : Toolpath
+    tool_length : float, mm
+        The one the positions include.
+    units : str
+        Program units, for the message.
+    seen : frozenset of int
+        Tool numbers seen before ``toolpath`` (a piece of a streamed post).
+
+    Returns
+    -------
+    warnings : list of str
+    seen : frozenset of int
+        With the tool numbers of ``toolpath``.
+    """
+    notes: list[str] = []
+    numbers = set(seen)
+    length = tool_length / mm_per_unit(units)
+    for e in toolpath.events:
+        if e.kind != "tool":
+            continue
+        number = int(e.data.get("number", 0))
+        if numbers and number not in numbers:
+            notes.append(
+                f"{toolpath.source}:{e.line}: T{number} is posted with the one tool length "
+                f"{length:.3f} {units} of the job (machine coordinates include it): right only "
+                "if its gauge length is that; else post its operations with their own "
+                "--tool-length, or with TCP"
+            )
+        numbers.add(number)
+    return notes, frozenset(numbers)

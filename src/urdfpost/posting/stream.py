@@ -68,7 +68,7 @@ from urdfpost.posting.body import coolant_after
 from urdfpost.posting.header import HeaderFigures, job_header, stock_box
 from urdfpost.posting.options import Job, PostOptions, resolve
 from urdfpost.posting.piece import Continuation, make_problem, post_piece
-from urdfpost.posting.process import checked_process
+from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications, program_texts
 from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
 from urdfpost.posting.worker import FORK, Checks, PieceJob
@@ -280,6 +280,10 @@ def post_stream(
         tcp=job.tcp,
     )
     reader_warnings += notes
+    tools: frozenset[int] = frozenset()  # tool numbers seen (machine coordinates: one length)
+    if not job.tcp:
+        notes, tools = one_tool_length(buffer, job.tool_length, job.units)
+        reader_warnings += notes
     checks: Checks | None = None
     process: PieceProcess | None = None  # the process check of ``urdfpost verify``, by piece
     inserts: list[str] = []  # the texts of the program's inserted blocks
@@ -309,6 +313,9 @@ def post_stream(
                             tcp=job.tcp,
                         )
                         reader_warnings += notes
+                        if not job.tcp:
+                            notes, tools = one_tool_length(more, job.tool_length, job.units, tools)
+                            reader_warnings += notes
                         pending.append(more)
                         have += len(more)
                 if pending:

@@ -12,7 +12,7 @@ from urdfpost.posting.check import check_piece, tolerance_error
 from urdfpost.posting.header import HeaderFigures, job_header, stock_box
 from urdfpost.posting.options import Job, PostOptions, resolve
 from urdfpost.posting.piece import PostedPiece, post_piece
-from urdfpost.posting.process import checked_process
+from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.report import Report
 from urdfpost.program import Insert, Program
 from urdfpost.toolpath import Toolpath
@@ -116,6 +116,8 @@ def post(
         spec=job.dialect.spec,
         tcp=job.tcp,
     )
+    if not job.tcp:
+        notes += one_tool_length(toolpath, job.tool_length, job.units)[0]
     if notes:
         toolpath = replace(toolpath, warnings=toolpath.warnings + tuple(notes))
     try:
