@@ -1,8 +1,25 @@
 """CL jobs shared by the tests of the job around the tool path (tests/test_job.py), of the
 process check of ``verify`` (tests/test_verify_process.py) and of the LinuxCNC interpreter
-(tests/test_rs274.py)."""
+(tests/test_rs274.py), and the benchmark's hemisphere raster (tests/test_stream.py,
+tests/test_faults.py)."""
 
 from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def write_hemisphere(points: int, path: Path) -> Path:
+    """The hemisphere raster of ``bench/make_large_cl.py`` (passes over and beside the pole),
+    ``points`` CL points, written as APT to ``path``."""
+    spec = importlib.util.spec_from_file_location("make_large_cl", ROOT / "bench/make_large_cl.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    written: Path = module.write_hemisphere(points, path)
+    return written
 
 
 def two_tools(first_feed: float = 800.0) -> str:

@@ -8,7 +8,6 @@ processes are found in ``/proc``: Linux only, where the verification worker is f
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import signal
 import subprocess
@@ -20,6 +19,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from jobs import write_hemisphere
 
 from urdfpost._files import remove_stale_temps, temp_file
 
@@ -37,12 +37,7 @@ linux = pytest.mark.skipif(
 @pytest.fixture(scope="module")
 def long_cl(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The benchmark's hemisphere raster, 6000 points: a streamed post of a few seconds."""
-    spec = importlib.util.spec_from_file_location("make_large_cl", ROOT / "bench/make_large_cl.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    path: Path = module.write_hemisphere(6000, tmp_path_factory.mktemp("cl") / "hemisphere.apt")
-    return path
+    return write_hemisphere(6000, tmp_path_factory.mktemp("cl") / "hemisphere.apt")
 
 
 def session(sid: int) -> list[tuple[int, str]]:

@@ -3,7 +3,6 @@ writes."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import re
@@ -12,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from jobs import write_hemisphere
 
 from urdfpost import load_machine
 from urdfpost.errors import ToleranceError, UnreachableError
@@ -30,12 +30,9 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.fixture(scope="module")
 def raster(tmp_path_factory: pytest.TempPathFactory) -> Toolpath:
     """The benchmark's hemisphere raster (passes over and beside the pole), 6000 points."""
-    spec = importlib.util.spec_from_file_location("make_large_cl", ROOT / "bench/make_large_cl.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    path = tmp_path_factory.mktemp("raster") / "hemisphere_6000.apt"
-    return read_cl(module.write_hemisphere(6000, path))
+    return read_cl(
+        write_hemisphere(6000, tmp_path_factory.mktemp("raster") / "hemisphere_6000.apt")
+    )
 
 
 def with_events(toolpath: Toolpath) -> Toolpath:
