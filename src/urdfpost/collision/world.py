@@ -173,32 +173,6 @@ class MoveCollisionResult:
     samples: np.ndarray
 
 
-@dataclass
-class _Query:
-    """Mutable state handed to the FCL broad-phase callback."""
-
-    fcl: Any
-    index: dict[int, int]  # id of an FCL geometry -> body index
-    excluded: set[tuple[int, int]]
-    request: Any
-    pair: tuple[int, int] | None = None
-
-
-def _collide_callback(o1: Any, o2: Any, query: _Query) -> bool:
-    """Narrow phase of one broad-phase candidate pair; True (stop) on a counted collision."""
-    fcl = query.fcl
-    result = fcl.CollisionResult()
-    if not fcl.collide(o1, o2, query.request, result):
-        return False
-    c = result.contacts[0]
-    i, j = query.index[id(c.o1)], query.index[id(c.o2)]
-    key = (min(i, j), max(i, j))
-    if key in query.excluded:
-        return False
-    query.pair = key
-    return True
-
-
 def _side(machine: Machine, path: Sequence[str]) -> str:
     """Side of a link with these machine axes above it."""
     sides = {machine.axis(a).side for a in path}
@@ -311,6 +285,209 @@ def _levers(machine: Machine, bodies: list[Body], paths: Mapping[str, Sequence[s
     return np.array([levers[a.name] for a in machine.axes])
 
 
+GAP_MM = 1e-3
+"""A pair whose bounding boxes are more than this apart (mm) is taken as clear without asking
+FCL: 1 um, far above the rounding of the box arithmetic and of FCL's own contact tests."""
+
+_TREE_LEAF = 8  # triangles per leaf box of the stock's box tree
+_TREE_FRONTIER = 64  # nodes per query beyond which a query goes to FCL without further culling
+
+
+def _rotation(axis: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Rotations about unit ``axis`` (3,) by angles ``theta`` (n,) rad, shape (n, 3, 3)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    s, c = np.sin(theta)[:, None, None], np.cos(theta)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+@dataclass(frozen=True, eq=False)
+class _Chain:
+    """The Pinocchio model's joints as arrays, to place frames for many configurations at once.
+
+    Attributes
+    ----------
+    parents : tuple of int
+        Per joint (0 = universe), its parent joint.
+    placements : ndarray, shape (j, 4, 4)
+        Per joint, its placement in the parent joint's frame at zero motion, m.
+    columns : tuple of int
+        Per joint, its column in the joint vectors, -1 for a joint that is not a machine axis
+        (held at its neutral motion, folded into ``placements``).
+    rotary : tuple of bool
+    axes : ndarray, shape (j, 3)
+        Unit rotation axis or translation direction in the joint's frame.
+    frame_joints : ndarray, shape (f,), int
+        Per placed frame, its joint.
+    frame_placements : ndarray, shape (f, 4, 4)
+        Per placed frame, its placement in its joint's frame, m.
+    """
+
+    parents: tuple[int, ...]
+    placements: np.ndarray
+    columns: tuple[int, ...]
+    rotary: tuple[bool, ...]
+    axes: np.ndarray
+    frame_joints: np.ndarray
+    frame_placements: np.ndarray
+
+    @classmethod
+    def of(cls, machine: Machine, frames: Sequence[int]) -> _Chain | None:
+        """The chain of a machine, or None when a joint is neither a pure rotation nor a pure
+        translation (then placements are computed by Pinocchio one configuration at a time)."""
+        import pinocchio as pin
+
+        model = machine.model
+        data = model.createData()  # type: ignore[attr-defined]
+        pin.forwardKinematics(model, data, pin.neutral(model))
+        column_of = {idx: col for col, (idx, _) in enumerate(machine._pin_index)}
+        placements = np.tile(np.eye(4), (model.njoints, 1, 1))  # type: ignore[attr-defined]
+        axes = np.zeros((model.njoints, 3))  # type: ignore[attr-defined]
+        columns, rotary = [-1], [False]
+        for j in range(1, model.njoints):  # type: ignore[attr-defined]
+            col = column_of.get(model.joints[j].idx_q, -1)  # type: ignore[attr-defined]
+            if col < 0:
+                placement = data.liMi[j].homogeneous.copy()
+                turn = False
+            else:
+                placement = model.jointPlacements[j].homogeneous.copy()  # type: ignore[attr-defined]
+                motion = np.asarray(data.joints[j].S).reshape(6)  # linear part first
+                lin, ang = np.linalg.norm(motion[:3]), np.linalg.norm(motion[3:])
+                if abs(lin - 1.0) < 1e-12 and ang < 1e-12:
+                    turn, axes[j] = False, motion[:3] / lin
+                elif abs(ang - 1.0) < 1e-12 and lin < 1e-12:
+                    turn, axes[j] = True, motion[3:] / ang
+                else:
+                    return None
+            placements[j] = placement
+            columns.append(col)
+            rotary.append(turn)
+        frame_placements = np.array(
+            [model.frames[f].placement.homogeneous for f in frames]  # type: ignore[attr-defined]
+        ).reshape(-1, 4, 4)
+        return cls(
+            parents=tuple(int(p) for p in model.parents),  # type: ignore[attr-defined]
+            placements=placements,
+            columns=tuple(columns),
+            rotary=tuple(rotary),
+            axes=axes,
+            frame_joints=np.array(
+                [model.frames[f].parentJoint for f in frames],  # type: ignore[attr-defined]
+                dtype=int,
+            ),
+            frame_placements=frame_placements,
+        )
+
+    def frames(self, q: np.ndarray) -> np.ndarray:
+        """Placements of the frames in the root frame, shape (n, f, 4, 4), m (as Pinocchio).
+
+        Parameters
+        ----------
+        q : ndarray, shape (n, m)
+            Joint vectors, mm / rad.
+        """
+        n = q.shape[0]
+        joint = np.empty((len(self.parents), n, 4, 4))
+        joint[0] = np.eye(4)
+        for j in range(1, len(self.parents)):
+            local = np.broadcast_to(self.placements[j], (n, 4, 4))
+            col = self.columns[j]
+            if col >= 0:
+                motion = np.tile(np.eye(4), (n, 1, 1))
+                if self.rotary[j]:
+                    motion[:, :3, :3] = _rotation(self.axes[j], q[:, col])
+                else:
+                    motion[:, :3, 3] = (q[:, col] / M_TO_MM)[:, None] * self.axes[j]
+                local = local @ motion
+            joint[j] = joint[self.parents[j]] @ local
+        return np.swapaxes(joint[self.frame_joints], 0, 1) @ self.frame_placements
+
+
+@dataclass(frozen=True, eq=False)
+class _BoxTree:
+    """A complete binary tree of axis-aligned boxes over a mesh's triangles (Morton order).
+
+    Attributes
+    ----------
+    lo, hi : list of ndarray, shape (2**level, 3)
+        Per level from the root, the corners of each node's box, mm (+inf / -inf: empty).
+    """
+
+    lo: list[np.ndarray]
+    hi: list[np.ndarray]
+
+    @classmethod
+    def of(cls, triangles: np.ndarray) -> _BoxTree:
+        """Tree of the triangles, shape (t, 3, 3), mm, in their own frame."""
+        centroid = triangles.mean(axis=1)
+        low, span = centroid.min(axis=0), np.ptp(centroid, axis=0).max() or 1.0
+        cell = np.minimum(((centroid - low) / span * 1023).astype(np.int64), 1023)
+        code = np.zeros(len(cell), dtype=np.int64)
+        for bit in range(10):
+            for axis in range(3):
+                code |= ((cell[:, axis] >> bit) & 1) << (3 * bit + axis)
+        order = triangles[np.argsort(code, kind="stable")]
+        leaves = max(1, -(-len(order) // _TREE_LEAF))
+        size = 1 << (leaves - 1).bit_length()
+        lo = np.full((size * _TREE_LEAF, 3), np.inf)
+        hi = np.full((size * _TREE_LEAF, 3), -np.inf)
+        lo[: len(order)], hi[: len(order)] = order.min(axis=1), order.max(axis=1)
+        lo_levels = [lo.reshape(size, _TREE_LEAF, 3).min(axis=1)]
+        hi_levels = [hi.reshape(size, _TREE_LEAF, 3).max(axis=1)]
+        while len(lo_levels[-1]) > 1:
+            lo_levels.append(np.minimum(lo_levels[-1][0::2], lo_levels[-1][1::2]))
+            hi_levels.append(np.maximum(hi_levels[-1][0::2], hi_levels[-1][1::2]))
+        return cls(lo_levels[::-1], hi_levels[::-1])
+
+    def near(self, center: np.ndarray, rot: np.ndarray, half: np.ndarray, gap: float) -> np.ndarray:
+        """Whether each oriented box may come within ``gap`` of a leaf box.
+
+        A separating-axis test on the six face normals of the two boxes, node by node from the
+        root; False only where every leaf box is more than ``gap`` away.
+
+        Parameters
+        ----------
+        center : ndarray, shape (k, 3)
+            Box centres in the tree's frame, mm.
+        rot : ndarray, shape (k, 3, 3)
+            Box axes (columns) in the tree's frame.
+        half : ndarray, shape (k, 3)
+            Half sizes, mm.
+        gap : float
+            mm.
+
+        Returns
+        -------
+        ndarray, shape (k,), bool
+        """
+        k = len(center)
+        out = np.zeros(k, dtype=bool)
+        half = half + gap
+        reach = np.einsum("kij,kj->ki", np.abs(rot), half)  # world-axis half sizes
+        qi, ni = np.arange(k), np.zeros(k, dtype=int)
+        for level, (lo, hi) in enumerate(zip(self.lo, self.hi, strict=True)):
+            blo, bhi = lo[ni], hi[ni]
+            valid = np.all(blo <= bhi, axis=1)
+            blo[~valid], bhi[~valid] = 0.0, 0.0
+            mid, ext = (blo + bhi) / 2, (bhi - blo) / 2
+            d = mid - center[qi]
+            keep = valid & np.all(np.abs(d) <= reach[qi] + ext, axis=1)
+            r = rot[qi]
+            d_box = np.abs(np.einsum("kij,ki->kj", r, d))
+            ext_box = np.einsum("kij,ki->kj", np.abs(r), ext)
+            keep &= np.all(d_box <= half[qi] + ext_box, axis=1)
+            qi, ni = qi[keep], ni[keep]
+            if level == len(self.lo) - 1:
+                out[qi] = True
+                break
+            crowded = np.bincount(qi, minlength=k) > _TREE_FRONTIER
+            if crowded.any():
+                out |= crowded
+                stay = ~crowded[qi]
+                qi, ni = qi[stay], ni[stay]
+            qi, ni = np.repeat(qi, 2), np.stack([2 * ni, 2 * ni + 1], axis=1).ravel()
+        return out
+
+
 # -- the world ----------------------------------------------------------------------------
 
 
@@ -357,8 +534,9 @@ class CollisionWorld:
     _moving_link: np.ndarray  # (k,), int: per moving body, its link among _frames[1:]
     _moving_local: np.ndarray  # (k, 4, 4): per moving body, its placement in its link
     _fixed_transform: dict[int, np.ndarray]  # bodies rigid with the workpiece: placement
-    _manager_pairs: list[tuple[Any, Any]]  # broad-phase managers collided with each other
-    _moving_managers: list[Any]  # managers holding a moving body
+    _chain: _Chain | None  # vectorised placements (None: Pinocchio per configuration)
+    _stock_tree: _BoxTree | None  # boxes over the stock's triangles, in the stock's frame
+    _stock_pairs: np.ndarray  # (s,), int: the pairs (rows of _pairs) with the stock
     _twins: dict[int, Any]  # primitive body -> fcl.CollisionObject of its triangulated twin
 
     @classmethod
@@ -371,7 +549,7 @@ class CollisionWorld:
         *,
         home_contact: float = HOME_CONTACT_MM,
     ) -> CollisionWorld:
-        """Build the bodies, the FCL objects and the broad-phase managers.
+        """Build the bodies, the FCL objects and the bounding boxes that cull pairs.
 
         Parameters
         ----------
@@ -433,7 +611,6 @@ class CollisionWorld:
         self._box_center, self._box_half = (lo + hi) / 2, (hi - lo) / 2
 
         self._setup_kinematics(paths["workpiece"])
-        self._setup_managers(frozenset(paths["workpiece"]))
         self._excluded = set()
         self._exclude_touching_at_home(home_contact)
         self._pairs = np.array(
@@ -446,6 +623,10 @@ class CollisionWorld:
             dtype=int,
         ).reshape(-1, 2)
         self._setup_twins()
+        self._stock_tree = None
+        self._stock_pairs = np.flatnonzero((self._pairs == self._stock).any(axis=1))
+        if self.stock_mesh is not None and len(self._stock_pairs):
+            self._stock_tree = _BoxTree.of(np.asarray(self.stock_mesh.triangles, dtype=float))
         self._levers = _levers(machine, bodies, paths)
         log.debug(
             "collision world for %s: %d bodies, %d pairs checked, %d excluded",
@@ -476,6 +657,7 @@ class CollisionWorld:
         self._frames = [frame["workpiece"]] + [frame[lk] for lk in links]
         self._moving_link = np.array([links.index(bodies[i].link) for i in self._moving], int)
         self._moving_local = np.array([bodies[i].local for i in self._moving]).reshape(-1, 4, 4)
+        self._chain = _Chain.of(self.machine, self._frames)
         # bodies rigid with the workpiece: placed once (at home; any pose gives the same)
         data = self._data
         pin.forwardKinematics(model, data, self._pin_q(self.machine.home[None, :])[0])
@@ -487,34 +669,6 @@ class CollisionWorld:
                 t[:3, 3] *= M_TO_MM
                 self._fixed_transform[i] = t @ b.local
                 self._place(self._objects[i], t @ b.local)
-
-    def _setup_managers(self, work_axes: frozenset[str]) -> None:
-        """One broad-phase manager per class of bodies.
-
-        Bodies of one class (side; cutter, stock or other; rigid with the workpiece or not)
-        have the same partners under :meth:`_rule`, so colliding the right pairs of managers
-        checks exactly the chosen pairs of bodies.
-        """
-        fcl, bodies = self._fcl, self._bodies
-        classes: dict[tuple[str, str, bool], list[int]] = {}
-        for i, b in enumerate(bodies):
-            kind = b.kind if b.kind in (CUTTER, STOCK) else ""
-            classes.setdefault((b.side, kind, b.axes == work_axes), []).append(i)
-        managers = []
-        for members in classes.values():
-            m = fcl.DynamicAABBTreeCollisionManager()
-            m.registerObjects([self._objects[i] for i in members])
-            m.setup()
-            managers.append((m, members))
-        self._manager_pairs = [
-            (ma, mb)
-            for a, (ma, ia) in enumerate(managers)
-            for mb, ib in managers[a + 1 :]
-            if self._rule(bodies[ia[0]], bodies[ib[0]])
-        ]
-        self._moving_managers = [
-            m for m, members in managers if any(i in self._moving_pos for i in members)
-        ]
 
     def _exclude_touching_at_home(self, home_contact: float) -> None:
         """Leave out pairs of machine shapes that touch at the home pose; say which."""
@@ -625,16 +779,23 @@ class CollisionWorld:
                 qp[:, idx] = q[:, col] / M_TO_MM
         return qp
 
-    def _moving_transforms(self, q: np.ndarray) -> np.ndarray:
-        """Placements of the moving bodies in the workpiece frame, shape (n, k, 4, 4), mm."""
-        pin, model, data = self._pin, self.machine.model, self._data
-        qp = self._pin_q(q)
-        frames = self._frames
-        out = np.empty((q.shape[0], len(frames), 4, 4))
-        for i in range(q.shape[0]):
-            pin.forwardKinematics(model, data, qp[i])
-            for k, f in enumerate(frames):
-                out[i, k] = pin.updateFramePlacement(model, data, f).homogeneous
+    def _moving_transforms(self, q: np.ndarray, pinocchio: bool = False) -> np.ndarray:
+        """Placements of the moving bodies in the workpiece frame, shape (n, k, 4, 4), mm.
+
+        All configurations at once from the joints' arrays (:class:`_Chain`); with
+        ``pinocchio`` (or for a joint that is not a plain rotation or translation) by Pinocchio
+        one configuration at a time, the reference the tests hold the arrays to.
+        """
+        if self._chain is not None and not pinocchio:
+            out = self._chain.frames(q)
+        else:
+            pin, model, data = self._pin, self.machine.model, self._data
+            qp = self._pin_q(q)
+            out = np.empty((q.shape[0], len(self._frames), 4, 4))
+            for i in range(q.shape[0]):
+                pin.forwardKinematics(model, data, qp[i])
+                for k, f in enumerate(self._frames):
+                    out[i, k] = pin.updateFramePlacement(model, data, f).homogeneous
         rel = np.linalg.inv(out[:, :1]) @ out[:, 1:]
         rel[:, :, :3, 3] *= M_TO_MM
         return rel[:, self._moving_link] @ self._moving_local
@@ -647,26 +808,11 @@ class CollisionWorld:
     def _set_moving(self, transforms: np.ndarray) -> None:
         for k, i in enumerate(self._moving):
             self._place(self._objects[i], transforms[k])
-        for m in self._moving_managers:
-            m.update()
 
     # -- queries -------------------------------------------------------------------------
 
-    def _first_pair(self) -> tuple[int, int] | None:
-        query = _Query(self._fcl, self._index, self._excluded, self._crequest)
-        for ma, mb in self._manager_pairs:
-            ma.collide(mb, query, _collide_callback)
-            if query.pair is not None:
-                return query.pair
-        return None
-
-    def _lower_bounds(self, transforms: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-        """Lower bounds of the distance of each pair, shape (n, p), mm.
-
-        Each body is enclosed in an oriented box (the bounding box of its hull points in its
-        own frame); the bound is the largest gap between the two boxes along any of their six
-        axes (a separating-axis test that measures the gap).
-        """
+    def _boxes(self, transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Axes (n, b, 3, 3) and centres (n, b, 3, mm) of every body's box, workpiece frame."""
         n, bodies = transforms.shape[0], self._bodies
         rot = np.empty((n, len(bodies), 3, 3))
         center = np.empty((n, len(bodies), 3))
@@ -676,16 +822,26 @@ class CollisionWorld:
         for k, i in enumerate(self._moving):
             t = transforms[:, k]
             rot[:, i] = t[:, :3, :3]
-            center[:, i] = t[:, :3, :3] @ self._box_center[i] + t[:, :3, 3]
+            center[:, i] = np.einsum("nij,j->ni", t[:, :3, :3], self._box_center[i]) + t[:, :3, 3]
+        return rot, center
+
+    def _lower_bounds(self, transforms: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """Lower bounds of the distance of each pair, shape (n, p), mm.
+
+        Each body is enclosed in an oriented box (the bounding box of its hull points in its
+        own frame); the bound is the largest gap between the two boxes along any of their six
+        axes (a separating-axis test that measures the gap).
+        """
+        rot, center = self._boxes(transforms)
         ia, ib = pairs[:, 0], pairs[:, 1]
         r_a, r_b = rot[:, ia], rot[:, ib]  # (n, p, 3, 3), columns = box axes
         axes = np.concatenate([r_a, r_b], axis=3)  # (n, p, 3, 6)
-        d = np.abs(np.einsum("npi,npik->npk", center[:, ib] - center[:, ia], axes))
-        half_a = np.abs(np.einsum("npij,npik->npjk", r_a, axes))  # |a_j . u_k|
-        half_b = np.abs(np.einsum("npij,npik->npjk", r_b, axes))
-        reach = np.einsum("pj,npjk->npk", self._box_half[ia], half_a) + np.einsum(
-            "pj,npjk->npk", self._box_half[ib], half_b
-        )
+        d = np.abs((center[:, ib] - center[:, ia])[:, :, None, :] @ axes)[:, :, 0]
+        half_a = np.abs(np.swapaxes(r_a, 2, 3) @ axes)  # |a_j . u_k|
+        half_b = np.abs(np.swapaxes(r_b, 2, 3) @ axes)
+        reach = (self._box_half[ia][None, :, None, :] @ half_a)[:, :, 0] + (
+            self._box_half[ib][None, :, None, :] @ half_b
+        )[:, :, 0]
         return np.maximum((d - reach).max(axis=2), 0.0)
 
     def _distance(self, i: int, j: int, transforms: np.ndarray) -> float:
@@ -750,6 +906,65 @@ class CollisionWorld:
                 out[rows[points_inside(mesh, c[rows])]] = i
         return out
 
+    def _first_pairs(self, q: np.ndarray, plain: bool = False) -> np.ndarray:
+        """The first colliding pair of each configuration, shape (n, 2), body indices, -1 clear.
+
+        The pair reported is the first in checking order (:attr:`_pairs`: tool, head, stock,
+        table, static) that FCL finds in contact, else a head-side body entirely inside the
+        closed stock. FCL is asked only about the pairs that may touch: the pairs whose boxes
+        are more than ``GAP_MM`` apart (:meth:`_lower_bounds`), and the stock pairs whose
+        partner's box is more than that from every leaf box of the stock's tree, are clear.
+        ``plain``: FCL on every pair, placements by Pinocchio (the reference of the tests).
+        """
+        fcl, pairs = self._fcl, self._pairs
+        out = np.full((q.shape[0], 2), -1)
+        for start in range(0, q.shape[0], _CHUNK):
+            rows = slice(start, min(start + _CHUNK, q.shape[0]))
+            transforms = self._moving_transforms(q[rows], pinocchio=plain)
+            first = out[rows]
+            if plain:
+                ask = np.ones((transforms.shape[0], len(pairs)), dtype=bool)
+            else:
+                ask = self._lower_bounds(transforms, pairs) <= GAP_MM
+                self._cull_stock_pairs(transforms, ask)
+            placed = np.full(len(self._bodies), -1)
+            for r in np.flatnonzero(ask.any(axis=1)):
+                for p in np.flatnonzero(ask[r]):
+                    i, j = int(pairs[p, 0]), int(pairs[p, 1])
+                    for b in (i, j):
+                        if b in self._moving_pos and placed[b] != r:
+                            self._place(self._objects[b], transforms[r, self._moving_pos[b]])
+                            placed[b] = r
+                    if fcl.collide(
+                        self._objects[i], self._objects[j], self._crequest, fcl.CollisionResult()
+                    ):
+                        first[r] = (i, j)
+                        break
+            inside = self._inside_stock(transforms, first[:, 0] < 0)
+            rows_in = np.flatnonzero(inside >= 0)
+            first[rows_in, 0], first[rows_in, 1] = inside[rows_in], self._stock
+        return out
+
+    def _cull_stock_pairs(self, transforms: np.ndarray, ask: np.ndarray) -> None:
+        """Clear, in ``ask`` (n, p), the stock pairs whose partner's box keeps ``GAP_MM`` from
+        every leaf box of the stock's tree."""
+        tree = self._stock_tree
+        if tree is None or not ask[:, self._stock_pairs].any():
+            return
+        rot, center = self._boxes(transforms)
+        s = self._stock
+        stock_t = self._fixed_transform[s]
+        r_inv, t_s = stock_t[:3, :3].T, stock_t[:3, 3]
+        for p in self._stock_pairs:
+            rows = np.flatnonzero(ask[:, p])
+            if not len(rows):
+                continue
+            other = int(self._pairs[p, 0] if self._pairs[p, 1] == s else self._pairs[p, 1])
+            c = (center[rows, other] - t_s) @ r_inv.T
+            r = r_inv @ rot[rows, other]
+            half = np.broadcast_to(self._box_half[other], (len(rows), 3))
+            ask[rows, p] = tree.near(c, r, half, GAP_MM)
+
     def _names(self, pair: tuple[int, int] | None) -> tuple[str, str] | None:
         if pair is None:
             return None
@@ -796,21 +1011,17 @@ class CollisionWorld:
         """
         q = self._as_q(q)
         n = q.shape[0]
-        hit = np.zeros(n, dtype=bool)
         pairs: list[tuple[int, int] | None] = [None] * n
         dist = np.full(n, np.nan)
         nearest: list[tuple[int, int] | None] = [None] * n
         near_pairs = self._clearance_pairs(clearance_of) if clearance else self._pairs[:0]
-        for start in range(0, n, _CHUNK):
+        first = self._first_pairs(q)
+        hit = first[:, 0] >= 0
+        for k in np.flatnonzero(hit).tolist():
+            pairs[k] = (int(first[k, 0]), int(first[k, 1]))
+        for start in range(0, n if clearance else 0, _CHUNK):
             rows = slice(start, min(start + _CHUNK, n))
             transforms = self._moving_transforms(q[rows])
-            for k in range(transforms.shape[0]):
-                self._set_moving(transforms[k])
-                pairs[start + k] = self._first_pair()
-                hit[start + k] = pairs[start + k] is not None
-            inside = self._inside_stock(transforms, ~hit[rows])
-            for k_in in np.flatnonzero(inside >= 0):
-                hit[start + k_in], pairs[start + k_in] = True, (int(inside[k_in]), self._stock)
             if clearance:
                 bounds = self._lower_bounds(transforms, near_pairs)
                 for k in range(transforms.shape[0]):
@@ -889,48 +1100,28 @@ class CollisionWorld:
         """
         q = self._as_q(q)
         counts = self.sample_counts(q, step_mm, step_deg)
-        ends = self.check(q)
         n_moves = q.shape[0] - 1
-        hit = np.zeros(n_moves, dtype=bool)
-        at = np.full(n_moves, np.nan)
-        pairs: list[tuple[str, str] | None] = [None] * n_moves
-        start_hit = ends.hit[:-1]
-        hit[start_hit] = True
-        at[start_hit] = 0.0
-        for i in np.flatnonzero(start_hit):
-            pairs[i] = ends.pairs[i]
-        # interior samples of the moves whose start is clear, in order along each move
-        todo = np.flatnonzero(~start_hit & (counts > 1))
-        inner = counts[todo] - 1
-        move = np.repeat(todo, inner)
-        offsets = np.cumsum(inner) - inner
-        k = np.arange(len(move)) - np.repeat(offsets, inner) + 1
-        t = k / counts[move]
+        # every sample once, in path order: each move's start and interior, then the last end
+        move = np.repeat(np.arange(n_moves), counts)
+        offsets = np.cumsum(counts) - counts
+        k = np.arange(len(move)) - np.repeat(offsets, counts)
+        first = np.full((len(move) + 1, 2), -1)
         for lo in range(0, len(move), _CHUNK):
-            sl = slice(lo, lo + _CHUNK)
-            mv, tt = move[sl], t[sl]
-            live = ~hit[mv]
-            if not live.any():
-                continue
-            mv, tt = mv[live], tt[live]
-            qs = q[mv] + tt[:, None] * (q[mv + 1] - q[mv])
-            transforms = self._moving_transforms(qs)
-            for r in range(len(mv)):
-                if hit[mv[r]]:
-                    continue
-                self._set_moving(transforms[r])
-                pair = self._first_pair()
-                if pair is not None:
-                    hit[mv[r]], at[mv[r]], pairs[mv[r]] = True, tt[r], self._names(pair)
-            inside = self._inside_stock(transforms, np.ones(len(mv), dtype=bool))
-            for r_in in np.flatnonzero(inside >= 0):
-                m = mv[r_in]
-                if not hit[m] or tt[r_in] < at[m]:
-                    hit[m], at[m] = True, tt[r_in]
-                    pairs[m] = self._names((int(inside[r_in]), self._stock))
-        end_hit = ~hit & ends.hit[1:]
-        hit[end_hit] = True
-        at[end_hit] = 1.0
-        for i in np.flatnonzero(end_hit):
-            pairs[i] = ends.pairs[i + 1]
+            mv, kk = move[lo : lo + _CHUNK], k[lo : lo + _CHUNK]
+            t = kk / counts[mv]
+            qs = q[mv] + t[:, None] * (q[mv + 1] - q[mv])
+            first[lo : lo + len(mv)] = self._first_pairs(qs)
+        first[-1] = self._first_pairs(q[-1:])[0]
+        # per sample, the next colliding sample at or after it
+        hits = np.flatnonzero(first[:, 0] >= 0)
+        nxt = np.searchsorted(hits, offsets)
+        found = nxt < len(hits)
+        at_sample = np.full(n_moves, -1)
+        at_sample[found] = hits[nxt[found]]
+        hit = found & (at_sample <= offsets + counts)
+        at = np.full(n_moves, np.nan)
+        at[hit] = (at_sample[hit] - offsets[hit]) / counts[hit]
+        pairs: list[tuple[str, str] | None] = [None] * n_moves
+        for m in np.flatnonzero(hit):
+            pairs[m] = self._names((int(first[at_sample[m], 0]), int(first[at_sample[m], 1])))
         return MoveCollisionResult(hit=hit, pairs=pairs, at=at, samples=counts)
