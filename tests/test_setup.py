@@ -250,6 +250,25 @@ def _post(tmp_path: Path, cl: Path, *args: str) -> int:
     return main(["post", str(cl), "-o", str(tmp_path / "part.nc"), "-q", *args])
 
 
+def test_a_streamed_post_out_of_travel_says_where_the_setup_hint_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A streamed post never holds the whole CL data, which the setup hint needs: it says so
+    and how to get one, writes nothing, and the whole post gives the hint."""
+    points, axes = _high_job(700.0)
+    cl = tmp_path / "high.apt"
+    cl.write_text(_apt(points, axes), encoding="utf-8")
+    assert _post(tmp_path, cl, "-m", "dmu50", "--piece-points", "10") == 1
+    err = capsys.readouterr().err
+    assert "outside the linear travel of machine dmu50" in err
+    assert "a streamed post cannot suggest a job setup" in err and "--piece-points 0" in err
+    assert not HINT.search(err)
+    assert not (tmp_path / "part.nc").exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["high.apt"]
+    assert _post(tmp_path, cl, "-m", "dmu50", "--piece-points", "0") == 1
+    assert HINT.search(capsys.readouterr().err)
+
+
 def test_out_of_travel_job_posts_with_the_suggested_setup(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
