@@ -45,6 +45,11 @@ class UnreachableError(UrdfpostError):
     """A CL point that no inverse-kinematics branch reaches within the machine's travel."""
 
 
+class LinearTravelError(UnreachableError):
+    """A CL point whose rotary angles fit but whose linear axes leave their travel on every
+    branch (a job setup may bring it in)."""
+
+
 class GeometryError(UrdfpostError):
     """Collision geometry that cannot be built: a stock or mesh file that cannot be read, a
     ``<collision>`` element urdfpost does not understand, or tool sizes that make no sense."""

@@ -210,7 +210,6 @@ def timeline(
     seconds = _durations(machine, q, rapid, feed, tip)
     rot = list(machine.rotary_columns)
     counts = np.ones(n, dtype=np.int64)
-    counts[0] = 1
     if rot and n > 1:
         step = np.abs(np.diff(q[:, rot], axis=0)).max(axis=1)
         counts[1:] = np.clip(np.ceil(step / SAMPLE_STEP), 1, BLOCK_SAMPLES)

@@ -59,7 +59,7 @@ import numpy as np
 
 from urdfpost._files import give_mode, temp_file
 from urdfpost.dialects import Dialect
-from urdfpost.errors import ToleranceError, UnreachableError
+from urdfpost.errors import LinearTravelError, ToleranceError
 from urdfpost.geometry import angle_between
 from urdfpost.machine import Machine
 from urdfpost.planning.strategies import STRATEGIES, Plan, tool_axis_of
@@ -448,12 +448,10 @@ def post_stream(
         tmp = final
         give_mode(tmp, out)
         os.replace(tmp, out)
-    except UnreachableError as e:
+    except LinearTravelError as e:
         tmp.unlink(missing_ok=True)
-        if "outside the linear travel" not in str(e):
-            raise
         # the setup that brings every point into travel needs every point at once
-        raise UnreachableError(
+        raise LinearTravelError(
             f"{e}; a streamed post cannot suggest a job setup (it never holds the whole CL "
             "data): post with --piece-points 0 for one"
         ) from e

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.errors import CollisionError, UnreachableError
+from urdfpost.errors import CollisionError, LinearTravelError, UnreachableError
 from urdfpost.kinematics.inverse import IKStatus, assemble, inverse, solve_linear
 from urdfpost.machine import Machine
 from urdfpost.planning.branches._arrays import _rows_any
@@ -145,7 +145,9 @@ def select(
     if dead.any():
         i = int(np.argmax(dead))
         if ok[i].any():
-            raise UnreachableError(_linear_message(machine, ik.q[i], tip[i], int(lines[i]), source))
+            raise LinearTravelError(
+                _linear_message(machine, ik.q[i], tip[i], int(lines[i]), source)
+            )
         raise UnreachableError(
             _unreachable_message(machine, axis[i], int(ik.status[i]), int(lines[i]), source)
         )
