@@ -436,19 +436,23 @@ def test_a_transition_that_collides_is_an_error_naming_its_line() -> None:
 
 
 @pytest.mark.parametrize("pieces", ["0", "3"])
-def test_machine_coordinates_warn_of_the_one_tool_length(
+def test_machine_coordinates_warn_of_a_tool_without_a_length(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], pieces: str
 ) -> None:
-    """Machine-coordinate positions include the tool length, and every tool is posted with
-    the job's one: the second tool gets a warning at its LOADTL line (whole and streamed); a
-    TCP program, which leaves the length to the control, gets none."""
+    """Machine-coordinate positions include the tool length: a second tool with no gauge
+    length of its own (no tool table, no LOADTL LENGTH) is posted with the job's one and
+    gets a warning at its LOADTL line (whole and streamed); a TCP program, which leaves the
+    length to the control, gets none."""
     cl = tmp_path / "two.apt"
     cl.write_text(TWO_TOOLS)
     line = next(k for k, t in enumerate(TWO_TOOLS.splitlines(), 1) if t.startswith("LOADTL/2"))
     base = ["post", str(cl), "-m", "dmu50", "-c", "fanuc", "-q", "--piece-points", pieces]
     assert main([*base, "--no-tcp", "-o", str(tmp_path / "mc.nc")]) == 0
     err = capsys.readouterr().err
-    assert f"two.apt:{line}: T2 is posted with the one tool length 100.000 mm" in err
-    assert err.count("is posted with the one tool length") == 1
+    assert (
+        f"two.apt:{line}: T2 has no gauge length in the tool table or the CL data (LOADTL "
+        "LENGTH) and is posted with the job's tool length 100.000 mm"
+    ) in err
+    assert err.count("has no gauge length") == 1
     assert main([*base, "-o", str(tmp_path / "tcp.nc")]) == 0
     assert "tool length" not in capsys.readouterr().err

@@ -44,7 +44,7 @@ TOL = 1e-3
 
 @dataclass(frozen=True)
 class Case:
-    cl: str  # "dome" or "two"
+    cl: str  # "dome", "two" or "two-lengths"
     machine: str
     tcp: bool
     # Tool length for the post (and, with TCP, the tool table): the dome sits low enough on
@@ -64,6 +64,13 @@ CASES = [
     for machine, length in (("xyzac-trt", 50.0), ("dmu50", 100.0))
     for tcp in (True, False)
 ] + [Case("two", "dmu50", tcp, 100.0, (1, 2), 9000.0) for tcp in (True, False)]
+# machine coordinates, each tool with its own gauge length (LOADTL LENGTH): two tool sections
+CASES.append(Case("two-lengths", "dmu50", False, 100.0, (1, 2), 9000.0))
+
+#: TWO_TOOLS with gauge lengths of its own for each tool, mm.
+TWO_LENGTHS = TWO_TOOLS.replace("LOADTL/1\n", "LOADTL/1,LENGTH,120\n").replace(
+    "LOADTL/2\n", "LOADTL/2,LENGTH,80\n"
+)
 
 
 @pytest.fixture(scope="module")
@@ -77,8 +84,8 @@ def _posted(case: Case, where: Path) -> str:
     if case.cl == "dome":
         cl = DOME
     else:
-        cl = where / "two.apt"
-        cl.write_text(TWO_TOOLS)
+        cl = where / f"{case.cl}.apt"
+        cl.write_text(TWO_TOOLS if case.cl == "two" else TWO_LENGTHS)
     out = where / f"{case.id}.ngc"
     argv = ["post", str(cl), "-m", case.machine, "-c", "linuxcnc", "-o", str(out), "-q"]
     argv += ["--tool-length", str(case.tool_length)]

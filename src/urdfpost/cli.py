@@ -24,6 +24,7 @@ from urdfpost import __version__
 from urdfpost._files import check_distinct, output_target, temp_file, write_texts
 from urdfpost.errors import UrdfpostError
 from urdfpost.posting import PIECE_POINTS
+from urdfpost.posting.tools import read_tool_table
 from urdfpost.strict_json import report_json
 from urdfpost.units import UNITS, mm_per_unit, program_units
 
@@ -304,6 +305,17 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _tool_table_argument(p: argparse.ArgumentParser) -> None:
+    """``--tool-table``: each tool's gauge length, for machine-coordinate programs."""
+    p.add_argument(
+        "--tool-table",
+        metavar="FILE",
+        help="machine-coordinate programs: each tool's gauge length from this LinuxCNC tool "
+        "table (lines 'T1 P1 Z101.6 D12.7', lengths in program units); a tool not in it has "
+        "the CL data's LOADTL LENGTH, else --tool-length",
+    )
+
+
 def _cl_units_argument(p: argparse.ArgumentParser, *aliases: str) -> None:
     """``--cl-units``: the units the CL file is read in."""
     p.add_argument(
@@ -361,6 +373,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=_non_negative,
         help="tool length, gauge point to tip, in program units",
     )
+    _tool_table_argument(po)
     po.add_argument(
         "--tolerance",
         type=_positive,
@@ -418,6 +431,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=_non_negative,
         help="tool length in program units (machine-coordinate programs)",
     )
+    _tool_table_argument(ve)
     ve.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
     _setup_argument(ve, "the program's units")
     ve.add_argument(
@@ -625,6 +639,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         clearance=args.clearance,
         feed=args.feed,
         spindle=args.spindle,
+        tool_table=None if args.tool_table is None else read_tool_table(args.tool_table, scale),
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {
@@ -769,6 +784,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     tool_length = (
         machine.settings.tool_length if args.tool_length is None else args.tool_length * scale
     )
+    table = None if args.tool_table is None else read_tool_table(args.tool_table, scale)
     pivot = 0.0
     if args.angle_tolerance > 0:
         from urdfpost.posting.check import bent_tolerances
@@ -817,13 +833,22 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             pivot=pivot,
             piece_points=pieces,
             process=process,
+            table=table,
         )
         toolpath = replace(toolpath, warnings=tuple(warnings))
         process_check = process.result()
         faults = located(process_check, dialect, lambda: program_texts(args.program), args.program)
     else:
-        check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
-        process.add(program, expected(toolpath)[0], ended=ended)
+        from urdfpost.posting.readback import merge_verifications
+        from urdfpost.posting.tools import paired_sections
+
+        checks = []
+        sections = paired_sections(program, expected(toolpath)[0], tool_length, table)
+        for k, (part, cl, length) in enumerate(sections):
+            checks.append(verify(part, machine, cl, tool_length=length, tol=tol, pivot=pivot))
+            last = k == len(sections) - 1
+            process.add(part, cl, ended=ended if last else None, fresh=k > 0, tool_length=length)
+        check = merge_verifications(checks, [k > 0 for k in range(len(checks))])
         process_check = process.result()
         faults = located(process_check, dialect, lambda: [text], args.program)
     _show_warnings(toolpath.warnings)

@@ -192,6 +192,8 @@ def program_body(
     transitions: Transitions | None = None,
     work_offset: int | None = None,
     coolant: str | None = None,
+    entry: np.ndarray | None = None,
+    leave: bool = False,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -226,6 +228,14 @@ def program_body(
     coolant : str, optional
         The coolant on before the body (a streamed piece): a tool change stops it and, unless
         the CL data sets the coolant there, starts it again.
+    entry : ndarray, shape (m,), optional
+        The body begins a tool section after another (:mod:`urdfpost.posting.tools`): the
+        joint values where the section before left the path. With ``transitions``, its tool
+        change is approached as any tool change, from the retract above them.
+    leave : bool
+        The body ends where the next tool section's tool change comes: with ``transitions``,
+        it leaves the path after its last row as for a tool change (TCP off, the retract,
+        spindle and coolant off).
 
     Returns
     -------
@@ -260,6 +270,7 @@ def program_body(
         before: list[Block] = []
         here = by_row.get(k, [])
         leaves = k > 0 and any(e.kind in ("tool", "home") for e in here)
+        enters = k == 0 and entry is not None  # a tool section after another
         restart = None  # the coolant a tool change stopped, to start again after it
         if transitions is not None and leaves and any(e.kind == "tool" for e in here):
             line = int(toolpath.line[g_of(rows, k - 1)])
@@ -272,12 +283,14 @@ def program_body(
             before.append(Coolant(mode=restart))
         if kind[k] == LIFT:
             before.append(Comment(next(lift_comments)))
-        if transitions is not None and (leaves or (starting and k == 0)):
+        if enters and not any(e.kind == "coolant" for e in here) and coolant is not None:
+            before.append(Coolant(mode=coolant))  # the section before stopped it
+        if transitions is not None and (leaves or enters or (starting and k == 0)):
             if tcp_state[0]:
                 before.append(Tcp(on=False))
                 tcp_state[0] = False
             line = int(toolpath.line[g_of(rows, k)])
-            before += transitions.approach(rows.q[k - 1] if k else None, rows.q[k], line)
+            before += transitions.approach(rows.q[k - 1] if k else entry, rows.q[k], line)
             tcp_state[0] = tcp
         if tcp and not tcp_state[0]:
             before.append(Tcp(on=True))
@@ -296,6 +309,10 @@ def program_body(
         body.append(Comment(REWIND_END))
     for event in by_row.get(count, []):
         body += _event_blocks(event, tcp_state, tcp)
+    if transitions is not None and leave and count and not close:
+        line = int(toolpath.line[g_of(rows, count - 1)])
+        body += transitions.leave(rows.q[count - 1], line, tcp_state[0])
+        tcp_state[0] = False
     if transitions is not None and close and count:
         line = int(toolpath.line[g_of(rows, count - 1)])
         ending = transitions.end(rows.q[count - 1], line, tcp_state[0])

@@ -17,6 +17,7 @@ Example (a TCP job on dmu50, Heidenhain, mm)::
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -98,6 +99,7 @@ def header_text(
     work_offset: str,
     tool_length: float,
     zero: str | None = None,
+    tool_lengths: Mapping[int, float] | None = None,
 ) -> str:
     """The header's comment lines (without comment marks), one per line.
 
@@ -115,6 +117,9 @@ def header_text(
         The tool length machine-coordinate positions were computed with.
     zero : str, optional
         Where the program zero sits on the machine, in words (the work offset line says it).
+    tool_lengths : mapping of int to float, optional, mm
+        A machine-coordinate program posted in tool sections (:mod:`urdfpost.posting.tools`):
+        the gauge length of each tool, named instead of ``tool_length``.
 
     Returns
     -------
@@ -140,7 +145,14 @@ def header_text(
         f"tools: {tools or 'none'}",
         f"axis ranges: {' '.join(ranges) or 'no motion'}",
     ]
-    if not tcp:
+    if not tcp and tool_lengths and len(set(tool_lengths.values())) > 1:
+        each = ", ".join(f"T{n} {x:.3f}" for n, x in sorted(tool_lengths.items()))
+        lines.append(
+            f"machine coordinates with each tool's gauge length ({each} mm): the tool table "
+            "lengths must be 0, and the work offset zero (the program zero's place is in the "
+            "positions)"
+        )
+    elif not tcp:
         lines.append(
             f"machine coordinates with tool length {tool_length:.3f} mm from the gauge point: "
             "the tool table length must be 0, and the work offset zero (the program zero's place "
@@ -149,8 +161,14 @@ def header_text(
     return "\n".join(lines)
 
 
-def job_header(job: Job, figures: HeaderFigures, tool_length: float) -> str:
-    """:func:`header_text` for a job's program (``tool_length`` mm: the program's)."""
+def job_header(
+    job: Job,
+    figures: HeaderFigures,
+    tool_length: float,
+    tool_lengths: Mapping[int, float] | None = None,
+) -> str:
+    """:func:`header_text` for a job's program (``tool_length`` mm: the program's;
+    ``tool_lengths``: each tool's, of a program in tool sections)."""
     spec = job.dialect.spec
     label = spec.work_offset_label.format(number=job.work_offset, code=53 + job.work_offset)
     mount = job.machine.mount
@@ -168,6 +186,7 @@ def job_header(job: Job, figures: HeaderFigures, tool_length: float) -> str:
         work_offset=label,
         tool_length=tool_length,
         zero=zero,
+        tool_lengths=tool_lengths,
     )
 
 

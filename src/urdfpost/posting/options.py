@@ -7,7 +7,8 @@ it reads the :class:`Job` and never looks at the options or the machine settings
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 from urdfpost.dialects import Dialect, dialect_for
 from urdfpost.errors import MachineDefinitionError, UrdfpostError
@@ -83,6 +84,10 @@ class PostOptions:
     spindle : float or None
         Spindle speed (rpm, clockwise) for cutting with the spindle off (reported as a
         warning); None: such a move is an error.
+    tool_table : mapping of int to float, or None
+        Gauge length of each tool number, mm (:func:`urdfpost.posting.tools.read_tool_table`):
+        machine-coordinate programs compute each tool's moves with its own length, first
+        from here, else the CL data's ``LOADTL LENGTH``, else ``tool_length``.
     """
 
     controller: str | None = None
@@ -108,6 +113,7 @@ class PostOptions:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    tool_table: Mapping[int, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -156,6 +162,8 @@ class Job:
         mm/min.
     spindle : float or None
         rpm.
+    tool_table : mapping of int to float
+        Gauge length of each tool number given for the job, mm (:mod:`urdfpost.posting.tools`).
     """
 
     machine: Machine
@@ -181,6 +189,7 @@ class Job:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    tool_table: Mapping[int, float] = field(default_factory=dict)
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -292,4 +301,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         work_offset=options.work_offset,
         feed=mm(options.feed),
         spindle=options.spindle,
+        tool_table=dict(options.tool_table or {}),
     )

@@ -187,12 +187,22 @@ class Continuation:
     coolant : str or None
         The coolant mode on where the piece starts (None: off), which a tool change in the
         piece stops and starts again.
+    entry : ndarray or None, shape (m,)
+        The piece begins a tool section after another (:mod:`urdfpost.posting.tools`): the
+        joint vector where the section before left the path (``start`` is None then: the
+        piece is planned afresh with its tool's length, and approached as after a tool
+        change; ``coolant`` is the one the section before had on, started again).
+    leave : bool
+        The piece ends a tool section that another follows: it leaves the path after its
+        last point as for a tool change.
     """
 
     start: np.ndarray | None
     tcp_on: bool
     last: bool
     coolant: str | None = None
+    entry: np.ndarray | None = None
+    leave: bool = False
 
 
 @dataclass(frozen=True)
@@ -400,7 +410,11 @@ def post_piece(
         coolant=None if piece is None else piece.coolant,
         close=piece is None or piece.last,
         transitions=transitions,
-        work_offset=None if continued else job.work_offset,
+        work_offset=None
+        if continued or (piece is not None and piece.entry is not None)
+        else job.work_offset,
+        entry=None if piece is None else piece.entry,
+        leave=piece is not None and piece.leave,
     )
     program = Program(
         name=program_name(toolpath, job.program_name),

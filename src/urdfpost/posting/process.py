@@ -16,6 +16,7 @@ direction it had, with a warning.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -248,25 +249,31 @@ def checked_process(
 
 
 def one_tool_length(
-    toolpath: Toolpath, tool_length: float, units: str, seen: frozenset[int] = frozenset()
+    toolpath: Toolpath,
+    tool_length: float,
+    units: str,
+    seen: frozenset[int] = frozenset(),
+    table: Mapping[int, float] | None = None,
 ) -> tuple[list[str], frozenset[int]]:
-    """The warnings of a machine-coordinate job with more than one tool.
+    """The warnings of a machine-coordinate job about tools with no gauge length of their own.
 
-    Machine-coordinate positions include the tool length, and the post computes every tool
-    with the job's one length (``--tool-length``, else the machine file's): a tool whose gauge
-    length differs would be placed wrong by the difference (the CL data's tool lengths,
-    ``LOADTL LENGTH`` or ``TLDATA``, are not used: per-tool lengths are not posted yet). One
-    warning per tool number after the first.
+    Machine-coordinate positions include the tool's gauge length; each tool is posted with its
+    own (:mod:`urdfpost.posting.tools`: the tool table, else ``LOADTL LENGTH``), else with
+    the job's one length (``--tool-length``, else the machine file's). A tool after the first
+    that has no length of its own is posted with the job's: right only if its gauge length is
+    that. One warning per such tool number.
 
     Parameters
     ----------
     toolpath : Toolpath
     tool_length : float, mm
-        The one the positions include.
+        The job's length.
     units : str
         Program units, for the message.
     seen : frozenset of int
         Tool numbers seen before ``toolpath`` (a piece of a streamed post).
+    table : mapping, optional
+        The job's tool table (tool number to gauge length, mm).
 
     Returns
     -------
@@ -276,17 +283,19 @@ def one_tool_length(
     """
     notes: list[str] = []
     numbers = set(seen)
+    table = table or {}
     length = tool_length / mm_per_unit(units)
     for e in toolpath.events:
         if e.kind != "tool":
             continue
         number = int(e.data.get("number", 0))
-        if numbers and number not in numbers:
+        own = number in table or e.data.get("length") is not None
+        if numbers and number not in numbers and not own:
             notes.append(
-                f"{toolpath.source}:{e.line}: T{number} is posted with the one tool length "
-                f"{length:.3f} {units} of the job (machine coordinates include it): right only "
-                "if its gauge length is that; else post its operations with their own "
-                "--tool-length, or with TCP"
+                f"{toolpath.source}:{e.line}: T{number} has no gauge length in the tool table "
+                f"or the CL data (LOADTL LENGTH) and is posted with the job's tool length "
+                f"{length:.3f} {units} (machine coordinates include it): right only if its "
+                "gauge length is that; else give it with --tool-table, or post with TCP"
             )
         numbers.add(number)
     return notes, frozenset(numbers)

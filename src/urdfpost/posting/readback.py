@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -16,6 +16,7 @@ from urdfpost.dialects import dialect_for
 from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting import PIECE_POINTS
+from urdfpost.posting.tools import Section, gauge_lengths, program_sections, tool_sections
 from urdfpost.program import Blocks, Move, MoveTable, Program, rewind_moves
 from urdfpost.readers._stream import text_pieces
 from urdfpost.tolerances import Tolerances
@@ -36,18 +37,20 @@ from urdfpost.verification.process import ProcessChecker
 log = logging.getLogger(__name__)
 
 
-def merge_verifications(parts: list[Verification]) -> Verification:
+def merge_verifications(parts: list[Verification], fresh: Sequence[bool] = ()) -> Verification:
     """One verification of the pieces' checks of a streamed program.
 
     Each piece after the first starts with the CL point and the program row the piece before
-    ended with: they are counted once.
+    ended with: they are counted once. A piece ``k`` with ``fresh[k]`` true begins a tool
+    section (:mod:`urdfpost.posting.tools`) and shares nothing with the one before.
     """
     first = parts[0]
-    joins = len(parts) - 1
+    starts = [k > 0 and k < len(fresh) and bool(fresh[k]) for k in range(len(parts))]
+    joins = len(parts) - 1 - sum(starts)
     missed: list[int] = []
-    for v in parts:
+    for v, own in zip(parts, starts, strict=True):
         lines = v.missed_lines
-        if missed and lines and lines[0] == missed[-1]:
+        if missed and lines and lines[0] == missed[-1] and not own:
             lines = lines[1:]  # the point at a join, missed in both pieces
         missed += lines
     cl_points = sum(v.cl_points for v in parts) - joins
@@ -223,6 +226,7 @@ def verify_stream(
     piece_points: int = PIECE_POINTS,
     texts: Iterable[str] | None = None,
     process: ProcessChecker | None = None,
+    table: Mapping[int, float] | None = None,
 ) -> tuple[Verification, Program]:
     """:func:`urdfpost.verification.verify` of a program file against CL data given in pieces, in
     bounded memory: the program is read and checked a piece at a time.
@@ -252,6 +256,10 @@ def verify_stream(
     process : ProcessChecker, optional
         Is given every piece checked, with its CL data (the process of the program,
         :mod:`urdfpost.verification.process`; the CL pieces are then the expected ones).
+    table : mapping, optional
+        A machine-coordinate program: the tool table (tool number to gauge length, mm). Each
+        tool section (:mod:`urdfpost.posting.tools`) is checked with its tool's length: the
+        table's, else the CL data's ``LOADTL LENGTH``, else ``tool_length``.
 
     Returns
     -------
@@ -277,15 +285,24 @@ def verify_stream(
     want = piece_points
     rows_per_point = 1.5  # a first guess, then as the pieces so far had
     rows_done = points_done = 0
+    lengths: dict[int, float] = {}  # each tool's gauge length, mm
+    length = tool_length  # of the tool section being checked
+    fresh: list[bool] = []  # per piece: it begins a tool section
+    starts = False  # the next piece begins one
+    more_text = False  # the program's next tool section is not read yet
     while True:
         while not cl_ends and (cl is None or len(cl) < want + 2):
             more = next(cl_source, None)
             if more is None:
                 cl_ends = True
             else:
+                lengths |= gauge_lengths(more, tool_length, table)
                 cl = more if cl is None else joined(cl, [more])
         need = int(rows_per_point * want) + REACH + 2
-        while not program_ends and (program is None or len(program.move_table()) < need):
+        while not program_ends and (
+            program is None or len(program.move_table()) < need or more_text
+        ):
+            more_text = False
             text = next(text_source, None)
             if text is None:
                 program_ends = True
@@ -297,14 +314,38 @@ def verify_stream(
         if header is None:
             header = replace(program, blocks=Blocks(()))
         assert cl is not None
+        sections = [Section(0, len(cl), length, None)]
+        if not program.tcp:
+            sections = tool_sections(cl, tool_length, table, length=length)
+            length = sections[0].length  # (a tool change at the piece's start)
+        if len(sections) > 1:  # the section ends in this piece: checked on its own
+            cut_program = program_sections(program, lengths, tool_length)
+            if len(cut_program) == 1 and not program_ends:
+                more_text = True  # its end is further on in the program text
+                continue
+            if len(cut_program) > 1:
+                head = cut_program[0][0]
+                program = replace(program, blocks=Blocks(program.parts[len(head.parts) :]))
+                end = sections[0].stop
+                part_cl = toolpath_slice(cl, 0, end)
+                parts.append(
+                    verify(head, machine, part_cl, tool_length=length, tol=tol, pivot=pivot)
+                )
+                fresh.append(starts)
+                if process is not None:
+                    process.add(head, part_cl, fresh=starts, tool_length=length)
+                cl = toolpath_slice(cl, end, len(cl))
+                length, starts = sections[1].length, True
+                continue
         if cl_ends and program_ends:
-            parts.append(
-                verify(program, machine, cl, tool_length=tool_length, tol=tol, pivot=pivot)
-            )
+            parts.append(verify(program, machine, cl, tool_length=length, tol=tol, pivot=pivot))
+            fresh.append(starts)
             if process is not None:
-                process.add(program, cl, ended=reader.builder.ended)
+                process.add(
+                    program, cl, ended=reader.builder.ended, fresh=starts, tool_length=length
+                )
             break
-        cut = _verify_cut(program, machine, cl, tol, tool_length, pivot, want, program_ends)
+        cut = _verify_cut(program, machine, cl, tol, length, pivot, want, program_ends)
         if cut is None:  # nowhere to cut yet: a longer piece, and more rows
             want *= 2
             continue
@@ -312,12 +353,14 @@ def verify_stream(
         head, program = _split_rows(program, r)
         parts.append(
             verify(
-                head, machine, toolpath_slice(cl, 0, c + 1), tool_length=tool_length, tol=tol,
+                head, machine, toolpath_slice(cl, 0, c + 1), tool_length=length, tol=tol,
                 pivot=pivot,
             )
         )  # fmt: skip
+        fresh.append(starts)
         if process is not None:
-            process.add(head, toolpath_slice(cl, 0, c + 1))
+            process.add(head, toolpath_slice(cl, 0, c + 1), fresh=starts, tool_length=length)
+        starts = False
         cl = toolpath_slice(cl, c, len(cl), first_events=False)
         rows_done += r
         points_done += c
@@ -325,4 +368,4 @@ def verify_stream(
         want = piece_points
         log.info("verified a piece: CL lines to %d, program rows to %d", cl.line[0], rows_done)
     assert header is not None
-    return merge_verifications(parts), header
+    return merge_verifications(parts, fresh), header

@@ -8,6 +8,7 @@ world) never travels in them: it is a field of :class:`urdfpost.posting.piece.Po
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
@@ -245,6 +246,9 @@ class Report:
     collisions : Collisions
     streamed : StreamFigures or None
         For a post in pieces.
+    tool_lengths_mm : mapping of int to float
+        A machine-coordinate program: the gauge length each tool's moves were computed with
+        (:mod:`urdfpost.posting.tools`), mm; empty for TCP programs.
     """
 
     machine: str
@@ -257,6 +261,7 @@ class Report:
     figures: PieceFigures | None = None
     collisions: Collisions = Collisions()
     streamed: StreamFigures | None = None
+    tool_lengths_mm: Mapping[int, float] = field(default_factory=dict)
 
     @property
     def strategy(self) -> StrategyFigures | None:
@@ -289,6 +294,7 @@ class Report:
             "max_rotary_step_deg": v.max_rotary_step_deg,
             "worst_cl_line": v.worst_cl_line,
             "tool_length_mm": self.tool_length_mm,
+            "tool_lengths_mm": {str(k): x for k, x in sorted(self.tool_lengths_mm.items())},
             "verified": v.ok,
         }
         f = self.figures

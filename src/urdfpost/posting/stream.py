@@ -71,6 +71,7 @@ from urdfpost.posting.piece import Continuation, make_problem, post_piece
 from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications, program_texts
 from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
+from urdfpost.posting.tools import gauge_lengths, tool_sections
 from urdfpost.posting.worker import FORK, Checks, PieceJob
 from urdfpost.program import Program
 from urdfpost.tolerances import Tolerances
@@ -280,10 +281,15 @@ def post_stream(
         tcp=job.tcp,
     )
     reader_warnings += notes
-    tools: frozenset[int] = frozenset()  # tool numbers seen (machine coordinates: one length)
+    tools: frozenset[int] = frozenset()  # tool numbers seen
+    lengths: dict[int, float] = {}  # machine coordinates: each tool's gauge length, mm
     if not job.tcp:
-        notes, tools = one_tool_length(buffer, job.tool_length, job.units)
+        notes, tools = one_tool_length(buffer, job.tool_length, job.units, table=job.tool_table)
         reader_warnings += notes
+        lengths |= gauge_lengths(buffer, job.tool_length, job.tool_table)
+    section = job  # the job with the gauge length of the tool section being posted
+    entry: np.ndarray | None = None  # a new tool section: where the one before left the path
+    fresh: list[bool] = []  # per piece: it begins a tool section
     checks: Checks | None = None
     process: PieceProcess | None = None  # the process check of ``urdfpost verify``, by piece
     inserts: list[str] = []  # the texts of the program's inserted blocks
@@ -314,23 +320,36 @@ def post_stream(
                         )
                         reader_warnings += notes
                         if not job.tcp:
-                            notes, tools = one_tool_length(more, job.tool_length, job.units, tools)
+                            notes, tools = one_tool_length(
+                                more, job.tool_length, job.units, tools, job.tool_table
+                            )
                             reader_warnings += notes
+                            lengths |= gauge_lengths(more, job.tool_length, job.tool_table)
                         pending.append(more)
                         have += len(more)
                 if pending:
                     buffer = joined(buffer, pending)
                 last = exhausted and len(buffer) <= want + lookahead
                 window = buffer if last else toolpath_slice(buffer, 0, want + lookahead)
+                boundary = None  # where the next tool section begins, in the window
+                if not job.tcp:
+                    cuts = tool_sections(
+                        window, job.tool_length, job.tool_table, length=section.tool_length
+                    )
+                    if cuts[0].length != section.tool_length:  # a tool change at the start
+                        section, base = replace(job, tool_length=cuts[0].length), None
+                    if len(cuts) > 1:
+                        boundary, next_length = cuts[1].start, cuts[1].length
+                        window, last = toolpath_slice(buffer, 0, boundary), False
                 if base is None:
-                    base = make_problem(window, job)
+                    base = make_problem(window, section)
                 if checks is None:
                     if parallel is None:
                         parallel = FORK and not last and (os.cpu_count() or 1) > 1
                     checks = Checks(machine, dialect.name, str(out), tol, units, parallel)
                 problem = replace(base, toolpath=window, start=start)
                 plan = STRATEGIES[job.strategy](problem)
-                if last:
+                if last or boundary is not None:
                     piece, cut = window, len(window) - 1
                 else:
                     c = _cut(window, plan, want, machine, tol)
@@ -344,13 +363,22 @@ def post_stream(
                         unsettled.append(int(window.line[cut]))
                 last_piece = piece
                 continuation = Continuation(
-                    start=start, tcp_on=start is not None and job.tcp, last=last, coolant=coolant
+                    start=start,
+                    tcp_on=start is not None and job.tcp,
+                    last=last,
+                    coolant=coolant,
+                    entry=entry,
+                    leave=boundary is not None,
                 )
-                posted = post_piece(piece, job, problem=problem, plan=plan, piece=continuation)
+                posted = post_piece(piece, section, problem=problem, plan=plan, piece=continuation)
                 program = posted.program
-                coolant = coolant_after(program.parts, coolant)
-                tool_length = program.tool_length
+                fresh.append(entry is not None)
+                entry = None
+                # (a piece that leaves for the next section stops the coolant: its last block)
+                parts = program.parts[:-1] if boundary is not None else program.parts
+                coolant = coolant_after(parts, coolant)
                 if header is None:
+                    tool_length = program.tool_length  # the first tool section's
                     header = HeaderFigures.empty(program)
                 header.add(program)
                 opening = ""
@@ -367,7 +395,7 @@ def post_stream(
                     writer.close()
                 text = opening + writer.take()
                 handle.write(text)
-                piece_job = PieceJob.of(text, posted)
+                piece_job = PieceJob.of(text, posted, fresh=fresh[-1])
                 checks.submit(piece_job)
                 if process is None:  # feeds, spindle, tools as a whole post checks them
                     process = PieceProcess(
@@ -378,19 +406,31 @@ def post_stream(
                         tool_length=posted.target.tool_length,
                         rounding=rounding_of(dialect, units),
                     )
-                process.add(text, piece_job.inserts, posted.target.intended or posted.target.cl)
+                process.add(
+                    text,
+                    piece_job.inserts,
+                    posted.target.intended or posted.target.cl,
+                    fresh=fresh[-1],
+                    tool_length=posted.target.tool_length,
+                )
                 inserts += piece_job.inserts
                 found = posted.figures
                 figures = found if figures is None else figures.joined(found, offset)
-                offset += len(posted.plan.toolpath) - 1
                 collisions.append(posted.collisions)
                 if len(posted.joints):
                     start = posted.joints[-1]
                 count += 1
                 if progress:
-                    progress(len(piece) - (1 if count > 1 else 0))
+                    progress(len(piece) - (0 if count == 1 or fresh[-1] else 1))
                 if last:
                     break
+                if boundary is not None:  # the next piece begins the next tool section
+                    offset += len(posted.plan.toolpath)
+                    buffer = toolpath_slice(buffer, boundary, len(buffer))
+                    entry, start, base = start, None, None
+                    section = replace(job, tool_length=next_length)
+                    continue
+                offset += len(posted.plan.toolpath) - 1
                 buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)
                 log.info(
                     "streamed piece %d: CL lines %d to %d", count, piece.line[0], piece.line[-1]
@@ -406,7 +446,7 @@ def post_stream(
                 f"{last_piece.source}: the program's process differs from the CL data, nothing "
                 f"written: {'; '.join(faults)}"
             )
-        verification = merge_verifications([check for check, _ in results])
+        verification = merge_verifications([check for check, _ in results], fresh)
         intents = [intent for _, intent in results if intent is not None]
         assert figures is not None and last_piece is not None
         warnings = figures.warnings
@@ -431,6 +471,7 @@ def post_stream(
             warnings=tuple(reader_warnings) + figures.warnings,
             figures=figures,
             collisions=Collisions.merged(collisions),
+            tool_lengths_mm=lengths,
             streamed=StreamFigures(
                 pieces=count,
                 piece_points=piece_points,
@@ -442,7 +483,7 @@ def post_stream(
         )
         assert header is not None and first_program is not None
         final = _with_header(
-            tmp, out, dialect, first_program, job, header, tool_length, placeholder
+            tmp, out, dialect, first_program, job, header, tool_length, placeholder, lengths
         )
         tmp.unlink()
         tmp = final
@@ -473,6 +514,7 @@ def _with_header(
     header: HeaderFigures,
     tool_length: float,
     placeholder: int,
+    lengths: dict[int, float] | None = None,
 ) -> Path:
     """A copy of the streamed program ``tmp`` whose opening has the real header.
 
@@ -482,7 +524,7 @@ def _with_header(
     ``out``, which is returned.
     """
     writer = dialect.writer(program, block_numbers=job.block_numbers)
-    writer.open(job_header(job, header, tool_length), stock_box(job))
+    writer.open(job_header(job, header, tool_length, lengths), stock_box(job))
     opening = writer.take()
     fd, final = temp_file(out)
     try:

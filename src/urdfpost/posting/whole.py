@@ -2,23 +2,30 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+
+import numpy as np
 
 from urdfpost.errors import ToleranceError, UnreachableError
 from urdfpost.machine import Machine
 from urdfpost.planning.setup_fit import fit_setup
+from urdfpost.posting.body import coolant_after
 from urdfpost.posting.check import check_piece, tolerance_error
 from urdfpost.posting.header import HeaderFigures, job_header, stock_box
 from urdfpost.posting.options import Job, PostOptions, resolve
-from urdfpost.posting.piece import PostedPiece, post_piece
+from urdfpost.posting.piece import Continuation, PostedPiece, post_piece
 from urdfpost.posting.process import checked_process, one_tool_length
-from urdfpost.posting.report import Report
-from urdfpost.program import Insert, Program
-from urdfpost.toolpath import Toolpath
+from urdfpost.posting.readback import merge_verifications
+from urdfpost.posting.report import Collisions, Report
+from urdfpost.posting.tools import Section, gauge_lengths, several_lengths, tool_sections
+from urdfpost.posting.worker import PieceJob, PieceVerifier
+from urdfpost.program import Blocks, Insert, Program
+from urdfpost.toolpath import Toolpath, toolpath_slice
 from urdfpost.units import mm_per_unit
 from urdfpost.verification import Verification
-from urdfpost.verification.process import check_process, located, rounding_of
+from urdfpost.verification.process import PieceProcess, check_process, located, rounding_of
 
 
 @dataclass(frozen=True)
@@ -36,7 +43,9 @@ class PostResult:
     report : Report
         Figures for people and JSON (:meth:`Report.as_json`).
     posted : PostedPiece
-        The program's plan and what it was checked against.
+        The program's plan and what it was checked against (a job posted in tool sections,
+        :mod:`urdfpost.posting.tools`: the first section's plan and target, with the whole
+        program, joints and figures).
     """
 
     program: Program
@@ -116,10 +125,14 @@ def post(
         spec=job.dialect.spec,
         tcp=job.tcp,
     )
+    sections = [Section(0, len(toolpath), job.tool_length, None)]
     if not job.tcp:
-        notes += one_tool_length(toolpath, job.tool_length, job.units)[0]
+        notes += one_tool_length(toolpath, job.tool_length, job.units, table=job.tool_table)[0]
+        sections = tool_sections(toolpath, job.tool_length, job.tool_table)
     if notes:
         toolpath = replace(toolpath, warnings=toolpath.warnings + tuple(notes))
+    if several_lengths(sections):
+        return _post_sections(toolpath, job, sections, progress)
     try:
         posted = post_piece(toolpath, job, progress=progress)
     except UnreachableError as e:
@@ -151,6 +164,112 @@ def post(
             f"written: {'; '.join(faults)}"
         )
     return PostResult(posted.program, text, checks[0], report, posted)
+
+
+def _post_sections(
+    toolpath: Toolpath,
+    job: Job,
+    sections: list[Section],
+    progress: Callable[[int], None] | None,
+) -> PostResult:
+    """:func:`post` of a machine-coordinate job whose tools have different gauge lengths.
+
+    Each tool section (:mod:`urdfpost.posting.tools`) is planned and checked with its tool's
+    length: a piece of the program that leaves the path at its end as for a tool change, the
+    next one approached from there. The pieces are written as one program and read back with
+    one reader, each checked on its own against its CL points (its geometry, and its feeds,
+    spindle and tools as ``urdfpost verify`` checks them).
+    """
+    dialect, machine = job.dialect, job.machine
+    pieces: list[PostedPiece] = []
+    entry = None
+    coolant = None
+    for k, section in enumerate(sections):
+        part = toolpath_slice(toolpath, section.start, section.stop)
+        part = replace(part, warnings=toolpath.warnings if k == 0 else ())
+        piece_job = replace(job, tool_length=section.length)
+        last = k == len(sections) - 1
+        joining = Continuation(
+            start=None, tcp_on=False, last=last, coolant=coolant, entry=entry, leave=not last
+        )
+        try:
+            posted = post_piece(part, piece_job, progress=progress, piece=joining)
+        except UnreachableError as e:
+            hint = travel_hint(part, piece_job)
+            if not hint:
+                raise
+            raise UnreachableError(f"{e}{hint}") from e
+        pieces.append(posted)
+        if len(posted.joints):
+            entry = posted.joints[-1]
+        # the coolant on before the section's leave (which stops it: its last block)
+        parts = posted.program.parts
+        coolant = coolant_after(parts if last else parts[:-1], coolant)
+    lengths = gauge_lengths(toolpath, job.tool_length, job.tool_table)
+    blocks = [part for posted in pieces for part in posted.program.parts]
+    program = replace(pieces[0].program, blocks=Blocks(blocks))
+    figures = HeaderFigures.empty(program).add(program)
+    writer = dialect.writer(program, block_numbers=job.block_numbers)
+    writer.open(job_header(job, figures, sections[0].length, lengths), stock_box(job))
+    path = f"<{dialect.name} program>"
+    verifier = PieceVerifier(machine, dialect.name, path, job.tol, job.units)
+    process = PieceProcess(
+        dialect,
+        machine,
+        path,
+        tol=job.tol,
+        tool_length=sections[0].length,
+        rounding=rounding_of(dialect, job.units),
+    )
+    texts: list[str] = []
+    results: list[tuple[Verification, Verification | None]] = []
+    for k, posted in enumerate(pieces):
+        writer.write_body(posted.program)
+        if k == len(pieces) - 1:
+            writer.close()
+        texts.append(writer.take())
+        piece = PieceJob.of(texts[-1], posted, fresh=k > 0)
+        results.append(verifier.check(piece))
+        target = posted.target
+        process.add(
+            texts[-1],
+            piece.inserts,
+            target.intended or target.cl,
+            fresh=k > 0,
+            tool_length=target.tool_length,
+        )
+    text = "".join(texts)
+    fresh = [k > 0 for k in range(len(pieces))]
+    check = merge_verifications([c for c, _ in results], fresh)
+    intents = [i for _, i in results if i is not None]
+    intent = merge_verifications(intents) if intents else None
+    found = pieces[0].figures
+    offset = 0  # the sections share no point: their plan paths joined end to end
+    for before, posted in itertools.pairwise(pieces):
+        offset += len(before.plan.toolpath)
+        found = found.joined(posted.figures, offset)
+    merged = replace(
+        pieces[0],
+        program=program,
+        figures=found,
+        joints=np.concatenate([p.joints for p in pieces]),
+        joint_lines=np.concatenate([p.joint_lines for p in pieces]),
+    )
+    report = make_report(toolpath, job, merged, (check, intent))
+    report = replace(
+        report,
+        collisions=Collisions.merged([p.collisions for p in pieces]),
+        tool_lengths_mm=lengths,
+    )
+    result = process.result()
+    if not result.ok:
+        inserts = [b.text for b in program.parts if isinstance(b, Insert)]
+        faults = located(result, dialect, lambda: [text], path, inserts)
+        raise ToleranceError(
+            f"{toolpath.source}: the program's process differs from the CL data, nothing "
+            f"written: {'; '.join(faults)}"
+        )
+    return PostResult(program, text, check, report, merged)
 
 
 def travel_hint(toolpath: Toolpath, job: Job) -> str:
@@ -195,4 +314,11 @@ def make_report(
         warnings=tuple(toolpath.warnings) + figures.warnings,
         figures=figures,
         collisions=posted.collisions,
+        tool_lengths_mm={}
+        if job.tcp
+        else {
+            int(e.data.get("number", 0)): posted.program.tool_length
+            for e in toolpath.events
+            if e.kind == "tool"
+        },
     )

@@ -77,19 +77,25 @@ class PieceJob:
     inserts : list of str
         The texts of the piece's inserted blocks, in order.
     target : CheckTarget
+    fresh : bool
+        The piece begins a tool section (:mod:`urdfpost.posting.tools`): it is checked on
+        its own, not from the last row of the piece before (a row of another tool length).
     """
 
     text: str
     inserts: list[str]
     target: CheckTarget
+    fresh: bool = False
 
     @classmethod
-    def of(cls, text: str, posted: PostedPiece) -> PieceJob:
-        """The job of a posted piece written as ``text``."""
+    def of(cls, text: str, posted: PostedPiece, fresh: bool = False) -> PieceJob:
+        """The job of a posted piece written as ``text`` (``fresh``: it begins a tool
+        section, and shares no row with the piece before)."""
         return cls(
             text=text,
             inserts=[b.text for b in posted.program.parts if isinstance(b, Insert)],
             target=posted.target,
+            fresh=fresh,
         )
 
 
@@ -116,7 +122,7 @@ class PieceVerifier:
         """
         self.reader.feed(job.text, job.inserts)
         readback = self.reader.take()
-        if self.previous is not None:
+        if self.previous is not None and not job.fresh:
             readback = _prepended(readback, *self.previous)
         checks = check_piece(readback, self.machine, job.target, self.tol)
         error = tolerance_error(job.target.cl, checks, self.units, piece=True)

@@ -288,7 +288,15 @@ class ProcessChecker:
 
     # -- pieces ------------------------------------------------------------------------------
 
-    def add(self, program: Program, expected: Toolpath, *, ended: bool | None = None) -> None:
+    def add(
+        self,
+        program: Program,
+        expected: Toolpath,
+        *,
+        ended: bool | None = None,
+        fresh: bool = False,
+        tool_length: float | None = None,
+    ) -> None:
         """Check the next piece.
 
         Parameters
@@ -300,14 +308,25 @@ class ProcessChecker:
             makes it (with the spindle state carried from the piece before).
         ended : bool, optional
             The last piece: whether the program text has its end (None: not checked).
+        fresh : bool
+            The piece shares no row and no CL point with the one before: it begins a tool
+            section (:mod:`urdfpost.posting.tools`).
+        tool_length : float, optional, mm
+            The gauge length of the piece's machine-coordinate rows, from this piece on
+            (default: as before).
         """
-        continued = self._pieces > 0
+        first = self._pieces == 0
+        continued = not first and not fresh
+        if fresh and not first:
+            self._row0 += 1  # the piece before's last row is not this piece's first
         self._pieces += 1
+        if tool_length is not None:
+            self.tool_length = tool_length
         if ended is not None:
             self._ended = ended
         table = program.move_table()
         n_rows = len(table)
-        if not continued:
+        if first:
             first_tool = min(
                 (e.index for e in expected.events if e.kind == "tool"), default=len(expected) + 1
             )
@@ -726,9 +745,19 @@ class PieceProcess:
         self.reader = dialect.reader(path)
         self._last: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
 
-    def add(self, text: str, inserts: Iterable[str], expected: Toolpath) -> None:
+    def add(
+        self,
+        text: str,
+        inserts: Iterable[str],
+        expected: Toolpath,
+        *,
+        fresh: bool = False,
+        tool_length: float | None = None,
+    ) -> None:
         """Check the next piece: its text (whole lines), the texts of its inserted blocks and
-        its expected CL data (starting with the CL point the piece before ended with).
+        its expected CL data (starting with the CL point the piece before ended with, unless
+        ``fresh``: a tool section of its own, with its ``tool_length``, as
+        :meth:`ProcessChecker.add` takes them).
 
         Raises
         ------
@@ -737,12 +766,12 @@ class PieceProcess:
         """
         self.reader.feed(text, inserts)
         program = self.reader.take()
-        if self._last is not None:
+        if self._last is not None and not fresh:
             axes, row = self._last
             position = np.array([row[axes.index(a)] if a in axes else np.nan for a in program.axes])
             start = MoveTable(position[None], np.zeros(1, bool), np.full(1, np.nan), np.full(1, -1))
             program = replace(program, blocks=Blocks((start, *program.parts)))
-        self.checker.add(program, expected)
+        self.checker.add(program, expected, fresh=fresh, tool_length=tool_length)
         table = program.move_table()
         if len(table):
             self._last = (program.axes, np.asarray(table.position[-1]))
