@@ -683,7 +683,6 @@ def test_control_discovery_errors(
         ("heidenhain", "0 BEGIN PGM P MM\n1 FUNCTION TCPM F TCP AXIS SPAT\n", 2, r"AXIS SPAT"),
         ("heidenhain", "0 BEGIN PGM P MM\n1 TOOL CALL 1 Z S100 DL+0.5\n", 2, r"DL\+0\.5"),
         ("heidenhain", "0 BEGIN PGM P MM\n1 TOOL CALL 1 X\n", 2, r"tool axis X"),
-        ("siemens", "G0 X1\nG54\nG55\n", 3, r"work offset changes from G54 to G55"),
         ("siemens", 'T="MILL"\n', 1, r"unreadable value for T="),
         ("fanuc", "M6\n", 1, r"tool change without a tool number"),
     ],

@@ -62,11 +62,21 @@ def _read_cl(args: argparse.Namespace, machine: Any) -> Any:
     cl_units = args.cl_units
     guess = _program_units(args, machine, cl_units or "mm")
     chord = Tolerances.for_units(guess, args.tolerance).chord
-    toolpath = read_cl(args.cl, format=args.format, units=cl_units, chord_tolerance=chord)
+    # a work offset per MCS: each MCS's points as its MSYS has them
+    separate = getattr(args, "mcs_offsets", False)
+    toolpath = read_cl(
+        args.cl, format=args.format, units=cl_units, chord_tolerance=chord, separate_mcs=separate
+    )
     units = _program_units(args, machine, toolpath.units)
     if units != guess:
         chord = Tolerances.for_units(units, args.tolerance).chord
-        toolpath = read_cl(args.cl, format=args.format, units=cl_units, chord_tolerance=chord)
+        toolpath = read_cl(
+            args.cl,
+            format=args.format,
+            units=cl_units,
+            chord_tolerance=chord,
+            separate_mcs=separate,
+        )
     return toolpath
 
 
@@ -316,6 +326,17 @@ def _tool_table_argument(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _mcs_offsets_argument(p: argparse.ArgumentParser) -> None:
+    """``--mcs-offsets``: one work offset per NX MCS."""
+    p.add_argument(
+        "--mcs-offsets",
+        action="store_true",
+        help="TCP programs: one work offset per MCS of an NX CL file (G54 for the first MCS, "
+        "G55 for the next ..., from --work-offset), each MCS's points as its MSYS has them; "
+        "default: every MCS transformed into the first (a job with it is posted whole)",
+    )
+
+
 def _cl_units_argument(p: argparse.ArgumentParser, *aliases: str) -> None:
     """``--cl-units``: the units the CL file is read in."""
     p.add_argument(
@@ -374,6 +395,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="tool length, gauge point to tip, in program units",
     )
     _tool_table_argument(po)
+    _mcs_offsets_argument(po)
     po.add_argument(
         "--tolerance",
         type=_positive,
@@ -432,6 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="tool length in program units (machine-coordinate programs)",
     )
     _tool_table_argument(ve)
+    _mcs_offsets_argument(ve)
     ve.add_argument("--tolerance", type=_positive, help="tool-tip tolerance in program units")
     _setup_argument(ve, "the program's units")
     ve.add_argument(
@@ -597,6 +620,10 @@ def _cmd_post(args: argparse.Namespace) -> int:
     strategy = _checked_strategy(args.strategy)  # a usage error before any work
     machine = load_machine(args.machine)
     pieces = args.piece_points
+    if args.mcs_offsets:
+        if pieces:
+            raise UsageError("--mcs-offsets posts the job whole; expected no --piece-points")
+        pieces = 0
     if pieces is None:
         size = Path(args.cl).stat().st_size if Path(args.cl).is_file() else 0
         pieces = PIECE_POINTS if size > _STREAM_BYTES else 0
@@ -640,6 +667,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         feed=args.feed,
         spindle=args.spindle,
         tool_table=None if args.tool_table is None else read_tool_table(args.tool_table, scale),
+        mcs_offsets=args.mcs_offsets,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {
@@ -760,6 +788,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine)
     dialect = dialect_for(args.controller, None if args.controller else args.program)
     pieces = args.piece_points
+    if args.mcs_offsets:
+        if pieces:
+            raise UsageError("--mcs-offsets verifies the program whole; expected no --piece-points")
+        pieces = 0
     if pieces is None:
         sizes = [Path(f).stat().st_size for f in (args.cl, args.program) if Path(f).is_file()]
         pieces = PIECE_POINTS if max(sizes, default=0) > _STREAM_BYTES else 0
@@ -840,14 +872,34 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         faults = located(process_check, dialect, lambda: program_texts(args.program), args.program)
     else:
         from urdfpost.posting.readback import merge_verifications
-        from urdfpost.posting.tools import paired_sections
+        from urdfpost.posting.tools import (
+            in_own_mcs,
+            mcs_machine,
+            mcs_shifts,
+            paired_sections,
+            transformed_mcs,
+        )
 
         checks = []
-        sections = paired_sections(program, expected(toolpath)[0], tool_length, table)
-        for k, (part, cl, length) in enumerate(sections):
-            checks.append(verify(part, machine, cl, tool_length=length, tol=tol, pivot=pivot))
+        cl_data = expected(toolpath)[0]
+        shifts = mcs_shifts(cl_data) if args.mcs_offsets else {}
+        sections = paired_sections(program, cl_data, tool_length, table, by_mcs=args.mcs_offsets)
+        for k, (part, cl, section) in enumerate(sections):
+            on = machine
+            if section.mcs in shifts:  # its points as its MCS has them, on that machine
+                on = mcs_machine(machine, shifts[section.mcs])
+                cl = in_own_mcs(cl, shifts[section.mcs], transformed_mcs(cl_data))
+            length = section.length
+            checks.append(verify(part, on, cl, tool_length=length, tol=tol, pivot=pivot))
             last = k == len(sections) - 1
-            process.add(part, cl, ended=ended if last else None, fresh=k > 0, tool_length=length)
+            process.add(
+                part,
+                cl,
+                ended=ended if last else None,
+                fresh=k > 0,
+                tool_length=length,
+                machine=on,
+            )
         check = merge_verifications(checks, [k > 0 for k in range(len(checks))])
         process_check = process.result()
         faults = located(process_check, dialect, lambda: [text], args.program)

@@ -491,6 +491,10 @@ class Program:
         A program read from text: the file and line of its first feed move of X/Y/Z with TCP
         off (a TCP program with such a move mixes machine positions with tool tips, which
         verification refuses); None otherwise. Not compared.
+    offset_change : (str, int, str) or None
+        A program read from text: the file, line and words ("from G54 to G55") of its first
+        change of work offset (a program with one per MCS; verification refuses a program
+        whose offset changes where it expects one); None otherwise. Not compared.
     """
 
     name: str
@@ -502,6 +506,7 @@ class Program:
     tool_length: float = 0.0
     continuous: frozenset[str] = frozenset()
     cut_without_tcp: tuple[str, int] | None = field(default=None, compare=False)
+    offset_change: tuple[str, int, str] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.blocks, Blocks):

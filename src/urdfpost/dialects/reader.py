@@ -153,6 +153,7 @@ class ProgramBuilder:
         self._speed_change: Block | _ReadMove | _ReadMoves | None = None
         self.continuous = False
         self.work_offset: str | None = None
+        self.offset_change: tuple[int, str] | None = None  # line and words of the first change
         self.cycle: int | None = None  # a cycle whose parameters follow on the next lines
         self.finished = False  # the program end (M30, M2, END PGM) was read
         self.closed = not spec.program_close  # its closing line (Fanuc %, END PGM) too
@@ -211,15 +212,13 @@ class ProgramBuilder:
         self.feed = value * self.feed_scale
 
     def select_work_offset(self, code: str) -> None:
-        """Work offset (G54... or "preset N"): one per program; a WorkOffset block (1 for G54
-        or preset 1, 2 for G55...) where it is selected first. (Siemens G500, no settable
-        offset, gives none.)"""
-        if self.work_offset not in (None, code):
-            raise self.error(
-                f"work offset changes from {self.work_offset} to {code}; expected one work "
-                "offset per program"
-            )
-        if self.work_offset is None:
+        """Work offset (G54... or "preset N"): a WorkOffset block (1 for G54 or preset 1, 2
+        for G55...) where one is selected that is not the one in effect (a program with one
+        offset per MCS changes it; the check of the program knows which it expects). (Siemens
+        G500, no settable offset, gives none.)"""
+        if self.work_offset != code:
+            if self.work_offset is not None and self.offset_change is None:
+                self.offset_change = (self.line, f"from {self.work_offset} to {code}")
             if code.startswith("preset "):
                 self._add(WorkOffset(int(code.split()[1])))
             elif code != "G500":
@@ -466,6 +465,7 @@ class ProgramBuilder:
             cut_without_tcp=None
             if self.cut_without_tcp is None
             else (self.path, self.cut_without_tcp),
+            offset_change=None if self.offset_change is None else (self.path, *self.offset_change),
         )
 
 

@@ -194,6 +194,7 @@ def program_body(
     coolant: str | None = None,
     entry: np.ndarray | None = None,
     leave: bool = False,
+    keep_tool: bool = False,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -224,7 +225,8 @@ def program_body(
         the end. None: the rows only, as planned.
     work_offset : int, optional
         The body starts the program: the work offset it selects (1 for G54) and, with
-        ``transitions``, a retract before the first tool change.
+        ``transitions``, a retract before the first tool change. With ``entry``: the work
+        offset of the section's MCS, selected before its tool change and approach.
     coolant : str, optional
         The coolant on before the body (a streamed piece): a tool change stops it and, unless
         the CL data sets the coolant there, starts it again.
@@ -236,6 +238,9 @@ def program_body(
         The body ends where the next tool section's tool change comes: with ``transitions``,
         it leaves the path after its last row as for a tool change (TCP off, the retract,
         spindle and coolant off).
+    keep_tool : bool
+        With ``leave``: the next section keeps the tool (it begins with a change of work
+        offset, not a tool change): the spindle and coolant stay on.
 
     Returns
     -------
@@ -258,7 +263,7 @@ def program_body(
     by_row: dict[int, list[Event]] = {}
     for event, row in zip(events, at.tolist(), strict=True):
         by_row.setdefault(row, []).append(event)
-    starting = work_offset is not None
+    starting = work_offset is not None and entry is None
     if starting:
         assert work_offset is not None
         body.append(WorkOffset(work_offset))
@@ -283,7 +288,10 @@ def program_body(
             before.append(Coolant(mode=restart))
         if kind[k] == LIFT:
             before.append(Comment(next(lift_comments)))
-        if enters and not any(e.kind == "coolant" for e in here) and coolant is not None:
+        if enters and work_offset is not None:  # a section in another MCS: its offset first
+            before.insert(0, WorkOffset(work_offset))
+        keeps = enters and not any(e.kind == "tool" for e in here)  # the coolant still on
+        if enters and not keeps and not any(e.kind == "coolant" for e in here) and coolant:
             before.append(Coolant(mode=coolant))  # the section before stopped it
         if transitions is not None and (leaves or enters or (starting and k == 0)):
             if tcp_state[0]:
@@ -311,7 +319,7 @@ def program_body(
         body += _event_blocks(event, tcp_state, tcp)
     if transitions is not None and leave and count and not close:
         line = int(toolpath.line[g_of(rows, count - 1)])
-        body += transitions.leave(rows.q[count - 1], line, tcp_state[0])
+        body += transitions.leave(rows.q[count - 1], line, tcp_state[0], stop=not keep_tool)
         tcp_state[0] = False
     if transitions is not None and close and count:
         line = int(toolpath.line[g_of(rows, count - 1)])

@@ -100,6 +100,7 @@ def header_text(
     tool_length: float,
     zero: str | None = None,
     tool_lengths: Mapping[int, float] | None = None,
+    offsets: Mapping[str, np.ndarray] | None = None,
 ) -> str:
     """The header's comment lines (without comment marks), one per line.
 
@@ -120,6 +121,9 @@ def header_text(
     tool_lengths : mapping of int to float, optional, mm
         A machine-coordinate program posted in tool sections (:mod:`urdfpost.posting.tools`):
         the gauge length of each tool, named instead of ``tool_length``.
+    offsets : mapping of str to ndarray, optional
+        A work offset per MCS (``--mcs-offsets``): each offset as the control names it and
+        its MCS's origin in the first MCS (shape (3,), mm); the first is ``work_offset``.
 
     Returns
     -------
@@ -139,9 +143,18 @@ def header_text(
             continue
         d = 4 if name in figures.rotary else decimals
         ranges.append(f"{name}{lo:.{d}f}..{hi:.{d}f}")
+    offset_line = f"work offset: {work_offset}" + (f"; {zero}" if zero else "")
+    if offsets and len(offsets) > 1:
+        shifted = "; ".join(
+            f"{name} = {work_offset} shifted by "
+            f"({', '.join(f'{v / scale:.{decimals}f}' for v in shift)}) {units} (MCS {k})"
+            for k, (name, shift) in enumerate(offsets.items())
+            if k > 0
+        )
+        offset_line = f"work offsets: {work_offset} (MCS 0){f', {zero}' if zero else ''}; {shifted}"
     lines = [
         f"urdfpost: machine {machine}, {mode}, {units}",
-        f"work offset: {work_offset}" + (f"; {zero}" if zero else ""),
+        offset_line,
         f"tools: {tools or 'none'}",
         f"axis ranges: {' '.join(ranges) or 'no motion'}",
     ]
@@ -166,11 +179,17 @@ def job_header(
     figures: HeaderFigures,
     tool_length: float,
     tool_lengths: Mapping[int, float] | None = None,
+    offsets: Mapping[int, np.ndarray] | None = None,
 ) -> str:
     """:func:`header_text` for a job's program (``tool_length`` mm: the program's;
-    ``tool_lengths``: each tool's, of a program in tool sections)."""
+    ``tool_lengths``: each tool's, of a program in tool sections; ``offsets``: each work
+    offset number's MCS origin in the first MCS, mm, with ``--mcs-offsets``)."""
     spec = job.dialect.spec
-    label = spec.work_offset_label.format(number=job.work_offset, code=53 + job.work_offset)
+
+    def named(number: int) -> str:
+        return spec.work_offset_label.format(number=number, code=53 + number)
+
+    label = named(job.work_offset)
     mount = job.machine.mount
     zero = None
     if mount is not None:
@@ -187,6 +206,7 @@ def job_header(
         tool_length=tool_length,
         zero=zero,
         tool_lengths=tool_lengths,
+        offsets=None if not offsets else {named(n): v for n, v in sorted(offsets.items())},
     )
 
 

@@ -88,6 +88,10 @@ class PostOptions:
         Gauge length of each tool number, mm (:func:`urdfpost.posting.tools.read_tool_table`):
         machine-coordinate programs compute each tool's moves with its own length, first
         from here, else the CL data's ``LOADTL LENGTH``, else ``tool_length``.
+    mcs_offsets : bool
+        A work offset per NX MCS (TCP programs): the points of each MCS written as its MSYS
+        has them, in work offset ``work_offset + k`` for the file's MCS ``k``; default: every
+        MCS transformed into the first, one work offset.
     """
 
     controller: str | None = None
@@ -114,6 +118,7 @@ class PostOptions:
     feed: float | None = None
     spindle: float | None = None
     tool_table: Mapping[int, float] | None = None
+    mcs_offsets: bool = False
 
 
 @dataclass(frozen=True)
@@ -164,6 +169,8 @@ class Job:
         rpm.
     tool_table : mapping of int to float
         Gauge length of each tool number given for the job, mm (:mod:`urdfpost.posting.tools`).
+    mcs_offsets : bool
+        A work offset per MCS.
     """
 
     machine: Machine
@@ -190,6 +197,7 @@ class Job:
     feed: float | None = None
     spindle: float | None = None
     tool_table: Mapping[int, float] = field(default_factory=dict)
+    mcs_offsets: bool = False
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -273,6 +281,11 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         raise UrdfpostError(
             f"work offset {options.work_offset}: {dialect.name} has work offsets 1 to {offsets}"
         )
+    if options.mcs_offsets and not options.tcp:
+        raise UrdfpostError(
+            "a work offset per MCS needs TCP: machine-coordinate positions hold where the part "
+            "sits, and their work offset must be zero (post without --mcs-offsets)"
+        )
     return Job(
         machine=machine,
         dialect=dialect,
@@ -302,4 +315,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         feed=mm(options.feed),
         spindle=options.spindle,
         tool_table=dict(options.tool_table or {}),
+        mcs_offsets=options.mcs_offsets,
     )

@@ -195,6 +195,12 @@ class Continuation:
     leave : bool
         The piece ends a tool section that another follows: it leaves the path after its
         last point as for a tool change.
+    offset : int or None
+        With ``entry``: the work offset the section selects (a section in another MCS, with
+        ``--mcs-offsets``); None: the one before stays.
+    keep_tool : bool
+        With ``leave``: the next section keeps the tool (no tool change begins it): the
+        spindle and coolant stay on.
     """
 
     start: np.ndarray | None
@@ -203,6 +209,8 @@ class Continuation:
     coolant: str | None = None
     entry: np.ndarray | None = None
     leave: bool = False
+    offset: int | None = None
+    keep_tool: bool = False
 
 
 @dataclass(frozen=True)
@@ -301,7 +309,8 @@ def post_piece(
         warnings.append(f"{toolpath.source}: no motion records; the program has no moves")
     first_tool = min((e.index for e in toolpath.events if e.kind == "tool"), default=n + 1)
     tool_events: tuple[Event, ...] = ()
-    if n and first_tool > 0 and not continued:
+    entering = piece is not None and piece.entry is not None  # the tool is in the spindle
+    if n and first_tool > 0 and not continued and not entering:
         # controls need a tool (and its length offset) before motion; the CL data has none
         warnings.append(f"{toolpath.source}: no tool change before the first move; tool 1 assumed")
         tool_events = (Event(index=0, kind="tool", line=int(toolpath.line[0]), data={"number": 1}),)
@@ -410,11 +419,10 @@ def post_piece(
         coolant=None if piece is None else piece.coolant,
         close=piece is None or piece.last,
         transitions=transitions,
-        work_offset=None
-        if continued or (piece is not None and piece.entry is not None)
-        else job.work_offset,
+        work_offset=_work_offset(job, piece),
         entry=None if piece is None else piece.entry,
         leave=piece is not None and piece.leave,
+        keep_tool=piece is not None and piece.keep_tool,
     )
     program = Program(
         name=program_name(toolpath, job.program_name),
@@ -447,6 +455,14 @@ def post_piece(
     collisions = check_collisions(problem.collision, joints, joint_lines, cl)
     check_transitions(problem.collision, transitions, cl)
     return PostedPiece(program, plan, target, figures, collisions, joints, joint_lines)
+
+
+def _work_offset(job: Job, piece: Continuation | None) -> int | None:
+    """The work offset the piece's body selects: the job's where it starts the program, a
+    section's own where it enters one in another MCS, else none."""
+    if piece is None or (piece.start is None and piece.entry is None):
+        return job.work_offset
+    return piece.offset if piece.entry is not None else None
 
 
 CLEARANCE_POINTS = 500

@@ -28,8 +28,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from urdfpost.errors import UrdfpostError
-from urdfpost.program import Blocks, Move, MoveTable, Program, ToolChange
+import numpy as np
+
+from urdfpost.errors import ToleranceError, UrdfpostError
+from urdfpost.machine import Machine, with_setup
+from urdfpost.machine.setup import Setup
+from urdfpost.program import Blocks, Move, MoveTable, Program, ToolChange, WorkOffset
 from urdfpost.toolpath import Toolpath, toolpath_slice
 
 #: One word of a LinuxCNC tool table line: a letter and a number.
@@ -115,25 +119,80 @@ def gauge_lengths(
     return out
 
 
+def mcs_shifts(toolpath: Toolpath) -> dict[int, np.ndarray]:
+    """Where each MCS of the CL data (its ``msys`` events) sits in the first one.
+
+    Returns
+    -------
+    dict of int to ndarray, shape (3,), mm
+        The origin of MCS ``k`` in MCS 0's coordinates (0 for MCS 0; empty: no MSYS).
+
+    Raises
+    ------
+    UrdfpostError
+        An MCS turned against MCS 0: a work offset per MCS holds a shift, not a rotation (the
+        message names the MSYS line).
+    """
+    out: dict[int, np.ndarray] = {}
+    first = None
+    for e in toolpath.events:
+        if e.kind != "msys":
+            continue
+        k = int(e.data.get("mcs", 0))
+        origin = np.asarray(e.data["origin"], dtype=float)
+        rotation = np.asarray(e.data["rotation"], dtype=float)
+        if first is None:
+            first = (origin, rotation, e.line)
+        o0, r0, line0 = first
+        if k in out:
+            continue
+        if not np.allclose(rotation, r0, rtol=0.0, atol=1e-9):
+            raise UrdfpostError(
+                f"{toolpath.source}:{e.line}: MCS {k} is turned against MCS 0 (MSYS at line "
+                f"{line0}); a work offset per MCS holds a shift, not a rotation: post without "
+                "--mcs-offsets (its points are then transformed into MCS 0)"
+            )
+        out[k] = r0.T @ (origin - o0)
+    return out
+
+
+def transformed_mcs(toolpath: Toolpath) -> bool:
+    """Whether the reader transformed the points of the other MCS into MCS 0 (their ``msys``
+    events say ``transformed``; a file read with ``separate_mcs`` keeps them as written)."""
+    return any(e.kind == "msys" and e.data.get("transformed") for e in toolpath.events)
+
+
+def in_own_mcs(toolpath: Toolpath, shift: np.ndarray, transformed: bool) -> Toolpath:
+    """The points of a section of one MCS in that MCS's coordinates: moved by ``-shift`` (its
+    origin in MCS 0, :func:`mcs_shifts`) when ``transformed`` (:func:`transformed_mcs` of the
+    whole CL data), else as they are."""
+    if not transformed or not np.any(shift):
+        return toolpath
+    return replace(toolpath, tip=toolpath.tip - np.asarray(shift, dtype=float))
+
+
 @dataclass(frozen=True)
 class Section:
-    """Consecutive CL points posted with one gauge length.
+    """Consecutive CL points posted with one gauge length and in one MCS.
 
     Attributes
     ----------
     start, stop : int
-        Points ``start`` to ``stop - 1`` of the toolpath; the section's tool change is the
-        event before ``start``.
+        Points ``start`` to ``stop - 1`` of the toolpath; the events that begin the section
+        (its tool change, its MSYS) come before ``start``.
     length : float, mm
         The gauge length of its tool.
     tool : int or None
         Its tool number (None: before any tool change).
+    mcs : int
+        Its MCS (0: the first; :func:`mcs_shifts`), with ``--mcs-offsets`` (else 0).
     """
 
     start: int
     stop: int
     length: float
     tool: int | None
+    mcs: int = 0
 
 
 def tool_sections(
@@ -141,9 +200,13 @@ def tool_sections(
     default: float,
     table: Mapping[int, float] | None = None,
     length: float | None = None,
+    *,
+    by_length: bool = True,
+    by_mcs: bool = False,
 ) -> list[Section]:
-    """The tool sections of a machine-coordinate job: a new one at each tool change whose
-    gauge length differs from the one before (equal lengths share a section).
+    """The sections of a job: a new one at each tool change whose gauge length differs from
+    the one before (``by_length``: machine coordinates; equal lengths share a section), and
+    at each MSYS of another MCS (``by_mcs``: a work offset per MCS).
 
     Parameters
     ----------
@@ -155,6 +218,8 @@ def tool_sections(
     length : float, optional, mm
         The length in use where the toolpath starts (a piece of a streamed job); default
         ``default``.
+    by_length, by_mcs : bool
+        What begins a section.
 
     Returns
     -------
@@ -165,62 +230,107 @@ def tool_sections(
     n = len(toolpath)
     current = default if length is None else length
     tool: int | None = None
+    mcs = 0
     sections: list[Section] = []
     start = 0
     for e in sorted(toolpath.events, key=lambda e: e.index):
-        if e.kind != "tool":
+        if e.kind == "tool":
+            new_length, new_mcs = lengths[int(e.data.get("number", 0))], mcs
+        elif e.kind == "msys" and by_mcs:
+            new_length, new_mcs = current, int(e.data.get("mcs", 0))
+        else:
             continue
-        number = int(e.data.get("number", 0))
-        new = lengths[number]
-        if e.index <= start or e.index >= n:  # before any point of the section: its own
-            if e.index <= start:
-                current, tool = new, number
-            continue
-        if new != current:
-            sections.append(Section(start, e.index, current, tool))
+        changes = (by_length and new_length != current) or new_mcs != mcs
+        if start < e.index < n and changes:
+            sections.append(Section(start, e.index, current, tool, mcs))
             start = e.index
-        current, tool = new, number
-    sections.append(Section(start, n, current, tool))
+        if e.index < n or not sections:
+            current, mcs = new_length, new_mcs
+            if e.kind == "tool":
+                tool = int(e.data.get("number", 0))
+    sections.append(Section(start, n, current, tool, mcs))
     return sections
 
 
 def several_lengths(sections: Sequence[Section]) -> bool:
-    """Whether the sections hold more than one gauge length (the job needs them)."""
-    return len({s.length for s in sections}) > 1
+    """Whether a job needs its sections (more than one)."""
+    return len(sections) > 1
+
+
+def mcs_machine(machine: Machine, shift: np.ndarray) -> Machine:
+    """``machine`` with its program zero moved to an MCS ``shift`` (3,) mm from it, in the
+    workpiece frame (:func:`mcs_shifts`): the machine a section of that MCS is posted and
+    checked on, its positions written in that MCS's work offset.
+
+    Raises
+    ------
+    UrdfpostError
+        The machine file places no workpiece (no ``workpiece`` joint to move).
+    """
+    if not np.any(shift):
+        return machine
+    mount = machine.mount
+    if mount is None:
+        raise UrdfpostError(
+            f"{machine.path}: no joint places the workpiece link, so an MCS cannot be put "
+            "elsewhere on the machine; expected a fixed joint whose child is 'workpiece'"
+        )
+    offset = mount.offset_for(mount.rotation @ np.asarray(shift, dtype=float))
+    return with_setup(machine, Setup(offset, mount.setup.rotation))
 
 
 def program_sections(
-    program: Program, lengths: Mapping[int, float], default: float
-) -> list[tuple[Program, float]]:
-    """A machine-coordinate program cut at the tool changes that change the gauge length.
+    program: Program,
+    lengths: Mapping[int, float],
+    default: float,
+    *,
+    by_length: bool = True,
+    by_mcs: bool = False,
+) -> list[tuple[Program, float, int | None]]:
+    """A program read back cut as :func:`tool_sections` cuts its CL data: at the tool changes
+    that change the gauge length (``by_length``), and at the work offset changes
+    (``by_mcs``: a work offset per MCS).
 
-    Each section but the first begins with its :class:`~urdfpost.program.ToolChange`; the
-    blocks before it (the retract, spindle and coolant off of the tool before) end the
+    Each section but the first begins with the block that changes (its
+    :class:`~urdfpost.program.WorkOffset` or :class:`~urdfpost.program.ToolChange`); the
+    blocks before it (the retract, spindle and coolant off of the section before) end the
     section before. ``lengths`` are the tools' gauge lengths (mm, :func:`gauge_lengths`);
     a tool not in it has ``default``.
 
     Returns
     -------
-    list of (Program, float)
-        Each section and its gauge length, mm; the first section's length is that of the
-        first tool (``default`` before any).
+    list of (Program, float, int or None)
+        Each section, its gauge length (mm; the first section's is that of the first tool,
+        ``default`` before any) and the work offset it selects (None: none).
     """
     parts = program.parts
-    cuts: list[tuple[int, float]] = [(0, default)]
-    seen_move = False  # a move before the tool change: it begins a section
+    cuts: list[tuple[int, float, int | None]] = [(0, default, None)]
+    offset: int | None = None
+    length = default
+    moved = False  # a move since the section began: a change now begins another
     for i, part in enumerate(parts):
         if isinstance(part, Move) or (isinstance(part, MoveTable) and len(part)):
-            seen_move = True
-        elif isinstance(part, ToolChange):
-            new = lengths.get(part.number, default)
-            if not seen_move:
-                cuts[0] = (0, new)
-            elif new != cuts[-1][1]:
-                cuts.append((i, new))
-    out: list[tuple[Program, float]] = []
-    for k, (i, length) in enumerate(cuts):
+            moved = True
+            continue
+        if isinstance(part, ToolChange):
+            new_length, new_offset = lengths.get(part.number, default), offset
+        elif isinstance(part, WorkOffset) and by_mcs:
+            new_length, new_offset = length, part.number
+        else:
+            continue
+        changes = (by_length and new_length != length) or (
+            offset is not None and new_offset != offset
+        )
+        if moved and changes:
+            cuts.append((i, new_length, new_offset))
+            moved = False
+        length, offset = new_length, new_offset
+        cuts[-1] = (cuts[-1][0], length, offset)
+    out: list[tuple[Program, float, int | None]] = []
+    for k, (i, section_length, number) in enumerate(cuts):
         stop = cuts[k + 1][0] if k + 1 < len(cuts) else len(parts)
-        out.append((replace(program, blocks=Blocks(parts[i:stop]), tool_length=length), length))
+        section = replace(program, blocks=Blocks(parts[i:stop]), tool_length=section_length)
+        out.append((section, section_length, number))
     return out
 
 
@@ -229,35 +339,59 @@ def paired_sections(
     toolpath: Toolpath,
     default: float,
     table: Mapping[int, float] | None = None,
-) -> list[tuple[Program, Toolpath, float]]:
-    """A machine-coordinate program and its CL data cut into the same tool sections, to be
-    checked each with its gauge length.
+    *,
+    by_mcs: bool = False,
+) -> list[tuple[Program, Toolpath, Section]]:
+    """A program and its CL data cut into the same sections (:func:`tool_sections`), to be
+    checked each with its gauge length and, ``by_mcs``, on the machine of its MCS
+    (:func:`mcs_machine`).
 
     Parameters
     ----------
     program : Program
-        As read back (a TCP program is one section).
+        As read back (the tool length matters in machine coordinates only).
     toolpath : Toolpath
         The CL data it is checked against.
     default : float, mm
         The job's tool length.
     table : mapping, optional
         The tool table (tool number to gauge length, mm).
+    by_mcs : bool
+        A work offset per MCS: a section at each MSYS of another MCS.
 
     Returns
     -------
-    list of (Program, Toolpath, float)
-        Each section of the program, of the CL data, and its length (mm). One section, with
-        the first tool's length, when the program does not change tools where the CL data
-        changes length (the process check names that fault).
+    list of (Program, Toolpath, Section)
+        Each section of the program, of the CL data, and the section. One section, with the
+        first tool's length, when the program does not change tools where the CL data
+        changes length (the process check then names the tool at fault).
+
+    Raises
+    ------
+    ToleranceError
+        ``by_mcs``: the program's work offsets are not one per MCS of the CL data, in order
+        (the first, then one more for each other MCS).
     """
-    sections = tool_sections(toolpath, default, table)
-    if program.tcp or len(sections) == 1:
-        return [(program, toolpath, sections[0].length)]
-    cut = program_sections(program, gauge_lengths(toolpath, default, table), default)
-    if len(cut) != len(sections):
-        return [(program, toolpath, sections[0].length)]
+    by_length = not program.tcp
+    sections = tool_sections(toolpath, default, table, by_length=by_length, by_mcs=by_mcs)
+    lengths = gauge_lengths(toolpath, default, table)
+    cut = program_sections(program, lengths, default, by_length=by_length, by_mcs=by_mcs)
+    if by_mcs:
+        have = [number for _, _, number in cut]
+        first = have[0] if have[0] is not None else 1
+        want = [first + s.mcs for s in sections]
+        if have != want:
+
+            def named(numbers: list[int | None]) -> str:
+                return ", ".join("none" if n is None else f"offset {n}" for n in numbers)
+
+            raise ToleranceError(
+                f"{toolpath.source}: the program's work offsets are {named(have)} where the "
+                f"CL data's MCS, in order, need {named(list(want))} (one per MCS)"
+            )
+    if len(sections) == 1 or len(cut) != len(sections):
+        return [(program, toolpath, sections[0])]
     return [
-        (part, toolpath_slice(toolpath, s.start, s.stop), s.length)
-        for (part, _), s in zip(cut, sections, strict=True)
+        (part, toolpath_slice(toolpath, s.start, s.stop), s)
+        for (part, _, _), s in zip(cut, sections, strict=True)
     ]

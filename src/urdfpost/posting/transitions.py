@@ -207,12 +207,14 @@ class Transitions:
         blocks.append(Move(True, self._position(approach, self._linear)))
         return blocks
 
-    def leave(self, q: np.ndarray, line: int, tcp_on: bool) -> list[Block]:
+    def leave(self, q: np.ndarray, line: int, tcp_on: bool, stop: bool = True) -> list[Block]:
         """Blocks that leave the path at row ``q`` for a tool change: TCP off, the retract,
-        spindle and coolant off."""
+        spindle and coolant off (``stop``; else they stay on: the tool stays, as at a change of
+        work offset)."""
         self.paths.append((line, np.array([q, self._retracted(q)])))
         blocks: list[Block] = [Tcp(on=False)] if tcp_on else []
-        return [*blocks, self.retract_block(), Spindle("off"), Coolant("off")]
+        blocks.append(self.retract_block())
+        return [*blocks, Spindle("off"), Coolant("off")] if stop else blocks
 
     def end(self, q: np.ndarray, line: int, tcp_on: bool) -> list[Block]:
         """Blocks that end the program after row ``q``: TCP off, the retract, spindle and

@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from urdfpost.errors import ToleranceError, UnreachableError
+from urdfpost.errors import ToleranceError, UnreachableError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.planning.setup_fit import fit_setup
 from urdfpost.posting.body import coolant_after
@@ -19,7 +19,16 @@ from urdfpost.posting.piece import Continuation, PostedPiece, post_piece
 from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications
 from urdfpost.posting.report import Collisions, Report
-from urdfpost.posting.tools import Section, gauge_lengths, several_lengths, tool_sections
+from urdfpost.posting.tools import (
+    Section,
+    gauge_lengths,
+    in_own_mcs,
+    mcs_machine,
+    mcs_shifts,
+    several_lengths,
+    tool_sections,
+    transformed_mcs,
+)
 from urdfpost.posting.worker import PieceJob, PieceVerifier
 from urdfpost.program import Blocks, Insert, Program
 from urdfpost.toolpath import Toolpath, toolpath_slice
@@ -128,7 +137,14 @@ def post(
     sections = [Section(0, len(toolpath), job.tool_length, None)]
     if not job.tcp:
         notes += one_tool_length(toolpath, job.tool_length, job.units, table=job.tool_table)[0]
-        sections = tool_sections(toolpath, job.tool_length, job.tool_table)
+    if not job.tcp or job.mcs_offsets:
+        sections = tool_sections(
+            toolpath,
+            job.tool_length,
+            job.tool_table,
+            by_length=not job.tcp,
+            by_mcs=job.mcs_offsets,
+        )
     if notes:
         toolpath = replace(toolpath, warnings=toolpath.warnings + tuple(notes))
     if several_lengths(sections):
@@ -172,25 +188,47 @@ def _post_sections(
     sections: list[Section],
     progress: Callable[[int], None] | None,
 ) -> PostResult:
-    """:func:`post` of a machine-coordinate job whose tools have different gauge lengths.
+    """:func:`post` of a job in sections (:mod:`urdfpost.posting.tools`): a machine-coordinate
+    job whose tools have different gauge lengths, or a job with a work offset per MCS.
 
-    Each tool section (:mod:`urdfpost.posting.tools`) is planned and checked with its tool's
-    length: a piece of the program that leaves the path at its end as for a tool change, the
-    next one approached from there. The pieces are written as one program and read back with
-    one reader, each checked on its own against its CL points (its geometry, and its feeds,
+    Each section is planned and checked with its tool's length, on the machine of its MCS
+    (its program zero there, its points in its MCS, its work offset selected as it begins): a
+    piece of the program that leaves the path at its end as for a tool change, the next one
+    approached from there. The pieces are written as one program and read back with one
+    reader, each checked on its own against its CL points (its geometry, and its feeds,
     spindle and tools as ``urdfpost verify`` checks them).
     """
     dialect, machine = job.dialect, job.machine
+    shifts = mcs_shifts(toolpath) if job.mcs_offsets else {}
+    machines = {k: mcs_machine(machine, shift) for k, shift in shifts.items()}
+    transformed = transformed_mcs(toolpath)
+    last_offset = job.work_offset + max((s.mcs for s in sections), default=0)
+    if last_offset > dialect.spec.work_offsets:
+        raise UrdfpostError(
+            f"{toolpath.source}: {len(shifts)} MCS need work offsets {job.work_offset} to "
+            f"{last_offset}; {dialect.name} has work offsets 1 to {dialect.spec.work_offsets}"
+        )
     pieces: list[PostedPiece] = []
     entry = None
     coolant = None
     for k, section in enumerate(sections):
         part = toolpath_slice(toolpath, section.start, section.stop)
         part = replace(part, warnings=toolpath.warnings if k == 0 else ())
-        piece_job = replace(job, tool_length=section.length)
+        section_machine = machines.get(section.mcs, machine)
+        if section.mcs in shifts:  # its points as its MCS has them
+            part = in_own_mcs(part, shifts[section.mcs], transformed)
+        piece_job = replace(job, tool_length=section.length, machine=section_machine)
         last = k == len(sections) - 1
+        other_mcs = k > 0 and section.mcs != sections[k - 1].mcs
         joining = Continuation(
-            start=None, tcp_on=False, last=last, coolant=coolant, entry=entry, leave=not last
+            start=None,
+            tcp_on=False,
+            last=last,
+            coolant=coolant,
+            entry=entry,
+            leave=not last,
+            offset=job.work_offset + section.mcs if other_mcs else None,
+            keep_tool=not last and not _begins_with_tool(toolpath, sections[k + 1]),
         )
         try:
             posted = post_piece(part, piece_job, progress=progress, piece=joining)
@@ -202,15 +240,17 @@ def _post_sections(
         pieces.append(posted)
         if len(posted.joints):
             entry = posted.joints[-1]
-        # the coolant on before the section's leave (which stops it: its last block)
+        # the coolant on before the section's leave (which stops it for a tool change)
         parts = posted.program.parts
-        coolant = coolant_after(parts if last else parts[:-1], coolant)
+        coolant = coolant_after(parts if last or joining.keep_tool else parts[:-1], coolant)
     lengths = gauge_lengths(toolpath, job.tool_length, job.tool_table)
     blocks = [part for posted in pieces for part in posted.program.parts]
     program = replace(pieces[0].program, blocks=Blocks(blocks))
     figures = HeaderFigures.empty(program).add(program)
     writer = dialect.writer(program, block_numbers=job.block_numbers)
-    writer.open(job_header(job, figures, sections[0].length, lengths), stock_box(job))
+    offsets = {job.work_offset + k: shift for k, shift in shifts.items()}
+    header = job_header(job, figures, sections[0].length, lengths if not job.tcp else None, offsets)
+    writer.open(header, stock_box(job))
     path = f"<{dialect.name} program>"
     verifier = PieceVerifier(machine, dialect.name, path, job.tol, job.units)
     process = PieceProcess(
@@ -229,7 +269,8 @@ def _post_sections(
             writer.close()
         texts.append(writer.take())
         piece = PieceJob.of(texts[-1], posted, fresh=k > 0)
-        results.append(verifier.check(piece))
+        section_machine = machines.get(sections[k].mcs, machine)
+        results.append(verifier.check(piece, section_machine))
         target = posted.target
         process.add(
             texts[-1],
@@ -237,6 +278,7 @@ def _post_sections(
             target.intended or target.cl,
             fresh=k > 0,
             tool_length=target.tool_length,
+            machine=section_machine,
         )
     text = "".join(texts)
     fresh = [k > 0 for k in range(len(pieces))]
@@ -259,7 +301,7 @@ def _post_sections(
     report = replace(
         report,
         collisions=Collisions.merged([p.collisions for p in pieces]),
-        tool_lengths_mm=lengths,
+        tool_lengths_mm={} if job.tcp else lengths,
     )
     result = process.result()
     if not result.ok:
@@ -270,6 +312,11 @@ def _post_sections(
             f"written: {'; '.join(faults)}"
         )
     return PostResult(program, text, check, report, merged)
+
+
+def _begins_with_tool(toolpath: Toolpath, section: Section) -> bool:
+    """Whether a tool change begins the section (else a change of work offset does)."""
+    return any(e.kind == "tool" and e.index == section.start for e in toolpath.events)
 
 
 def travel_hint(toolpath: Toolpath, job: Job) -> str:

@@ -112,8 +112,12 @@ class PieceVerifier:
         self.reader = dialect_for(controller).reader(path=path)
         self.previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
 
-    def check(self, job: PieceJob) -> tuple[Verification, Verification | None]:
-        """The piece's verifications against the CL data and against its strategy's path.
+    def check(
+        self, job: PieceJob, machine: Machine | None = None
+    ) -> tuple[Verification, Verification | None]:
+        """The piece's verifications against the CL data and against its strategy's path
+        (on ``machine``: a section in another MCS, its program zero elsewhere; default the
+        verifier's).
 
         Raises
         ------
@@ -124,7 +128,7 @@ class PieceVerifier:
         readback = self.reader.take()
         if self.previous is not None and not job.fresh:
             readback = _prepended(readback, *self.previous)
-        checks = check_piece(readback, self.machine, job.target, self.tol)
+        checks = check_piece(readback, machine or self.machine, job.target, self.tol)
         error = tolerance_error(job.target.cl, checks, self.units, piece=True)
         if error is not None:
             raise error

@@ -36,7 +36,7 @@ from urdfpost.geometry import (
 from urdfpost.kinematics.forward import interpolation_bounds, tip_and_axis_along
 from urdfpost.linearize import RowPoses, orientation_path_chord2
 from urdfpost.machine import Machine
-from urdfpost.program import Program, rewind_moves
+from urdfpost.program import Program, WorkOffset, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
@@ -634,6 +634,21 @@ def verify_checks(
             line,
             "a feed move of X/Y/Z with TCP off in a TCP program; expected TCP on before "
             "every cutting move",
+        )
+    offsets = {b.number for b in program.parts if isinstance(b, WorkOffset)}
+    if len(offsets) > 1:
+        # positions in two frames: checked only section by section, each on its MCS's machine
+        if program.offset_change is not None:
+            path, line, change = program.offset_change
+            what = f"work offset changes {change}"
+        else:
+            path, line = "<program>", 0
+            what = f"work offsets {', '.join(str(n) for n in sorted(offsets))} selected"
+        raise ProgramParseError(
+            path,
+            line,
+            f"{what}; expected one work offset per program (a program with one per MCS is "
+            "verified with --mcs-offsets)",
         )
     tool_length = program.tool_length if tool_length is None else tool_length
     values, rapid = program_joints(machine, program)

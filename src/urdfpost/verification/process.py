@@ -296,6 +296,7 @@ class ProcessChecker:
         ended: bool | None = None,
         fresh: bool = False,
         tool_length: float | None = None,
+        machine: Machine | None = None,
     ) -> None:
         """Check the next piece.
 
@@ -314,8 +315,13 @@ class ProcessChecker:
         tool_length : float, optional, mm
             The gauge length of the piece's machine-coordinate rows, from this piece on
             (default: as before).
+        machine : Machine, optional
+            The machine of the piece's rows, from this piece on: a section in another MCS,
+            its program zero elsewhere (default: as before).
         """
         first = self._pieces == 0
+        if machine is not None:
+            self.machine = machine
         continued = not first and not fresh
         if fresh and not first:
             self._row0 += 1  # the piece before's last row is not this piece's first
@@ -753,10 +759,11 @@ class PieceProcess:
         *,
         fresh: bool = False,
         tool_length: float | None = None,
+        machine: Machine | None = None,
     ) -> None:
         """Check the next piece: its text (whole lines), the texts of its inserted blocks and
         its expected CL data (starting with the CL point the piece before ended with, unless
-        ``fresh``: a tool section of its own, with its ``tool_length``, as
+        ``fresh``: a section of its own, with its ``tool_length`` and ``machine``, as
         :meth:`ProcessChecker.add` takes them).
 
         Raises
@@ -771,7 +778,7 @@ class PieceProcess:
             position = np.array([row[axes.index(a)] if a in axes else np.nan for a in program.axes])
             start = MoveTable(position[None], np.zeros(1, bool), np.full(1, np.nan), np.full(1, -1))
             program = replace(program, blocks=Blocks((start, *program.parts)))
-        self.checker.add(program, expected, fresh=fresh, tool_length=tool_length)
+        self.checker.add(program, expected, fresh=fresh, tool_length=tool_length, machine=machine)
         table = program.move_table()
         if len(table):
             self._last = (program.axes, np.asarray(table.position[-1]))

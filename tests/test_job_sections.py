@@ -1,10 +1,15 @@
-"""Each tool's own gauge length in machine-coordinate programs (issue 17).
+"""Jobs posted in sections (issue 17): each tool's own gauge length in machine-coordinate
+programs, and a work offset per NX MCS.
 
 Machine-coordinate positions include the tool's gauge length. A job whose tools have different
 lengths (the tool table ``--tool-table``, else ``LOADTL LENGTH``) is posted in tool sections,
 each computed and checked with its tool's length; ``urdfpost verify`` cuts the program the
 same way. The positions are checked here against Pinocchio's forward kinematics with each
 tool's length, independently of urdfpost's own kinematics and verifier.
+
+With ``--mcs-offsets`` each MCS of an NX file gets its own work offset (G54, G55...), its
+points written as its MSYS has them; the program is checked section by section, each on the
+machine with the program zero at its MCS, and by LinuxCNC's interpreter.
 """
 
 from __future__ import annotations
@@ -15,16 +20,17 @@ import numpy as np
 import pytest
 from jobs import TWO_TOOLS
 from oracles import tip_and_axis_pin
+from rs274 import run_rs274
 
 from urdfpost import load_machine
 from urdfpost.cli import main
-from urdfpost.dialects import dialect_for
+from urdfpost.dialects import DIALECTS, dialect_for
 from urdfpost.errors import UrdfpostError
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.stream import post_stream
 from urdfpost.posting.tools import read_tool_table, tool_sections
 from urdfpost.posting.whole import post
-from urdfpost.program import ToolChange
+from urdfpost.program import ToolChange, WorkOffset
 from urdfpost.readers import read_cl_text
 from urdfpost.toolpath import toolpath_pieces
 from urdfpost.verification.match import program_joints
@@ -207,3 +213,145 @@ def test_a_bad_tool_table_on_the_command_line(
     assert not out.exists()
     assert main([*argv[:-4], "--tool-table", str(tmp_path / "none.tbl"), "-o", str(out)]) == 1
     assert "cannot read the tool table" in capsys.readouterr().err
+
+
+# -- a work offset per MCS -----------------------------------------------------------------------
+
+#: Two operations in two MCS, the second 30 mm along the part's X and 10 along Y, not turned.
+TWO_MCS = """\
+TOOL PATH/OP1,TOOL,MILL
+MSYS/0,0,0,1,0,0,0,1,0
+LOAD/TOOL,1
+SPINDL/RPM,9000,CLW
+RAPID
+GOTO/0,0,20,0,0,1
+FEDRAT/MMPM,500
+GOTO/0,0,2,0,0,1
+GOTO/20,0,2
+END-OF-PATH
+TOOL PATH/OP2,TOOL,MILL
+MSYS/30,10,0,1,0,0,0,1,0
+RAPID
+GOTO/0,0,20,0,0,1
+FEDRAT/MMPM,500
+GOTO/0,0,2,0,0,1
+GOTO/-10,5,2,0,0.258819,0.965926
+END-OF-PATH
+"""
+
+
+def offsets_of(text: str, controller: str) -> list[int]:
+    return [b.number for b in dialect_for(controller).read(text).parts if isinstance(b, WorkOffset)]
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_a_work_offset_per_mcs(
+    controller: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The second MCS's points as the file has them (X-10 Y5 Z2), in the second work
+    offset; verified with --mcs-offsets, refused at the change without it."""
+    cl = tmp_path / "mcs.cls"
+    cl.write_text(TWO_MCS)
+    out = tmp_path / f"mcs{DIALECTS[controller].extensions[0]}"
+    argv = ["post", str(cl), "-m", "dmu50", "-c", controller, "-q", "-o", str(out)]
+    assert main([*argv, "--mcs-offsets"]) == 0
+    text = out.read_text()
+    assert offsets_of(text, controller) == [1, 2]
+    program = dialect_for(controller).read(text)
+    last = program.moves()[-1]
+    shifted = [m for m in program.moves() if not m.rapid]
+    assert last.rapid  # (the rotaries home)
+    x, y, z = shifted[-1].position[:3]
+    assert (x, y, z) == pytest.approx((-10.0, 5.0, 2.0), abs=1e-3)
+    header = text.upper().replace("[", "(").replace("]", ")")  # (Fanuc: upper case)
+    assert "SHIFTED BY (30.000, 10.000, 0.000) MM (MCS 1)" in header
+    verify = ["verify", str(out), "--cl", str(cl), "-m", "dmu50", "-c", controller]
+    capsys.readouterr()
+    assert main([*verify, "--mcs-offsets"]) == 0
+    assert "within tolerance: 6/6 CL points" in capsys.readouterr().out
+    assert main(verify) == 1
+    assert "work offset changes from" in capsys.readouterr().err
+
+
+def test_the_api_post_of_a_transformed_read_is_the_same(tmp_path: Path) -> None:
+    """A toolpath read the default way (the second MCS transformed into the first) posts with
+    mcs_offsets=True to what the command line writes from a separate read."""
+    cl = tmp_path / "mcs.cls"
+    cl.write_text(TWO_MCS)
+    out = tmp_path / "mcs.ngc"
+    argv = ["post", str(cl), "-m", "dmu50", "-c", "linuxcnc", "-q", "--mcs-offsets"]
+    assert main([*argv, "-o", str(out)]) == 0
+    toolpath = read_cl_text(TWO_MCS, source=str(cl))
+    result = post(
+        toolpath, load_machine("dmu50"), PostOptions(controller="linuxcnc", mcs_offsets=True)
+    )
+    strip = [line for line in result.text.splitlines() if "MSYS" not in line]
+    assert strip == [line for line in out.read_text().splitlines() if "MSYS" not in line]
+
+
+def test_a_wrong_work_offset_is_caught(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The second operation cut in G54 (the first MCS's zero): beyond tolerance there."""
+    cl = tmp_path / "mcs.cls"
+    cl.write_text(TWO_MCS)
+    out = tmp_path / "mcs.nc"
+    argv = ["post", str(cl), "-m", "dmu50", "-c", "fanuc", "-q", "--mcs-offsets", "-o", str(out)]
+    assert main(argv) == 0
+    out.write_text(out.read_text().replace("\nG55\n", "\nG54\n"))
+    capsys.readouterr()
+    verify = ["verify", str(out), "--cl", str(cl), "-m", "dmu50", "--mcs-offsets"]
+    assert main(verify) == 1
+    assert (
+        "the program's work offsets are offset 1 where the CL data's MCS, in order, need "
+        "offset 1, offset 2 (one per MCS)"
+    ) in capsys.readouterr().err
+
+
+def test_the_interpreter_cuts_the_second_mcs_in_g55(tmp_path: Path) -> None:
+    """rs274: the cuts of the first operation in G54, those of the second in G55, at the
+    program's own positions."""
+    cl = tmp_path / "mcs.cls"
+    cl.write_text(TWO_MCS)
+    out = tmp_path / "mcs.ngc"
+    argv = ["post", str(cl), "-m", "dmu50", "-c", "linuxcnc", "-q", "--mcs-offsets"]
+    assert main([*argv, "-o", str(out)]) == 0
+    text = out.read_text()
+    result = run_rs274(text, {1: 100.0}, tmp_path / "rs274")
+    g5x, cut = 0, []  # the work offset in effect at each feed move
+    for call in result.calls:
+        if call.name == "SET_G5X_OFFSET":
+            g5x = int(call.number(0))
+        elif call.name == "STRAIGHT_FEED":
+            cut.append((g5x, tuple(call.number(k) for k in range(3))))
+    assert [g for g, _ in cut] == [1, 1, 2, 2, 2]
+    assert cut[1][1] == pytest.approx((20.0, 0.0, 2.0), abs=1e-3)
+    assert cut[-1][1] == pytest.approx((-10.0, 5.0, 2.0), abs=1e-3)
+
+
+def test_a_turned_mcs_has_no_work_offset(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cl = tmp_path / "mcs.cls"
+    cl.write_text(TWO_MCS.replace("MSYS/30,10,0,1,0,0,0,1,0", "MSYS/30,10,0,0,1,0,-1,0,0"))
+    out = tmp_path / "mcs.nc"
+    argv = ["post", str(cl), "-m", "dmu50", "-c", "fanuc", "-q", "--mcs-offsets", "-o", str(out)]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert f"{cl}:12: MCS 1 is turned against MCS 0 (MSYS at line 2)" in err
+    assert not out.exists()
+
+
+def test_mcs_offsets_need_tcp_and_enough_offsets(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cl = tmp_path / "mcs.cls"
+    cl.write_text(TWO_MCS)
+    out = tmp_path / "mcs.nc"
+    argv = ["post", str(cl), "-m", "dmu50", "-c", "fanuc", "-q", "--mcs-offsets", "-o", str(out)]
+    assert main([*argv, "--no-tcp"]) == 1
+    assert "a work offset per MCS needs TCP" in capsys.readouterr().err
+    assert main([*argv, "--work-offset", "6"]) == 1
+    assert "2 MCS need work offsets 6 to 7; fanuc has work offsets 1 to 6" in (
+        capsys.readouterr().err
+    )
+    assert main([*argv, "--piece-points", "100"]) == 2
+    assert not out.exists()
