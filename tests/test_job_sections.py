@@ -355,3 +355,26 @@ def test_mcs_offsets_need_tcp_and_enough_offsets(
     )
     assert main([*argv, "--piece-points", "100"]) == 2
     assert not out.exists()
+
+
+def test_the_view_draws_each_tool_with_its_length(tmp_path: Path) -> None:
+    """The 3-D view's tool-tip trace of a program in tool sections: each tool's length puts the
+    trace on the CL path; the one length of the job would leave T2's 40 mm off."""
+    from urdfpost.analysis.view import view_data
+
+    toolpath = read_cl_text(with_lengths(), source="two.apt")
+    machine = load_machine("dmu50")
+    result = post(toolpath, machine, PostOptions(controller="heidenhain", tcp=False))
+    dialect = dialect_for("heidenhain")
+    program = dialect.read(result.text)
+
+    def worst(lengths: dict[int, float] | None) -> float:
+        data = view_data(
+            machine, program, result.text, dialect, cl=toolpath, color="deviation",
+            tool_lengths=lengths,
+        )  # fmt: skip
+        (mark,) = [m for m in data["marks"] if m["kind"] == "worst"]
+        return float(mark["label"].split()[3])
+
+    assert worst(LENGTHS) < 0.01
+    assert worst(None) > 10.0

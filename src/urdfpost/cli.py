@@ -509,6 +509,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=_non_negative,
         help="tool length in program units (default: the machine file's)",
     )
+    _tool_table_argument(vw)
     vw.add_argument("--tolerance", type=_positive, help=argparse.SUPPRESS)
     vw.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     _setup_argument(vw, "the program's units")
@@ -736,7 +737,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
             cl = toolpath if chunks is None else None  # (a streamed post holds no whole CL)
             files[Path(args.view)], view = _view_html(
                 machine, dialect, text, str(out), cl, args.stock, report.tool_length_mm,
-                args.view_color,
+                args.view_color, tool_lengths=report.tool_lengths_mm,
             )  # fmt: skip
         write_texts(files, _given(inputs), roles, staged)
     except BaseException:  # Ctrl-C, SIGTERM before write_texts took the staged program
@@ -1141,6 +1142,7 @@ def _view_html(
     tool_length: float | None,
     color: str | None,
     program: Any = None,
+    tool_lengths: Any = None,
 ) -> tuple[str, dict[str, Any]]:
     """The 3-D view of a program text, read back (unless ``program`` is that already) as
     ``verify`` reads it."""
@@ -1149,7 +1151,15 @@ def _view_html(
     if program is None:
         program = dialect.read(text, path=path)
     data = view_data(
-        machine, program, text, dialect, cl=cl, stock=stock, tool_length=tool_length, color=color
+        machine,
+        program,
+        text,
+        dialect,
+        cl=cl,
+        stock=stock,
+        tool_length=tool_length,
+        color=color,
+        tool_lengths=tool_lengths,
     )
     return view_html(data), data
 
@@ -1184,6 +1194,15 @@ def _cmd_view(args: argparse.Namespace) -> int:
     machine = _job_machine(args, machine, scale)
     cl = _read_cl(args, machine) if args.cl else None
     tool_length = None if args.tool_length is None else args.tool_length * scale
+    lengths = None
+    if args.tool_table is not None or cl is not None:  # each tool's (machine coordinates)
+        from urdfpost.posting.tools import gauge_lengths
+
+        table = None if args.tool_table is None else read_tool_table(args.tool_table, scale)
+        default = machine.settings.tool_length if tool_length is None else tool_length
+        lengths = dict(table or {})
+        if cl is not None:
+            lengths = gauge_lengths(cl, default, table)
     out = Path(args.output)
     inputs = {
         "the program": args.program,
@@ -1194,8 +1213,9 @@ def _cmd_view(args: argparse.Namespace) -> int:
     check_distinct({"the view (-o)": out}, _given(inputs))
     output_target(out)
     page, data = _view_html(
-        machine, dialect, text, args.program, cl, args.stock, tool_length, args.color, program
-    )
+        machine, dialect, text, args.program, cl, args.stock, tool_length, args.color, program,
+        lengths,
+    )  # fmt: skip
     write_texts({out: page}, _given(inputs), {out: "the view (-o)"})
     print(_view_summary(out, data))
     return 0

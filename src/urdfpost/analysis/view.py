@@ -43,6 +43,7 @@ import html
 import json
 import logging
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,6 +57,7 @@ from urdfpost.kinematics.inverse import assemble, solve_linear
 from urdfpost.machine import Machine
 from urdfpost.machine.shapes import Box, Cylinder, LinkShape, Mesh, Sphere, link_shapes
 from urdfpost.planning.singularity import conditioning
+from urdfpost.posting.tools import row_lengths
 from urdfpost.program import Program, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
@@ -186,6 +188,7 @@ def timeline(
     feed: np.ndarray,
     tool_length: float,
     max_samples: int = MAX_SAMPLES,
+    lengths: np.ndarray | None = None,
 ) -> Timeline:
     """Samples of the program's joint path with their times (see the module docstring).
 
@@ -198,6 +201,9 @@ def timeline(
     tool_length : float, mm
     max_samples : int
         Samples at most.
+    lengths : ndarray, shape (N,), mm, optional
+        A machine-coordinate program posted with each tool's gauge length: the length of
+        each row (:func:`urdfpost.posting.tools.row_lengths`); default ``tool_length``.
 
     Returns
     -------
@@ -206,7 +212,7 @@ def timeline(
     n = len(q)
     if n == 0:
         raise UrdfpostError(f"{program.name}: the program has no moves to show")
-    tip, _ = tip_and_axis(machine, q, tool_length)
+    tip, _ = tips_and_axes(machine, q, tool_length, lengths)
     seconds = _durations(machine, q, rapid, feed, tip)
     rot = list(machine.rotary_columns)
     counts = np.ones(n, dtype=np.int64)
@@ -247,6 +253,21 @@ def timeline(
         rate = np.abs(np.diff(qs[:, limited], axis=0)) / np.where(dt > 0, dt, np.inf)[:, None]
         speed[1:] = (rate / v[limited]).max(axis=1)
     return Timeline(qs, t, move, speed)
+
+
+def tips_and_axes(
+    machine: Machine, q: np.ndarray, tool_length: float, lengths: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Tool tip (mm) and axis of joint rows ``q`` (N, m), each with its own gauge length
+    ``lengths`` (N,) mm where given, else ``tool_length``."""
+    if lengths is None or len(np.unique(lengths)) <= 1:
+        length = tool_length if lengths is None or not len(lengths) else float(lengths[0])
+        return tip_and_axis(machine, q, length)
+    tip, axis = np.empty((len(q), 3)), np.empty((len(q), 3))
+    for length in np.unique(lengths):
+        rows = lengths == length
+        tip[rows], axis[rows] = tip_and_axis(machine, q[rows], float(length))
+    return tip, axis
 
 
 def _rgba_of(root: Any) -> dict[str, tuple[float, ...]]:
@@ -464,6 +485,7 @@ def view_data(
     color: str | None = None,
     inserts: list[str] | None = None,
     max_samples: int = MAX_SAMPLES,
+    tool_lengths: Mapping[int, float] | None = None,
 ) -> dict[str, Any]:
     """Everything the page shows, as JSON-ready data.
 
@@ -490,6 +512,10 @@ def view_data(
     inserts : list of str, optional
         Verbatim blocks of the program text.
     max_samples : int
+    tool_lengths : mapping of int to float, mm, optional
+        A machine-coordinate program posted with each tool's gauge length
+        (:mod:`urdfpost.posting.tools`): the length of each tool number; a tool not in it
+        has ``tool_length``.
 
     Returns
     -------
@@ -508,8 +534,12 @@ def view_data(
             else machine.settings.tool_length
         )
     q, rapid, feed = program_rows(machine, program, tool_length)
-    line = timeline(machine, program, q, rapid, feed, tool_length, max_samples)
-    tip, axis = tip_and_axis(machine, line.q, tool_length)
+    lengths = None
+    if tool_lengths and not program.tcp:
+        lengths = row_lengths(program, tool_lengths, tool_length)
+    line = timeline(machine, program, q, rapid, feed, tool_length, max_samples, lengths)
+    sample_lengths = None if lengths is None else lengths[line.move]
+    tip, axis = tips_and_axes(machine, line.q, tool_length, sample_lengths)
     root = etree.fromstring(machine.urdf_text.encode("utf-8"))
     visuals = link_shapes(root, machine.path, "visual")
     colors = _visual_colors(root)

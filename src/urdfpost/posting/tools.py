@@ -395,3 +395,25 @@ def paired_sections(
         (part, toolpath_slice(toolpath, s.start, s.stop), s)
         for (part, _, _), s in zip(cut, sections, strict=True)
     ]
+
+
+def row_lengths(program: Program, lengths: Mapping[int, float], default: float) -> np.ndarray:
+    """The gauge length each move of a machine-coordinate program was computed with: that of
+    the tool loaded before it (``lengths``, mm; a tool not in it and the moves before any
+    tool change: ``default``).
+
+    Returns
+    -------
+    ndarray, shape (N,), mm
+        One per move of :meth:`Program.move_table`.
+    """
+    out: list[np.ndarray] = []
+    length = default
+    for part in program.parts:
+        if isinstance(part, ToolChange):
+            length = lengths.get(part.number, default)
+        elif isinstance(part, MoveTable):
+            out.append(np.full(len(part), length))
+        elif isinstance(part, Move):
+            out.append(np.full(1, length))
+    return np.concatenate(out) if out else np.zeros(0)
