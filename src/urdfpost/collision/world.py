@@ -438,7 +438,9 @@ class _BoxTree:
             hi_levels.append(np.maximum(hi_levels[-1][0::2], hi_levels[-1][1::2]))
         return cls(lo_levels[::-1], hi_levels[::-1])
 
-    def near(self, center: np.ndarray, rot: np.ndarray, half: np.ndarray, gap: float) -> np.ndarray:
+    def near(
+        self, center: np.ndarray, rot: np.ndarray, half: np.ndarray, gap: float | np.ndarray
+    ) -> np.ndarray:
         """Whether each oriented box may come within ``gap`` of a leaf box.
 
         A separating-axis test on the six face normals of the two boxes, node by node from the
@@ -452,8 +454,8 @@ class _BoxTree:
             Box axes (columns) in the tree's frame.
         half : ndarray, shape (k, 3)
             Half sizes, mm.
-        gap : float
-            mm.
+        gap : float or ndarray, shape (k,)
+            mm (one per box, or one for all).
 
         Returns
         -------
@@ -461,7 +463,7 @@ class _BoxTree:
         """
         k = len(center)
         out = np.zeros(k, dtype=bool)
-        half = half + gap
+        half = half + np.reshape(gap, (-1, 1))
         reach = np.einsum("kij,kj->ki", np.abs(rot), half)  # world-axis half sizes
         qi, ni = np.arange(k), np.zeros(k, dtype=int)
         for level, (lo, hi) in enumerate(zip(self.lo, self.hi, strict=True)):
@@ -825,24 +827,43 @@ class CollisionWorld:
             center[:, i] = np.einsum("nij,j->ni", t[:, :3, :3], self._box_center[i]) + t[:, :3, 3]
         return rot, center
 
-    def _lower_bounds(self, transforms: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    def _lower_bounds(
+        self,
+        transforms: np.ndarray,
+        pairs: np.ndarray,
+        need: float | np.ndarray = np.inf,
+        boxes: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> np.ndarray:
         """Lower bounds of the distance of each pair, shape (n, p), mm.
 
         Each body is enclosed in an oriented box (the bounding box of its hull points in its
-        own frame); the bound is the largest gap between the two boxes along any of their six
-        axes (a separating-axis test that measures the gap).
+        own frame) and that box in an axis-aligned one of the workpiece frame. The bound is
+        the gap between the two axis-aligned boxes and, where that is at most ``need`` (mm;
+        or one per configuration, shape (n,)), the larger of it and the largest gap between
+        the two oriented boxes along any of their six axes (a separating-axis test that
+        measures the gap). Callers that ask whether a pair is within ``need`` get the answer
+        of the oriented boxes everywhere. ``boxes``: :meth:`_boxes` of ``transforms``, if known.
         """
-        rot, center = self._boxes(transforms)
+        rot, center = self._boxes(transforms) if boxes is None else boxes
         ia, ib = pairs[:, 0], pairs[:, 1]
-        r_a, r_b = rot[:, ia], rot[:, ib]  # (n, p, 3, 3), columns = box axes
-        axes = np.concatenate([r_a, r_b], axis=3)  # (n, p, 3, 6)
-        d = np.abs((center[:, ib] - center[:, ia])[:, :, None, :] @ axes)[:, :, 0]
-        half_a = np.abs(np.swapaxes(r_a, 2, 3) @ axes)  # |a_j . u_k|
-        half_b = np.abs(np.swapaxes(r_b, 2, 3) @ axes)
-        reach = (self._box_half[ia][None, :, None, :] @ half_a)[:, :, 0] + (
-            self._box_half[ib][None, :, None, :] @ half_b
-        )[:, :, 0]
-        return np.maximum((d - reach).max(axis=2), 0.0)
+        extent = np.abs(rot) @ self._box_half[None, :, :, None]  # (n, b, 3, 1)
+        extent = extent[..., 0]
+        between = center[:, ib] - center[:, ia]  # (n, p, 3)
+        out = (np.abs(between) - extent[:, ia] - extent[:, ib]).max(axis=2)
+        np.maximum(out, 0.0, out=out)
+        s_k, p_k = np.nonzero(out <= np.reshape(need, (-1, 1)))
+        if not len(s_k):
+            return out
+        a, b = ia[p_k], ib[p_k]
+        r_a, r_b = rot[s_k, a], rot[s_k, b]  # (k, 3, 3), columns = box axes
+        axes = np.concatenate([r_a, r_b], axis=2)  # (k, 3, 6)
+        d = np.abs(between[s_k, p_k][:, None, :] @ axes)[:, 0]
+        half_a = np.abs(np.swapaxes(r_a, 1, 2) @ axes)  # |a_i . u_l|, (k, 3, 6)
+        half_b = np.abs(np.swapaxes(r_b, 1, 2) @ axes)
+        box_half = self._box_half
+        reach = (box_half[a][:, None, :] @ half_a)[:, 0] + (box_half[b][:, None, :] @ half_b)[:, 0]
+        out[s_k, p_k] = np.maximum((d - reach).max(axis=1), out[s_k, p_k])
+        return out
 
     def _distance(self, i: int, j: int, transforms: np.ndarray) -> float:
         """Distance between bodies i and j placed by ``transforms`` (moving bodies), mm."""
@@ -906,7 +927,9 @@ class CollisionWorld:
                 out[rows[points_inside(mesh, c[rows])]] = i
         return out
 
-    def _first_pairs(self, q: np.ndarray, plain: bool = False) -> np.ndarray:
+    def _first_pairs(
+        self, q: np.ndarray, plain: bool = False, allowed: np.ndarray | None = None
+    ) -> np.ndarray:
         """The first colliding pair of each configuration, shape (n, 2), body indices, -1 clear.
 
         The pair reported is the first in checking order (:attr:`_pairs`: tool, head, stock,
@@ -915,8 +938,9 @@ class CollisionWorld:
         are more than ``GAP_MM`` apart (:meth:`_lower_bounds`), and the stock pairs whose
         partner's box is more than that from every leaf box of the stock's tree, are clear.
         ``plain``: FCL on every pair, placements by Pinocchio (the reference of the tests).
+        ``allowed`` (n, p): the pairs that can touch at all (the others are known clear).
         """
-        fcl, pairs = self._fcl, self._pairs
+        pairs = self._pairs
         out = np.full((q.shape[0], 2), -1)
         for start in range(0, q.shape[0], _CHUNK):
             rows = slice(start, min(start + _CHUNK, q.shape[0]))
@@ -925,33 +949,52 @@ class CollisionWorld:
             if plain:
                 ask = np.ones((transforms.shape[0], len(pairs)), dtype=bool)
             else:
-                ask = self._lower_bounds(transforms, pairs) <= GAP_MM
-                self._cull_stock_pairs(transforms, ask)
-            placed = np.full(len(self._bodies), -1)
-            for r in np.flatnonzero(ask.any(axis=1)):
-                for p in np.flatnonzero(ask[r]):
-                    i, j = int(pairs[p, 0]), int(pairs[p, 1])
-                    for b in (i, j):
-                        if b in self._moving_pos and placed[b] != r:
-                            self._place(self._objects[b], transforms[r, self._moving_pos[b]])
-                            placed[b] = r
-                    if fcl.collide(
-                        self._objects[i], self._objects[j], self._crequest, fcl.CollisionResult()
-                    ):
-                        first[r] = (i, j)
-                        break
-            inside = self._inside_stock(transforms, first[:, 0] < 0)
-            rows_in = np.flatnonzero(inside >= 0)
-            first[rows_in, 0], first[rows_in, 1] = inside[rows_in], self._stock
+                boxes = self._boxes(transforms)
+                ask = self._lower_bounds(transforms, pairs, GAP_MM, boxes) <= GAP_MM
+                if allowed is not None:
+                    ask &= allowed[rows]
+                self._cull_stock_pairs(transforms, ask, boxes=boxes)
+            first[:] = self._first_asked(transforms, ask)
         return out
 
-    def _cull_stock_pairs(self, transforms: np.ndarray, ask: np.ndarray) -> None:
-        """Clear, in ``ask`` (n, p), the stock pairs whose partner's box keeps ``GAP_MM`` from
-        every leaf box of the stock's tree."""
+    def _first_asked(self, transforms: np.ndarray, ask: np.ndarray) -> np.ndarray:
+        """:meth:`_first_pairs` of placed configurations, FCL asked about the pairs of ``ask``
+        (k, p) only, shape (k, 2)."""
+        fcl, pairs = self._fcl, self._pairs
+        first = np.full((transforms.shape[0], 2), -1)
+        placed = np.full(len(self._bodies), -1)
+        for r in np.flatnonzero(ask.any(axis=1)):
+            for p in np.flatnonzero(ask[r]):
+                i, j = int(pairs[p, 0]), int(pairs[p, 1])
+                for b in (i, j):
+                    if b in self._moving_pos and placed[b] != r:
+                        self._place(self._objects[b], transforms[r, self._moving_pos[b]])
+                        placed[b] = r
+                if fcl.collide(
+                    self._objects[i], self._objects[j], self._crequest, fcl.CollisionResult()
+                ):
+                    first[r] = (i, j)
+                    break
+        inside = self._inside_stock(transforms, first[:, 0] < 0)
+        rows_in = np.flatnonzero(inside >= 0)
+        first[rows_in, 0], first[rows_in, 1] = inside[rows_in], self._stock
+        return first
+
+    def _cull_stock_pairs(
+        self,
+        transforms: np.ndarray,
+        ask: np.ndarray,
+        gap: float | np.ndarray = GAP_MM,
+        boxes: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
+        """Clear, in ``ask`` (n, p), the stock pairs whose partner's box keeps ``gap`` (mm; or
+        one per configuration, shape (n,)) from every leaf box of the stock's tree (``boxes``:
+        :meth:`_boxes` of ``transforms``, if known)."""
+        gaps = np.broadcast_to(np.asarray(gap, dtype=float), (len(ask),))
         tree = self._stock_tree
         if tree is None or not ask[:, self._stock_pairs].any():
             return
-        rot, center = self._boxes(transforms)
+        rot, center = self._boxes(transforms) if boxes is None else boxes
         s = self._stock
         stock_t = self._fixed_transform[s]
         r_inv, t_s = stock_t[:3, :3].T, stock_t[:3, 3]
@@ -963,7 +1006,7 @@ class CollisionWorld:
             c = (center[rows, other] - t_s) @ r_inv.T
             r = r_inv @ rot[rows, other]
             half = np.broadcast_to(self._box_half[other], (len(rows), 3))
-            ask[rows, p] = tree.near(c, r, half, GAP_MM)
+            ask[rows, p] = tree.near(c, r, half, gaps[rows])
 
     def _names(self, pair: tuple[int, int] | None) -> tuple[str, str] | None:
         if pair is None:
@@ -1074,6 +1117,63 @@ class CollisionWorld:
         n = np.maximum(np.ceil(swept / step_mm), np.ceil(turn / math.radians(step_deg)))
         return np.maximum(n, 1).astype(int)
 
+    def _ends_and_moves(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_first_pairs` of the configurations ``q`` (n, m), and the pairs that may come
+        within ``GAP_MM`` somewhere on each straight joint-space move between consecutive ones,
+        shape (n - 1, p), bool, from the same placements.
+
+        Along a move no point of a body moves more than ``s = sum_j lever_j |dq_j|`` relative
+        to another body (:meth:`sample_counts`), so a pair whose distance is at least ``b0`` at
+        the start and ``b1`` at the end (the box gaps of :meth:`_lower_bounds`) keeps at least
+        ``(b0 + b1 - s) / 2`` all along; a stock pair whose partner's box keeps ``GAP_MM + s``
+        from every leaf box of the stock's tree at both ends cannot reach the stock's surface
+        either (nor enter or leave it: whether a body is inside the stock is the same all
+        along, and is checked at the ends).
+        """
+        pairs = self._pairs
+        n = q.shape[0]
+        swept = np.abs(np.diff(q, axis=0)) @ self._levers
+        ends = np.full((n, 2), -1)
+        bound = np.empty((n, len(pairs)))
+        near_start = np.ones((max(n - 1, 0), len(pairs)), dtype=bool)
+        near_end = np.ones_like(near_start)
+        for start in range(0, n, _CHUNK):
+            stop = min(start + _CHUNK, n)
+            transforms = self._moving_transforms(q[start:stop])
+            boxes = self._boxes(transforms)
+            rows = np.arange(start, stop)
+            starts, finishes = rows[rows < n - 1], rows[rows > 0]
+            # box gaps where the gap of the axis-aligned boxes lets a move in or out pass
+            adjacent = np.zeros(stop - start)
+            adjacent[starts - start] = swept[starts]
+            adjacent[finishes - start] = np.maximum(adjacent[finishes - start], swept[finishes - 1])
+            here = self._lower_bounds(transforms, pairs, 2 * GAP_MM + adjacent, boxes)
+            bound[start:stop] = here
+            ask = here <= GAP_MM
+            stock = self._stock_tree is not None and len(self._stock_pairs) > 0
+            wide = np.zeros_like(ask)  # the stock pairs within reach of either move
+            if stock:
+                wide[:, self._stock_pairs] = True
+                self._cull_stock_pairs(transforms, wide, GAP_MM + adjacent, boxes)
+                ask[:, self._stock_pairs] &= wide[:, self._stock_pairs]
+            self._cull_stock_pairs(transforms, ask, boxes=boxes)
+            ends[start:stop] = self._first_asked(transforms, ask)
+            if not stock:
+                continue
+            # each configuration as the start of its own move and the end of the one before
+            sides = ((near_start, starts, starts), (near_end, finishes, finishes - 1))
+            for mask, at, moves in sides:
+                if not len(at):
+                    continue
+                ask = wide[at - start]
+                chunk = (boxes[0][at - start], boxes[1][at - start])
+                self._cull_stock_pairs(
+                    transforms[at - start], ask, GAP_MM + swept[moves], boxes=chunk
+                )
+                mask[moves[:, None], self._stock_pairs[None, :]] = ask[:, self._stock_pairs]
+        may = (bound[:-1] + bound[1:] - swept[:, None]) / 2 <= GAP_MM
+        return ends, may & near_start & near_end
+
     def check_moves(
         self, q: np.ndarray, step_mm: float = DEFAULT_STEP_MM, step_deg: float = DEFAULT_STEP_DEG
     ) -> MoveCollisionResult:
@@ -1106,12 +1206,19 @@ class CollisionWorld:
         offsets = np.cumsum(counts) - counts
         k = np.arange(len(move)) - np.repeat(offsets, counts)
         first = np.full((len(move) + 1, 2), -1)
-        for lo in range(0, len(move), _CHUNK):
-            mv, kk = move[lo : lo + _CHUNK], k[lo : lo + _CHUNK]
-            t = kk / counts[mv]
+        # the move ends (the configurations themselves), then the interior samples of the moves
+        # on which a pair can touch at all, only for those pairs (:meth:`_ends_and_moves`)
+        ends, may = self._ends_and_moves(q)
+        first[offsets] = ends[:-1]
+        first[-1] = ends[-1]
+        touching = np.asarray(may.any(axis=1), dtype=bool)  # moves on which a pair may touch
+        inner = np.flatnonzero((k > 0) & touching[move])
+        for lo in range(0, len(inner), _CHUNK):
+            at = inner[lo : lo + _CHUNK]
+            mv = move[at]
+            t = k[at] / counts[mv]
             qs = q[mv] + t[:, None] * (q[mv + 1] - q[mv])
-            first[lo : lo + len(mv)] = self._first_pairs(qs)
-        first[-1] = self._first_pairs(q[-1:])[0]
+            first[at] = self._first_pairs(qs, allowed=may[mv])
         # per sample, the next colliding sample at or after it
         hits = np.flatnonzero(first[:, 0] >= 0)
         nxt = np.searchsorted(hits, offsets)
