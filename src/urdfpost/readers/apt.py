@@ -133,6 +133,7 @@ from ._common import (
     shorten,
     unit_vector,
 )
+from ._cycle import parse_cycle
 from ._format import Format
 from ._geometry import IDENTITY, ArcTooFineError, Frame, interpolate_arc
 from ._stream import (
@@ -825,6 +826,7 @@ class _AptInterpreter:
         self.axis = self.axis_local
         self.multiaxis = False
         self.rapid_next = False
+        self.cycle_on = False  # between CYCLE/<kind> and CYCLE/OFF: GOTOs are holes
         self.feed_value = math.nan
         self.feed_per_rev = False
         self.feed_scale = self.scale
@@ -849,6 +851,7 @@ class _AptInterpreter:
             "GODLTA": self._godlta,
             "CIRCLE": self._circle,
             "RAPID": self._rapid,
+            "CYCLE": self._cycle,
             "FEDRAT": self._fedrat,
             "SPINDL": self._spindl,
             "COOLNT": self._coolnt,
@@ -1075,7 +1078,7 @@ class _AptInterpreter:
             self._finish_arc(record, tip, axis_before, has_axis)
             return
         self._check_arc(tip, Motion.RAPID if self.rapid_next else Motion.FEED)
-        if self.rapid_next:
+        if self.rapid_next or self.cycle_on:  # a hole of a cycle: its top, reached at rapid
             self.builder.add_point(tip, self.axis, math.nan, Motion.RAPID, record.line)
             self.rapid_next = False
         else:
@@ -1092,6 +1095,10 @@ class _AptInterpreter:
         are read one by one instead.
         """
         first = 0
+        if self.cycle_on:  # holes: few, read one by one
+            for record in run.records():
+                self._goto(record)
+            return
         if self.circle is not None or self.rapid_next:
             self._goto(_first_record(run))
             first = 1
@@ -1405,6 +1412,13 @@ class _AptInterpreter:
         return f"{what} at line {line}"
 
     # -- feeds, spindle, coolant ----------------------------------------------------------
+
+    def _cycle(self, record: Record) -> None:
+        """``CYCLE/<kind>,...`` starts a canned cycle (a ``cycle`` event; the GOTOs after it
+        are its holes), ``CYCLE/OFF`` ends it: :func:`parse_cycle`."""
+        data = parse_cycle(record, self)
+        self.cycle_on = data["cycle"] != "off"
+        self.builder.add_event("cycle", record.line, **data)
 
     def _fedrat(self, record: Record) -> None:
         words, numbers = _split_tokens(record, self.source)
