@@ -302,6 +302,12 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
         help="spindle speed (clockwise) for cutting the CL data does not start the spindle "
         "for (default: such a move is an error)",
     )
+    p.add_argument(
+        "--expand-cycles",
+        action="store_true",
+        help="write the CL data's canned cycles (CYCLE/DRILL...) as the motion they make "
+        "instead of the control's drilling cycles",
+    )
 
 
 def _cl_units_argument(p: argparse.ArgumentParser, *aliases: str) -> None:
@@ -625,6 +631,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         clearance=args.clearance,
         feed=args.feed,
         spindle=args.spindle,
+        expand_cycles=args.expand_cycles,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {

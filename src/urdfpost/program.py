@@ -178,15 +178,16 @@ CYCLE_BEGIN = "urdfpost cycle"
 CYCLE_END = "urdfpost cycle end"
 """The comment after them."""
 
-CHIP_BREAK_RETRACT = 0.2
-"""mm. How far a chip-breaking peck backs off in the expanded motion. The controls' own
-distance is a machine parameter (Fanuc parameter 5114 for G73, Siemens 1 mm, Heidenhain Q256,
-LinuxCNC 0.010 inch): the expansion checks the depth and the hole axis, not this distance."""
+CHIP_BREAK_RETRACT = 0.254
+"""mm. How far a chip-breaking peck backs off in the expanded motion: LinuxCNC's G73 (0.010
+inch; its interpreter's canon output shows it). The other controls' distance is a machine
+parameter or a cycle parameter (Fanuc parameter 5114, Heidenhain Q256, which the post writes
+as this): verification checks the depth and the hole axis, not this distance."""
 
-PECK_GAP = 0.2
+PECK_GAP = 0.254
 """mm. How far above the last peck's depth a deep-hole peck comes back down at rapid before
-it feeds again (the expansion's model; the controls' own gap is a machine parameter, Fanuc
-5115 for G83)."""
+it feeds again: LinuxCNC's G83 (0.010 inch); Fanuc's is parameter 5115, Heidenhain's and
+Siemens' the cycle's own (the expansion's model, as :data:`CHIP_BREAK_RETRACT`)."""
 
 
 @dataclass(frozen=True)
@@ -660,7 +661,10 @@ def _peck_depths(cycle: Cycle) -> list[float]:
 
 
 def expand_cycle(
-    cycle: Cycle, axes: tuple[str, ...], spindle: Spindle | None = None
+    cycle: Cycle,
+    axes: tuple[str, ...],
+    spindle: Spindle | None = None,
+    up: Sequence[float] | None = None,
 ) -> list[Block | MoveTable]:
     """The motion a control runs for ``cycle``, as plain blocks.
 
@@ -681,6 +685,10 @@ def expand_cycle(
         The program's axes (Z among them).
     spindle : Spindle, optional
         The spindle running before the cycle (needed for "tap").
+    up : sequence of float, optional
+        Per program axis, how far it moves for 1 mm up the hole's axis (mm, degrees): for a
+        hole whose tool axis is not the program's Z (a tilted hole written as its motion).
+        None: the program's +Z, as the controls run a cycle.
 
     Returns
     -------
@@ -694,6 +702,9 @@ def expand_cycle(
     if "Z" not in axes:
         raise ValueError(f"a cycle in a program without a Z axis ({' '.join(axes)})")
     z = axes.index("Z")
+    rise = np.zeros(len(axes)) if up is None else np.asarray(up, dtype=float)
+    if up is None:
+        rise[z] = 1.0
     if cycle.kind == "tap" and (spindle is None or spindle.direction == "off"):
         raise ValueError("a tapping cycle with the spindle off; expected it running")
     out: list[Block | MoveTable] = [Comment(f"{CYCLE_BEGIN} {cycle.kind}")]
@@ -707,12 +718,13 @@ def expand_cycle(
 
     lines = cycle.cl_lines or (None,) * len(cycle.holes)
     for hole, cl_line in zip(cycle.holes, lines, strict=True):
-        top = hole[z]
+        top = np.asarray(hole, dtype=float)
 
         def add(height: float, rapid: bool, line: int | None = None) -> None:
-            position = list(hole)
-            position[z] = top + height  # noqa: B023 (used at once)
-            rows.append((tuple(position), rapid, math.nan if rapid else cycle.feed, line or -1))
+            position = tuple((top + height * rise).tolist())  # noqa: B023 (used at once)
+            if rows and rows[-1][0] == position and line is None:
+                return  # (the clearance at the retract height: one block)
+            rows.append((position, rapid, math.nan if rapid else cycle.feed, line or -1))
 
         add(cycle.retract, True)
         if cycle.clearance > 0.0:

@@ -324,6 +324,15 @@ class DialectSpec:
         None writes every block through ``format_motion``.
     parse_line : callable or None
         Reader hook for non-G-code syntax; None uses the shared word-address parser.
+    cycle_lines : callable or None
+        The lines of a :class:`~urdfpost.program.Cycle` block (``(cycle, axes, CycleFormat)
+        -> lines``, :mod:`urdfpost.dialects._cycles`; a line starting with a blank is a
+        continuation line, never numbered); None: the control's cycles are not written, a
+        post writes the holes as their motion.
+    dwell : tuple of str
+        Lines of a :class:`~urdfpost.program.Dwell` (``{seconds}``); empty: none.
+    dwell_p_ms : bool
+        The P word of G4, G82 and G89 is in milliseconds (Fanuc), not seconds (LinuxCNC).
     """
 
     name: str
@@ -387,6 +396,9 @@ class DialectSpec:
     format_motion: Callable[[MotionWords], str] = format_gcode_motion
     motion_layout: MotionLayout | None = None
     parse_line: LineParser | None = None
+    cycle_lines: Callable[..., list[str]] | None = None
+    dwell: tuple[str, ...] = ()
+    dwell_p_ms: bool = False
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

@@ -83,6 +83,9 @@ class PostOptions:
     spindle : float or None
         Spindle speed (rpm, clockwise) for cutting with the spindle off (reported as a
         warning); None: such a move is an error.
+    expand_cycles : bool
+        Write the CL data's canned cycles (``CYCLE/DRILL`` ...) as the motion they make
+        instead of the control's cycles (``G81``, ``CYCLE81``, ``CYCL DEF 200``).
     """
 
     controller: str | None = None
@@ -108,6 +111,7 @@ class PostOptions:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    expand_cycles: bool = False
 
 
 @dataclass(frozen=True)
@@ -156,6 +160,8 @@ class Job:
         mm/min.
     spindle : float or None
         rpm.
+    expand_cycles : bool
+        Canned cycles written as their motion.
     """
 
     machine: Machine
@@ -181,6 +187,7 @@ class Job:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    expand_cycles: bool = False
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -292,4 +299,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         work_offset=options.work_offset,
         feed=mm(options.feed),
         spindle=options.spindle,
+        expand_cycles=options.expand_cycles,
     )

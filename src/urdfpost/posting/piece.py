@@ -401,6 +401,8 @@ def post_piece(
         close=piece is None or piece.last,
         transitions=transitions,
         work_offset=None if continued else job.work_offset,
+        expand_cycles=job.expand_cycles,
+        notes=warnings,
     )
     program = Program(
         name=program_name(toolpath, job.program_name),
