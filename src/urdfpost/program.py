@@ -713,7 +713,8 @@ def expand_cycle(
     def flush() -> None:
         if rows:
             position, rapid, feed, line = zip(*rows, strict=True)
-            out.append(MoveTable(np.array(position), np.array(rapid), np.array(feed), line))
+            table = MoveTable(np.array(position), np.array(rapid), np.array(feed), np.array(line))
+            out.append(table)
             rows.clear()
 
     lines = cycle.cl_lines or (None,) * len(cycle.holes)

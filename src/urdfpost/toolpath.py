@@ -15,7 +15,6 @@ from typing import Any
 
 import numpy as np
 
-
 CYCLE_KINDS = ("drill", "deep", "chipbreak", "tap", "bore")
 """Kinds of a ``cycle`` event (as :data:`urdfpost.program.CYCLE_KINDS`)."""
 
@@ -245,12 +244,13 @@ def cycle_holes(toolpath: Toolpath) -> list[tuple[int, Event]]:
         Point index and its cycle's event, in order.
     """
     out: list[tuple[int, Event]] = []
-    n = len(toolpath)
     active: Event | None = None
-    for event in [e for e in toolpath.events if e.kind == "cycle"] + [None]:  # type: ignore[list-item]
-        end = n if event is None else event.index
+    for event in toolpath.events:
+        if event.kind != "cycle":
+            continue
         if active is not None:
-            out += [(i, active) for i in range(active.index, end)]
-        if event is not None:
-            active = None if event.data.get("cycle") == "off" else event
+            out += [(i, active) for i in range(active.index, event.index)]
+        active = None if event.data.get("cycle") == "off" else event
+    if active is not None:  # a cycle not switched off: up to the end
+        out += [(i, active) for i in range(active.index, len(toolpath))]
     return out

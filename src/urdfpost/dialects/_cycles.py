@@ -143,6 +143,8 @@ def iso_lines(cycle: Cycle, axes: tuple[str, ...], fmt: CycleFormat, dwell_ms: b
     """
     top = _top(cycle, axes)
     code = ISO_CODES[cycle.kind]
+    if cycle.dwell > 0.0 and cycle.kind not in ("drill", "bore"):
+        raise ValueError(f"a {cycle.kind} cycle with a dwell; expected one only in G82, G89")
     if cycle.dwell > 0.0:
         code = {"81": "82", "85": "89"}.get(code, code)
     words = [f"G98 G{code}", _hole_words(cycle, axes, fmt)[0]]
@@ -201,7 +203,10 @@ def heidenhain_lines(cycle: Cycle, axes: tuple[str, ...], fmt: CycleFormat) -> l
     elif cycle.kind == "bore":
         q.append(("211", f"+{seconds(cycle.dwell)}", "DWELL TIME AT DEPTH"))
         q.append(("208", f"+{feed(cycle.feed)}", "RETRACTION FEED RATE"))
-    q += [("203", length(top), "SURFACE COORDINATE"), ("204", length(cycle.retract), "2ND SET-UP CLEARANCE")]
+    q += [
+        ("203", length(top), "SURFACE COORDINATE"),
+        ("204", length(cycle.retract), "2ND SET-UP CLEARANCE"),
+    ]
     if cycle.kind in ("deep", "chipbreak"):
         breaks = "+0" if cycle.kind == "deep" else f"+{CHIP_BREAKS}"
         q += [
@@ -351,10 +356,12 @@ def heidenhain_definition(
     else:
         feed = get(206) * feed_scale
         dwell = q.get(211, 0.0)
-        if number == 200:
-            kind = "drill"
-            if abs(get(202) * scale - depth) > 1e-9 * max(1.0, depth):
-                raise error("CYCL DEF 200 with Q202 other than the depth; expected one plunge")
+        if number == 200:  # pecks of Q202 with retracts when shallower than the depth
+            plunge = get(202) * scale
+            kind = "drill" if plunge >= depth - 1e-9 * max(1.0, depth) else "deep"
+            step = 0.0 if kind == "drill" else plunge
+            if not plunge > 0.0:
+                raise error(f"CYCL DEF 200: Q202 {get(202)}; expected a plunging depth > 0")
         elif number == 201:
             kind = "bore"
         else:
@@ -394,7 +401,9 @@ def iso_definition(
     )
 
 
-def cycle_of(definition: CycleDefinition, holes: list[dict[str, float]], axes: tuple[str, ...]) -> Cycle:
+def cycle_of(
+    definition: CycleDefinition, holes: list[dict[str, float]], axes: tuple[str, ...]
+) -> Cycle:
     """The :class:`Cycle` block of a definition and its holes (positions per address, mm /
     degrees; NaN for axes not known)."""
     return Cycle(

@@ -103,4 +103,5 @@ SPEC = DialectSpec(
     cycle_lines=functools.partial(iso_lines, dwell_ms=True),
     dwell=("G4 X{seconds}",),
     dwell_p_ms=True,
+    cycle_dwell=frozenset({"drill", "bore"}),
 )

@@ -351,4 +351,5 @@ SPEC = DialectSpec(
     parse_line=parse_line,
     cycle_lines=heidenhain_lines,
     dwell=("CYCL DEF 9.0 DWELL TIME", "CYCL DEF 9.1 DWELL {seconds}"),
+    cycle_dwell=frozenset({"drill", "deep", "chipbreak", "bore"}),
 )

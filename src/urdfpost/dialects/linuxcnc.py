@@ -111,4 +111,5 @@ SPEC = DialectSpec(
     cycle_lines=functools.partial(iso_lines, dwell_ms=False),
     dwell=("G4 P{seconds}",),
     dwell_p_ms=False,
+    cycle_dwell=frozenset({"drill", "bore"}),
 )

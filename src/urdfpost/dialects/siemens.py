@@ -88,4 +88,5 @@ SPEC = DialectSpec(
     motion_layout=MotionLayout(),
     cycle_lines=siemens_lines,
     dwell=("G4 F{seconds}",),
+    cycle_dwell=frozenset({"drill", "deep", "chipbreak", "tap", "bore"}),
 )

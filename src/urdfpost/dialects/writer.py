@@ -337,7 +337,10 @@ class ProgramWriter:
             case Dwell():
                 if not self.spec.dwell:
                     raise DialectError(f"{self.spec.name}: no dwell block")
-                self.emit_templates(self.spec.dwell, seconds=seconds(block.seconds))
+                text = seconds(block.seconds)
+                if self.spec.require_point and "." not in text:
+                    text += "."  # (Fanuc G4 X1 would be a millisecond)
+                self.emit_templates(self.spec.dwell, seconds=text)
             case _:
                 raise DialectError(f"cannot write block {block!r}")
 
@@ -348,7 +351,9 @@ class ProgramWriter:
             raise DialectError(f"{self.spec.name}: canned cycles are not written for this control")
         axes = self.program.axes
         if "Z" not in axes or len(cycle.holes[0]) != len(axes):
-            raise DialectError(f"cycle {cycle}: expected one position per axis of {axes}, Z among them")
+            raise DialectError(
+                f"cycle {cycle}: expected one position per axis of {axes}, Z among them"
+            )
         fmt = CycleFormat(
             axis=self.format_axis,
             length=lambda v: self.format_axis("Z", v),

@@ -10,7 +10,7 @@ the blocks.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -201,6 +201,7 @@ def program_body(
     coolant: str | None = None,
     expand_cycles: bool = False,
     notes: list[str] | None = None,
+    runs_cycle: Callable[[str, float], bool] | None = None,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -240,6 +241,10 @@ def program_body(
         :class:`~urdfpost.program.Cycle` blocks (:func:`cycle_parts`).
     notes : list of str, optional
         Receives the warnings (a tilted hole written as its motion).
+    runs_cycle : callable, optional
+        ``(kind, dwell) -> bool``: whether the control runs such a cycle
+        (:meth:`~urdfpost.dialects.spec.DialectSpec.runs_cycle`); one it does not is written
+        as its motion, with a warning. None: every cycle is written.
 
     Returns
     -------
@@ -248,7 +253,7 @@ def program_body(
         one table.
     """
     table = _move_table(toolpath, machine, tcp, rows, rewind_feed)
-    holes = _Holes.of(toolpath, machine, tcp, rows, table, expand_cycles, notes)
+    holes = _Holes.of(toolpath, machine, tcp, rows, table, expand_cycles, notes, runs_cycle)
     count, kind = len(rows), rows.kind
     # the row before which each event comes (count: after the last row)
     reach = np.maximum.accumulate(rows.point) if count else rows.point
@@ -374,6 +379,10 @@ class _Holes:
         Write every hole as its motion.
     notes : list of str or None
         Receives the warnings.
+    runs : callable or None
+        Whether the control runs a cycle (kind, dwell).
+    warned : set of int
+        CL lines of the cycles warned of.
     """
 
     toolpath: Toolpath
@@ -384,6 +393,7 @@ class _Holes:
     event: dict[int, Event]
     expand: bool
     notes: list[str] | None
+    runs: Callable[[str, float], bool] | None
     warned: set[int]
 
     @classmethod
@@ -396,11 +406,14 @@ class _Holes:
         table: MoveTable,
         expand: bool,
         notes: list[str] | None,
+        runs: Callable[[str, float], bool] | None = None,
     ) -> _Holes:
         event = dict(cycle_holes(toolpath))
-        return cls(toolpath, machine, tcp, rows, table, event, expand, notes, set())
+        return cls(toolpath, machine, tcp, rows, table, event, expand, notes, runs, set())
 
-    def parts(self, start: int, stop: int, body: list[Block | MoveTable]) -> list[Block | MoveTable]:
+    def parts(
+        self, start: int, stop: int, body: list[Block | MoveTable]
+    ) -> list[Block | MoveTable]:
         """The blocks of rows ``start`` to ``stop`` (exclusive): the moves as a table, and the
         rows of holes as :class:`Cycle` blocks, each after a rapid to the retract height above
         its first hole (or, expanded, as their motion: :func:`expand_cycle`). The rows on the
@@ -444,7 +457,9 @@ class _Holes:
         up[linear] = np.linalg.solve(step, axis)
         return up
 
-    def _cycles(self, start: int, stop: int, before: list[Block | MoveTable]) -> list[Block | MoveTable]:
+    def _cycles(
+        self, start: int, stop: int, before: list[Block | MoveTable]
+    ) -> list[Block | MoveTable]:
         """The blocks of the hole rows ``start`` to ``stop``."""
         names = self.machine.axis_names
         z = names.index("Z")
@@ -468,10 +483,12 @@ class _Holes:
             if not self.rows.reaches[row]:
                 continue
             up = self._up(row)
-            native = not self.expand and float(np.linalg.norm(up - plus_z)) <= NATIVE_AXIS
-            if not native:
+            along_z = float(np.linalg.norm(up - plus_z)) <= NATIVE_AXIS
+            data = self._event(row).data
+            runs = self.runs is None or self.runs(str(data["cycle"]), float(data["dwell"]))
+            if self.expand or not along_z or not runs:
                 close()
-                self._warn_tilted(row)
+                self._warn_expanded(row, "tilted" if not along_z else "control")
                 cycle = self._cycle([row])
                 out += expand_cycle(cycle, names, _spindle_before(before + out), tuple(up))
                 continue
@@ -505,18 +522,25 @@ class _Holes:
             cl_lines=tuple(int(self.toolpath.line[self.rows.point[r]]) for r in group),
         )
 
-    def _warn_tilted(self, row: int) -> None:
+    def _warn_expanded(self, row: int, why: str) -> None:
         """One warning per cycle whose holes are written as their motion without being asked
-        to (their tool axis is not the program's Z)."""
+        to: ``why`` "tilted" (a hole's tool axis is not the program's Z) or "control" (the
+        control has no such cycle)."""
         event = self._event(row)
         if self.expand or self.notes is None or event.line in self.warned:
             return
         self.warned.add(event.line)
         line = int(self.toolpath.line[self.rows.point[row]])
+        kind = event.data["cycle"]
+        reason = (
+            f"the hole at line {line} has its tool axis off the program's Z axis (a tilted hole "
+            "needs a tilted working plane, which is not written)"
+            if why == "tilted"
+            else f"the control has no {kind} cycle with a dwell at the bottom"
+        )
         self.notes.append(
-            f"{self.toolpath.source}:{event.line}: the CYCLE's hole at line {line} has its tool "
-            "axis off the program's Z axis (a tilted hole needs a tilted working plane, which "
-            "is not written): its holes are written as their motion"
+            f"{self.toolpath.source}:{event.line}: CYCLE {kind}: {reason}; its holes are "
+            "written as their motion"
         )
 
 

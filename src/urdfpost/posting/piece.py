@@ -403,6 +403,7 @@ def post_piece(
         work_offset=None if continued else job.work_offset,
         expand_cycles=job.expand_cycles,
         notes=warnings,
+        runs_cycle=job.dialect.spec.runs_cycle,
     )
     program = Program(
         name=program_name(toolpath, job.program_name),

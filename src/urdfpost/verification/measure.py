@@ -664,7 +664,11 @@ def verify_checks(
     if holes and any(h is not None for h in holes):
         return [
             _with_holes(v, h, program.units)
-            for v, h in zip(_verify_rows(program, machine, checks, tool_length, values, rapid, notes), holes, strict=True)
+            for v, h in zip(
+                _verify_rows(program, machine, checks, tool_length, values, rapid, notes),
+                holes,
+                strict=True,
+            )
         ]
     return _verify_rows(program, machine, checks, tool_length, values, rapid, notes)
 
@@ -680,7 +684,7 @@ def _with_holes(verification: Verification, holes, units: str) -> Verification:
         reached=verification.reached + holes.holes - len(holes.missing),
         missed_lines=sorted(verification.missed_lines + holes.missing),
         worst_cl_line=verification.worst_cl_line
-        if holes.ok or verification.worst_cl_line is not None and not verification.ok
+        if holes.ok or (verification.worst_cl_line is not None and not verification.ok)
         else holes.bad_lines[0],
         notes=[*verification.notes, holes.note(units)],
     )
