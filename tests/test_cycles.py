@@ -144,12 +144,12 @@ def test_expansion_of_pecks_dwell_and_tap() -> None:
     blocks = expand_cycle(deep, axes)
     z = _rows(blocks)[:, 2].tolist()
     gap = PECK_GAP
-    assert z == [5, 2, 0, -4, 2, -4 + gap, -8, 2, -8 + gap, -10, 5]
+    assert z == [5, 2, -4, 2, -4 + gap, -8, 2, -8 + gap, -10, 5]
     assert Dwell(1.0) in blocks
     chip = Cycle("chipbreak", 10.0, 100.0, 2.0, 2.0, ((1.0, 2.0, 0.0),), step=4.0)
     z = _rows(expand_cycle(chip, axes))[:, 2].tolist()
     retract = CHIP_BREAK_RETRACT
-    assert z == [2, 0, -4, -4 + retract, -8, -8 + retract, -10, 2]
+    assert z == [2, -4, -4 + retract, -8, -8 + retract, -10, 2]
     tap = Cycle("tap", 8.0, 1250.0, 3.0, 3.0, ((1.0, 2.0, 0.0),))
     with pytest.raises(ValueError, match="spindle off"):
         expand_cycle(tap, axes)

@@ -668,8 +668,8 @@ def expand_cycle(
 ) -> list[Block | MoveTable]:
     """The motion a control runs for ``cycle``, as plain blocks.
 
-    Per hole: rapid to the retract height above it, rapid to the clearance, feed to the hole
-    top (the CL point; the block carries its CL line) and on to the bottom, in pecks of
+    Per hole: rapid to the retract height above it, rapid to the clearance, feed through the
+    hole top (the CL point; the block carries its CL line) to the bottom, in pecks of
     ``step`` for "deep" (a rapid out to the clearance after each, and back down to
     :data:`PECK_GAP` above the depth reached) and "chipbreak" (backing off
     :data:`CHIP_BREAK_RETRACT` after each), the dwell, then out: rapid for the drilling kinds,
@@ -728,13 +728,9 @@ def expand_cycle(
             rows.append((position, rapid, math.nan if rapid else cycle.feed, line or -1))
 
         add(cycle.retract, True)
-        if cycle.clearance > 0.0:
-            add(cycle.clearance, True)
-            add(0.0, False, cl_line)
-        else:
-            add(0.0, True, cl_line)
-        for depth in _peck_depths(cycle):
-            add(-depth, False)
+        add(cycle.clearance, True)
+        for k, depth in enumerate(_peck_depths(cycle)):
+            add(-depth, False, cl_line if k == 0 else None)  # (the feed into the hole: its top)
             if depth < cycle.depth and cycle.kind == "deep":
                 add(cycle.clearance, True)
                 add(min(PECK_GAP - depth, cycle.clearance), True)
