@@ -322,3 +322,94 @@ def test_rs274_drills_the_hole_bottoms_at_the_cycle_feeds(expand: bool, tmp_path
         assert feeds[key] == {rate}, key
     dwells = [c for c in run.calls if c.name == "DWELL"]
     assert len([d for d in dwells if float(d.args[0]) == 0.5]) >= 2  # the drill's, per hole
+
+
+# -- every kind on every control -------------------------------------------------------------
+
+#: Cycles of every kind the controls run (kind, step, dwell), at two holes 2 mm below zero.
+KINDS = [
+    ("drill", 0.0, 0.0),
+    ("drill", 0.0, 1.5),
+    ("deep", 4.0, 0.0),
+    ("chipbreak", 3.0, 0.0),
+    ("tap", 0.0, 0.0),
+    ("bore", 0.0, 0.0),
+    ("bore", 0.0, 0.5),
+]
+
+
+def _kind_program(kind: str, step: float, dwell: float, units: str = "mm") -> Program:
+    holes = ((10.0, 5.0, -2.0, 0.0, 0.0), (-20.0, 5.0, -2.0, 0.0, 0.0))
+    cycle = Cycle(kind, 11.0, 600.0, 2.5, 7.5, holes, step=step, dwell=dwell)
+    above = (10.0, 5.0, 5.5, 0.0, 0.0)
+    from urdfpost.program import Move, Tcp, ToolChange
+
+    blocks = (ToolChange(2), Spindle("cw", 800.0), Tcp(True), Move(True, above), cycle, Tcp(False))
+    return Program("KINDS", ("X", "Y", "Z", "B", "C"), frozenset("BC"), units, True, blocks)
+
+
+def _bottoms(program: Program) -> list[tuple[float, float, float, float]]:
+    """(x, y, deepest z, feed) of the feed moves of each hole of the program's expansion."""
+    table = expand_cycles(program).move_table()
+    out = []
+    for x in (10.0, -20.0):
+        here = (np.abs(table.position[:, 0] - x) < 0.01) & ~table.rapid
+        out.append((x, 5.0, float(table.position[here, 2].min()), float(table.feed[here].max())))
+    return out
+
+
+@pytest.mark.parametrize("units", ["mm", "inch"])
+@pytest.mark.parametrize(("kind", "step", "dwell"), KINDS)
+@pytest.mark.parametrize("control", CONTROLS)
+def test_every_kind_reads_back(
+    control: str, kind: str, step: float, dwell: float, units: str
+) -> None:
+    spec = DIALECTS[control].spec
+    program = _kind_program(kind, step, dwell, units)
+    if not spec.runs_cycle(kind, dwell):
+        with pytest.raises(Exception, match="dwell"):
+            DIALECTS[control].write(program)
+        return
+    text = DIALECTS[control].write(program)
+    back = DIALECTS[control].read(text)
+    (cycle,) = _cycles(back)
+    assert (cycle.kind, cycle.dwell) == (kind, dwell)
+    tol = 0.0013 if units == "inch" else 1e-9  # (inch: four decimals, half a unit off)
+    assert cycle.step == pytest.approx(step, abs=tol)
+    for got, want in zip(_bottoms(back), _bottoms(program), strict=True):
+        assert got[2] == pytest.approx(want[2], abs=tol)
+        assert got[3] == pytest.approx(want[3], rel=1e-3)
+    if control in ("heidenhain", "siemens"):  # the hole top and both heights are written
+        written = _cycles(program)[0]
+        assert cycle.clearance == pytest.approx(written.clearance, abs=tol)
+        assert cycle.retract == pytest.approx(written.retract, abs=2 * tol)  # (RTP - RFP)
+        assert cycle.holes[0][2] == pytest.approx(written.holes[0][2], abs=tol)
+
+
+@pytest.mark.parametrize(
+    ("kind", "step", "dwell"), [k for k in KINDS if k not in (("tap", 0, 0), ("bore", 0, 0.5))]
+)
+def test_rs274_runs_every_iso_kind_as_expanded(
+    kind: str, step: float, dwell: float, tmp_path: Path
+) -> None:
+    """LinuxCNC's interpreter runs each cycle through the same points as its expansion (feeds
+    and traverses, row for row). Not G84 and G89: LinuxCNC feeds them out to the initial plane,
+    the expansion (as Fanuc) to the R plane and then at rapid; the cut is the same."""
+    program = _kind_program(kind, step, dwell)
+    text = DIALECTS["linuxcnc"].write(program)
+    run = run_rs274(text, {2: 0.0}, tmp_path)
+    moves = [c for c in run.calls if c.name in ("STRAIGHT_FEED", "STRAIGHT_TRAVERSE")]
+    ran = [
+        (c.name == "STRAIGHT_TRAVERSE", *(round(float(v), 3) for v in c.args[:3])) for c in moves
+    ]
+    table = expand_cycles(DIALECTS["linuxcnc"].read(text)).move_table()
+    expanded = [
+        (bool(r), *(round(float(v), 3) for v in p[:3]))
+        for r, p in zip(table.rapid, table.position, strict=True)
+    ]
+    # a block to where the tool stands is no motion (rs274 repeats the initial plane)
+    ran = [m for k, m in enumerate(ran) if k == 0 or m[1:] != ran[k - 1][1:]]
+    expanded = [m for k, m in enumerate(expanded) if k == 0 or m[1:] != expanded[k - 1][1:]]
+    assert ran == expanded
+    dwells = [float(c.args[0]) for c in run.calls if c.name == "DWELL"]
+    assert dwells == ([dwell, dwell] if dwell else [])

@@ -103,12 +103,15 @@ class CycleFormat:
         ``mm/min -> text``.
     rpm : float or None
         The spindle speed running (for tapping cycles given by the pitch).
+    scale : float
+        mm per program unit (a pitch is written in program units).
     """
 
     axis: Callable[[str, float], str]
     length: Callable[[float], str]
     feed: Callable[[float], str]
     rpm: float | None
+    scale: float = 1.0
 
 
 def seconds(value: float) -> str:
@@ -130,10 +133,10 @@ def _hole_words(cycle: Cycle, axes: tuple[str, ...], fmt: CycleFormat, sep: str 
 
 
 def _pitch(cycle: Cycle, fmt: CycleFormat) -> tuple[float, float]:
-    """Pitch (mm) and speed (rpm) of a tapping cycle."""
+    """Pitch (program units) and speed (rpm) of a tapping cycle."""
     if not fmt.rpm:
         raise ValueError("a tapping cycle with no spindle speed; expected the spindle running")
-    return cycle.feed / fmt.rpm, fmt.rpm
+    return cycle.feed / fmt.rpm / fmt.scale, fmt.rpm
 
 
 def iso_lines(cycle: Cycle, axes: tuple[str, ...], fmt: CycleFormat, dwell_ms: bool) -> list[str]:
@@ -173,7 +176,7 @@ def siemens_lines(cycle: Cycle, axes: tuple[str, ...], fmt: CycleFormat) -> list
     elif cycle.kind == "tap":
         pitch, rpm = _pitch(cycle, fmt)
         speed = f"{rpm:.0f}"
-        values += ["", dwell, "3", "", f"{pitch:.4f}", "0", speed, speed]
+        values += ["", dwell, "3", "", f"{pitch:.5f}", "0", speed, speed]
     elif cycle.kind == "bore":
         feed = fmt.feed(cycle.feed)
         values += ["", dwell, feed, feed]
@@ -193,7 +196,7 @@ def heidenhain_lines(cycle: Cycle, axes: tuple[str, ...], fmt: CycleFormat) -> l
     ]
     if cycle.kind == "tap":
         pitch, _ = _pitch(cycle, fmt)
-        q.append(("239", f"{pitch:+.4f}", "THREAD PITCH"))
+        q.append(("239", f"{pitch:+.5f}", "THREAD PITCH"))
     else:
         q.append(("206", f"+{feed(cycle.feed)}", "FEED RATE FOR PLNGNG"))
     if cycle.kind == "drill":

@@ -359,6 +359,7 @@ class ProgramWriter:
             length=lambda v: self.format_axis("Z", v),
             feed=lambda f: self.feed_format.format(f / self.feed_scale),
             rpm=self._rpm,
+            scale=self.scale,
         )
         try:
             lines = self.spec.cycle_lines(cycle, axes, fmt)
