@@ -64,6 +64,11 @@ Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
   the points after it are transformed into MCS 0), ``text`` (the same in words, lengths in
   the file's units: "MCS 0 origin 3 3 0 inch, x-axis 1 0 0, z-axis 0 0 1"; the post writes
   it as a comment)
+- ``"cycle"``: ``cycle`` (the kind: "drill", "deep", "chipbreak", "tap", "bore"; "off" for
+  ``CYCLE/OFF``), ``depth``, ``clearance``, ``retract``, ``step`` (mm), ``feed`` (mm/min),
+  ``dwell`` (s): a canned cycle (:mod:`urdfpost.readers._cycle`). The GOTOs between a cycle and
+  its ``CYCLE/OFF`` are its holes, RAPID points at the hole tops
+  (:func:`urdfpost.toolpath.cycle_holes`)
 - ``"unknown"``: ``text`` (the record as written; a warning is added too)
 
 Text carried into the program as a comment (``comment``, ``partno`` and ``unknown`` texts, an
