@@ -200,7 +200,7 @@ def test_cycles_are_written_read_back_and_verified(control: str) -> None:
     assert not cycle_moves(program).any()  # nothing expanded: the control's own cycles
     check = verify(program, machine(), job())
     assert check.ok, check.summary()
-    assert "5 holes of canned cycles: bottom within 0.0000 mm" in " ".join(check.notes)
+    assert "5 holes of canned cycles: largest deviations: bottom 0.0000 mm" in check.summary()
     # the hole bottoms of the cycles read back: the CL tops plus the depths
     for cycle in cycles:
         for hole in cycle.holes:
@@ -413,3 +413,21 @@ def test_rs274_runs_every_iso_kind_as_expanded(
     assert ran == expanded
     dwells = [float(c.args[0]) for c in run.calls if c.name == "DWELL"]
     assert dwells == ([dwell, dwell] if dwell else [])
+
+
+def test_streamed_post_refuses_cycles(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from urdfpost.cli import main
+
+    cl = tmp_path / "drill.apt"
+    cl.write_text(drilling_job())
+    out = tmp_path / "drill.nc"
+    args = ["post", str(cl), "-m", "dmu50", "-c", "fanuc", "-o", str(out), "--piece-points", "2"]
+    assert main([*args, "-q"]) == 1
+    assert "drill.apt:9: canned cycles (CYCLE records) are not posted in pieces" in (
+        capsys.readouterr().err
+    )
+    assert not out.exists()
+    assert main(["post", str(cl), "-m", "dmu50", "-c", "fanuc", "-o", str(out), "-q"]) == 0
+    assert "G98 G82" in out.read_text()
+    assert main([*args[:-2], "--expand-cycles", "-q"]) == 0
+    assert "G82" not in out.read_text() and "G4 X0.5" in out.read_text()

@@ -30,6 +30,10 @@ from urdfpost.geometry import angle_between
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath, cycle_holes
 
+HOLES_NOTE = " holes of canned cycles: "
+"""What the note of a :class:`HoleCheck` says after the number of holes (the verification's
+summary repeats the note)."""
+
 FEED_TOLERANCE = 0.005
 """Relative deviation of a cycle's feed from the CL's: 0.5 %, above the rounding of a feed
 written with one decimal (Heidenhain tapping's pitch with four)."""
@@ -73,9 +77,9 @@ class HoleCheck:
         """One line for the verification's notes."""
         scale = 25.4 if units == "inch" else 1.0
         text = (
-            f"{self.holes} holes of canned cycles: bottom within {self.bottom / scale:.4f} "
-            f"{units}, top within {self.top / scale:.4f} {units} of the feed into the hole, "
-            f"tool axis within {self.axis_deg:.3f} deg, feed within {100 * self.feed:.2f} %"
+            f"{self.holes}{HOLES_NOTE}largest deviations: bottom {self.bottom / scale:.4f} "
+            f"{units}, top from the feed into the hole {self.top / scale:.4f} {units}, tool "
+            f"axis {self.axis_deg:.3f} deg, feed {100 * self.feed:.2f} %"
         )
         if self.missing:
             text += f"; not drilled: CL lines {' '.join(map(str, self.missing))}"

@@ -39,7 +39,7 @@ from urdfpost.machine import Machine
 from urdfpost.program import Program, cycle_moves, expand_cycles, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verification.holes import check_holes, without_holes
+from urdfpost.verification.holes import HOLES_NOTE, check_holes, without_holes
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
 
 log = logging.getLogger(__name__)
@@ -125,6 +125,7 @@ class Verification:
             f"{self.tip_tolerance / scale:{fmt}}); tool axis deviation max "
             f"{self.max_orientation_deviation_deg:.4f} deg (tolerance "
             f"{self.orientation_tolerance_deg:.3f}); largest rotary step {steps or 'none'} deg"
+            + "".join(f"; {note}" for note in self.notes if HOLES_NOTE in note)
         )
 
 
