@@ -23,7 +23,7 @@ from rs274 import run_rs274
 
 from urdfpost import load_machine
 from urdfpost.dialects import DIALECTS
-from urdfpost.errors import CLDataError
+from urdfpost.errors import CLDataError, ProgramParseError
 from urdfpost.machine import Machine
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import PostResult, post
@@ -431,3 +431,27 @@ def test_streamed_post_refuses_cycles(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "G98 G82" in out.read_text()
     assert main([*args[:-2], "--expand-cycles", "-q"]) == 0
     assert "G82" not in out.read_text() and "G4 X0.5" in out.read_text()
+
+
+@pytest.mark.parametrize(
+    ("control", "lines", "match"),
+    [
+        ("fanuc", ["G0 X0. Y0. Z10.", "G98 G81 X1. Y1. Z-5. F100."], r":3: G81 without Z and R"),
+        ("fanuc", ["G0 X0. Y0. Z10.", "G98 G83 X1. Y1. Z-5. R2. F100."], r":3: G83 without a peck"),
+        ("linuxcnc", ["G98 G81 X1 Y1 Z-5 R2 F100"], r":2: G81 from an unknown Z"),
+        ("siemens", ["G0 X0 Y0 Z10", "F100", "MCALL CYCLE81(10,0,2)"], r":4: CYCLE81: expected DP"),
+        ("siemens", ["G0 X0 Y0 Z10", "MCALL CYCLE99(10,0,2,-5)"], r":3: unknown modal call"),
+        ("heidenhain", ["1 L X+1 Y+1 FMAX M99"], r":2: M99 / CYCL CALL with no cycle defined"),
+        (
+            "heidenhain",
+            ["1 CYCL DEF 200 DRILLING ~", "  Q200=+2 ;SET-UP CLEARANCE ~", "  Q206=+100 ;FEED"],
+            r":4: CYCL DEF 200: expected Q201",
+        ),
+        ("heidenhain", ["1 CYCL DEF 200 DRILLING ~", "2 L X+1 FMAX"], r":3: expected Q parameter"),
+    ],
+)
+def test_bad_cycles_in_programs_name_the_line(control: str, lines: list[str], match: str) -> None:
+    head = {"heidenhain": "0 BEGIN PGM P MM", "fanuc": "G21", "linuxcnc": "G21", "siemens": "G710"}
+    text = "\n".join([head[control], *lines]) + "\n"
+    with pytest.raises(ProgramParseError, match=match):
+        DIALECTS[control].read(text, path="p.nc")

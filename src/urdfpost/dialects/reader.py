@@ -245,7 +245,6 @@ class ProgramBuilder:
         if self.tcp_at_first_feed is None:
             self.tcp_at_first_feed = self.tcp
         self.position = {**position, "Z": definition.top + definition.retract}
-        self.move_lines.append(self.line)
 
     def cycle_off(self) -> None:
         """The active cycle ends (G80, MCALL, another cycle)."""
