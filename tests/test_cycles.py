@@ -455,3 +455,45 @@ def test_bad_cycles_in_programs_name_the_line(control: str, lines: list[str], ma
     text = "\n".join([head[control], *lines]) + "\n"
     with pytest.raises(ProgramParseError, match=match):
         DIALECTS[control].read(text, path="p.nc")
+
+
+# -- the holes' motion: travel and collisions -------------------------------------------------
+
+
+def _one_hole(depth: float, top: float = 60.0) -> str:
+    return (
+        "UNITS/MM\nMULTAX/ON\nLOADTL/1\nSPINDL/RPM,1000,CLW\nRAPID\nGOTO/0,0,100,0,0,1\n"
+        f"CYCLE/DRILL,FEDTO,{depth:g},MMPM,100,RAPTO,2,RTRCTO,5\nGOTO/0,0,{top:g},0,0,1\n"
+        "CYCLE/OFF\nRAPID\nGOTO/0,0,100,0,0,1\nFINI\n"
+    )
+
+
+def test_a_hole_bottom_beyond_the_travel_is_refused() -> None:
+    from urdfpost.errors import LinearTravelError
+
+    toolpath = read_cl_text(_one_hole(900), source="deep.apt")
+    with pytest.raises(LinearTravelError, match=r"deep.apt:8: the hole's bottom needs Z"):
+        post(toolpath, machine(), PostOptions(controller="fanuc"))
+
+
+def test_the_holder_drilled_into_the_stock_collides(tmp_path: Path) -> None:
+    """The collision check follows the hole's motion to its bottom: a shallow hole cuts the
+    stock with the cutter only, a deep one takes the shank into it, one below the program
+    zero (the fixture plate's top) drills the fixture; the CL points, the hole tops, are clear
+    either way."""
+    import trimesh
+
+    from urdfpost.errors import CollisionError
+
+    mesh = trimesh.creation.box(extents=(80.0, 80.0, 60.0))  # on the fixture plate
+    mesh.apply_translation((0.0, 0.0, 30.0))
+    stock = tmp_path / "block.stl"
+    mesh.export(stock)
+    options = PostOptions(controller="fanuc", stock=str(stock))
+    shallow = post(read_cl_text(_one_hole(6), source="a.apt"), machine(), options)
+    assert "G98 G81" in shallow.text
+    with pytest.raises(CollisionError, match=r"a.apt:8: .*(shank|holder) with stock"):
+        post(read_cl_text(_one_hole(55), source="a.apt"), machine(), options)
+    bare = PostOptions(controller="fanuc", collisions=True)  # (no stock)
+    with pytest.raises(CollisionError, match=r"a.apt:8: .*cutter with fixture_plate"):
+        post(read_cl_text(_one_hole(3, top=0), source="a.apt"), machine(), bare)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from urdfpost.errors import LinearTravelError
 from urdfpost.linearize import RowPoses
 from urdfpost.machine import Machine
 from urdfpost.planning.rewinds import LIFT, RETURN, TURN
@@ -202,6 +203,7 @@ def program_body(
     expand_cycles: bool = False,
     notes: list[str] | None = None,
     runs_cycle: Callable[[str, float], bool] | None = None,
+    motion: list[_Holes] | None = None,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -245,6 +247,9 @@ def program_body(
         ``(kind, dwell) -> bool``: whether the control runs such a cycle
         (:meth:`~urdfpost.dialects.spec.DialectSpec.runs_cycle`); one it does not is written
         as its motion, with a warning. None: every cycle is written.
+    motion : list, optional
+        Receives the holes' record, whose :meth:`_Holes.joint_path` gives the joint rows of
+        the program's motion (for the collision check).
 
     Returns
     -------
@@ -333,6 +338,8 @@ def program_body(
         tcp_state[0] = False
     if tcp_state[0] and close:
         body.append(Tcp(on=False))
+    if motion is not None:
+        motion.append(holes)
     return body
 
 
@@ -354,6 +361,9 @@ def g_of(rows: Rows, k: int) -> int:
     """The CL point (index into the plan's toolpath) of row ``k``."""
     return int(rows.point[k])
 
+
+TRAVEL_SLACK = 1e-9
+"""mm. A hole's joint rows may pass a linear axis's travel limit by this much (rounding)."""
 
 NATIVE_AXIS = 1e-6
 """How far (the length of the difference of unit vectors) the up direction of a hole, in
@@ -383,6 +393,8 @@ class _Holes:
         Whether the control runs a cycle (kind, dwell).
     warned : set of int
         CL lines of the cycles warned of.
+    motion : dict of int to ndarray
+        Per hole row, the joint rows of its motion, shape (4, m) (:meth:`_hole_motion`).
     """
 
     toolpath: Toolpath
@@ -395,6 +407,7 @@ class _Holes:
     notes: list[str] | None
     runs: Callable[[str, float], bool] | None
     warned: set[int]
+    motion: dict[int, np.ndarray]
 
     @classmethod
     def of(
@@ -409,7 +422,7 @@ class _Holes:
         runs: Callable[[str, float], bool] | None = None,
     ) -> _Holes:
         event = dict(cycle_holes(toolpath))
-        return cls(toolpath, machine, tcp, rows, table, event, expand, notes, runs, set())
+        return cls(toolpath, machine, tcp, rows, table, event, expand, notes, runs, set(), {})
 
     def parts(
         self, start: int, stop: int, body: list[Block | MoveTable]
@@ -437,25 +450,78 @@ class _Holes:
             k = j
         return out
 
-    def _up(self, row: int) -> np.ndarray:
-        """Per program axis, its motion for 1 mm up the tool axis at ``row`` (mm, degrees):
-        the tool axis itself in TCP programs; in machine coordinates the linear axes' motion
-        that moves the tip along it, from the kinematics (with the rotary axes fixed the tip
-        is an affine function of the linear axes)."""
+    def _joint_up(self, row: int) -> np.ndarray:
+        """Per joint, its motion for 1 mm up the tool axis at ``row`` (mm; the rotary axes
+        fixed): the linear axes' motion that moves the tip along the tool axis, from the
+        kinematics (with the rotary axes fixed the tip is an affine function of the linear
+        axes)."""
         machine, g = self.machine, int(self.rows.point[row])
-        axis = self.toolpath.axis[g]
         up = np.zeros(len(machine.axis_names))
         linear = list(machine.linear_columns)
-        if self.tcp:
-            up[linear] = axis
-            return up
         q = np.tile(self.rows.q[row], (len(linear) + 1, 1))
         for i, col in enumerate(linear):
             q[i + 1, col] += 1.0
         tip = RowPoses.of(machine, q, 0.0).tip
         step = (tip[1:] - tip[0]).T  # column i: the tip's motion for 1 mm of linear axis i
-        up[linear] = np.linalg.solve(step, axis)
+        up[linear] = np.linalg.solve(step, self.toolpath.axis[g])
         return up
+
+    def _up(self, row: int) -> np.ndarray:
+        """Per program axis, its motion for 1 mm up the tool axis at ``row`` (mm, degrees):
+        the tool axis itself in TCP programs, :meth:`_joint_up` in machine coordinates."""
+        if not self.tcp:
+            return self._joint_up(row)
+        up = np.zeros(len(self.machine.axis_names))
+        up[list(self.machine.linear_columns)] = self.toolpath.axis[int(self.rows.point[row])]
+        return up
+
+    def _hole_motion(self, row: int) -> None:
+        """The joint rows of the hole at ``row`` (above it at the retract height, at the
+        clearance, at the bottom, above it again) for the collision check, after checking them
+        against the linear axes' travel.
+
+        Raises
+        ------
+        LinearTravelError
+            The retract height or the bottom puts a linear axis beyond its travel.
+        """
+        data = self._event(row).data
+        retract, clearance = float(data["retract"]), float(data["clearance"])
+        heights = np.array([retract, clearance, -float(data["depth"]), retract])
+        q = self.rows.q[row] + heights[:, None] * self._joint_up(row)
+        for j in self.machine.linear_columns:
+            axis = self.machine.axes[j]
+            outside = (q[:, j] < axis.lower - TRAVEL_SLACK) | (q[:, j] > axis.upper + TRAVEL_SLACK)
+            if outside.any():
+                k = int(np.argmax(outside))
+                where = "bottom" if k == 2 else "retract height"
+                line = int(self.toolpath.line[self.rows.point[row]])
+                raise LinearTravelError(
+                    f"{self.toolpath.source}:{line}: the hole's {where} needs {axis.name}"
+                    f"{q[k, j]:.3f} mm, beyond its travel {axis.lower:.3f} to {axis.upper:.3f} "
+                    f"mm; expected the cycle's depth and retract height ({data['cycle']} at CL "
+                    f"line {self._event(row).line}) within the machine's travel"
+                )
+        self.motion[row] = q
+
+    def joint_path(self, q: np.ndarray, lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The joint rows of the program's motion: ``q`` (the rows, shape (N, m)) with each
+        hole's row replaced by the hole's motion and the rows on the way between holes left
+        out (the control moves from hole to hole at the retract height); ``lines`` (N,) the
+        CL line of each row, given to the hole's rows too."""
+        if not self.motion:
+            return q, lines
+        inside = np.isin(self.rows.point, np.fromiter(self.event, dtype=np.int64))
+        parts_q: list[np.ndarray] = []
+        parts_line: list[np.ndarray] = []
+        for k in range(len(q)):
+            if k in self.motion:
+                parts_q.append(self.motion[k])
+                parts_line.append(np.full(len(self.motion[k]), lines[k]))
+            elif not inside[k]:
+                parts_q.append(q[k : k + 1])
+                parts_line.append(lines[k : k + 1])
+        return np.concatenate(parts_q), np.concatenate(parts_line)
 
     def _cycles(
         self, start: int, stop: int, before: list[Block | MoveTable]
@@ -482,6 +548,7 @@ class _Holes:
         for row in range(start, stop):
             if not self.rows.reaches[row]:
                 continue
+            self._hole_motion(row)
             up = self._up(row)
             along_z = float(np.linalg.norm(up - plus_z)) <= NATIVE_AXIS
             data = self._event(row).data
