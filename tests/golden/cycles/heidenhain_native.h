@@ -2,7 +2,7 @@
 1 ; urdfpost: machine dmu50, TCP (the control keeps the tool tip on the path), mm
 2 ; work offset: preset 1; program zero at 15.000 -10.000 110.000 mm on c_table
 3 ; tools: T3
-4 ; axis ranges: X10.000..30.000 Y-10.000..10.000 Z2.000..435.000 B0.0000..0.0000 C0.0000..0.0000
+4 ; axis ranges: X10.000..30.000 Y-10.000..10.000 Z-15.000..435.000 B0.0000..0.0000 C0.0000..0.0000
 5 FUNCTION RESET TCPM
 6 PLANE RESET STAY
 7 M126
