@@ -63,7 +63,6 @@ import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 from urdfpost.program import Cycle
 
@@ -419,8 +418,3 @@ def cycle_of(
         step=definition.step,
         dwell=definition.dwell,
     )
-
-
-def definition_data(definition: CycleDefinition) -> dict[str, Any]:
-    """The definition as a dict (for messages and tests)."""
-    return dict(vars(definition))
