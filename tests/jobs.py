@@ -49,3 +49,49 @@ FINI
 
 #: :func:`two_tools` at its default feed.
 TWO_TOOLS = two_tools()
+
+
+def drilling_job(units: str = "MM", tilted: bool = False) -> str:
+    """A drilling job of three canned cycles at flat holes: drilling (two holes, NX CLSF
+    keyword form with a negative FEDTO, a dwell at the bottom), deep-hole pecking (two holes
+    at another height), tapping by feed per revolution (one hole); with ``tilted``, a fourth
+    cycle drills a hole whose tool axis leans 30 degrees about Y. Lengths in ``units`` ("MM"
+    or "INCHES", the inch job being the mm one divided by 25.4)."""
+    k = 25.4 if units == "INCHES" else 1.0
+
+    def v(value: float) -> str:
+        return f"{value / k:.6g}"
+
+    feed = "IPM" if units == "INCHES" else "MMPM"
+    per_rev = "IPR" if units == "INCHES" else "MMPR"
+    tilted_cycle = f"""\
+CYCLE/DRILL,FEDTO,{v(4)},{feed},{v(90)},RAPTO,{v(2)},RTRCTO,{v(8)}
+GOTO/{v(40)},{v(-20)},{v(-2)},0.5,0,0.8660254
+CYCLE/OFF
+RAPID
+GOTO/{v(60)},{v(-20)},{v(40)},0.5,0,0.8660254
+"""
+    return f"""\
+PARTNO DRILLING
+UNITS/{units}
+MULTAX/ON
+LOADTL/3
+SPINDL/RPM,1200,CLW
+COOLNT/FLOOD
+RAPID
+GOTO/{v(10)},{v(10)},{v(30)},0,0,1
+CYCLE/DRILL,RAPTO,{v(2)},FEDTO,-{v(6)},RTRCTO,{v(10)},{feed},{v(150)},DWELL,0.5
+GOTO/{v(10)},{v(10)},0,0,0,1
+GOTO/{v(30)},{v(10)},0,0,0,1
+CYCLE/OFF
+CYCLE/DRILL,DEEP,FEDTO,{v(14)},INCR,{v(5)},{feed},{v(90)},CLEAR,{v(3)}
+GOTO/{v(30)},{v(-10)},{v(-1)},0,0,1
+GOTO/{v(10)},{v(-10)},{v(-1)},0,0,1
+CYCLE/OFF
+CYCLE/TAP,FEDTO,{v(10)},{per_rev},{v(1.25)},RAPTO,{v(4)}
+GOTO/{v(20)},0,0,0,0,1
+CYCLE/OFF
+RAPID
+GOTO/{v(20)},0,{v(30)},0,0,1
+{tilted_cycle if tilted else ""}FINI
+"""

@@ -35,6 +35,7 @@ from rs274 import AXES, Call, Rs274Error, Rs274Result, run_rs274
 
 from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
+from urdfpost.program import expand_cycles
 from urdfpost.units import mm_per_unit
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -258,9 +259,11 @@ def check_positions(program_text: str, result: Rs274Result, tcp: bool) -> None:
     """The feed points are the program's own: its feed moves (urdfpost's reader), axis by axis
     where the reader has a value, against the interpreter's points in work coordinates (TCP)
     or in machine coordinates (offsets added back); and the feed in effect is the program's.
-    The reader gives mm and mm/min; the interpreter, the program's units."""
+    The reader gives mm and mm/min; the interpreter, the program's units. Canned cycles are
+    compared as the motion urdfpost expands them into (:func:`urdfpost.program.expand_cycles`),
+    which is LinuxCNC's own."""
     dialect = DIALECTS["linuxcnc"]
-    program = dialect.read(program_text)
+    program = expand_cycles(dialect.read(program_text))  # canned cycles: the motion they make
     inch = program.units == "inch"
     to_mm = mm_per_unit(program.units)
     feed_to_mm = dialect.spec.feed_inch_unit if inch else 1.0

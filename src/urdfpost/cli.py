@@ -313,6 +313,12 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
         help="spindle speed (clockwise) for cutting the CL data does not start the spindle "
         "for (default: such a move is an error)",
     )
+    p.add_argument(
+        "--expand-cycles",
+        action="store_true",
+        help="write the CL data's canned cycles (CYCLE/DRILL...) as the motion they make "
+        "instead of the control's drilling cycles",
+    )
 
 
 def _tool_table_argument(p: argparse.ArgumentParser) -> None:
@@ -669,6 +675,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         spindle=args.spindle,
         tool_table=None if args.tool_table is None else read_tool_table(args.tool_table, scale),
         mcs_offsets=args.mcs_offsets,
+        expand_cycles=args.expand_cycles,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {

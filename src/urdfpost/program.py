@@ -32,7 +32,7 @@ import itertools
 import math
 import operator
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, cast, overload
 
 import numpy as np
@@ -167,6 +167,88 @@ class WorkOffset:
     number: int
 
 
+CYCLE_KINDS = ("drill", "deep", "chipbreak", "tap", "bore")
+"""The canned cycles a :class:`Cycle` can be: drilling (with a dwell at the bottom when
+``dwell`` > 0), deep-hole drilling with full retracts, drilling with chip breaking, tapping,
+boring (feed in, feed out)."""
+
+CYCLE_BEGIN = "urdfpost cycle"
+"""Start of the comment before the moves of an expanded cycle (:func:`expand_cycles`)."""
+
+CYCLE_END = "urdfpost cycle end"
+"""The comment after them."""
+
+CHIP_BREAK_RETRACT = 0.254
+"""mm. How far a chip-breaking peck backs off in the expanded motion: LinuxCNC's G73 (0.010
+inch; its interpreter's canon output shows it). The other controls' distance is a machine
+parameter or a cycle parameter (Fanuc parameter 5114, Heidenhain Q256, which the post writes
+as this): verification checks the depth and the hole axis, not this distance."""
+
+PECK_GAP = 0.254
+"""mm. How far above the last peck's depth a deep-hole peck comes back down at rapid before
+it feeds again: LinuxCNC's G83 (0.010 inch); Fanuc's is parameter 5115, Heidenhain's and
+Siemens' the cycle's own (the expansion's model, as :data:`CHIP_BREAK_RETRACT`)."""
+
+
+@dataclass(frozen=True)
+class Cycle:
+    """A canned drilling cycle and the holes it runs at.
+
+    The holes are drilled along the program's Z axis, downwards: the post writes a cycle only
+    where the tool axis is the program's +Z (a TCP program with the tool axis along the
+    workpiece Z, or a machine-coordinate program whose Z axis moves the tool along its axis);
+    other holes are written as their motion (:func:`expand_cycle`). Before the block the tool
+    stands above the first hole at the retract height (a rapid :class:`Move`), and after it
+    above the last.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`CYCLE_KINDS`.
+    depth : float, mm
+        From the hole top down to its bottom (> 0).
+    feed : float, mm/min
+        Of the drilling move (tapping: the pitch times the spindle speed).
+    clearance : float, mm
+        Above the hole top, where the feed starts (the R plane, Q200, SDIS).
+    retract : float, mm
+        Above the hole top, where the tool goes between holes (the initial plane of G98,
+        Q204, RTP); at least ``clearance``.
+    holes : tuple of tuple of float
+        Per hole, the position of its top: one value per axis of :attr:`Program.axes`
+        (mm, degrees); all holes of a block have the same Z and rotary positions.
+    step : float, mm
+        Peck depth of "deep" and "chipbreak" (0 for the others).
+    dwell : float, s
+        Dwell at the bottom (0: none).
+    cl_lines : tuple of int or None
+        The CL line of each hole (None in a program read from text); not compared.
+    """
+
+    kind: str
+    depth: float
+    feed: float
+    clearance: float
+    retract: float
+    holes: tuple[tuple[float, ...], ...]
+    step: float = 0.0
+    dwell: float = 0.0
+    cl_lines: tuple[int | None, ...] = field(default=(), compare=False)
+
+    def __post_init__(self) -> None:
+        if self.kind not in CYCLE_KINDS:
+            raise ValueError(f"cycle kind {self.kind!r}; expected one of {', '.join(CYCLE_KINDS)}")
+        if not self.holes:
+            raise ValueError("a cycle without holes")
+
+
+@dataclass(frozen=True)
+class Dwell:
+    """A dwell of ``seconds`` (G4, Heidenhain cycle 9)."""
+
+    seconds: float
+
+
 Block = (
     Move
     | ToolChange
@@ -179,6 +261,8 @@ Block = (
     | Home
     | MachineMove
     | WorkOffset
+    | Cycle
+    | Dwell
 )
 
 
@@ -571,3 +655,154 @@ def rewind_moves(program: Program) -> np.ndarray:
     last = np.maximum.accumulate(np.where(marker != 0, np.arange(len(parts)), -1))
     inside = (last >= 0) & (marker[np.maximum(last, 0)] == 1)
     return np.repeat(inside, size)
+
+
+def _peck_depths(cycle: Cycle) -> list[float]:
+    """mm below the hole top where each feed of ``cycle`` ends, the last at its depth."""
+    if cycle.kind not in ("deep", "chipbreak") or cycle.step <= 0.0:
+        return [cycle.depth]
+    count = max(1, math.ceil(cycle.depth / cycle.step - 1e-9))
+    return [min(cycle.step * (i + 1), cycle.depth) for i in range(count)]
+
+
+def expand_cycle(
+    cycle: Cycle,
+    axes: tuple[str, ...],
+    spindle: Spindle | None = None,
+    up: Sequence[float] | None = None,
+) -> list[Block | MoveTable]:
+    """The motion a control runs for ``cycle``, as plain blocks.
+
+    Per hole: rapid to the retract height above it, rapid to the clearance, feed through the
+    hole top (the CL point; the block carries its CL line) to the bottom, in pecks of
+    ``step`` for "deep" (a rapid out to the clearance after each, and back down to
+    :data:`PECK_GAP` above the depth reached) and "chipbreak" (backing off
+    :data:`CHIP_BREAK_RETRACT` after each), the dwell, then out: rapid for the drilling kinds,
+    at the feed to the clearance for "bore", and for "tap" with the spindle reversed (a
+    floating tap holder's motion) and turned back after. The moves are enclosed in the
+    comments :data:`CYCLE_BEGIN` and :data:`CYCLE_END`, by which :func:`cycle_moves` knows
+    them in a program read back.
+
+    Parameters
+    ----------
+    cycle : Cycle
+    axes : tuple of str
+        The program's axes (Z among them).
+    spindle : Spindle, optional
+        The spindle running before the cycle (needed for "tap").
+    up : sequence of float, optional
+        Per program axis, how far it moves for 1 mm up the hole's axis (mm, degrees): for a
+        hole whose tool axis is not the program's Z (a tilted hole written as its motion).
+        None: the program's +Z, as the controls run a cycle.
+
+    Returns
+    -------
+    list of Block and MoveTable
+
+    Raises
+    ------
+    ValueError
+        A program without a Z axis, or a tapping cycle without the spindle running.
+    """
+    if "Z" not in axes:
+        raise ValueError(f"a cycle in a program without a Z axis ({' '.join(axes)})")
+    z = axes.index("Z")
+    rise = np.zeros(len(axes)) if up is None else np.asarray(up, dtype=float)
+    if up is None:
+        rise[z] = 1.0
+    if cycle.kind == "tap" and (spindle is None or spindle.direction == "off"):
+        raise ValueError("a tapping cycle with the spindle off; expected it running")
+    out: list[Block | MoveTable] = [Comment(f"{CYCLE_BEGIN} {cycle.kind}")]
+    rows: list[tuple[tuple[float, ...], bool, float, int]] = []
+
+    def flush() -> None:
+        if rows:
+            position, rapid, feed, line = zip(*rows, strict=True)
+            table = MoveTable(np.array(position), np.array(rapid), np.array(feed), np.array(line))
+            out.append(table)
+            rows.clear()
+
+    lines = cycle.cl_lines or (None,) * len(cycle.holes)
+    for hole, cl_line in zip(cycle.holes, lines, strict=True):
+        top = np.asarray(hole, dtype=float)
+
+        def add(height: float, rapid: bool, line: int | None = None) -> None:
+            position = tuple((top + height * rise).tolist())  # noqa: B023 (used at once)
+            if rows and rows[-1][0] == position and line is None:
+                return  # (the clearance at the retract height: one block)
+            rows.append((position, rapid, math.nan if rapid else cycle.feed, line or -1))
+
+        add(cycle.retract, True)
+        add(cycle.clearance, True)
+        for k, depth in enumerate(_peck_depths(cycle)):
+            add(-depth, False, cl_line if k == 0 else None)  # (the feed into the hole: its top)
+            if depth < cycle.depth and cycle.kind == "deep":
+                add(cycle.clearance, True)
+                add(min(PECK_GAP - depth, cycle.clearance), True)
+            elif depth < cycle.depth:
+                add(CHIP_BREAK_RETRACT - depth, True)
+        if cycle.dwell > 0.0:
+            flush()
+            out.append(Dwell(cycle.dwell))
+        if cycle.kind == "tap":
+            assert spindle is not None
+            flush()
+            reverse = "ccw" if spindle.direction == "cw" else "cw"
+            out.append(Spindle(reverse, spindle.rpm))
+            add(cycle.clearance, False)
+            flush()
+            out.append(spindle)
+        elif cycle.kind == "bore":
+            add(cycle.clearance, False)
+        add(cycle.retract, True)
+    flush()
+    out.append(Comment(CYCLE_END))
+    return out
+
+
+def expand_cycles(program: Program) -> Program:
+    """``program`` with every :class:`Cycle` block replaced by its motion
+    (:func:`expand_cycle`); the program itself when it has none.
+
+    Raises
+    ------
+    ValueError
+        As :func:`expand_cycle`.
+    """
+    if not any(isinstance(p, Cycle) for p in program.parts):
+        return program
+    parts: list[Block | MoveTable] = []
+    spindle: Spindle | None = None
+    for part in program.parts:
+        if isinstance(part, Spindle):
+            spindle = part
+        if isinstance(part, Cycle):
+            parts += expand_cycle(part, program.axes, spindle)
+        else:
+            parts.append(part)
+    return replace(program, blocks=Blocks(parts))
+
+
+def cycle_moves(program: Program) -> np.ndarray:
+    """Which moves belong to an expanded cycle: those between the cycle comments
+    (:data:`CYCLE_BEGIN`, :data:`CYCLE_END`), which survive writing and reading back.
+
+    Returns
+    -------
+    ndarray, shape (N,), bool
+        One entry per move of :meth:`Program.moves`.
+    """
+    inside = False
+    flags: list[np.ndarray] = []
+    for part in program.parts:
+        if isinstance(part, MoveTable):
+            flags.append(np.full(len(part), inside))
+        elif isinstance(part, Move):
+            flags.append(np.array([inside]))
+        elif isinstance(part, Comment):
+            text = part.text.strip().lower()
+            if text == CYCLE_END:
+                inside = False
+            elif text.startswith(CYCLE_BEGIN):
+                inside = True
+    return np.concatenate(flags) if flags else np.zeros(0, dtype=bool)

@@ -15,6 +15,9 @@ from typing import Any
 
 import numpy as np
 
+CYCLE_KINDS = ("drill", "deep", "chipbreak", "tap", "bore")
+"""Kinds of a ``cycle`` event (as :data:`urdfpost.program.CYCLE_KINDS`)."""
+
 
 class Motion(IntEnum):
     """Kind of a motion point."""
@@ -48,6 +51,14 @@ class Event:
           optional ``data["tool_name"]``
         - ``"cutter"``: tool size (CUTTER, TLDATA): ``data["diameter"]``, optional
           ``data["corner_radius"]``, ``data["length"]`` (mm)
+        - ``"cycle"``: a canned cycle starts (APT ``CYCLE/DRILL`` ...): ``data["kind"]``
+          (one of :data:`CYCLE_KINDS`), ``data["depth"]`` (mm, hole top to bottom along the
+          tool axis), ``data["feed"]`` (mm/min), ``data["clearance"]`` (mm above the hole
+          top where the feed starts), ``data["retract"]`` (mm above the hole top the tool
+          returns to), ``data["step"]`` (mm, peck depth; 0: none), ``data["dwell"]`` (s);
+          or ends (``CYCLE/OFF``): ``data["cycle"]`` "off". The points between a cycle's
+          start and its end are its holes: the hole tops with their tool axes
+          (:func:`cycle_holes`), RAPID points
         - ``"unknown"``: a record the reader does not translate, ``data["text"]`` (carried
           into the program as a comment; the reader also adds a warning)
     line : int
@@ -221,3 +232,25 @@ def joined(first: Toolpath, more: list[Toolpath]) -> Toolpath:
         ),
         warnings=tuple(w for p in parts for w in p.warnings),
     )
+
+
+def cycle_holes(toolpath: Toolpath) -> list[tuple[int, Event]]:
+    """The holes of the toolpath's canned cycles: each point between a ``cycle`` event and
+    the ``cycle`` event "off" after it, with the event that started its cycle.
+
+    Returns
+    -------
+    list of (int, Event)
+        Point index and its cycle's event, in order.
+    """
+    out: list[tuple[int, Event]] = []
+    active: Event | None = None
+    for event in toolpath.events:
+        if event.kind != "cycle":
+            continue
+        if active is not None:
+            out += [(i, active) for i in range(active.index, event.index)]
+        active = None if event.data.get("cycle") == "off" else event
+    if active is not None:  # a cycle not switched off: up to the end
+        out += [(i, active) for i in range(active.index, len(toolpath))]
+    return out

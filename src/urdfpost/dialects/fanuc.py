@@ -22,8 +22,10 @@ Every axis value carries a decimal point: without it the control reads least inp
 
 from __future__ import annotations
 
+import functools
 from types import MappingProxyType
 
+from urdfpost.dialects._cycles import iso_lines
 from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout, NumberFormat
 
 
@@ -52,7 +54,10 @@ G_CODES = MappingProxyType(
         "61": "noop",
         "64": "noop",
         "69": "noop",
-        "80": "noop",
+        "80": "cycle_off",
+        **{code: "cycle" for code in ("73", "81", "82", "83", "84", "85", "89")},
+        "98": "cycle_initial",
+        "99": "cycle_r",
         "90": "absolute",
         "91": "incremental",
         "94": "noop",
@@ -95,4 +100,8 @@ SPEC = DialectSpec(
     require_point=True,
     block_max=99999,
     motion_layout=MotionLayout(),
+    cycle_lines=functools.partial(iso_lines, dwell_ms=True),
+    dwell=("G4 X{seconds}",),
+    dwell_p_ms=True,
+    cycle_dwell=frozenset({"drill", "bore"}),
 )

@@ -32,6 +32,12 @@ from __future__ import annotations
 import re
 from types import MappingProxyType
 
+from urdfpost.dialects._cycles import (
+    heidenhain_definition,
+    heidenhain_lines,
+    heidenhain_parameter,
+    heidenhain_start,
+)
 from urdfpost.dialects.reader import BEFORE_MOTION_M, ProgramBuilder, apply_m_action
 from urdfpost.dialects.spec import (
     STANDARD_M_CODES,
@@ -84,6 +90,9 @@ def parse_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
     """
     match = _LINE.match(raw)
     cycle, builder.cycle = builder.cycle, None
+    if cycle in (200, 201, 203, 207):
+        _cycle_parameter(builder, cycle, raw)
+        return
     if match is None and cycle == 247 and (preset := _PRESET.match(raw)):
         builder.select_work_offset(f"preset {int(preset.group(1))}")
         return
@@ -125,6 +134,15 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
         return  # tool preselection, graphics blank, path tolerance: no motion
     elif code == "CYCL DEF 247 DATUM SETTING ~":
         builder.cycle = 247  # the preset number follows on the next line
+    elif (number := heidenhain_start(code)) is not None:
+        builder.cycle = number  # its Q parameters follow, one a line
+        builder.drill_q = {}
+    elif code == "CYCL DEF 9.0 DWELL TIME":
+        return  # the time follows in 9.1
+    elif code.startswith("CYCL DEF 9.1 DWELL"):
+        builder.dwell(builder.number("DWELL", code.removeprefix("CYCL DEF 9.1 DWELL").strip()))
+    elif code == "CYCL CALL":
+        _cycle_call(builder, {})
     elif code == "PLANE RESET STAY":
         return  # no tilted working plane (the rotary axes stay)
     elif code == "FUNCTION RESET TCPM":
@@ -226,13 +244,49 @@ def _line(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
     for action in actions:
         if action in BEFORE_MOTION_M:
             apply_m_action(builder, action)
-    if "machine" in actions:
+    if "cycle_call" in actions:
+        if not rapid:
+            raise builder.error("M99 in a block without FMAX; expected L X.. Y.. FMAX M99")
+        _cycle_call(builder, values)
+        actions = [a for a in actions if a != "cycle_call"]
+    elif "machine" in actions:
         builder.home(list(values))
     elif values:
+        builder.cycle_off()  # a move without M99 ends the block of holes, not the definition
         builder.move(values, rapid)
     for action in actions:
         if action not in BEFORE_MOTION_M and action != "machine":
             apply_m_action(builder, action)
+
+
+def _cycle_parameter(builder: ProgramBuilder, number: int, raw: str) -> None:
+    """One ``Q...=...`` line of a ``CYCL DEF``; the last (no ``~``) defines the cycle."""
+    parameter = heidenhain_parameter(raw)
+    if parameter is None:
+        raise builder.error(f"expected Q parameter lines (Q200=+2 ;TEXT ~) after CYCL DEF {number}")
+    key, value, more = parameter
+    builder.drill_q[key] = value
+    if more:
+        builder.cycle = number
+        return
+    builder.drill_defined = heidenhain_definition(
+        number,
+        builder.drill_q,
+        builder.linear_scale,
+        builder.feed_scale,
+        builder.rpm,
+        builder.error,
+    )
+
+
+def _cycle_call(builder: ProgramBuilder, values: dict[str, tuple[float, bool]]) -> None:
+    """A hole of the cycle defined last (``L X.. Y.. FMAX M99``, ``CYCL CALL``)."""
+    definition = builder.drill_defined
+    if definition is None:
+        raise builder.error("M99 / CYCL CALL with no cycle defined; expected CYCL DEF 200.. first")
+    if builder.drill is not definition:
+        builder.cycle_start(definition)
+    builder.cycle_hole(values)
 
 
 M_CODES = MappingProxyType(
@@ -240,6 +294,7 @@ M_CODES = MappingProxyType(
         **{code: action for code, action in STANDARD_M_CODES.items() if code != 6},
         91: "machine",
         92: "machine",
+        99: "cycle_call",
         126: "shortest_path",
         127: "noop",
         128: "tcp_on",
@@ -294,4 +349,7 @@ SPEC = DialectSpec(
     format_motion=format_motion,
     motion_layout=MotionLayout(lead="L", rapid_word="FMAX"),
     parse_line=parse_line,
+    cycle_lines=heidenhain_lines,
+    dwell=("CYCL DEF 9.0 DWELL TIME", "CYCL DEF 9.1 DWELL {seconds}"),
+    cycle_dwell=frozenset({"drill", "deep", "chipbreak", "bore"}),
 )

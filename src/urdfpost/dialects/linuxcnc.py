@@ -32,9 +32,11 @@ The reader also accepts ``;`` comments, ``%`` lines and lower case.
 
 from __future__ import annotations
 
+import functools
 import re
 from types import MappingProxyType
 
+from urdfpost.dialects._cycles import iso_lines
 from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout
 
 _ACTIVE_COMMENT = re.compile(
@@ -66,7 +68,10 @@ G_CODES = MappingProxyType(
         **{str(code): "work_offset" for code in range(54, 60)},
         "61": "noop",
         "64": "blend",
-        "80": "noop",
+        "80": "cycle_off",
+        **{code: "cycle" for code in ("73", "81", "82", "83", "84", "85", "89")},
+        "98": "cycle_initial",
+        "99": "cycle_r",
         "90": "absolute",
         "91": "incremental",
         "94": "noop",
@@ -103,4 +108,8 @@ SPEC = DialectSpec(
     home=("G28 G91 Z0", "G28 X0 Y0", "G90"),
     block_max=99999,
     motion_layout=MotionLayout(),
+    cycle_lines=functools.partial(iso_lines, dwell_ms=False),
+    dwell=("G4 P{seconds}",),
+    dwell_p_ms=False,
+    cycle_dwell=frozenset({"drill", "bore"}),
 )

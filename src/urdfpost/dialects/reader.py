@@ -41,6 +41,13 @@ from pathlib import PurePath
 import numpy as np
 
 from urdfpost.dialects import _bulk
+from urdfpost.dialects._cycles import (
+    ISO_KINDS,
+    CycleDefinition,
+    cycle_of,
+    iso_definition,
+    siemens_definition,
+)
 from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec
 from urdfpost.errors import ProgramParseError
 from urdfpost.program import (
@@ -48,6 +55,7 @@ from urdfpost.program import (
     Blocks,
     Comment,
     Coolant,
+    Dwell,
     Home,
     Insert,
     MoveTable,
@@ -81,6 +89,14 @@ class _ReadMove:
     rapid: bool
     position: dict[str, float]
     feed: float | None
+
+
+@dataclass
+class _ReadCycle:
+    """A canned cycle read, with its holes so far (positions per address, mm / degrees)."""
+
+    definition: CycleDefinition
+    holes: list[dict[str, float]]
 
 
 class _ReadMoves:
@@ -150,15 +166,22 @@ class ProgramBuilder:
         self.offset: int | None = None  # the H word since the last tool change
         self.rpm = 0.0
         self.spindle_state: tuple[str, float] = ("off", 0.0)
-        self._speed_change: Block | _ReadMove | _ReadMoves | None = None
+        self._speed_change: Block | _ReadMove | _ReadMoves | _ReadCycle | None = None
         self.continuous = False
         self.work_offset: str | None = None
         self.offset_change: tuple[int, str] | None = None  # line and words of the first change
         self.cycle: int | None = None  # a cycle whose parameters follow on the next lines
+        # canned drilling cycles: the one active (ISO G81..., Siemens MCALL, Heidenhain CYCL
+        # DEF 200...), its block of holes read so far, G98 (True) or G99
+        self.drill: CycleDefinition | None = None
+        self.drill_block: _ReadCycle | None = None
+        self.drill_initial = True
+        self.drill_q: dict[int, float] = {}  # Heidenhain Q parameters of a CYCL DEF
+        self.drill_defined: CycleDefinition | None = None  # Heidenhain: the last CYCL DEF
         self.finished = False  # the program end (M30, M2, END PGM) was read
         self.closed = not spec.program_close  # its closing line (Fanuc %, END PGM) too
         self.code_seen = False
-        self.items: list[Block | _ReadMove | _ReadMoves] = []
+        self.items: list[Block | _ReadMove | _ReadMoves | _ReadCycle] = []
         # the text line of every move read, in order (the 3-D view shows each block's line)
         self.move_lines: list[int | np.ndarray] = []
 
@@ -178,10 +201,62 @@ class ProgramBuilder:
         """File units -> mm (linear axes) or degrees (rotary)."""
         return value if address in ROTARY_ADDRESSES else value * self.linear_scale
 
-    def _add(self, item: Block | _ReadMove | _ReadMoves) -> None:
+    def _add(self, item: Block | _ReadMove | _ReadMoves | _ReadCycle) -> None:
         if self.finished and not isinstance(item, Comment):
             raise self.error("code after the program end; expected nothing but comments")
+        if not isinstance(item, _ReadCycle):
+            self.drill_block = None  # the next hole starts another Cycle block
         self.items.append(item)
+
+    # -- canned cycles -----------------------------------------------------------------------
+
+    def cycle_start(self, definition: CycleDefinition) -> None:
+        """A canned cycle is defined (its holes follow: :meth:`cycle_hole`)."""
+        self.drill = definition
+        self.drill_block = None
+
+    def cycle_hole(self, values: dict[str, tuple[float, bool]]) -> None:
+        """A hole of the active cycle at the position ``values`` (as :meth:`move`) names; the
+        tool ends above it at the cycle's retract height."""
+        definition = self.drill
+        assert definition is not None
+        position = dict(self.position)
+        for address, (value, incremental) in values.items():
+            target = self.to_internal(address, value)
+            if incremental:
+                start = self.position.get(address, math.nan)
+                if math.isnan(start):
+                    raise self.error(
+                        f"incremental {address} hole from an unknown position; expected an "
+                        "absolute position first"
+                    )
+                target += start
+            position[address] = target
+        for address in ("X", "Y"):
+            if math.isnan(position.get(address, math.nan)):
+                raise self.error(f"a hole with no {address} position; expected X and Y")
+        position["Z"] = definition.top
+        if self.drill_block is None or self.drill_block.definition is not definition:
+            block = _ReadCycle(definition, [])
+            self._add(block)
+            self.drill_block = block
+        self.drill_block.holes.append(position)
+        self.axes_seen.update(values)
+        self.axes_seen.add("Z")
+        if self.tcp_at_first_feed is None:
+            self.tcp_at_first_feed = self.tcp
+        self.position = {**position, "Z": definition.top + definition.retract}
+
+    def cycle_off(self) -> None:
+        """The active cycle ends (G80, MCALL, another cycle)."""
+        self.drill = None
+        self.drill_block = None
+
+    def dwell(self, seconds: float) -> None:
+        """A dwell (G4, Heidenhain cycle 9)."""
+        if not (math.isfinite(seconds) and seconds >= 0.0):
+            raise self.error(f"dwell of {seconds:g} s; expected a time >= 0")
+        self._add(Dwell(seconds))
 
     # -- events ------------------------------------------------------------------------------
 
@@ -276,8 +351,8 @@ class ProgramBuilder:
             False, with nothing done, when the blocks need the block-by-block reader (the
             program has ended, incremental mode, no motion mode yet).
         """
-        if self.finished or not self.absolute:
-            return False
+        if self.finished or not self.absolute or self.drill is not None:
+            return False  # (the blocks after a canned cycle are its holes)
         k = rows.stop - rows.start
         code = lines.code[rows]
         if self.spec.motion_layout is not None and self.spec.motion_layout.rapid_word:
@@ -447,6 +522,9 @@ class ProgramBuilder:
             elif isinstance(item, _ReadMoves):
                 end_singles()
                 run.append(item.columns(axes))
+            elif isinstance(item, _ReadCycle):
+                end_run()
+                parts.append(cycle_of(item.definition, item.holes, axes))
             else:
                 end_run()
                 parts.append(item)
@@ -656,6 +734,12 @@ def parse_gcode_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> No
         text = ""
     if text.startswith("/"):  # block delete: the block runs unless the operator skips it
         text = text[1:]
+    if spec.cycle_lines is not None and text.startswith("MCALL"):
+        builder.code()
+        _mcall(builder, text)
+        for comment in comments:
+            builder.comment(comment)
+        return
     tokens = tokenize(spec, builder, text)
     if tokens and isinstance(tokens[0], _Word) and tokens[0].address == "N":
         _integer(builder, "N", tokens[0].text)
@@ -700,6 +784,11 @@ def _execute(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
     _check_words(builder, block, actions)
     _apply_modes(builder, block)
     dwell = "dwell" in actions
+    for action in block.actions & {"cycle_off", "cycle_initial", "cycle_r"}:
+        if action == "cycle_off":
+            builder.cycle_off()
+        else:
+            builder.drill_initial = action == "cycle_initial"
     if "F" in block.words and not dwell:
         builder.set_feed(builder.number("F", block.words["F"].text))
     if "T" in block.words:
@@ -727,6 +816,8 @@ def _check_words(builder: ProgramBuilder, block: _Block, actions: set[str]) -> N
         allowed |= {"P", "U"}
     if "blend" in actions:
         allowed |= {"P", "Q"}
+    if "cycle" in actions:
+        allowed |= {"R", "Q", "P"}
     for address in block.words:
         if address not in allowed:
             raise builder.error(
@@ -758,6 +849,15 @@ def _motion(spec: DialectSpec, builder: ProgramBuilder, block: _Block, actions: 
         stray = [a for a in axes if a != "X"]  # Fanuc G4 X<seconds>
         if stray:
             raise builder.error(f"{stray[0]} word in a dwell block; expected only the dwell time")
+        _dwell(spec, builder, block)
+        return
+    if "cycle" in actions:
+        _iso_cycle(spec, builder, block, axes)
+        return
+    if actions & {"rapid", "linear"}:
+        builder.cycle_off()  # G0 / G1 end a canned cycle (Fanuc group 01)
+    if builder.drill is not None and axes and not actions & {"home", "machine"}:
+        builder.cycle_hole({a: _axis_value(spec, builder, w) for a, w in axes.items()})
         return
     if actions & {"home", "machine"}:
         named = list(axes) + [n[0] for n in block.assigns if n[0] in AXIS_ORDER]
@@ -773,6 +873,53 @@ def _motion(spec: DialectSpec, builder: ProgramBuilder, block: _Block, actions: 
         if address in axes:
             values[address] = _axis_value(spec, builder, axes[address])
     builder.move(values, builder.motion)
+
+
+def _dwell(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
+    """G4: P (seconds, Fanuc milliseconds), X (Fanuc seconds) or F (Siemens seconds)."""
+    for address in ("P", "X", "F"):
+        if address in block.words:
+            value = builder.number(address, block.words[address].text)
+            ms = address == "P" and spec.dwell_p_ms and "." not in block.words[address].text
+            builder.dwell(value / 1000.0 if ms else value)
+            return
+
+
+def _iso_cycle(
+    spec: DialectSpec, builder: ProgramBuilder, block: _Block, axes: dict[str, _Word]
+) -> None:
+    """A ``G81``.. block: the cycle's definition, and its first hole at the block's position
+    (the position the tool stands at when the block has no X, Y)."""
+    code = next(c for c, a in block.g_actions if a == "cycle")
+    if code not in ISO_KINDS:
+        raise builder.error(f"G{code}: not a drilling cycle this reader knows")
+    words = {a: builder.number(a, w.text) for a, w in block.words.items() if a in "ZRQP"}
+    if "P" in words and spec.dwell_p_ms and "." not in block.words["P"].text:
+        words["P"] /= 1000.0
+    start_z = builder.position.get("Z", math.nan)
+    definition = iso_definition(
+        code, words, start_z, builder.feed, builder.linear_scale, builder.error
+    )
+    if not builder.drill_initial:
+        definition.retract = 0.0
+    builder.cycle_start(definition)
+    hole = {a: _axis_value(spec, builder, w) for a, w in axes.items() if a != "Z"}
+    builder.cycle_hole(hole)
+
+
+def _mcall(builder: ProgramBuilder, text: str) -> None:
+    """Siemens ``MCALL CYCLE8x(...)`` (the holes follow) or ``MCALL`` (the end)."""
+    if text.strip() == "MCALL":
+        builder.cycle_off()
+        return
+    definition = siemens_definition(
+        text, builder.linear_scale, builder.feed_scale, builder.feed, builder.error
+    )
+    if definition is None:
+        raise builder.error(
+            f"unknown modal call {text!r}; expected MCALL CYCLE81..CYCLE85(...) or MCALL"
+        )
+    builder.cycle_start(definition)
 
 
 def _check_axis_number(spec: DialectSpec, builder: ProgramBuilder, word: _Word) -> float:

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from types import MappingProxyType
 
+from urdfpost.dialects._cycles import siemens_lines
 from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout
 
 G_CODES = MappingProxyType(
@@ -85,4 +86,7 @@ SPEC = DialectSpec(
     machine_move="SUPA G0 {words}",
     work_offsets=4,
     motion_layout=MotionLayout(),
+    cycle_lines=siemens_lines,
+    dwell=("G4 F{seconds}",),
+    cycle_dwell=frozenset({"drill", "deep", "chipbreak", "tap", "bore"}),
 )

@@ -324,6 +324,19 @@ class DialectSpec:
         None writes every block through ``format_motion``.
     parse_line : callable or None
         Reader hook for non-G-code syntax; None uses the shared word-address parser.
+    cycle_lines : callable or None
+        The lines of a :class:`~urdfpost.program.Cycle` block (``(cycle, axes, CycleFormat)
+        -> lines``, :mod:`urdfpost.dialects._cycles`; a line starting with a blank is a
+        continuation line, never numbered); None: the control's cycles are not written, a
+        post writes the holes as their motion.
+    dwell : tuple of str
+        Lines of a :class:`~urdfpost.program.Dwell` (``{seconds}``); empty: none.
+    dwell_p_ms : bool
+        The P word of G4, G82 and G89 is in milliseconds (Fanuc), not seconds (LinuxCNC).
+    cycle_dwell : frozenset of str
+        The cycle kinds (:data:`urdfpost.program.CYCLE_KINDS`) whose cycle takes a dwell at
+        the bottom on this control; a cycle of another kind with a dwell is written as its
+        motion.
     """
 
     name: str
@@ -387,6 +400,15 @@ class DialectSpec:
     format_motion: Callable[[MotionWords], str] = format_gcode_motion
     motion_layout: MotionLayout | None = None
     parse_line: LineParser | None = None
+    cycle_lines: Callable[..., list[str]] | None = None
+    dwell: tuple[str, ...] = ()
+    dwell_p_ms: bool = False
+    cycle_dwell: frozenset[str] = frozenset()
+
+    def runs_cycle(self, kind: str, dwell: float) -> bool:
+        """Whether the control's own cycle is written for a cycle of ``kind`` with a dwell of
+        ``dwell`` seconds (:attr:`cycle_lines`, :attr:`cycle_dwell`)."""
+        return self.cycle_lines is not None and (dwell <= 0.0 or kind in self.cycle_dwell)
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from urdfpost.dialects import _bulk
+from urdfpost.dialects._cycles import CycleFormat, seconds
 from urdfpost.dialects.spec import (
     AXIS_ORDER,
     ROTARY_ADDRESSES,
@@ -36,6 +37,8 @@ from urdfpost.program import (
     Block,
     Comment,
     Coolant,
+    Cycle,
+    Dwell,
     Home,
     Insert,
     MachineMove,
@@ -119,6 +122,7 @@ class ProgramWriter:
         self._next_number = spec.block_start
         self._merges: dict[int, int] = {}  # tool change index -> merged spindle index
         self._spindle_running = False  # at the end of the pieces written so far
+        self._rpm: float | None = None  # the speed of the spindle running (tapping cycles)
         self._check_program()
         self.fields = {
             "name": spec.format_name(program.name),
@@ -298,6 +302,7 @@ class ProgramWriter:
             case ToolChange():
                 self.write_tool_change(index, block)
             case Spindle():
+                self._rpm = block.rpm if block.direction != "off" else None
                 self.write_spindle(block)
             case Coolant():
                 self.write_coolant(block)
@@ -327,8 +332,42 @@ class ProgramWriter:
                     )
                 for i, line in enumerate(self.spec.work_offset):  # continuation lines: no N
                     self.emit(line.format(number=block.number, code=53 + block.number), i == 0)
+            case Cycle():
+                self.write_cycle(block)
+            case Dwell():
+                if not self.spec.dwell:
+                    raise DialectError(f"{self.spec.name}: no dwell block")
+                text = seconds(block.seconds)
+                if self.spec.require_point and "." not in text:
+                    text += "."  # (Fanuc G4 X1 would be a millisecond)
+                self.emit_templates(self.spec.dwell, seconds=text)
             case _:
                 raise DialectError(f"cannot write block {block!r}")
+
+    def write_cycle(self, cycle: Cycle) -> None:
+        """A canned cycle in the control's syntax (:attr:`DialectSpec.cycle_lines`); the next
+        motion block writes every axis."""
+        if self.spec.cycle_lines is None:
+            raise DialectError(f"{self.spec.name}: canned cycles are not written for this control")
+        axes = self.program.axes
+        if "Z" not in axes or len(cycle.holes[0]) != len(axes):
+            raise DialectError(
+                f"cycle {cycle}: expected one position per axis of {axes}, Z among them"
+            )
+        fmt = CycleFormat(
+            axis=self.format_axis,
+            length=lambda v: self.format_axis("Z", v),
+            feed=lambda f: self.feed_format.format(f / self.feed_scale),
+            rpm=self._rpm,
+            scale=self.scale,
+        )
+        try:
+            lines = self.spec.cycle_lines(cycle, axes, fmt)
+        except ValueError as e:
+            raise DialectError(f"{self.spec.name}: {e}") from e
+        for line in lines:
+            self.emit(line, not line.startswith(" "))
+        self.modal.invalidate()
 
     def write_machine_move(self, move: MachineMove) -> None:
         """A rapid in machine coordinates; the next motion block writes every axis."""

@@ -10,11 +10,13 @@ the blocks.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
+from urdfpost.errors import LinearTravelError
+from urdfpost.linearize import RowPoses
 from urdfpost.machine import Machine
 from urdfpost.planning.rewinds import LIFT, RETURN, TURN
 from urdfpost.posting.transitions import Transitions
@@ -23,17 +25,20 @@ from urdfpost.program import (
     Block,
     Comment,
     Coolant,
+    Cycle,
     Home,
     Insert,
     MachineMove,
+    Move,
     MoveTable,
     Spindle,
     Stop,
     Tcp,
     ToolChange,
     WorkOffset,
+    expand_cycle,
 )
-from urdfpost.toolpath import Event, Motion, Toolpath
+from urdfpost.toolpath import Event, Motion, Toolpath, cycle_holes
 
 
 def program_name(toolpath: Toolpath, name: str | None) -> str:
@@ -93,6 +98,9 @@ def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]
         out.append(Home())
     elif kind == "stop":
         out.append(Stop(optional=bool(data.get("optional", False))))
+    elif kind == "cycle":  # its holes become a Cycle block (program_body); named here
+        if data.get("cycle") != "off":
+            out.append(Comment(f"cycle {data.get('cycle')}"))
     elif kind == "msys":  # where the program zero lies in the part (information only)
         out.append(Comment(f"MSYS {data.get('text', '')}".strip()))
     else:
@@ -195,6 +203,10 @@ def program_body(
     entry: np.ndarray | None = None,
     leave: bool = False,
     keep_tool: bool = False,
+    expand_cycles: bool = False,
+    notes: list[str] | None = None,
+    runs_cycle: Callable[[str, float], bool] | None = None,
+    motion: list[_Holes] | None = None,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -241,6 +253,18 @@ def program_body(
     keep_tool : bool
         With ``leave``: the next section keeps the tool (it begins with a change of work
         offset, not a tool change): the spindle and coolant stay on.
+    expand_cycles : bool
+        Write the holes of the CL data's canned cycles as their motion instead of
+        :class:`~urdfpost.program.Cycle` blocks (:func:`cycle_parts`).
+    notes : list of str, optional
+        Receives the warnings (a tilted hole written as its motion).
+    runs_cycle : callable, optional
+        ``(kind, dwell) -> bool``: whether the control runs such a cycle
+        (:meth:`~urdfpost.dialects.spec.DialectSpec.runs_cycle`); one it does not is written
+        as its motion, with a warning. None: every cycle is written.
+    motion : list, optional
+        Receives the holes' record, whose :meth:`_Holes.joint_path` gives the joint rows of
+        the program's motion (for the collision check).
 
     Returns
     -------
@@ -249,6 +273,7 @@ def program_body(
         one table.
     """
     table = _move_table(toolpath, machine, tcp, rows, rewind_feed)
+    holes = _Holes.of(toolpath, machine, tcp, rows, table, expand_cycles, notes, runs_cycle)
     count, kind = len(rows), rows.kind
     # the row before which each event comes (count: after the last row)
     reach = np.maximum.accumulate(rows.point) if count else rows.point
@@ -306,13 +331,13 @@ def program_body(
         after_return = k > 0 and kind[k - 1] == RETURN
         if before or after_return:
             if k > done:
-                body.append(table.rows(done, k))
+                body += holes.parts(done, k, body)
                 done = k
             if after_return:
                 body.append(Comment(REWIND_END))
             body += before
     if count > done:
-        body.append(table.rows(done, count))
+        body += holes.parts(done, count, body)
     if count and kind[count - 1] == RETURN:
         body.append(Comment(REWIND_END))
     for event in by_row.get(count, []):
@@ -338,6 +363,8 @@ def program_body(
         tcp_state[0] = False
     if tcp_state[0] and close:
         body.append(Tcp(on=False))
+    if motion is not None:
+        motion.append(holes)
     return body
 
 
@@ -358,3 +385,260 @@ def coolant_after(blocks: Iterable[Block | MoveTable], before: str | None) -> st
 def g_of(rows: Rows, k: int) -> int:
     """The CL point (index into the plan's toolpath) of row ``k``."""
     return int(rows.point[k])
+
+
+TRAVEL_SLACK = 1e-9
+"""mm. A hole's joint rows may pass a linear axis's travel limit by this much (rounding)."""
+
+NATIVE_AXIS = 1e-6
+"""How far (the length of the difference of unit vectors) the up direction of a hole, in
+program coordinates, may be from the program's +Z for the hole to be written as a cycle: 0.1
+micrometre over 100 mm of travel."""
+
+
+@dataclass
+class _Holes:
+    """The rows of the CL data's canned cycles and what they become (:meth:`parts`).
+
+    Attributes
+    ----------
+    toolpath : Toolpath
+    machine : Machine
+    tcp : bool
+    rows : Rows
+    table : MoveTable
+        The moves of all the rows.
+    event : dict of int to Event
+        The cycle of each hole (CL point index).
+    expand : bool
+        Write every hole as its motion.
+    notes : list of str or None
+        Receives the warnings.
+    runs : callable or None
+        Whether the control runs a cycle (kind, dwell).
+    warned : set of int
+        CL lines of the cycles warned of.
+    motion : dict of int to ndarray
+        Per hole row, the joint rows of its motion, shape (4, m) (:meth:`_hole_motion`).
+    """
+
+    toolpath: Toolpath
+    machine: Machine
+    tcp: bool
+    rows: Rows
+    table: MoveTable
+    event: dict[int, Event]
+    expand: bool
+    notes: list[str] | None
+    runs: Callable[[str, float], bool] | None
+    warned: set[int]
+    motion: dict[int, np.ndarray]
+
+    @classmethod
+    def of(
+        cls,
+        toolpath: Toolpath,
+        machine: Machine,
+        tcp: bool,
+        rows: Rows,
+        table: MoveTable,
+        expand: bool,
+        notes: list[str] | None,
+        runs: Callable[[str, float], bool] | None = None,
+    ) -> _Holes:
+        event = dict(cycle_holes(toolpath))
+        return cls(toolpath, machine, tcp, rows, table, event, expand, notes, runs, set(), {})
+
+    def parts(
+        self, start: int, stop: int, body: list[Block | MoveTable]
+    ) -> list[Block | MoveTable]:
+        """The blocks of rows ``start`` to ``stop`` (exclusive): the moves as a table, and the
+        rows of holes as :class:`Cycle` blocks, each after a rapid to the retract height above
+        its first hole (or, expanded, as their motion: :func:`expand_cycle`). The rows on the
+        way to a hole (inserted by the subdivision) are not written: the control moves from
+        hole to hole at the retract height."""
+        if not self.event:
+            return [self.table.rows(start, stop)]
+        point = self.rows.point[start:stop]
+        inside = np.isin(point, np.fromiter(self.event, dtype=np.int64, count=len(self.event)))
+        out: list[Block | MoveTable] = []
+        k = 0
+        n = stop - start
+        while k < n:
+            j = k
+            while j < n and inside[j] == inside[k]:
+                j += 1
+            if inside[k]:
+                out += self._cycles(start + k, start + j, body + out)
+            else:
+                out.append(self.table.rows(start + k, start + j))
+            k = j
+        return out
+
+    def _joint_up(self, row: int) -> np.ndarray:
+        """Per joint, its motion for 1 mm up the tool axis at ``row`` (mm; the rotary axes
+        fixed): the linear axes' motion that moves the tip along the tool axis, from the
+        kinematics (with the rotary axes fixed the tip is an affine function of the linear
+        axes)."""
+        machine, g = self.machine, int(self.rows.point[row])
+        up = np.zeros(len(machine.axis_names))
+        linear = list(machine.linear_columns)
+        q = np.tile(self.rows.q[row], (len(linear) + 1, 1))
+        for i, col in enumerate(linear):
+            q[i + 1, col] += 1.0
+        tip = RowPoses.of(machine, q, 0.0).tip
+        step = (tip[1:] - tip[0]).T  # column i: the tip's motion for 1 mm of linear axis i
+        up[linear] = np.linalg.solve(step, self.toolpath.axis[g])
+        return up
+
+    def _up(self, row: int) -> np.ndarray:
+        """Per program axis, its motion for 1 mm up the tool axis at ``row`` (mm, degrees):
+        the tool axis itself in TCP programs, :meth:`_joint_up` in machine coordinates."""
+        if not self.tcp:
+            return self._joint_up(row)
+        up = np.zeros(len(self.machine.axis_names))
+        up[list(self.machine.linear_columns)] = self.toolpath.axis[int(self.rows.point[row])]
+        return up
+
+    def _hole_motion(self, row: int) -> None:
+        """The joint rows of the hole at ``row`` (above it at the retract height, at the
+        clearance, at the bottom, above it again) for the collision check, after checking them
+        against the linear axes' travel.
+
+        Raises
+        ------
+        LinearTravelError
+            The retract height or the bottom puts a linear axis beyond its travel.
+        """
+        data = self._event(row).data
+        retract, clearance = float(data["retract"]), float(data["clearance"])
+        heights = np.array([retract, clearance, -float(data["depth"]), retract])
+        q = self.rows.q[row] + heights[:, None] * self._joint_up(row)
+        for j in self.machine.linear_columns:
+            axis = self.machine.axes[j]
+            outside = (q[:, j] < axis.lower - TRAVEL_SLACK) | (q[:, j] > axis.upper + TRAVEL_SLACK)
+            if outside.any():
+                k = int(np.argmax(outside))
+                where = "bottom" if k == 2 else "retract height"
+                line = int(self.toolpath.line[self.rows.point[row]])
+                raise LinearTravelError(
+                    f"{self.toolpath.source}:{line}: the hole's {where} needs {axis.name}"
+                    f"{q[k, j]:.3f} mm, beyond its travel {axis.lower:.3f} to {axis.upper:.3f} "
+                    f"mm; expected the cycle's depth and retract height ({data['cycle']} at CL "
+                    f"line {self._event(row).line}) within the machine's travel"
+                )
+        self.motion[row] = q
+
+    def joint_path(self, q: np.ndarray, lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The joint rows of the program's motion: ``q`` (the rows, shape (N, m)) with each
+        hole's row replaced by the hole's motion and the rows on the way between holes left
+        out (the control moves from hole to hole at the retract height); ``lines`` (N,) the
+        CL line of each row, given to the hole's rows too."""
+        if not self.motion:
+            return q, lines
+        inside = np.isin(self.rows.point, np.fromiter(self.event, dtype=np.int64))
+        parts_q: list[np.ndarray] = []
+        parts_line: list[np.ndarray] = []
+        for k in range(len(q)):
+            if k in self.motion:
+                parts_q.append(self.motion[k])
+                parts_line.append(np.full(len(self.motion[k]), lines[k]))
+            elif not inside[k]:
+                parts_q.append(q[k : k + 1])
+                parts_line.append(lines[k : k + 1])
+        return np.concatenate(parts_q), np.concatenate(parts_line)
+
+    def _cycles(
+        self, start: int, stop: int, before: list[Block | MoveTable]
+    ) -> list[Block | MoveTable]:
+        """The blocks of the hole rows ``start`` to ``stop``."""
+        names = self.machine.axis_names
+        z = names.index("Z")
+        rotary = list(self.machine.rotary_columns)
+        plus_z = np.zeros(len(names))
+        plus_z[z] = 1.0
+        out: list[Block | MoveTable] = []
+        group: list[int] = []  # rows of holes for one Cycle block
+
+        def close() -> None:
+            if not group:
+                return
+            cycle = self._cycle(group)
+            above = self.table.position[group[0]].copy()
+            above[z] += cycle.retract
+            out.append(Move(True, tuple(above.tolist())))
+            out.append(cycle)
+            group.clear()
+
+        for row in range(start, stop):
+            if not self.rows.reaches[row]:
+                continue
+            self._hole_motion(row)
+            up = self._up(row)
+            along_z = float(np.linalg.norm(up - plus_z)) <= NATIVE_AXIS
+            data = self._event(row).data
+            runs = self.runs is None or self.runs(str(data["cycle"]), float(data["dwell"]))
+            if self.expand or not along_z or not runs:
+                close()
+                self._warn_expanded(row, "tilted" if not along_z else "control")
+                cycle = self._cycle([row])
+                out += expand_cycle(cycle, names, _spindle_before(before + out), tuple(up))
+                continue
+            if group:
+                first, here = self.table.position[group[0]], self.table.position[row]
+                same = (
+                    self._event(group[0]) is self._event(row)
+                    and abs(here[z] - first[z]) <= 1e-9 * max(1.0, abs(first[z]))
+                    and np.array_equal(here[rotary], first[rotary])
+                )
+                if not same:
+                    close()
+            group.append(row)
+        close()
+        return out
+
+    def _event(self, row: int) -> Event:
+        return self.event[int(self.rows.point[row])]
+
+    def _cycle(self, group: list[int]) -> Cycle:
+        data = self._event(group[0]).data
+        return Cycle(
+            kind=str(data["cycle"]),
+            depth=float(data["depth"]),
+            feed=float(data["feed"]),
+            clearance=float(data["clearance"]),
+            retract=float(data["retract"]),
+            holes=tuple(tuple(self.table.position[r].tolist()) for r in group),
+            step=float(data.get("step", 0.0)),
+            dwell=float(data.get("dwell", 0.0)),
+            cl_lines=tuple(int(self.toolpath.line[self.rows.point[r]]) for r in group),
+        )
+
+    def _warn_expanded(self, row: int, why: str) -> None:
+        """One warning per cycle whose holes are written as their motion without being asked
+        to: ``why`` "tilted" (a hole's tool axis is not the program's Z) or "control" (the
+        control has no such cycle)."""
+        event = self._event(row)
+        if self.expand or self.notes is None or event.line in self.warned:
+            return
+        self.warned.add(event.line)
+        line = int(self.toolpath.line[self.rows.point[row]])
+        kind = event.data["cycle"]
+        reason = (
+            f"the hole at line {line} has its tool axis off the program's Z axis (a tilted hole "
+            "needs a tilted working plane, which is not written)"
+            if why == "tilted"
+            else f"the control has no {kind} cycle with a dwell at the bottom"
+        )
+        self.notes.append(
+            f"{self.toolpath.source}:{event.line}: CYCLE {kind}: {reason}; its holes are "
+            "written as their motion"
+        )
+
+
+def _spindle_before(body: list[Block | MoveTable]) -> Spindle | None:
+    """The last Spindle block of ``body`` (None: none)."""
+    for block in reversed(body):
+        if isinstance(block, Spindle):
+            return block
+    return None

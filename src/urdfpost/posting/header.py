@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.program import Move, MoveTable, Program, ToolChange
+from urdfpost.program import Cycle, Move, MoveTable, Program, ToolChange
 from urdfpost.units import mm_per_unit
 
 if TYPE_CHECKING:
@@ -61,13 +61,21 @@ class HeaderFigures:
         return cls(program.axes, program.rotary, np.full(m, np.inf), np.full(m, -np.inf))
 
     def add(self, program: Program) -> HeaderFigures:
-        """Take in the moves and tool calls of ``program`` (a whole program or a piece)."""
+        """Take in the moves, canned cycles and tool calls of ``program`` (a whole program or
+        a piece)."""
         for part in program.parts:  # the tables as they are: no joined copy of the moves
             if isinstance(part, ToolChange) and part.number not in self.tools:
                 self.tools[part.number] = (part.diameter, part.length)
                 continue
             if isinstance(part, MoveTable):
                 position = part.position
+            elif isinstance(part, Cycle):  # its holes from the retract height to the bottom
+                holes = np.asarray(part.holes, dtype=float)
+                z = program.axes.index("Z")
+                low_z, high_z = holes.copy(), holes.copy()
+                low_z[:, z] -= part.depth
+                high_z[:, z] += part.retract
+                position = np.concatenate([low_z, high_z])
             elif isinstance(part, Move):
                 position = np.asarray([part.position], dtype=float)
             else:

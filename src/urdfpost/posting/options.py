@@ -92,6 +92,9 @@ class PostOptions:
         A work offset per NX MCS (TCP programs): the points of each MCS written as its MSYS
         has them, in work offset ``work_offset + k`` for the file's MCS ``k``; default: every
         MCS transformed into the first, one work offset.
+    expand_cycles : bool
+        Write the CL data's canned cycles (``CYCLE/DRILL`` ...) as the motion they make
+        instead of the control's cycles (``G81``, ``CYCLE81``, ``CYCL DEF 200``).
     """
 
     controller: str | None = None
@@ -119,6 +122,7 @@ class PostOptions:
     spindle: float | None = None
     tool_table: Mapping[int, float] | None = None
     mcs_offsets: bool = False
+    expand_cycles: bool = False
 
 
 @dataclass(frozen=True)
@@ -171,6 +175,8 @@ class Job:
         Gauge length of each tool number given for the job, mm (:mod:`urdfpost.posting.tools`).
     mcs_offsets : bool
         A work offset per MCS.
+    expand_cycles : bool
+        Canned cycles written as their motion.
     """
 
     machine: Machine
@@ -198,6 +204,7 @@ class Job:
     spindle: float | None = None
     tool_table: Mapping[int, float] = field(default_factory=dict)
     mcs_offsets: bool = False
+    expand_cycles: bool = False
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -316,4 +323,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         spindle=options.spindle,
         tool_table=dict(options.tool_table or {}),
         mcs_offsets=options.mcs_offsets,
+        expand_cycles=options.expand_cycles,
     )

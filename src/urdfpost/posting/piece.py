@@ -407,6 +407,7 @@ def post_piece(
     )
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
     transitions = Transitions(machine, job.tcp, tool_length, job.clearance)
+    holes: list = []  # the record of the canned cycles' holes (their joint rows)
     body = program_body(
         toolpath,
         machine,
@@ -423,6 +424,10 @@ def post_piece(
         entry=None if piece is None else piece.entry,
         leave=piece is not None and piece.leave,
         keep_tool=piece is not None and piece.keep_tool,
+        expand_cycles=job.expand_cycles,
+        notes=warnings,
+        runs_cycle=job.dialect.spec.runs_cycle,
+        motion=holes,
     )
     program = Program(
         name=program_name(toolpath, job.program_name),
@@ -452,7 +457,11 @@ def post_piece(
         angle_tolerance_deg=job.angle_tolerance_deg,
         tool_length=tool_length,
     )
-    collisions = check_collisions(problem.collision, joints, joint_lines, cl)
+    # the moves as the program makes them: a canned cycle's holes drilled, not its CL points
+    moved, moved_lines = (
+        holes[0].joint_path(joints, joint_lines) if holes else (joints, joint_lines)
+    )
+    collisions = check_collisions(problem.collision, moved, moved_lines, cl)
     check_transitions(problem.collision, transitions, cl)
     return PostedPiece(program, plan, target, figures, collisions, joints, joint_lines)
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from urdfpost.dialects.spec import DialectSpec
 from urdfpost.errors import CLDataError
-from urdfpost.toolpath import Event, Motion, Toolpath
+from urdfpost.toolpath import Event, Motion, Toolpath, cycle_holes
 from urdfpost.units import mm_per_unit
 
 
@@ -160,7 +160,9 @@ def checked_process(
         check_tools(toolpath, spec, tcp)
     state = state or SpindleState()
     feeds, warnings = _feeds(toolpath, feed, units)
-    cuts = np.flatnonzero(toolpath.motion == int(Motion.FEED))
+    cutting = toolpath.motion == int(Motion.FEED)
+    cutting[[i for i, _ in cycle_holes(toolpath)]] = True  # a canned cycle cuts at its holes
+    cuts = np.flatnonzero(cutting)
     events = sorted(toolpath.events, key=lambda e: e.index)  # stable: file order kept
     added: list[Event] = []
     last_on = state if state.started else None  # what a tool change stopped

@@ -59,7 +59,7 @@ import numpy as np
 
 from urdfpost._files import give_mode, temp_file
 from urdfpost.dialects import Dialect
-from urdfpost.errors import LinearTravelError, ToleranceError
+from urdfpost.errors import CLDataError, LinearTravelError, ToleranceError
 from urdfpost.geometry import angle_between
 from urdfpost.machine import Machine
 from urdfpost.planning.strategies import STRATEGIES, Plan, tool_axis_of
@@ -272,6 +272,7 @@ def post_stream(
     start: np.ndarray | None = None
     last_piece: Toolpath | None = None
     reader_warnings = list(buffer.warnings)  # the job's, in order
+    _refuse_cycles(buffer)
     buffer, spindle, notes = checked_process(
         replace(buffer, warnings=()),
         feed=job.feed,
@@ -309,6 +310,7 @@ def post_stream(
                         exhausted = True
                     else:
                         reader_warnings += more.warnings
+                        _refuse_cycles(more)
                         more, spindle, notes = checked_process(
                             replace(more, warnings=()),
                             feed=job.feed,
@@ -503,6 +505,25 @@ def post_stream(
         if checks is not None:
             checks.close()
     return StreamResult(path=out, verification=verification, report=report)
+
+
+def _refuse_cycles(toolpath: Toolpath) -> None:
+    """Refuse canned cycles in a streamed post: a piece cut inside a cycle would not know its
+    holes (they are posted whole, ``--piece-points 0``).
+
+    Raises
+    ------
+    CLDataError
+        At the first ``CYCLE`` record.
+    """
+    for e in toolpath.events:
+        if e.kind == "cycle":
+            raise CLDataError(
+                toolpath.source,
+                e.line,
+                "canned cycles (CYCLE records) are not posted in pieces; expected a whole post "
+                "(--piece-points 0)",
+            )
 
 
 def _with_header(

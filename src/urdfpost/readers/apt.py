@@ -64,6 +64,11 @@ Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
   the points after it are transformed into MCS 0), ``text`` (the same in words, lengths in
   the file's units: "MCS 0 origin 3 3 0 inch, x-axis 1 0 0, z-axis 0 0 1"; the post writes
   it as a comment)
+- ``"cycle"``: ``cycle`` (the kind: "drill", "deep", "chipbreak", "tap", "bore"; "off" for
+  ``CYCLE/OFF``), ``depth``, ``clearance``, ``retract``, ``step`` (mm), ``feed`` (mm/min),
+  ``dwell`` (s): a canned cycle (:mod:`urdfpost.readers._cycle`). The GOTOs between a cycle and
+  its ``CYCLE/OFF`` are its holes, RAPID points at the hole tops
+  (:func:`urdfpost.toolpath.cycle_holes`)
 - ``"unknown"``: ``text`` (the record as written; a warning is added too)
 
 Text carried into the program as a comment (``comment``, ``partno`` and ``unknown`` texts, an
@@ -133,6 +138,7 @@ from ._common import (
     shorten,
     unit_vector,
 )
+from ._cycle import parse_cycle
 from ._format import Format
 from ._geometry import IDENTITY, ArcTooFineError, Frame, interpolate_arc
 from ._stream import (
@@ -825,6 +831,7 @@ class _AptInterpreter:
         self.axis = self.axis_local
         self.multiaxis = False
         self.rapid_next = False
+        self.cycle_on = False  # between CYCLE/<kind> and CYCLE/OFF: GOTOs are holes
         self.feed_value = math.nan
         self.feed_per_rev = False
         self.feed_scale = self.scale
@@ -849,6 +856,7 @@ class _AptInterpreter:
             "GODLTA": self._godlta,
             "CIRCLE": self._circle,
             "RAPID": self._rapid,
+            "CYCLE": self._cycle,
             "FEDRAT": self._fedrat,
             "SPINDL": self._spindl,
             "COOLNT": self._coolnt,
@@ -1075,7 +1083,7 @@ class _AptInterpreter:
             self._finish_arc(record, tip, axis_before, has_axis)
             return
         self._check_arc(tip, Motion.RAPID if self.rapid_next else Motion.FEED)
-        if self.rapid_next:
+        if self.rapid_next or self.cycle_on:  # a hole of a cycle: its top, reached at rapid
             self.builder.add_point(tip, self.axis, math.nan, Motion.RAPID, record.line)
             self.rapid_next = False
         else:
@@ -1092,6 +1100,10 @@ class _AptInterpreter:
         are read one by one instead.
         """
         first = 0
+        if self.cycle_on:  # holes: few, read one by one
+            for record in run.records():
+                self._goto(record)
+            return
         if self.circle is not None or self.rapid_next:
             self._goto(_first_record(run))
             first = 1
@@ -1405,6 +1417,13 @@ class _AptInterpreter:
         return f"{what} at line {line}"
 
     # -- feeds, spindle, coolant ----------------------------------------------------------
+
+    def _cycle(self, record: Record) -> None:
+        """``CYCLE/<kind>,...`` starts a canned cycle (a ``cycle`` event; the GOTOs after it
+        are its holes), ``CYCLE/OFF`` ends it: :func:`parse_cycle`."""
+        data = parse_cycle(record, self)
+        self.cycle_on = data["cycle"] != "off"
+        self.builder.add_event("cycle", record.line, **data)
 
     def _fedrat(self, record: Record) -> None:
         words, numbers = _split_tokens(record, self.source)

@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from urdfpost.errors import ProgramParseError
+from urdfpost.errors import DialectError, ProgramParseError
 from urdfpost.geometry import (
     Arcs,
     Segments,
@@ -36,9 +36,10 @@ from urdfpost.geometry import (
 from urdfpost.kinematics.forward import interpolation_bounds, tip_and_axis_along
 from urdfpost.linearize import RowPoses, orientation_path_chord2
 from urdfpost.machine import Machine
-from urdfpost.program import Program, WorkOffset, rewind_moves
+from urdfpost.program import Program, WorkOffset, cycle_moves, expand_cycles, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
+from urdfpost.verification.holes import HOLES_NOTE, check_holes, without_holes
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
 
 log = logging.getLogger(__name__)
@@ -124,6 +125,7 @@ class Verification:
             f"{self.tip_tolerance / scale:{fmt}}); tool axis deviation max "
             f"{self.max_orientation_deviation_deg:.4f} deg (tolerance "
             f"{self.orientation_tolerance_deg:.3f}); largest rotary step {steps or 'none'} deg"
+            + "".join(f"; {note}" for note in self.notes if HOLES_NOTE in note)
         )
 
 
@@ -651,6 +653,10 @@ def verify_checks(
             "verified with --mcs-offsets)",
         )
     tool_length = program.tool_length if tool_length is None else tool_length
+    try:  # canned cycles as the motion the control runs
+        program = expand_cycles(program)
+    except ValueError as e:
+        raise DialectError(f"program {program.name}: {e}") from e
     values, rapid = program_joints(machine, program)
     notes: list[str] = []
     # a rewind leaves the CL path on purpose (lift, turn, return): checked like a rapid, by
@@ -659,6 +665,58 @@ def verify_checks(
     if rewind.any():
         rapid = rapid | rewind
         notes.append(rewind_note(int(rewind.sum())))
+    # so do the moves of canned cycles, whose holes are checked on their own (check_holes)
+    cycle = cycle_moves(program)
+    holes = []
+    if cycle.any() or any(e.kind == "cycle" for c in checks for e in c.toolpath.events):
+        drilled = row_poses_at_tip(machine, values, program.tcp, tool_length)
+        feed = program.move_table().feed
+        holes = [
+            check_holes(c.toolpath, drilled.tip, drilled.axis, rapid, feed, cycle, c.tol)
+            for c in checks
+        ]
+        rapid = rapid | cycle
+        checks = [replace(c, toolpath=without_holes(c.toolpath)) for c in checks]
+    if holes and any(h is not None for h in holes):
+        return [
+            _with_holes(v, h, program.units)
+            for v, h in zip(
+                _verify_rows(program, machine, checks, tool_length, values, rapid, notes),
+                holes,
+                strict=True,
+            )
+        ]
+    return _verify_rows(program, machine, checks, tool_length, values, rapid, notes)
+
+
+def _with_holes(verification: Verification, holes, units: str) -> Verification:
+    """A verification with the check of the holes (:func:`check_holes`) added."""
+    if holes is None:
+        return verification
+    return replace(
+        verification,
+        ok=verification.ok and holes.ok,
+        cl_points=verification.cl_points + holes.holes,
+        reached=verification.reached + holes.holes - len(holes.missing),
+        missed_lines=sorted(verification.missed_lines + holes.missing),
+        worst_cl_line=verification.worst_cl_line
+        if holes.ok or (verification.worst_cl_line is not None and not verification.ok)
+        else holes.bad_lines[0],
+        notes=[*verification.notes, holes.note(units)],
+    )
+
+
+def _verify_rows(
+    program: Program,
+    machine: Machine,
+    checks: list[Check],
+    tool_length: float,
+    values: np.ndarray,
+    rapid: np.ndarray,
+    notes: list[str],
+) -> list[Verification]:
+    """:func:`verify_checks` of the program's rows (``values``, ``rapid`` as compared)."""
+    rewind = rewind_moves(program)
     if len(values) == 0 or not all(len(c.toolpath) for c in checks):
         if len(values) and len(checks) > 1:  # compare those with CL points on their own
             return [verify_checks(program, machine, [c], tool_length)[0] for c in checks]
