@@ -167,6 +167,29 @@ class WorkOffset:
     number: int
 
 
+@dataclass(frozen=True)
+class Smoothing:
+    """The control's path smoothing (its tolerance cycle) switched on or, ``on`` False, off.
+
+    Attributes
+    ----------
+    on : bool
+        Smoothing on (Heidenhain ``CYCL DEF 32`` with a T, Siemens ``CYCLE832`` with a
+        tolerance, Fanuc ``G05.1 Q1``, LinuxCNC ``G64 P``); off: the control's own default
+        path mode again.
+    tolerance : float or None
+        Path tolerance, mm; None where the program gives none (Fanuc AI contour control takes
+        its tolerance from the control's parameters), or when off.
+    angle : float or None
+        Tolerance of the rotary axes, degrees, where the control takes one (Heidenhain
+        ``TA``, Siemens' orientation tolerance); None otherwise.
+    """
+
+    on: bool
+    tolerance: float | None = None
+    angle: float | None = None
+
+
 Block = (
     Move
     | ToolChange
@@ -179,6 +202,7 @@ Block = (
     | Home
     | MachineMove
     | WorkOffset
+    | Smoothing
 )
 
 
@@ -491,6 +515,10 @@ class Program:
         A program read from text: the file and line of its first feed move of X/Y/Z with TCP
         off (a TCP program with such a move mixes machine positions with tool tips, which
         verification refuses); None otherwise. Not compared.
+    rollover : frozenset of str
+        Continuous rotary axes the control rolls over (modulo 360 display): written in
+        [0, 360), and the control turns them the way :func:`rollover_direction` says rather
+        than counting turns. A program read from text has the axes its reader was told of.
     """
 
     name: str
@@ -502,6 +530,7 @@ class Program:
     tool_length: float = 0.0
     continuous: frozenset[str] = frozenset()
     cut_without_tcp: tuple[str, int] | None = field(default=None, compare=False)
+    rollover: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         if not isinstance(self.blocks, Blocks):
@@ -566,3 +595,61 @@ def rewind_moves(program: Program) -> np.ndarray:
     last = np.maximum.accumulate(np.where(marker != 0, np.arange(len(parts)), -1))
     inside = (last >= 0) & (marker[np.maximum(last, 0)] == 1)
     return np.repeat(inside, size)
+
+
+ROLLOVER_DIRECTIONS = ("shortest", "sign", "direct")
+"""How a control turns a rollover axis to an absolute value (:func:`rollover_target`)."""
+
+
+def rollover_target(previous: float, value: float, direction: str) -> float:
+    """Where a rollover axis ends, in counted degrees, when a block programs ``value``.
+
+    Parameters
+    ----------
+    previous : float
+        The axis position before the block, degrees counted over turns (any real number); NaN
+        when not known (the control's position after a home return): then ``value`` in
+        [0, 360) for "shortest" and "direct", its magnitude for "sign".
+    value : float
+        The value written, degrees: in [0, 360), or in (-360, 360) for "sign".
+    direction : str
+        "shortest": the shorter way to ``value`` modulo 360 (half a turn: positive);
+        "sign": LinuxCNC's ``WRAPPED_ROTARY``, positive ``value`` (``+0`` too) turns positive,
+        negative (``-0`` too) negative, to ``abs(value)`` modulo 360, less than a turn
+        (interp_convert.cc ``unwrap_rotary``); "direct": to the position ``value`` in [0, 360)
+        without passing 0 (Siemens ``G90`` on a modulo axis, MD30455 bit 2 = 0; Heidenhain
+        without ``M126``).
+
+    Returns
+    -------
+    float
+        Degrees, counted over turns.
+
+    Examples
+    --------
+    >>> rollover_target(350.0, 10.0, "shortest"), rollover_target(350.0, 10.0, "direct")
+    (370.0, 10.0)
+    >>> rollover_target(10.0, -350.0, "sign"), rollover_target(10.0, -0.0, "sign")
+    (-10.0, 0.0)
+    """
+    if direction == "sign":
+        position = abs(value)
+        if math.isnan(previous):
+            return position
+        # as LinuxCNC's unwrap_rotary: the turn of ``previous``, then at most one turn on
+        result = position + math.floor(previous / 360.0) * 360.0
+        negative = math.copysign(1.0, value) < 0.0
+        if not negative and result < previous:
+            result += 360.0
+        if negative and result > previous:
+            result -= 360.0
+        return result
+    position = value % 360.0
+    if math.isnan(previous):
+        return position
+    if direction == "shortest":
+        step = 180.0 - (previous - position + 180.0) % 360.0  # in (-180, 180]
+        return previous + step
+    if direction == "direct":
+        return previous - previous % 360.0 + position
+    raise ValueError(f"unknown rollover direction {direction!r}; expected {ROLLOVER_DIRECTIONS}")

@@ -37,6 +37,7 @@ G_CODES = MappingProxyType(
         "0": "rapid",
         "1": "linear",
         "4": "dwell",
+        "5.1": "smoothing",
         "17": "noop",
         "18": "noop",
         "19": "noop",
@@ -95,4 +96,8 @@ SPEC = DialectSpec(
     require_point=True,
     block_max=99999,
     motion_layout=MotionLayout(),
+    # AI contour control (AICC II, 30i/31i-B5, with G43.4 TCP): G05.1 Q1 on, Q0 off; its
+    # tolerance and precision level are the control's parameters, not program words
+    smoothing_on=("G05.1 Q1",),
+    smoothing_off=("G05.1 Q0",),
 )

@@ -121,8 +121,10 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
     head = " ".join(words[:2])
     if head == "TOOL CALL":
         _tool_call(builder, words[2:])
-    elif head in ("TOOL DEF", "BLK FORM") or code.startswith("CYCL DEF 32."):
-        return  # tool preselection, graphics blank, path tolerance: no motion
+    elif code.startswith("CYCL DEF 32."):
+        _tolerance_cycle(builder, code)
+    elif head in ("TOOL DEF", "BLK FORM"):
+        return  # tool preselection, graphics blank: no motion
     elif code == "CYCL DEF 247 DATUM SETTING ~":
         builder.cycle = 247  # the preset number follows on the next line
     elif code == "PLANE RESET STAY":
@@ -145,6 +147,39 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
             f"unknown block {code!r}; expected L, TOOL CALL, FUNCTION TCPM, FUNCTION RESET "
             "TCPM, M.., STOP or a ; comment"
         )
+
+
+_CYCLE_32 = re.compile(r"CYCL DEF 32\.([012])(?:\s+(.*))?\Z")
+_CYCLE_32_HEAD = ("TOLERANCE", "TOLERANZ")
+_CYCLE_32_T = re.compile(r"T\s*(\S+)\Z")
+_CYCLE_32_MODE = re.compile(r"(?:HSC-MODE:\s*[01]\s*)?(?:TA\s*(\S+))?\Z")
+
+
+def _tolerance_cycle(builder: ProgramBuilder, code: str) -> None:
+    """Cycle 32 TOLERANCE: ``32.0 TOLERANCE``, then ``32.1 T<tolerance>`` (smoothing on; no T:
+    off, the control's default) and ``32.2 HSC-MODE:<0|1> TA<rotary tolerance>``."""
+    match = _CYCLE_32.match(code)
+    part, rest = (match.group(1), (match.group(2) or "").strip()) if match else ("", "")
+    if match is None or (part == "0" and rest not in _CYCLE_32_HEAD):
+        raise builder.error(
+            f"unreadable {code!r}; expected CYCL DEF 32.0 TOLERANCE, 32.1 T.. or 32.2 TA.."
+        )
+    if part == "1":
+        if not rest:
+            builder.smoothing(False)
+            return
+        t = _CYCLE_32_T.match(rest)
+        if t is None:
+            raise builder.error(f"unreadable {code!r}; expected CYCL DEF 32.1 T<tolerance>")
+        builder.smoothing(True, builder.number("T", t.group(1)))
+    elif part == "2":
+        mode = _CYCLE_32_MODE.match(rest)
+        if mode is None:
+            raise builder.error(
+                f"unreadable {code!r}; expected CYCL DEF 32.2 HSC-MODE:0 TA<rotary tolerance>"
+            )
+        if mode.group(1) is not None:
+            builder.smoothing_angle(builder.number("TA", mode.group(1)))
 
 
 def _tool_call(builder: ProgramBuilder, words: list[str]) -> None:
@@ -294,4 +329,13 @@ SPEC = DialectSpec(
     format_motion=format_motion,
     motion_layout=MotionLayout(lead="L", rapid_word="FMAX"),
     parse_line=parse_line,
+    # Cycle 32 TOLERANCE (TNC 640 cycle programming manual; "TOLERANZ" in German programs):
+    # T the path tolerance, HSC-MODE:0 finishing, TA the rotary axes' tolerance in degrees
+    # (with FUNCTION TCPM); 32.1 without T resets it to the machine's default
+    smoothing_on=(
+        "CYCL DEF 32.0 TOLERANCE",
+        "CYCL DEF 32.1 T{tol}",
+        "CYCL DEF 32.2 HSC-MODE:0 TA{angle}",
+    ),
+    smoothing_off=("CYCL DEF 32.0 TOLERANCE", "CYCL DEF 32.1"),
 )

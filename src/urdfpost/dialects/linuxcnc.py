@@ -103,4 +103,11 @@ SPEC = DialectSpec(
     home=("G28 G91 Z0", "G28 X0 Y0", "G90"),
     block_max=99999,
     motion_layout=MotionLayout(),
+    # G64 P<path tolerance> Q<naive CAM tolerance>; G64 without P: blending without a
+    # tolerance, the interpreter's own mode (LinuxCNC G-code reference, G64)
+    smoothing_on=("G64 P{tol} Q{tol}",),
+    smoothing_off=("G64",),
+    # [AXIS_C] WRAPPED_ROTARY = 1: the sign of an absolute value is the direction of the
+    # turn, its magnitude (less than 360) the position (interp_convert.cc unwrap_rotary)
+    rollover_direction="sign",
 )
