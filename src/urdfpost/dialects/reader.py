@@ -311,9 +311,7 @@ class ProgramBuilder:
             return rollover_target(previous, signed, "sign")
         direction = mode or self.rollover_direction()
         if direction != "sign" and not 0.0 <= value < 360.0:
-            raise self.error(
-                f"{address}{value:g} on a rollover axis; expected a value in [0, 360)"
-            )
+            raise self.error(f"{address}{value:g} on a rollover axis; expected a value in [0, 360)")
         if direction == "sign" and not -360.0 < value < 360.0:
             raise self.error(
                 f"{address}{value:g} on a rollover axis; expected a value in (-360, 360)"

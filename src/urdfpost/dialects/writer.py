@@ -386,7 +386,7 @@ class ProgramWriter:
         angles = any("{angle}" in t for t in templates)
         if block.on and angles and block.angle is None:
             raise DialectError(f"{spec.name}: path smoothing needs a rotary tolerance; {block}")
-        fields = {}
+        fields: dict[str, str] = {}
         if block.on and needs:
             assert block.tolerance is not None
             # the program's decimals, without sign or trailing zeros: T0.01, P0.0004
@@ -400,7 +400,7 @@ class ProgramWriter:
         if block.on and angles:
             assert block.angle is not None
             fields["angle"] = NumberFormat(spec.rotary.decimals, trim=True).format(block.angle)
-        self.emit_templates(templates, **fields)
+        self.emit_templates(templates, True, **fields)
 
     def write_move(self, move: Move) -> None:
         """Write a motion block with only the changed axes (all after a forced state)."""

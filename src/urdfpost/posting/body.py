@@ -27,6 +27,7 @@ from urdfpost.program import (
     Insert,
     MachineMove,
     MoveTable,
+    Smoothing,
     Spindle,
     Stop,
     Tcp,
@@ -192,6 +193,7 @@ def program_body(
     transitions: Transitions | None = None,
     work_offset: int | None = None,
     coolant: str | None = None,
+    smoothing: Smoothing | None = None,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -226,6 +228,10 @@ def program_body(
     coolant : str, optional
         The coolant on before the body (a streamed piece): a tool change stops it and, unless
         the CL data sets the coolant there, starts it again.
+    smoothing : Smoothing, optional
+        The control's path smoothing: switched on before the first cut of each tool (after
+        the approach), off before each tool change and at the end of the program. A body
+        that does not start the program (no ``work_offset``) starts with it on.
 
     Returns
     -------
@@ -249,6 +255,7 @@ def program_body(
     for event, row in zip(events, at.tolist(), strict=True):
         by_row.setdefault(row, []).append(event)
     starting = work_offset is not None
+    smooth = [smoothing is not None and not starting]  # smoothing on
     if starting:
         assert work_offset is not None
         body.append(WorkOffset(work_offset))
@@ -261,6 +268,9 @@ def program_body(
         here = by_row.get(k, [])
         leaves = k > 0 and any(e.kind in ("tool", "home") for e in here)
         restart = None  # the coolant a tool change stopped, to start again after it
+        if smooth[0] and k > 0 and any(e.kind == "tool" for e in here):
+            before.append(Smoothing(False))  # off for the tool change
+            smooth[0] = False
         if transitions is not None and leaves and any(e.kind == "tool" for e in here):
             line = int(toolpath.line[g_of(rows, k - 1)])
             before += transitions.leave(rows.q[k - 1], line, tcp_state[0])
@@ -282,6 +292,9 @@ def program_body(
         if tcp and not tcp_state[0]:
             before.append(Tcp(on=True))
             tcp_state[0] = True
+        if smoothing is not None and not smooth[0] and (leaves or (starting and k == 0)):
+            before.append(smoothing)  # before the first cut of the tool
+            smooth[0] = True
         after_return = k > 0 and kind[k - 1] == RETURN
         if before or after_return:
             if k > done:
@@ -313,6 +326,8 @@ def program_body(
         tcp_state[0] = False
     if tcp_state[0] and close:
         body.append(Tcp(on=False))
+    if smooth[0] and close:
+        body.append(Smoothing(False))
     return body
 
 

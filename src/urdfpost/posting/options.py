@@ -7,6 +7,7 @@ it reads the :class:`Job` and never looks at the options or the machine settings
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from urdfpost.dialects import Dialect, dialect_for
@@ -17,6 +18,7 @@ from urdfpost.planning.rewinds import DEFAULT_RETRACT
 from urdfpost.planning.singularity import DEFAULT_DETECTOR, DETECTORS, with_detector
 from urdfpost.planning.strategies import DEFAULT_STRATEGY, STRATEGIES
 from urdfpost.posting.transitions import DEFAULT_CLEARANCE
+from urdfpost.program import Smoothing
 from urdfpost.tolerances import Tolerances
 from urdfpost.units import mm_per_unit, program_units
 
@@ -83,6 +85,13 @@ class PostOptions:
     spindle : float or None
         Spindle speed (rpm, clockwise) for cutting with the spindle off (reported as a
         warning); None: such a move is an error.
+    smoothing : bool or None
+        Write the control's path smoothing (tolerance) cycle before the cut and its cancel
+        after it; None: the machine file's ``smoothing`` setting (default on).
+    smoothing_tolerance : float or None
+        Its path tolerance, program units; default the tool-tip tolerance
+        (:attr:`tolerance`). The rotary axes' tolerance, where the control takes one, is the
+        orientation tolerance.
     """
 
     controller: str | None = None
@@ -108,6 +117,8 @@ class PostOptions:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    smoothing: bool | None = None
+    smoothing_tolerance: float | None = None
 
 
 @dataclass(frozen=True)
@@ -156,6 +167,11 @@ class Job:
         mm/min.
     spindle : float or None
         rpm.
+    smoothing : Smoothing or None
+        The path smoothing switched on before the cut (tolerance mm, rotary tolerance
+        degrees); None: none written.
+    rollover : frozenset of str
+        The rotary axes the control rolls over (the machine file's ``rollover`` setting).
     """
 
     machine: Machine
@@ -181,6 +197,46 @@ class Job:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    smoothing: Smoothing | None = None
+    rollover: frozenset[str] = frozenset()
+
+
+def smoothing_of(
+    options: PostOptions, machine: Machine, dialect: Dialect, tol: Tolerances, scale: float
+) -> Smoothing | None:
+    """The smoothing a post writes: asked for (else the machine file's setting), at the
+    asked tolerance (program units; ``scale`` mm per unit) or the tool-tip tolerance, with
+    the orientation tolerance for the rotary axes where the control takes one.
+
+    Raises
+    ------
+    UrdfpostError
+        A tolerance that is not a positive number; smoothing asked for on a control that has
+        no smoothing cycle.
+    """
+    on = machine.settings.smoothing if options.smoothing is None else options.smoothing
+    spec = dialect.spec
+    if not on:
+        return None
+    if not spec.smoothing_on:
+        if options.smoothing:
+            raise UrdfpostError(f"{dialect.name} has no path smoothing cycle; use --no-smoothing")
+        return None
+    tolerance = tol.tip
+    if options.smoothing_tolerance is not None:
+        tolerance = options.smoothing_tolerance * scale
+        if not (math.isfinite(tolerance) and tolerance > 0.0):
+            raise UrdfpostError(
+                f"smoothing tolerance {options.smoothing_tolerance!r}: expected a positive "
+                "length in program units"
+            )
+    takes = any("{tol}" in t for t in spec.smoothing_on)
+    angles = any("{angle}" in t for t in spec.smoothing_on)
+    return Smoothing(
+        True,
+        tolerance if takes else None,
+        math.degrees(tol.orientation) if angles else None,
+    )
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -264,13 +320,14 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         raise UrdfpostError(
             f"work offset {options.work_offset}: {dialect.name} has work offsets 1 to {offsets}"
         )
+    tol = with_detector(
+        Tolerances.for_units(units, options.tolerance), detector_name(options.detector)
+    )
     return Job(
         machine=machine,
         dialect=dialect,
         units=units,
-        tol=with_detector(
-            Tolerances.for_units(units, options.tolerance), detector_name(options.detector)
-        ),
+        tol=tol,
         strategy=strategy_name(machine, options.strategy),
         tcp=options.tcp,
         tool_length=settings.tool_length if options.tool_length is None else options.tool_length,
@@ -292,4 +349,6 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         work_offset=options.work_offset,
         feed=mm(options.feed),
         spindle=options.spindle,
+        smoothing=smoothing_of(options, machine, dialect, tol, scale),
+        rollover=settings.rollover,
     )

@@ -35,6 +35,7 @@ from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget
 from urdfpost.posting.options import Job
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
+from urdfpost.posting.rollover import with_rollover
 from urdfpost.posting.transitions import Transitions
 from urdfpost.program import REWIND_BEGIN, Blocks, Program
 from urdfpost.toolpath import Event, Motion, Toolpath
@@ -296,6 +297,7 @@ def post_piece(
         warnings.append(f"{toolpath.source}: no tool change before the first move; tool 1 assumed")
         tool_events = (Event(index=0, kind="tool", line=int(toolpath.line[0]), data={"number": 1}),)
     rows = Rows.empty(len(machine.axis_names))
+    start_position = None  # program position where a continued piece starts
     reference = toolpath
     joints = np.zeros((0, len(machine.axis_names)))
     joint_lines = np.zeros(0, dtype=int)
@@ -372,6 +374,7 @@ def post_piece(
             rows = Rows(
                 q=out_q[1:], tip=out_tip[1:], point=group[1:], reaches=is_cl[1:], kind=out_kind[1:]
             )
+            start_position = program_position(machine, job.tcp, out_q[0], out_tip[0])
         joints, joint_lines = out_q, toolpath.line[group]
         if plan.bent or plan.lift.any():
             out_axis = np.concatenate(parts_axis)
@@ -401,7 +404,17 @@ def post_piece(
         close=piece is None or piece.last,
         transitions=transitions,
         work_offset=None if continued else job.work_offset,
+        smoothing=job.smoothing,
     )
+    rollover = job.rollover & frozenset(a.name for a in machine.rotary if a.continuous)
+    body, rolled = with_rollover(body, machine.axis_names, rollover, tol, start_position)
+    if rolled.splits:
+        log.info(
+            "%s: %d moves that turn a rollover axis by more than %.0f deg split",
+            toolpath.source,
+            rolled.splits,
+            np.degrees(tol.rollover_turn),
+        )
     program = Program(
         name=program_name(toolpath, job.program_name),
         axes=machine.axis_names,
@@ -411,6 +424,7 @@ def post_piece(
         blocks=Blocks(body),
         tool_length=tool_length,
         continuous=frozenset(a.name for a in machine.rotary if a.continuous),
+        rollover=rollover,
     )
     figures = PieceFigures(
         branch_switches=branch_switches,
@@ -433,6 +447,16 @@ def post_piece(
     collisions = check_collisions(problem.collision, joints, joint_lines, cl)
     check_transitions(problem.collision, transitions, cl)
     return PostedPiece(program, plan, target, figures, collisions, joints, joint_lines)
+
+
+def program_position(machine: Machine, tcp: bool, q: np.ndarray, tip: np.ndarray) -> np.ndarray:
+    """The program's axis values of one row: degrees for the rotary axes, the tip (TCP) or
+    the joints (mm) for the linear ones; shape (m,)."""
+    rotary = np.array([a.rotary for a in machine.axes])
+    position = np.where(rotary, np.degrees(q), q)
+    if tcp:
+        position[list(machine.linear_columns)] = tip
+    return position
 
 
 CLEARANCE_POINTS = 500
