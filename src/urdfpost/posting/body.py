@@ -229,8 +229,8 @@ def program_body(
         The coolant on before the body (a streamed piece): a tool change stops it and, unless
         the CL data sets the coolant there, starts it again.
     smoothing : Smoothing, optional
-        The control's path smoothing: switched on before the first cut of each tool (after
-        the approach), off before each tool change and at the end of the program. A body
+        The control's path smoothing: switched on before the approach and first cut of
+        each tool, off before each tool change and at the end of the program. A body
         that does not start the program (no ``work_offset``) starts with it on.
 
     Returns
@@ -282,6 +282,9 @@ def program_body(
             before.append(Coolant(mode=restart))
         if kind[k] == LIFT:
             before.append(Comment(next(lift_comments)))
+        if smoothing is not None and not smooth[0] and (leaves or (starting and k == 0)):
+            before.append(smoothing)  # before the tool's approach and first cut
+            smooth[0] = True
         if transitions is not None and (leaves or (starting and k == 0)):
             if tcp_state[0]:
                 before.append(Tcp(on=False))
@@ -292,9 +295,6 @@ def program_body(
         if tcp and not tcp_state[0]:
             before.append(Tcp(on=True))
             tcp_state[0] = True
-        if smoothing is not None and not smooth[0] and (leaves or (starting and k == 0)):
-            before.append(smoothing)  # before the first cut of the tool
-            smooth[0] = True
         after_return = k > 0 and kind[k - 1] == RETURN
         if before or after_return:
             if k > done:
