@@ -316,7 +316,13 @@ class ProgramBuilder:
             raise self.error(
                 f"{address}{value:g} on a rollover axis; expected a value in (-360, 360)"
             )
-        return rollover_target(previous, value, direction)
+        target = rollover_target(previous, value, direction)
+        if direction == "shortest" and abs(abs(target - previous) - 180.0) < 1e-9:
+            raise self.error(
+                f"{address}{value:g} is half a turn from {previous % 360.0:g}: the shortest "
+                "way is either way; expected a turn of less than 180 degrees"
+            )
+        return target
 
     def moves(self, lines: _bulk.MotionLines, rows: slice, first_line: int) -> bool:
         """Plain motion blocks, read at once: as :meth:`move` (and the feed and motion code of
