@@ -532,3 +532,23 @@ def test_nx_project_rollover(tmp_path: Path) -> None:
     assert result.verification.ok
     assert result.verification.max_rotary_step_deg["C"] == pytest.approx(150.0)
     assert len(result.program.moves()) == len(counting.program.moves()) + 6
+
+
+def test_verify_reads_rollover_and_reports_smoothing(
+    capsys: pytest.CaptureFixture[str], spiral: Toolpath, rolling: Machine, work: Path
+) -> None:
+    """``urdfpost verify`` reads the golden program as the machine's control does (C rolls
+    over) and says what it does with the smoothing."""
+    golden = GOLDEN / "dmu50_heidenhain.h"
+    args = ["verify", "--machine", rolling.path, "--cl", str(work / "spiral.apt"), str(golden)]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "verification within tolerance" in out
+    assert (
+        "smoothing on 1 times (tolerance 0.0100 mm, rotary axes 0.500 deg), off 1 times, "
+        "off at the end" in out
+    )
+    assert (
+        main(["verify", "--machine", "dmu50", "--cl", str(work / "spiral.apt"), str(golden)]) == 1
+    )
+    assert "BEYOND TOLERANCE" in capsys.readouterr().out  # read as counting turns

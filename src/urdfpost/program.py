@@ -653,3 +653,44 @@ def rollover_target(previous: float, value: float, direction: str) -> float:
     if direction == "direct":
         return previous - previous % 360.0 + position
     raise ValueError(f"unknown rollover direction {direction!r}; expected {ROLLOVER_DIRECTIONS}")
+
+
+def smoothing_summary(program: Program, units: str) -> str:
+    """What a program does with the control's path smoothing, for people (``verify``).
+
+    Parameters
+    ----------
+    program : Program
+        Usually read from text (its :class:`Smoothing` blocks).
+    units : str
+        Of the tolerance shown ("mm" or "inch").
+
+    Returns
+    -------
+    str
+        E.g. ``"smoothing on 2 times (tolerance 0.0100 mm, rotary axes 0.500 deg), off 2
+        times, off at the end"``; ``"no smoothing cycle (the control's own path mode)"``.
+    """
+    states = [b for b in program.parts if isinstance(b, Smoothing)]
+    if not states:
+        return "no smoothing cycle (the control's own path mode)"
+    ons = [b for b in states if b.on]
+    parts = []
+    if ons:
+        shown = []
+        for b in dict.fromkeys(ons):
+            words = []
+            if b.tolerance is not None:
+                scale = 25.4 if units == "inch" else 1.0
+                words.append(f"tolerance {b.tolerance / scale:.4f} {units}")
+            else:
+                words.append("the control's tolerance")
+            if b.angle is not None:
+                words.append(f"rotary axes {b.angle:.3f} deg")
+            shown.append(", ".join(words))
+        parts.append(f"smoothing on {len(ons)} times ({'; '.join(shown)})")
+    offs = len(states) - len(ons)
+    if offs:
+        parts.append(f"off {offs} times")
+    parts.append("off at the end" if not states[-1].on else "still on at the end")
+    return ", ".join(parts)
