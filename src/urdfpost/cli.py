@@ -875,10 +875,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         print(line)
     for note in process_check.notes:
         print(f"{args.program}: note: {note}")
-    if chunks is None:  # (a program checked in pieces keeps no blocks to tell)
-        from urdfpost.program import smoothing_summary
+    from urdfpost.program import smoothing_summary
 
-        print(f"{args.program}: {smoothing_summary(program, program.units)}")
+    # (a program checked in pieces: its header keeps the smoothing blocks)
+    print(f"{args.program}: {smoothing_summary(program, program.units)}")
     return 0 if ok else 1
 
 

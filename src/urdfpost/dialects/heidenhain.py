@@ -82,6 +82,8 @@ def parse_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
     ProgramParseError
         Missing block number, unknown block or word, malformed number.
     """
+    if builder.smoothing_pending is not None and "CYCL DEF 32.2" not in raw:
+        builder.flush_smoothing()  # (no rotary tolerance after the path tolerance)
     match = _LINE.match(raw)
     cycle, builder.cycle = builder.cycle, None
     if match is None and cycle == 247 and (preset := _PRESET.match(raw)):
@@ -171,7 +173,7 @@ def _tolerance_cycle(builder: ProgramBuilder, code: str) -> None:
         t = _CYCLE_32_T.match(rest)
         if t is None:
             raise builder.error(f"unreadable {code!r}; expected CYCL DEF 32.1 T<tolerance>")
-        builder.smoothing(True, builder.number("T", t.group(1)))
+        builder.smoothing(True, builder.number("T", t.group(1)), pending=True)
     elif part == "2":
         mode = _CYCLE_32_MODE.match(rest)
         if mode is None:

@@ -165,6 +165,8 @@ class ProgramBuilder:
         # continuous rotary axes the control rolls over (modulo 360), as the machine says
         self.rollover: frozenset[str] = frozenset()
         self.smoothing_state = Smoothing(False)
+        # a smoothing switched on whose rotary tolerance may follow on the next line
+        self.smoothing_pending: Smoothing | None = None
 
     # -- helpers -----------------------------------------------------------------------------
 
@@ -239,24 +241,46 @@ class ProgramBuilder:
             return "direct"
         return self.spec.rollover_direction
 
-    def smoothing(self, on: bool, tolerance: float | None = None) -> None:
-        """Path smoothing on (``tolerance`` in file units; None: the control's own) or off."""
+    def smoothing(self, on: bool, tolerance: float | None = None, pending: bool = False) -> None:
+        """Path smoothing on (``tolerance`` in file units; None: the control's own) or off.
+
+        ``pending``: its rotary tolerance may follow (:meth:`smoothing_angle`, Heidenhain's
+        ``CYCL DEF 32.2`` on the next line): the block is added with it, or by
+        :meth:`flush_smoothing` before the next line of another kind.
+        """
+        self.flush_smoothing()
         if on and tolerance is not None and tolerance <= 0.0:
             raise self.error(f"path tolerance {tolerance:g} must be positive")
         mm = None if tolerance is None or not on else tolerance * self.linear_scale
         state = Smoothing(on, mm)
         self.smoothing_state = state
-        self._add(state)
+        if pending and on:
+            self.smoothing_pending = state
+        else:
+            self._add(state)
 
     def smoothing_angle(self, angle: float) -> None:
         """The rotary axes' tolerance (degrees) of the smoothing switched on just before."""
-        last = self.items[-1] if self.items else None
-        if not (isinstance(last, Smoothing) and last.on) or angle < 0.0:
+        last = self.smoothing_pending
+        if last is None and self.items:
+            item = self.items[-1]
+            if isinstance(item, Smoothing) and item.on:
+                last = item
+                self.items.pop()
+        if last is None or angle < 0.0:
             raise self.error(
                 f"rotary tolerance {angle:g} deg; expected a tolerance >= 0 right after the "
                 "path tolerance that switches smoothing on"
             )
-        self.items[-1] = self.smoothing_state = replace(last, angle=angle)
+        self.smoothing_pending = None
+        self.smoothing_state = replace(last, angle=angle)
+        self._add(self.smoothing_state)
+
+    def flush_smoothing(self) -> None:
+        """Add the smoothing block that waits for a rotary tolerance, if any."""
+        if self.smoothing_pending is not None:
+            pending, self.smoothing_pending = self.smoothing_pending, None
+            self._add(pending)
 
     def move(
         self,
@@ -1060,6 +1084,7 @@ def read_program(
     """
     reader = ProgramReader(spec, path, rollover)
     reader.feed(text, verbatim)
+    reader.builder.flush_smoothing()  # (the whole text is read: nothing more can follow)
     return reader.take()
 
 

@@ -390,7 +390,8 @@ def post_piece(
         spans=tuple(plan.spans),
     )
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
-    transitions = Transitions(machine, job.tcp, tool_length, job.clearance)
+    rollover = job.rollover & frozenset(a.name for a in machine.rotary if a.continuous)
+    transitions = Transitions(machine, job.tcp, tool_length, job.clearance, rollover=rollover)
     body = program_body(
         toolpath,
         machine,
@@ -406,7 +407,6 @@ def post_piece(
         work_offset=None if continued else job.work_offset,
         smoothing=job.smoothing,
     )
-    rollover = job.rollover & frozenset(a.name for a in machine.rotary if a.continuous)
     body, rolled = with_rollover(body, machine.axis_names, rollover, tol, start_position)
     if rolled.splits:
         log.info(

@@ -16,7 +16,7 @@ from urdfpost.dialects import dialect_for
 from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting import PIECE_POINTS
-from urdfpost.program import Blocks, Move, MoveTable, Program, rewind_moves
+from urdfpost.program import Blocks, Move, MoveTable, Program, Smoothing, rewind_moves
 from urdfpost.readers._stream import text_pieces
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath, joined, toolpath_slice
@@ -257,7 +257,8 @@ def verify_stream(
     -------
     verification : Verification
     header : Program
-        The program's header (name, units, TCP, tool length) without blocks.
+        The program's header (name, units, TCP, tool length); its blocks are only its path
+        smoothing blocks (:class:`~urdfpost.program.Smoothing`), in order.
 
     Raises
     ------
@@ -275,6 +276,7 @@ def verify_stream(
     program_ends = cl_ends = False
     parts: list[Verification] = []
     header: Program | None = None
+    smoothing: list[Smoothing] = []  # the program's path smoothing blocks, in order
     want = piece_points
     rows_per_point = 1.5  # a first guess, then as the pieces so far had
     rows_done = points_done = 0
@@ -292,7 +294,9 @@ def verify_stream(
                 program_ends = True
                 continue
             reader.feed(text)
-            program = _joined_programs(program, reader.take())
+            taken = reader.take()
+            smoothing += [b for b in taken.parts if isinstance(b, Smoothing)]
+            program = _joined_programs(program, taken)
         if program is None:
             program = reader.take()
         if header is None:
@@ -326,4 +330,4 @@ def verify_stream(
         want = piece_points
         log.info("verified a piece: CL lines to %d, program rows to %d", cl.line[0], rows_done)
     assert header is not None
-    return merge_verifications(parts), header
+    return merge_verifications(parts), replace(header, blocks=Blocks(tuple(smoothing)))
