@@ -552,3 +552,16 @@ def test_verify_reads_rollover_and_reports_smoothing(
         main(["verify", "--machine", "dmu50", "--cl", str(work / "spiral.apt"), str(golden)]) == 1
     )
     assert "BEYOND TOLERANCE" in capsys.readouterr().out  # read as counting turns
+
+
+def test_smoothing_tolerance_is_one_the_program_can_write() -> None:
+    """A tool-tip tolerance below the program's last decimal gives the smallest tolerance
+    the program can write; one asked for below it is refused."""
+    job, m = read_cl(str(SHORT_JOB)), load_machine("dmu50")
+    options = PostOptions(strategy="recursive", controller="linuxcnc", tolerance=0.01)
+    with pytest.raises(UrdfpostError, match=r"below the program's last decimal \(0.001 mm\)"):
+        post(job, m, replace(options, smoothing_tolerance=0.0004))
+    from urdfpost.posting.options import resolve
+
+    job_settings = resolve(replace(options, tolerance=1e-7), m, "mm")
+    assert job_settings.smoothing == Smoothing(True, 0.001)

@@ -22,7 +22,9 @@ programs coordinates are inch and feeds are in 0.1 inch/min (TNC convention). A 
 that cannot go into a tool call is written as ``TOOL CALL Z S<rpm>`` (speed-only tool call).
 
 The reader accepts the lines above plus ``* - structure comments``, inline ``; comments``,
-``STOP``, ``TOOL DEF``, ``BLK FORM``, ``CYCL DEF 32`` (tolerance), ``M128``/``M129`` (older TCPM),
+``STOP``, ``TOOL DEF``, ``BLK FORM``, ``CYCL DEF 32`` (tolerance: read as a
+:class:`~urdfpost.program.Smoothing` block, which the writer writes as ``CYCL DEF 32.0
+TOLERANCE``, ``32.1 T..``, ``32.2 HSC-MODE:0 TA..``), ``M128``/``M129`` (older TCPM),
 ``IX+..`` incremental coordinates and ``R0``. ``L ... M91``/``M92`` blocks are machine
 coordinates and read as a home return.
 """

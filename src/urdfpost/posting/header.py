@@ -98,6 +98,7 @@ def header_text(
     work_offset: str,
     tool_length: float,
     zero: str | None = None,
+    rollover: frozenset[str] = frozenset(),
 ) -> str:
     """The header's comment lines (without comment marks), one per line.
 
@@ -115,6 +116,9 @@ def header_text(
         The tool length machine-coordinate positions were computed with.
     zero : str, optional
         Where the program zero sits on the machine, in words (the work offset line says it).
+    rollover : frozenset of str
+        Rotary axes the control rolls over: their range counts turns, the program writes
+        them modulo 360 (the line says so).
 
     Returns
     -------
@@ -133,7 +137,8 @@ def header_text(
         if not (np.isfinite(lo) and np.isfinite(hi)):
             continue
         d = 4 if name in figures.rotary else decimals
-        ranges.append(f"{name}{lo:.{d}f}..{hi:.{d}f}")
+        rolls = " (rolls over: written modulo 360)" if name in rollover else ""
+        ranges.append(f"{name}{lo:.{d}f}..{hi:.{d}f}{rolls}")
     lines = [
         f"urdfpost: machine {machine}, {mode}, {units}",
         f"work offset: {work_offset}" + (f"; {zero}" if zero else ""),
@@ -168,6 +173,7 @@ def job_header(job: Job, figures: HeaderFigures, tool_length: float) -> str:
         work_offset=label,
         tool_length=tool_length,
         zero=zero,
+        rollover=job.rollover,
     )
 
 

@@ -202,17 +202,21 @@ class Job:
 
 
 def smoothing_of(
-    options: PostOptions, machine: Machine, dialect: Dialect, tol: Tolerances, scale: float
+    options: PostOptions, machine: Machine, dialect: Dialect, tol: Tolerances, units: str
 ) -> Smoothing | None:
     """The smoothing a post writes: asked for (else the machine file's setting), at the
-    asked tolerance (program units; ``scale`` mm per unit) or the tool-tip tolerance, with
+    asked tolerance (in the program ``units``) or the tool-tip tolerance, with
     the orientation tolerance for the rotary axes where the control takes one.
+
+    The default tolerance is at least one unit of the program's last linear decimal (0.001
+    mm, 0.0001 in): a tool-tip tolerance below it cannot be written, and the control is told
+    the smallest tolerance it can be.
 
     Raises
     ------
     UrdfpostError
-        A tolerance that is not a positive number; smoothing asked for on a control that has
-        no smoothing cycle.
+        A tolerance that is not a positive number, or one asked for below the program's last
+        decimal; smoothing asked for on a control that has no smoothing cycle.
     """
     on = machine.settings.smoothing if options.smoothing is None else options.smoothing
     spec = dialect.spec
@@ -222,13 +226,20 @@ def smoothing_of(
         if options.smoothing:
             raise UrdfpostError(f"{dialect.name} has no path smoothing cycle; use --no-smoothing")
         return None
-    tolerance = tol.tip
+    scale = mm_per_unit(units)
+    smallest = dialect.resolution("X", units)  # mm
+    tolerance = max(tol.tip, smallest)
     if options.smoothing_tolerance is not None:
         tolerance = options.smoothing_tolerance * scale
         if not (math.isfinite(tolerance) and tolerance > 0.0):
             raise UrdfpostError(
                 f"smoothing tolerance {options.smoothing_tolerance!r}: expected a positive "
                 "length in program units"
+            )
+        if tolerance < smallest * (1.0 - 1e-9):
+            raise UrdfpostError(
+                f"smoothing tolerance {options.smoothing_tolerance!r}: below the program's "
+                f"last decimal ({smallest / scale:g} {units}); expected at least that"
             )
     takes = any("{tol}" in t for t in spec.smoothing_on)
     angles = any("{angle}" in t for t in spec.smoothing_on)
@@ -349,6 +360,6 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         work_offset=options.work_offset,
         feed=mm(options.feed),
         spindle=options.spindle,
-        smoothing=smoothing_of(options, machine, dialect, tol, scale),
+        smoothing=smoothing_of(options, machine, dialect, tol, units),
         rollover=settings.rollover,
     )

@@ -2,7 +2,7 @@
 1 ; urdfpost: machine dmu50-variant, TCP (the control keeps the tool tip on the path), mm
 2 ; work offset: preset 1; program zero at 15.000 -10.000 110.000 mm on c_table
 3 ; tools: T3 D6.000
-4 ; axis ranges: X-20.000..160.707 Y-20.000..20.000 Z-1.980..396.590 B0.0000..20.0000 C0.0000..1170.0000
+4 ; axis ranges: X-20.000..160.707 Y-20.000..20.000 Z-1.980..396.590 B0.0000..20.0000 C0.0000..1170.0000 (rolls over: written modulo 360)
 5 FUNCTION RESET TCPM
 6 PLANE RESET STAY
 7 M126
