@@ -214,6 +214,7 @@ def run_rs274(
     *,
     units: str = "mm",
     name: str = "prog.ngc",
+    wrapped: tuple[str, ...] = (),
 ) -> Rs274Result:
     """Run ``program_text`` through LinuxCNC's standalone interpreter.
 
@@ -228,6 +229,9 @@ def run_rs274(
         output (the interpreter also writes its parameter file back there).
     units : str
         "mm" or "inch": the program's units, for the tool table.
+    wrapped : tuple of str
+        Rotary axes the INI makes wrapped (``[AXIS_C] WRAPPED_ROTARY = 1``, a rollover axis):
+        the interpreter reads their absolute values in (-360, 360), the sign the direction.
 
     Returns
     -------
@@ -248,7 +252,9 @@ def run_rs274(
             _REMAP_SUB.format(code="M" + code, name=code + "remap", message=message)
         )
     ini = tmp_path / "rs274.ini"
-    ini.write_text(_INI.format(subs=subs))
+    ini.write_text(
+        _INI.format(subs=subs) + "".join(f"[AXIS_{a}]\nWRAPPED_ROTARY = 1\n" for a in wrapped)
+    )
     table = tmp_path / "tool.tbl"
     table.write_text(_tool_table(tools, units))
     var = tmp_path / "rs274.var"

@@ -29,11 +29,13 @@ from urdfpost.program import (
     Insert,
     Move,
     Program,
+    Smoothing,
     Spindle,
     Stop,
     Tcp,
     ToolChange,
 )
+from urdfpost.units import mm_per_unit
 
 GOLDEN = Path(__file__).parent / "golden" / "dialects"
 REGEN = os.environ.get("URDFPOST_REGEN_GOLDEN") == "1"
@@ -46,6 +48,8 @@ INSERTS = {
     "fanuc": "G64",
     "linuxcnc": "G64 P0.01",
 }
+#: Controls whose insert above switches path smoothing on (read back as a Smoothing block).
+SMOOTHING_INSERTS = frozenset({"heidenhain", "linuxcnc"})
 
 
 def sample_mm(insert: str) -> Program:
@@ -140,6 +144,9 @@ def expected_blocks(program: Program, dialect: Dialect) -> list[Block]:
     for block in program.blocks:
         match block:
             case Insert():
+                # the inserts of Heidenhain and LinuxCNC switch path smoothing on (T0.01, P0.01)
+                if block.text == INSERTS.get(dialect.name) and dialect.name in SMOOTHING_INSERTS:
+                    out.append(Smoothing(True, 0.01 * mm_per_unit(program.units)))
                 continue
             case Comment():
                 out.append(Comment(dialect.comment_text(block.text)))

@@ -29,6 +29,7 @@ from urdfpost.program import (
     Coolant,
     MachineMove,
     Move,
+    Smoothing,
     Spindle,
     Tcp,
     ToolChange,
@@ -184,13 +185,16 @@ def test_end_goes_up_stops_and_turns_home(controller: str, machine_name: str) ->
     blocks = result.program.blocks
     last_cut = max(k for k, b in enumerate(blocks) if isinstance(b, Move) and b.cl_line)
     tail = blocks[last_cut + 1 :]
-    assert [type(b) for b in tail] == [Tcp, MachineMove, Spindle, Coolant, Move]
+    assert [type(b) for b in tail] == [Tcp, MachineMove, Spindle, Coolant, Move, Smoothing]
     assert tail[2] == Spindle("off") and tail[3] == Coolant("off")
+    assert tail[5] == Smoothing(False)  # the control's path smoothing cancelled last
     home = tail[4]
     for a in m.rotary:
         assert home.position[m.axis_names.index(a.name)] == pytest.approx(0.0)
-    # read back, the control ends the same way
+    # read back, the control ends the same way (and cancels the path smoothing last)
     back = blocks_of(result, controller)
+    assert back[-1] == Smoothing(False)
+    back = [b for b in back if not isinstance(b, Smoothing)]
     assert isinstance(back[-1], Move) or any(isinstance(b, Spindle) for b in back[-3:])
 
 

@@ -123,9 +123,10 @@ def build_both(
 
     def capture(tp, m, tcp, rows, events, comments, rewind_feed, **piece):
         seen.update(toolpath=tp, rows=rows, events=list(events))
-        # the old loop knew no transitions (start, approach, end: tested on their own); the
-        # body without them is what it is compared with
-        plain = {**piece, "transitions": None, "work_offset": None}
+        # the old loop knew no transitions (start, approach, end: tested on their own) and no
+        # path smoothing (tests/test_smoothing_rollover.py); the body without them is what it
+        # is compared with
+        plain = {**piece, "transitions": None, "work_offset": None, "smoothing": None}
         seen["plain"] = real(tp, m, tcp, rows, events, comments, rewind_feed, **plain)
         return real(tp, m, tcp, rows, events, comments, rewind_feed, **piece)
 

@@ -407,6 +407,24 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive,
         help="tool-tip tolerance in program units (default 0.01 mm / 0.0004 in)",
     )
+    smoothing = po.add_mutually_exclusive_group()
+    smoothing.add_argument(
+        "--smoothing",
+        nargs="?",
+        const=True,
+        type=_positive,
+        metavar="TOL",
+        help="write the control's path smoothing cycle (CYCL DEF 32, CYCLE832, G05.1 Q1, "
+        "G64 P), with its path tolerance TOL in program units (default: the tool-tip "
+        "tolerance); default: the machine file's smoothing setting, else on",
+    )
+    smoothing.add_argument(
+        "--no-smoothing",
+        dest="smoothing",
+        action="store_const",
+        const=False,
+        help="write no path smoothing cycle (the control's own path mode)",
+    )
     po.add_argument("--prefer", type=_prefer, help="preferred rotary branch, e.g. B+ or B-")
     _setup_argument(po, "program units")
     _strategy_arguments(po, single=True)
@@ -676,6 +694,8 @@ def _cmd_post(args: argparse.Namespace) -> int:
         tool_table=None if args.tool_table is None else read_tool_table(args.tool_table, scale),
         mcs_offsets=args.mcs_offsets,
         expand_cycles=args.expand_cycles,
+        smoothing=None if args.smoothing is None else args.smoothing is not False,
+        smoothing_tolerance=args.smoothing if isinstance(args.smoothing, float) else None,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {
@@ -809,14 +829,15 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         from urdfpost.posting.readback import program_texts
 
         head = next(program_texts(args.program, 1 << 16), "")
-        program = dialect.read(head, path=args.program)
+        program = dialect.read(head, path=args.program, rollover=machine.settings.rollover)
         toolpath, chunks = _read_cl_pieces(args, machine, pieces)
     else:
         try:
             text = Path(args.program).read_text(encoding="utf-8", errors="replace")
         except OSError as e:
             raise UrdfpostError(f"{args.program}: cannot read: {e.strerror or e}") from e
-        program, ended = read_with_end(dialect, text, path=args.program)
+        rollover = machine.settings.rollover
+        program, ended = read_with_end(dialect, text, path=args.program, rollover=rollover)
         toolpath, chunks = _read_cl(args, machine), None
     scale = mm_per_unit(program.units)
     machine = _job_machine(args, machine, scale)
@@ -939,6 +960,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         print(line)
     for note in process_check.notes:
         print(f"{args.program}: note: {note}")
+    from urdfpost.program import smoothing_summary
+
+    # (a program checked in pieces: its header keeps the smoothing blocks)
+    print(f"{args.program}: {smoothing_summary(program, program.units)}")
     return 0 if ok else 1
 
 
@@ -1156,7 +1181,7 @@ def _view_html(
     from urdfpost.analysis.view import view_data, view_html
 
     if program is None:
-        program = dialect.read(text, path=path)
+        program = dialect.read(text, path=path, rollover=machine.settings.rollover)
     data = view_data(
         machine,
         program,
@@ -1196,7 +1221,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
         text = Path(args.program).read_text(encoding="utf-8", errors="replace")
     except OSError as e:
         raise UrdfpostError(f"{args.program}: cannot read: {e.strerror or e}") from e
-    program = dialect.read(text, path=args.program)
+    program = dialect.read(text, path=args.program, rollover=machine.settings.rollover)
     scale = mm_per_unit(program.units)
     machine = _job_machine(args, machine, scale)
     cl = _read_cl(args, machine) if args.cl else None

@@ -249,6 +249,29 @@ class Dwell:
     seconds: float
 
 
+@dataclass(frozen=True)
+class Smoothing:
+    """The control's path smoothing (its tolerance cycle) switched on or, ``on`` False, off.
+
+    Attributes
+    ----------
+    on : bool
+        Smoothing on (Heidenhain ``CYCL DEF 32`` with a T, Siemens ``CYCLE832`` with a
+        tolerance, Fanuc ``G05.1 Q1``, LinuxCNC ``G64 P``); off: the control's own default
+        path mode again.
+    tolerance : float or None
+        Path tolerance, mm; None where the program gives none (Fanuc AI contour control takes
+        its tolerance from the control's parameters), or when off.
+    angle : float or None
+        Tolerance of the rotary axes, degrees, where the control takes one (Heidenhain
+        ``TA``, Siemens' orientation tolerance); None otherwise.
+    """
+
+    on: bool
+    tolerance: float | None = None
+    angle: float | None = None
+
+
 Block = (
     Move
     | ToolChange
@@ -263,6 +286,7 @@ Block = (
     | WorkOffset
     | Cycle
     | Dwell
+    | Smoothing
 )
 
 
@@ -579,6 +603,10 @@ class Program:
         A program read from text: the file, line and words ("from G54 to G55") of its first
         change of work offset (a program with one per MCS; verification refuses a program
         whose offset changes where it expects one); None otherwise. Not compared.
+    rollover : frozenset of str
+        Continuous rotary axes the control rolls over (modulo 360 display): written in
+        [0, 360), and the control turns them the way :func:`rollover_direction` says rather
+        than counting turns. A program read from text has the axes its reader was told of.
     """
 
     name: str
@@ -591,6 +619,7 @@ class Program:
     continuous: frozenset[str] = frozenset()
     cut_without_tcp: tuple[str, int] | None = field(default=None, compare=False)
     offset_change: tuple[str, int, str] | None = field(default=None, compare=False)
+    rollover: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         if not isinstance(self.blocks, Blocks):
@@ -806,3 +835,102 @@ def cycle_moves(program: Program) -> np.ndarray:
             elif text.startswith(CYCLE_BEGIN):
                 inside = True
     return np.concatenate(flags) if flags else np.zeros(0, dtype=bool)
+
+
+ROLLOVER_DIRECTIONS = ("shortest", "sign", "direct")
+"""How a control turns a rollover axis to an absolute value (:func:`rollover_target`)."""
+
+
+def rollover_target(previous: float, value: float, direction: str) -> float:
+    """Where a rollover axis ends, in counted degrees, when a block programs ``value``.
+
+    Parameters
+    ----------
+    previous : float
+        The axis position before the block, degrees counted over turns (any real number); NaN
+        when not known (the control's position after a home return): then ``value`` in
+        [0, 360) for "shortest" and "direct", its magnitude for "sign".
+    value : float
+        The value written, degrees: in [0, 360), or in (-360, 360) for "sign".
+    direction : str
+        "shortest": the shorter way to ``value`` modulo 360 (half a turn: positive);
+        "sign": LinuxCNC's ``WRAPPED_ROTARY``, positive ``value`` (``+0`` too) turns positive,
+        negative (``-0`` too) negative, to ``abs(value)`` modulo 360, less than a turn
+        (interp_convert.cc ``unwrap_rotary``); "direct": to the position ``value`` in [0, 360)
+        without passing 0 (Siemens ``G90`` on a modulo axis, MD30455 bit 2 = 0; Heidenhain
+        without ``M126``).
+
+    Returns
+    -------
+    float
+        Degrees, counted over turns.
+
+    Examples
+    --------
+    >>> rollover_target(350.0, 10.0, "shortest"), rollover_target(350.0, 10.0, "direct")
+    (370.0, 10.0)
+    >>> rollover_target(10.0, -350.0, "sign"), rollover_target(10.0, -0.0, "sign")
+    (-10.0, 0.0)
+    """
+    if direction == "sign":
+        position = abs(value)
+        if math.isnan(previous):
+            return position
+        # as LinuxCNC's unwrap_rotary: the turn of ``previous``, then at most one turn on
+        result = position + math.floor(previous / 360.0) * 360.0
+        negative = math.copysign(1.0, value) < 0.0
+        if not negative and result < previous:
+            result += 360.0
+        if negative and result > previous:
+            result -= 360.0
+        return result
+    position = value % 360.0
+    if math.isnan(previous):
+        return position
+    if direction == "shortest":
+        step = 180.0 - (previous - position + 180.0) % 360.0  # in (-180, 180]
+        return previous + step
+    if direction == "direct":
+        return previous - previous % 360.0 + position
+    raise ValueError(f"unknown rollover direction {direction!r}; expected {ROLLOVER_DIRECTIONS}")
+
+
+def smoothing_summary(program: Program, units: str) -> str:
+    """What a program does with the control's path smoothing, for people (``verify``).
+
+    Parameters
+    ----------
+    program : Program
+        Usually read from text (its :class:`Smoothing` blocks).
+    units : str
+        Of the tolerance shown ("mm" or "inch").
+
+    Returns
+    -------
+    str
+        E.g. ``"smoothing on 2 times (tolerance 0.0100 mm, rotary axes 0.500 deg), off 2
+        times, off at the end"``; ``"no smoothing cycle (the control's own path mode)"``.
+    """
+    states = [b for b in program.parts if isinstance(b, Smoothing)]
+    if not states:
+        return "no smoothing cycle (the control's own path mode)"
+    ons = [b for b in states if b.on]
+    parts = []
+    if ons:
+        shown = []
+        for b in dict.fromkeys(ons):
+            words = []
+            if b.tolerance is not None:
+                scale = 25.4 if units == "inch" else 1.0
+                words.append(f"tolerance {b.tolerance / scale:.4f} {units}")
+            else:
+                words.append("the control's tolerance")
+            if b.angle is not None:
+                words.append(f"rotary axes {b.angle:.3f} deg")
+            shown.append(", ".join(words))
+        parts.append(f"smoothing on {len(ons)} times ({'; '.join(shown)})")
+    offs = len(states) - len(ons)
+    if offs:
+        parts.append(f"off {offs} times")
+    parts.append("off at the end" if not states[-1].on else "still on at the end")
+    return ", ".join(parts)

@@ -72,6 +72,11 @@ class Tolerances:
         Largest turn of the first rotary axis between rows the ``spline`` strategy inserts
         along its curve, rad. 2 degrees (ModuleWorks interpolates poles in 3-degree steps);
         the generic subdivision adds more where the nonlinear error needs them.
+    rollover_turn : float
+        Largest turn of a rollover axis in one block, rad (:mod:`urdfpost.posting.rollover`:
+        longer turns are split). 179 degrees: less than the half turn at which a control that
+        takes the shortest way could go either way, with room for the written rounding
+        (0.0001 degree).
     """
 
     tip: float = 0.01
@@ -89,6 +94,7 @@ class Tolerances:
     swing_limit: float = 0.17453292519943295  # 10 deg
     singular_margin: int = 1
     spline_step: float = 0.03490658503988659  # 2 deg
+    rollover_turn: float = 3.12413936106985  # 179 deg
 
     @property
     def chord(self) -> float:

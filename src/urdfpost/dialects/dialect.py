@@ -97,12 +97,21 @@ class Dialect:
         parameters are those of :meth:`write`."""
         return program_writer(self.spec, program, block_numbers, program_number)
 
-    def reader(self, path: str = "<string>") -> ProgramReader:
+    def reader(
+        self, path: str = "<string>", *, rollover: frozenset[str] = frozenset()
+    ) -> ProgramReader:
         """A reader for a program given in pieces (``feed(text, verbatim)``, ``take()``): the
-        counterpart of :meth:`writer`."""
-        return ProgramReader(self.spec, path)
+        counterpart of :meth:`writer` (``rollover``: as for :meth:`read`)."""
+        return ProgramReader(self.spec, path, rollover)
 
-    def read(self, text: str, *, path: str = "<string>", verbatim: Iterable[str] = ()) -> Program:
+    def read(
+        self,
+        text: str,
+        *,
+        path: str = "<string>",
+        verbatim: Iterable[str] = (),
+        rollover: frozenset[str] = frozenset(),
+    ) -> Program:
         """Read a program of this control.
 
         Parameters
@@ -115,6 +124,10 @@ class Dialect:
             Texts of the :class:`~urdfpost.program.Insert` blocks the program was written with.
             Lines equal to one of their lines are read back as ``Insert`` blocks, unparsed and
             trusted; other inserted text must be readable like any other line.
+        rollover : frozenset of str
+            Rotary axes the control rolls over (the machine's ``rollover`` setting,
+            :attr:`~urdfpost.machine.model.Settings.rollover`): read modulo 360 and unwound
+            the way the control turns them, so their positions count turns.
 
         Returns
         -------
@@ -127,7 +140,7 @@ class Dialect:
         ProgramParseError
             A line that cannot be read, with path, line number and what was expected.
         """
-        return read_program(self.spec, text, path, verbatim)
+        return read_program(self.spec, text, path, verbatim, rollover)
 
     def comment_text(self, text: str) -> str:
         """``text`` as a comment reads back after writing (case, replaced characters)."""

@@ -39,6 +39,7 @@ G_CODES = MappingProxyType(
         "0": "rapid",
         "1": "linear",
         "4": "dwell",
+        "5.1": "smoothing",
         "17": "noop",
         "18": "noop",
         "19": "noop",
@@ -104,4 +105,8 @@ SPEC = DialectSpec(
     dwell=("G4 X{seconds}",),
     dwell_p_ms=True,
     cycle_dwell=frozenset({"drill", "bore"}),
+    # AI contour control (AICC II, 30i/31i-B5, with G43.4 TCP): G05.1 Q1 on, Q0 off; its
+    # tolerance and precision level are the control's parameters, not program words
+    smoothing_on=("G05.1 Q1",),
+    smoothing_off=("G05.1 Q0",),
 )

@@ -22,7 +22,9 @@ programs coordinates are inch and feeds are in 0.1 inch/min (TNC convention). A 
 that cannot go into a tool call is written as ``TOOL CALL Z S<rpm>`` (speed-only tool call).
 
 The reader accepts the lines above plus ``* - structure comments``, inline ``; comments``,
-``STOP``, ``TOOL DEF``, ``BLK FORM``, ``CYCL DEF 32`` (tolerance), ``M128``/``M129`` (older TCPM),
+``STOP``, ``TOOL DEF``, ``BLK FORM``, ``CYCL DEF 32`` (tolerance: read as a
+:class:`~urdfpost.program.Smoothing` block, which the writer writes as ``CYCL DEF 32.0
+TOLERANCE``, ``32.1 T..``, ``32.2 HSC-MODE:0 TA..``), ``M128``/``M129`` (older TCPM),
 ``IX+..`` incremental coordinates and ``R0``. ``L ... M91``/``M92`` blocks are machine
 coordinates and read as a home return.
 """
@@ -88,6 +90,8 @@ def parse_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
     ProgramParseError
         Missing block number, unknown block or word, malformed number.
     """
+    if builder.smoothing_pending is not None and "CYCL DEF 32.2" not in raw:
+        builder.flush_smoothing()  # (no rotary tolerance after the path tolerance)
     match = _LINE.match(raw)
     cycle, builder.cycle = builder.cycle, None
     if cycle in (200, 201, 203, 207):
@@ -130,8 +134,10 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
     head = " ".join(words[:2])
     if head == "TOOL CALL":
         _tool_call(builder, words[2:])
-    elif head in ("TOOL DEF", "BLK FORM") or code.startswith("CYCL DEF 32."):
-        return  # tool preselection, graphics blank, path tolerance: no motion
+    elif code.startswith("CYCL DEF 32."):
+        _tolerance_cycle(builder, code)
+    elif head in ("TOOL DEF", "BLK FORM"):
+        return  # tool preselection, graphics blank: no motion
     elif code == "CYCL DEF 247 DATUM SETTING ~":
         builder.cycle = 247  # the preset number follows on the next line
     elif (number := heidenhain_start(code)) is not None:
@@ -163,6 +169,39 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
             f"unknown block {code!r}; expected L, TOOL CALL, FUNCTION TCPM, FUNCTION RESET "
             "TCPM, M.., STOP or a ; comment"
         )
+
+
+_CYCLE_32 = re.compile(r"CYCL DEF 32\.([012])(?:\s+(.*))?\Z")
+_CYCLE_32_HEAD = ("TOLERANCE", "TOLERANZ")
+_CYCLE_32_T = re.compile(r"T\s*(\S+)\Z")
+_CYCLE_32_MODE = re.compile(r"(?:HSC-MODE:\s*[01]\s*)?(?:TA\s*(\S+))?\Z")
+
+
+def _tolerance_cycle(builder: ProgramBuilder, code: str) -> None:
+    """Cycle 32 TOLERANCE: ``32.0 TOLERANCE``, then ``32.1 T<tolerance>`` (smoothing on; no T:
+    off, the control's default) and ``32.2 HSC-MODE:<0|1> TA<rotary tolerance>``."""
+    match = _CYCLE_32.match(code)
+    part, rest = (match.group(1), (match.group(2) or "").strip()) if match else ("", "")
+    if match is None or (part == "0" and rest not in _CYCLE_32_HEAD):
+        raise builder.error(
+            f"unreadable {code!r}; expected CYCL DEF 32.0 TOLERANCE, 32.1 T.. or 32.2 TA.."
+        )
+    if part == "1":
+        if not rest:
+            builder.smoothing(False)
+            return
+        t = _CYCLE_32_T.match(rest)
+        if t is None:
+            raise builder.error(f"unreadable {code!r}; expected CYCL DEF 32.1 T<tolerance>")
+        builder.smoothing(True, builder.number("T", t.group(1)), pending=True)
+    elif part == "2":
+        mode = _CYCLE_32_MODE.match(rest)
+        if mode is None:
+            raise builder.error(
+                f"unreadable {code!r}; expected CYCL DEF 32.2 HSC-MODE:0 TA<rotary tolerance>"
+            )
+        if mode.group(1) is not None:
+            builder.smoothing_angle(builder.number("TA", mode.group(1)))
 
 
 def _tool_call(builder: ProgramBuilder, words: list[str]) -> None:
@@ -352,4 +391,13 @@ SPEC = DialectSpec(
     cycle_lines=heidenhain_lines,
     dwell=("CYCL DEF 9.0 DWELL TIME", "CYCL DEF 9.1 DWELL {seconds}"),
     cycle_dwell=frozenset({"drill", "deep", "chipbreak", "bore"}),
+    # Cycle 32 TOLERANCE (TNC 640 cycle programming manual; "TOLERANZ" in German programs):
+    # T the path tolerance, HSC-MODE:0 finishing, TA the rotary axes' tolerance in degrees
+    # (with FUNCTION TCPM); 32.1 without T resets it to the machine's default
+    smoothing_on=(
+        "CYCL DEF 32.0 TOLERANCE",
+        "CYCL DEF 32.1 T{tol}",
+        "CYCL DEF 32.2 HSC-MODE:0 TA{angle}",
+    ),
+    smoothing_off=("CYCL DEF 32.0 TOLERANCE", "CYCL DEF 32.1"),
 )

@@ -112,4 +112,11 @@ SPEC = DialectSpec(
     dwell=("G4 P{seconds}",),
     dwell_p_ms=False,
     cycle_dwell=frozenset({"drill", "bore"}),
+    # G64 P<path tolerance> Q<naive CAM tolerance>; G64 without P: blending without a
+    # tolerance, the interpreter's own mode (LinuxCNC G-code reference, G64)
+    smoothing_on=("G64 P{tol} Q{tol}",),
+    smoothing_off=("G64",),
+    # [AXIS_C] WRAPPED_ROTARY = 1: the sign of an absolute value is the direction of the
+    # turn, its magnitude (less than 360) the position (interp_convert.cc unwrap_rotary)
+    rollover_direction="sign",
 )

@@ -35,7 +35,7 @@ import itertools
 import math
 import re
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import PurePath
 
 import numpy as np
@@ -60,11 +60,13 @@ from urdfpost.program import (
     Insert,
     MoveTable,
     Program,
+    Smoothing,
     Spindle,
     Stop,
     Tcp,
     ToolChange,
     WorkOffset,
+    rollover_target,
 )
 from urdfpost.units import mm_per_unit
 
@@ -184,6 +186,11 @@ class ProgramBuilder:
         self.items: list[Block | _ReadMove | _ReadMoves | _ReadCycle] = []
         # the text line of every move read, in order (the 3-D view shows each block's line)
         self.move_lines: list[int | np.ndarray] = []
+        # continuous rotary axes the control rolls over (modulo 360), as the machine says
+        self.rollover: frozenset[str] = frozenset()
+        self.smoothing_state = Smoothing(False)
+        # a smoothing switched on whose rotary tolerance may follow on the next line
+        self.smoothing_pending: Smoothing | None = None
 
     # -- helpers -----------------------------------------------------------------------------
 
@@ -300,7 +307,61 @@ class ProgramBuilder:
                 self._add(WorkOffset(int(code[1:]) - 53))
         self.work_offset = code
 
-    def move(self, values: dict[str, tuple[float, bool]], rapid: bool | None) -> None:
+    def rollover_direction(self) -> str:
+        """How the control turns a rollover axis to a plain absolute value now: the spec's
+        :attr:`~urdfpost.dialects.spec.DialectSpec.rollover_direction`, "direct" on a control
+        with a shortest-path code before that code."""
+        if self.spec.shortest_path and not self.continuous:
+            return "direct"
+        return self.spec.rollover_direction
+
+    def smoothing(self, on: bool, tolerance: float | None = None, pending: bool = False) -> None:
+        """Path smoothing on (``tolerance`` in file units; None: the control's own) or off.
+
+        ``pending``: its rotary tolerance may follow (:meth:`smoothing_angle`, Heidenhain's
+        ``CYCL DEF 32.2`` on the next line): the block is added with it, or by
+        :meth:`flush_smoothing` before the next line of another kind.
+        """
+        self.flush_smoothing()
+        if on and tolerance is not None and tolerance <= 0.0:
+            raise self.error(f"path tolerance {tolerance:g} must be positive")
+        mm = None if tolerance is None or not on else tolerance * self.linear_scale
+        state = Smoothing(on, mm)
+        self.smoothing_state = state
+        if pending and on:
+            self.smoothing_pending = state
+        else:
+            self._add(state)
+
+    def smoothing_angle(self, angle: float) -> None:
+        """The rotary axes' tolerance (degrees) of the smoothing switched on just before."""
+        last = self.smoothing_pending
+        if last is None and self.items:
+            item = self.items[-1]
+            if isinstance(item, Smoothing) and item.on:
+                last = item
+                self.items.pop()
+        if last is None or angle < 0.0:
+            raise self.error(
+                f"rotary tolerance {angle:g} deg; expected a tolerance >= 0 right after the "
+                "path tolerance that switches smoothing on"
+            )
+        self.smoothing_pending = None
+        self.smoothing_state = replace(last, angle=angle)
+        self._add(self.smoothing_state)
+
+    def flush_smoothing(self) -> None:
+        """Add the smoothing block that waits for a rotary tolerance, if any."""
+        if self.smoothing_pending is not None:
+            pending, self.smoothing_pending = self.smoothing_pending, None
+            self._add(pending)
+
+    def move(
+        self,
+        values: dict[str, tuple[float, bool]],
+        rapid: bool | None,
+        modes: dict[str, str] | None = None,
+    ) -> None:
         """A motion block.
 
         Parameters
@@ -309,13 +370,19 @@ class ProgramBuilder:
             Address -> (value in file units, incremental).
         rapid : bool or None
             Rapid traverse; None when no motion mode has been programmed.
+        modes : dict, optional
+            Address -> the direction an absolute value of a rollover axis is reached in
+            (:func:`~urdfpost.program.rollover_target`; Siemens ``DC``: "shortest", ``ACP``,
+            ``ACN``: "positive", "negative"), where the block says; else the control's.
         """
         if rapid is None:
             raise self.error("axis words before any motion mode; expected G0 or G1 first")
         position = dict(self.position)
         for address, (value, incremental) in values.items():
             target = self.to_internal(address, value)
-            if incremental:
+            if address in self.rollover and not incremental:
+                target = self._rolled(address, target, (modes or {}).get(address))
+            elif incremental:
                 start = self.position.get(address, math.nan)
                 if math.isnan(start):
                     raise self.error(
@@ -334,6 +401,27 @@ class ProgramBuilder:
         self._add(_ReadMove(rapid, position, None if rapid else self.feed))
         self.move_lines.append(self.line)
 
+    def _rolled(self, address: str, value: float, mode: str | None) -> float:
+        """Where a rollover axis ends for the value ``value`` (degrees) written."""
+        previous = self.position.get(address, math.nan)
+        if mode == "positive" or mode == "negative":
+            signed = math.copysign(abs(value), 1.0 if mode == "positive" else -1.0)
+            return rollover_target(previous, signed, "sign")
+        direction = mode or self.rollover_direction()
+        if direction != "sign" and not 0.0 <= value < 360.0:
+            raise self.error(f"{address}{value:g} on a rollover axis; expected a value in [0, 360)")
+        if direction == "sign" and not -360.0 < value < 360.0:
+            raise self.error(
+                f"{address}{value:g} on a rollover axis; expected a value in (-360, 360)"
+            )
+        target = rollover_target(previous, value, direction)
+        if direction == "shortest" and abs(abs(target - previous) - 180.0) < 1e-9:
+            raise self.error(
+                f"{address}{value:g} is half a turn from {previous % 360.0:g}: the shortest "
+                "way is either way; expected a turn of less than 180 degrees"
+            )
+        return target
+
     def moves(self, lines: _bulk.MotionLines, rows: slice, first_line: int) -> bool:
         """Plain motion blocks, read at once: as :meth:`move` (and the feed and motion code of
         each block) on each, in order.
@@ -351,8 +439,10 @@ class ProgramBuilder:
             False, with nothing done, when the blocks need the block-by-block reader (the
             program has ended, incremental mode, no motion mode yet).
         """
-        if self.finished or not self.absolute or self.drill is not None:
-            return False  # (the blocks after a canned cycle are its holes)
+        if self.finished or not self.absolute or self.drill is not None or self.rollover:
+            # (the blocks after a canned cycle are its holes; rollover axes: each block turns
+            # from where the one before ended)
+            return False
         k = rows.stop - rows.start
         code = lines.code[rows]
         if self.spec.motion_layout is not None and self.spec.motion_layout.rapid_word:
@@ -544,6 +634,7 @@ class ProgramBuilder:
             if self.cut_without_tcp is None
             else (self.path, self.cut_without_tcp),
             offset_change=None if self.offset_change is None else (self.path, *self.offset_change),
+            rollover=self.rollover & rotary,
         )
 
 
@@ -568,7 +659,14 @@ class _Assign:
     text: str
 
 
-_Token = _Word | _Keyword | _Assign
+@dataclass(frozen=True)
+class _Call:
+    name: str
+    args: tuple[str, ...]  # as written, stripped
+
+
+_Token = _Word | _Keyword | _Assign | _Call
+_CALL_ARGS = re.compile(r"\(([^()]*)\)")
 
 _IDENT = re.compile(r"[A-Z_][A-Z0-9_]*")
 _LETTER_NUMBER = re.compile(r"([A-Z])\s*([+\-0-9.]*)")
@@ -625,6 +723,13 @@ def _next_token(
     spec: DialectSpec, builder: ProgramBuilder, text: str, pos: int
 ) -> tuple[_Token, int]:
     ident = _IDENT.match(text, pos)
+    if ident and ident.group() in spec.call_keywords:
+        args = _CALL_ARGS.match(text, ident.end())
+        if args is None:
+            raise builder.error(f"{ident.group()} without its (...) argument list")
+        inner = args.group(1).strip()
+        values = tuple(a.strip() for a in inner.split(",")) if inner else ()
+        return _Call(ident.group(), values), args.end()
     if ident and ident.group() in spec.keywords:
         end = ident.end()
         args = _KEYWORD_ARGS.match(text, end)
@@ -677,6 +782,7 @@ class _Block:
     keywords: list[str]
     words: dict[str, _Word]
     assigns: dict[str, str]
+    calls: list[_Call] = field(default_factory=list)
 
     @property
     def actions(self) -> set[str]:
@@ -688,6 +794,8 @@ def _classify(spec: DialectSpec, builder: ProgramBuilder, tokens: list[_Token]) 
     for token in tokens:
         if isinstance(token, _Keyword):
             block.keywords.append(spec.keywords[token.name])
+        elif isinstance(token, _Call):
+            block.calls.append(token)
         elif isinstance(token, _Assign):
             block.assigns[token.name] = token.text
         elif token.address == "G":
@@ -783,6 +891,7 @@ def _execute(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
     actions = block.actions | set(block.m_actions)
     _check_words(builder, block, actions)
     _apply_modes(builder, block)
+    _apply_smoothing(spec, builder, block)
     dwell = "dwell" in actions
     for action in block.actions & {"cycle_off", "cycle_initial", "cycle_r"}:
         if action == "cycle_off":
@@ -818,6 +927,8 @@ def _check_words(builder: ProgramBuilder, block: _Block, actions: set[str]) -> N
         allowed |= {"P", "Q"}
     if "cycle" in actions:
         allowed |= {"R", "Q", "P"}
+    if "smoothing" in actions:
+        allowed |= {"Q", "R"}
     for address in block.words:
         if address not in allowed:
             raise builder.error(
@@ -841,6 +952,67 @@ def _apply_modes(builder: ProgramBuilder, block: _Block) -> None:
             builder.absolute = action == "absolute"
         elif action == "work_offset":
             builder.select_work_offset(f"G{code}")
+
+
+#: Siemens CYCLE832 machining types (the constants of the cycle's second parameter), whether
+#: they switch smoothing on and whether the third parameter is the orientation tolerance.
+_CYCLE832_TYPES = {
+    "_OFF": (False, False),
+    "_FINISH": (True, False),
+    "_SEMIFIN": (True, False),
+    "_ROUGH": (True, False),
+    "_ORI_FINISH": (True, True),
+    "_ORI_SEMIFIN": (True, True),
+    "_ORI_ROUGH": (True, True),
+}
+
+
+def _apply_smoothing(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
+    """LinuxCNC ``G64 P..``, Fanuc ``G05.1 Q..``, Siemens ``CYCLE832(...)``."""
+    actions = {a for _, a in block.g_actions}
+    if "blend" in actions:
+        p = block.words.get("P")
+        if p is None:
+            builder.smoothing(False)
+        else:
+            builder.smoothing(True, builder.number("P", p.text))
+    if "smoothing" in actions:
+        q = block.words.get("Q")
+        mode = _integer(builder, "Q", q.text) if q is not None else None
+        if mode not in (0, 1, 2, 3):
+            raise builder.error("G05.1 needs Q0 (off), Q1 (AI contour control), Q2 or Q3")
+        builder.smoothing(mode != 0)
+    for call in block.calls:
+        if spec.call_keywords[call.name] != "smoothing":
+            raise builder.error(f"{call.name}(...) is not allowed here")
+        _cycle832(builder, call)
+
+
+def _cycle832(builder: ProgramBuilder, call: _Call) -> None:
+    """``CYCLE832(tolerance, machining type, orientation tolerance or version)``; no
+    arguments, or the type ``_OFF`` / ``0``, switch it off."""
+    args = call.args
+    if not args:
+        builder.smoothing(False)
+        return
+    if len(args) > 3:
+        raise builder.error(f"{call.name} with {len(args)} arguments; expected at most 3")
+    kind = args[1].upper() if len(args) > 1 else "_FINISH"
+    on_ori = _CYCLE832_TYPES.get(kind)
+    if on_ori is None and re.fullmatch(r"\d+", kind):  # the numeric form: units 0 deselect
+        number = int(kind)
+        on_ori = (number % 10 != 0, number // 10 % 10 == 1)
+    if on_ori is None:
+        known = ", ".join(_CYCLE832_TYPES)
+        raise builder.error(f"{call.name}: machining type {args[1]!r}; expected one of {known}")
+    on, ori = on_ori
+    tolerance = builder.number("tolerance", args[0])
+    if not on or tolerance == 0.0:
+        builder.smoothing(False)
+        return
+    builder.smoothing(True, tolerance)
+    if ori and len(args) > 2:
+        builder.smoothing_angle(builder.number("orientation tolerance", args[2]))
 
 
 def _motion(spec: DialectSpec, builder: ProgramBuilder, block: _Block, actions: set[str]) -> None:
@@ -872,7 +1044,12 @@ def _motion(spec: DialectSpec, builder: ProgramBuilder, block: _Block, actions: 
     for address in AXIS_ORDER:
         if address in axes:
             values[address] = _axis_value(spec, builder, axes[address])
-    builder.move(values, builder.motion)
+    modes = {a: _ROLLOVER_MODES[w.mode] for a, w in axes.items() if w.mode in _ROLLOVER_MODES}
+    builder.move(values, builder.motion, modes)
+
+
+#: Siemens value forms of a rotary axis, as the direction a rollover axis turns in.
+_ROLLOVER_MODES = {"DC": "shortest", "ACP": "positive", "ACN": "negative"}
 
 
 def _dwell(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
@@ -1015,7 +1192,11 @@ def _grammar(spec: DialectSpec) -> _bulk.MotionGrammar | None:
 
 
 def read_program(
-    spec: DialectSpec, text: str, path: str = "<string>", verbatim: Iterable[str] = ()
+    spec: DialectSpec,
+    text: str,
+    path: str = "<string>",
+    verbatim: Iterable[str] = (),
+    rollover: frozenset[str] = frozenset(),
 ) -> Program:
     """Read NC text of the control described by ``spec``.
 
@@ -1035,6 +1216,10 @@ def read_program(
         to one of their lines (after the block number, for controls that number every line)
         are read as :class:`Insert` blocks without being parsed: taken on trust, they do not
         change the modal state.
+    rollover : frozenset of str
+        Rotary axes the control rolls over (the machine's ``rollover`` setting): each block
+        turns them from where the one before ended, the way the control does
+        (:meth:`ProgramBuilder.rollover_direction`), so their positions count turns.
 
     Returns
     -------
@@ -1046,8 +1231,9 @@ def read_program(
     ProgramParseError
         A line cannot be read.
     """
-    reader = ProgramReader(spec, path)
+    reader = ProgramReader(spec, path, rollover)
     reader.feed(text, verbatim)
+    reader.builder.flush_smoothing()  # (the whole text is read: nothing more can follow)
     return reader.take()
 
 
@@ -1064,11 +1250,16 @@ class ProgramReader:
         The control.
     path : str
         File name for error messages.
+    rollover : frozenset of str
+        Rotary axes the control rolls over (see :func:`read_program`).
     """
 
-    def __init__(self, spec: DialectSpec, path: str = "<string>") -> None:
+    def __init__(
+        self, spec: DialectSpec, path: str = "<string>", rollover: frozenset[str] = frozenset()
+    ) -> None:
         self.spec = spec
         self.builder = ProgramBuilder(spec, path)
+        self.builder.rollover = frozenset(rollover)
         self.parse_line = spec.parse_line or parse_gcode_line
         self.grammar = _grammar(spec)
         self.lines_read = 0

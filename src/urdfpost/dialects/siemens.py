@@ -89,4 +89,14 @@ SPEC = DialectSpec(
     cycle_lines=siemens_lines,
     dwell=("G4 F{seconds}",),
     cycle_dwell=frozenset({"drill", "deep", "chipbreak", "tap", "bore"}),
+    # CYCLE832(contour tolerance, machining type, orientation tolerance in degrees with the
+    # _ORI_ types); deselected with the type _OFF (SINUMERIK Operate programming manual,
+    # "High Speed Settings - CYCLE832")
+    smoothing_on=("CYCLE832({tol},_ORI_FINISH,{angle})",),
+    smoothing_off=("CYCLE832(0,_OFF,1)",),
+    call_keywords=MappingProxyType({"CYCLE832": "smoothing"}),
+    # a modulo rotary axis is written C=DC(..): the shortest way; a plain value under G90
+    # turns without passing 0 (MD30455 $MA_MISC_FUNCTION_MASK bit 2 = 0, the default)
+    rollover_value="=DC({value})",
+    rollover_direction="direct",
 )

@@ -34,7 +34,11 @@ Reader actions for G-codes and keywords:
 ``work_offset``
     Work offset selection (G54...); one offset per program, a change is an error.
 ``blend``
-    Path blending with tolerance words (LinuxCNC ``G64 P0.01 Q0.01``).
+    Path blending with tolerance words (LinuxCNC ``G64 P0.01 Q0.01``): smoothing on with the
+    tolerance P (a ``G64`` without P: off, the control's default path mode).
+``smoothing``
+    Fanuc ``G05.1``: AI contour control on (``Q1``; ``Q2``/``Q3`` smooth interpolation and
+    nano smoothing, which need it) or off (``Q0``), with an optional ``R`` level.
 ``noop``
     Modes that do not change linear motion (plane, cutter compensation off, cycle cancel,
     feed per minute, path control).
@@ -337,6 +341,26 @@ class DialectSpec:
         The cycle kinds (:data:`urdfpost.program.CYCLE_KINDS`) whose cycle takes a dwell at
         the bottom on this control; a cycle of another kind with a dwell is written as its
         motion.
+    smoothing_on : tuple of str
+        Lines that switch the control's path smoothing on (:class:`~urdfpost.program.Smoothing`):
+        ``{tol}`` the path tolerance in program units (linear format), ``{angle}`` the rotary
+        axes' tolerance in degrees (rotary format); a control whose lines have no ``{tol}``
+        takes its tolerance from its own parameters. Empty: the control has none.
+    smoothing_off : tuple of str
+        Lines that switch it off again (the control's default path mode).
+    rollover_value : str
+        How the value of a rollover axis is written after its address (``{value}``, in
+        [0, 360)): ``"{value}"``, Siemens ``"=DC({value})"`` (shortest way).
+    rollover_direction : str
+        Which way the control turns a rollover axis to a value written so
+        (:func:`~urdfpost.program.rollover_target`): "shortest"; "sign" (LinuxCNC
+        ``WRAPPED_ROTARY``: the sign of the value is the direction, the value's magnitude the
+        position); "direct" (the position in [0, 360) is reached without passing 0, Siemens
+        ``G90`` with the default MD30455). A control with a :attr:`shortest_path` code takes
+        the shortest way only after that code (Heidenhain ``M126``), "direct" before.
+    call_keywords : mapping
+        Keywords the reader takes with an argument list, to an action (Siemens
+        ``CYCLE832(0.01,_ORI_FINISH,0.5)``: "smoothing").
     """
 
     name: str
@@ -409,6 +433,12 @@ class DialectSpec:
         """Whether the control's own cycle is written for a cycle of ``kind`` with a dwell of
         ``dwell`` seconds (:attr:`cycle_lines`, :attr:`cycle_dwell`)."""
         return self.cycle_lines is not None and (dwell <= 0.0 or kind in self.cycle_dwell)
+
+    smoothing_on: tuple[str, ...] = ()
+    smoothing_off: tuple[str, ...] = ()
+    rollover_value: str = "{value}"
+    rollover_direction: str = "shortest"
+    call_keywords: Mapping[str, str] = field(default_factory=_empty)
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

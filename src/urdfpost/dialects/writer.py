@@ -45,6 +45,7 @@ from urdfpost.program import (
     Move,
     MoveTable,
     Program,
+    Smoothing,
     Spindle,
     Stop,
     Tcp,
@@ -136,6 +137,9 @@ class ProgramWriter:
         prefix, n, suffix = spec.block_format.partition("{n}")
         plain = n and "{" not in prefix + suffix and "}" not in prefix + suffix
         self._number_affixes = (prefix, suffix) if plain else None
+        # rollover axes: written modulo 360, each with the last value written (counted turns)
+        self._rollover = program.rollover & program.rotary & frozenset(program.axes)
+        self._rolled: dict[str, float] = {}
 
     # -- output primitives -------------------------------------------------------------------
 
@@ -321,8 +325,11 @@ class ProgramWriter:
                     self.emit_comment(self.spec.home_comment)
                 self.emit_templates(self.spec.home)
                 self.modal.invalidate()
+                self._rolled.clear()  # the axes' positions are the control's home
             case MachineMove():
                 self.write_machine_move(block)
+            case Smoothing():
+                self.write_smoothing(block)
             case WorkOffset():
                 count = self.spec.work_offsets
                 if not 1 <= block.number <= count:
@@ -374,10 +381,65 @@ class ProgramWriter:
         if not move.axes or len(move.axes) != len(move.values):
             raise DialectError(f"machine move {move}: expected one value per axis")
         words = " ".join(
-            f"{a}{self.format_axis(a, v)}" for a, v in zip(move.axes, move.values, strict=True)
+            f"{a}{self._axis_word(a, v)}" for a, v in zip(move.axes, move.values, strict=True)
         )
         self.emit(self.spec.machine_move.format(words=words))
         self.modal.invalidate()
+
+    def _axis_text(self, address: str, value: float) -> str:
+        """The modal text of an axis value: :meth:`format_axis`, or for a rollover axis the
+        value modulo 360 in [0, 360) as written."""
+        if address not in self._rollover:
+            return self.format_axis(address, value)
+        text = self.spec.rotary.format(value % 360.0)
+        if float(text) >= 360.0:  # rounds up to a whole turn
+            text = self.spec.rotary.format(0.0)
+        return text
+
+    def _axis_word(self, address: str, value: float, text: str | None = None) -> str:
+        """What follows the address of an axis word written now: its text, or for a rollover
+        axis :attr:`DialectSpec.rollover_value` of it, signed with the direction of the turn
+        from the value written last where the control reads the sign so (the turn of a
+        rollover axis is less than half a turn: :func:`urdfpost.posting.rollover`)."""
+        text = self._axis_text(address, value) if text is None else text
+        if address not in self._rollover:
+            return text
+        if self.spec.rollover_direction == "sign":
+            last = self._rolled.get(address)
+            step = 0.0 if last is None else 180.0 - (last - value + 180.0) % 360.0
+            if step < 0.0:
+                text = "-" + text.lstrip("+")
+        self._rolled[address] = value
+        return self.spec.rollover_value.format(value=text)
+
+    def write_smoothing(self, block: Smoothing) -> None:
+        """The control's path smoothing on (its tolerance cycle, in program units and degrees)
+        or off."""
+        spec = self.spec
+        templates = spec.smoothing_on if block.on else spec.smoothing_off
+        if not templates:
+            raise DialectError(f"{spec.name}: no path smoothing cycle to write {block}")
+        needs = any("{tol}" in t for t in templates)
+        if block.on and needs and block.tolerance is None:
+            raise DialectError(f"{spec.name}: path smoothing needs a tolerance; got {block}")
+        angles = any("{angle}" in t for t in templates)
+        if block.on and angles and block.angle is None:
+            raise DialectError(f"{spec.name}: path smoothing needs a rotary tolerance; {block}")
+        fields: dict[str, str] = {}
+        if block.on and needs:
+            assert block.tolerance is not None
+            # the program's decimals, without sign or trailing zeros: T0.01, P0.0004
+            tol_format = NumberFormat(self.linear.decimals, trim=True)
+            fields["tol"] = tol_format.format(block.tolerance / self.scale)
+            if float(fields["tol"]) <= 0.0:
+                raise DialectError(
+                    f"{spec.name}: path tolerance {block.tolerance} mm is written as "
+                    f"{fields['tol']}; expected a tolerance the program's decimals can write"
+                )
+        if block.on and angles:
+            assert block.angle is not None
+            fields["angle"] = NumberFormat(spec.rotary.decimals, trim=True).format(block.angle)
+        self.emit_templates(templates, True, **fields)
 
     def write_move(self, move: Move) -> None:
         """Write a motion block with only the changed axes (all after a forced state)."""
@@ -386,7 +448,7 @@ class ProgramWriter:
                 f"move {move} has {len(move.position)} values for axes {self.program.axes}"
             )
         pairs = zip(self.program.axes, move.position, strict=True)
-        known = [(a, self.format_axis(a, v)) for a, v in pairs if not math.isnan(v)]
+        known = [(a, self._axis_text(a, v)) for a, v in pairs if not math.isnan(v)]
         if not known:
             raise DialectError(f"move {move} has no axis value (all NaN)")
         modal = self.modal
@@ -394,6 +456,9 @@ class ProgramWriter:
         if modal.force or not self.spec.modal_axes or not changed:
             changed = known
         modal.axes.update(changed)
+        if self._rollover:
+            value = dict(zip(self.program.axes, move.position, strict=True))
+            changed = [(a, self._axis_word(a, value[a], text)) for a, text in changed]
         code = None
         if self.spec.rapid_modal and (modal.force or modal.motion is not move.rapid):
             code = self.spec.g_code_for("rapid" if move.rapid else "linear")
@@ -476,6 +541,7 @@ class ProgramWriter:
         k = len(rapid)
         if (
             layout is None
+            or self._rollover  # (written block by block: the words depend on the turn)
             or modal.force
             or not (modal.motion is True or modal.motion is False)
             or any(a not in modal.axes for a in axes)

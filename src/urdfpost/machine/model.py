@@ -111,6 +111,13 @@ class Settings:
     where : str
         ``file:line`` of the ``<urdfpost>`` element, for messages about its settings (empty
         when the file has none).
+    smoothing : bool
+        Write the control's path smoothing (tolerance) cycle by default (``smoothing``
+        attribute, "on" or "off"; default on).
+    rollover : frozenset of str
+        Continuous rotary axes the control rolls over (``rollover`` attribute, e.g. "C"):
+        modulo 360 display, an absolute value reached the way the control's dialect says
+        (shortest way, or the sign's direction on LinuxCNC); the others count turns.
     """
 
     controller: str = "heidenhain"
@@ -121,6 +128,8 @@ class Settings:
     description: str = ""
     strategy: str | None = None
     where: str = ""
+    smoothing: bool = True
+    rollover: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True, eq=False)

@@ -606,6 +606,8 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
                 )
             home[key] = value * (M_TO_MM if key in ("X", "Y", "Z") else 1.0)
     strategy = el.get("strategy")
+    smoothing = _switch(where, el, "smoothing", True)
+    rollover = _rollover(where, el, joints)
     desc_el = el.find("description")
     description = " ".join((desc_el.text or "").split()) if desc_el is not None else ""
     return Settings(
@@ -617,7 +619,40 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         description=description,
         strategy=strategy,
         where=where,
+        smoothing=smoothing,
+        rollover=rollover,
     )
+
+
+_SWITCH = {"on": True, "true": True, "1": True, "off": False, "false": False, "0": False}
+
+
+def _switch(where: str, el: etree._Element, name: str, default: bool) -> bool:
+    """An on/off attribute of ``<urdfpost>``."""
+    raw = el.get(name)
+    if raw is None:
+        return default
+    value = _SWITCH.get(raw.strip().lower())
+    if value is None:
+        raise MachineDefinitionError(f"{where}: <urdfpost {name}={raw!r}>: expected on or off")
+    return value
+
+
+def _rollover(where: str, el: etree._Element, joints: tuple[JointSpec, ...]) -> frozenset[str]:
+    """The ``rollover`` attribute: continuous joints of the chain, by name ("C", "A C")."""
+    raw = el.get("rollover")
+    if raw is None:
+        return frozenset()
+    names = raw.replace(",", " ").split()
+    continuous = [j.name for j in joints if j.type == "continuous"]
+    wrong = [n for n in names if n not in continuous]
+    if wrong or not names or len(set(names)) != len(names):
+        expected = " ".join(continuous) if continuous else "none: the chain has none"
+        raise MachineDefinitionError(
+            f"{where}: <urdfpost rollover={raw!r}>: expected continuous joints of the chain, "
+            f"each once ({expected})"
+        )
+    return frozenset(names)
 
 
 def _tool_length(source: str, el: etree._Element) -> float:

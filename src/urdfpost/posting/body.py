@@ -31,6 +31,7 @@ from urdfpost.program import (
     MachineMove,
     Move,
     MoveTable,
+    Smoothing,
     Spindle,
     Stop,
     Tcp,
@@ -207,6 +208,7 @@ def program_body(
     notes: list[str] | None = None,
     runs_cycle: Callable[[str, float], bool] | None = None,
     motion: list[_Holes] | None = None,
+    smoothing: Smoothing | None = None,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -265,6 +267,10 @@ def program_body(
     motion : list, optional
         Receives the holes' record, whose :meth:`_Holes.joint_path` gives the joint rows of
         the program's motion (for the collision check).
+    smoothing : Smoothing, optional
+        The control's path smoothing: switched on before the approach and first cut of
+        each tool, off before each tool change and at the end of the program. A body
+        that does not start the program (no ``work_offset``) starts with it on.
 
     Returns
     -------
@@ -289,6 +295,7 @@ def program_body(
     for event, row in zip(events, at.tolist(), strict=True):
         by_row.setdefault(row, []).append(event)
     starting = work_offset is not None and entry is None
+    smooth = [smoothing is not None and not starting and entry is None]  # smoothing on
     if starting:
         assert work_offset is not None
         body.append(WorkOffset(work_offset))
@@ -302,6 +309,9 @@ def program_body(
         leaves = k > 0 and any(e.kind in ("tool", "home") for e in here)
         enters = k == 0 and entry is not None  # a tool section after another
         restart = None  # the coolant a tool change stopped, to start again after it
+        if smooth[0] and k > 0 and any(e.kind == "tool" for e in here):
+            before.append(Smoothing(False))  # off for the tool change
+            smooth[0] = False
         if transitions is not None and leaves and any(e.kind == "tool" for e in here):
             line = int(toolpath.line[g_of(rows, k - 1)])
             before += transitions.leave(rows.q[k - 1], line, tcp_state[0])
@@ -318,7 +328,11 @@ def program_body(
         keeps = enters and not any(e.kind == "tool" for e in here)  # the coolant still on
         if enters and not keeps and not any(e.kind == "coolant" for e in here) and coolant:
             before.append(Coolant(mode=coolant))  # the section before stopped it
-        if transitions is not None and (leaves or enters or (starting and k == 0)):
+        entering = leaves or enters or (starting and k == 0)
+        if smoothing is not None and not smooth[0] and entering:
+            before.append(smoothing)  # before the tool's approach and first cut
+            smooth[0] = True
+        if transitions is not None and entering:
             if tcp_state[0]:
                 before.append(Tcp(on=False))
                 tcp_state[0] = False
@@ -343,6 +357,9 @@ def program_body(
     for event in by_row.get(count, []):
         body += _event_blocks(event, tcp_state, tcp)
     if transitions is not None and leave and count and not close:
+        if smooth[0]:  # off for the next section's tool change or work offset
+            body.append(Smoothing(False))
+            smooth[0] = False
         line = int(toolpath.line[g_of(rows, count - 1)])
         body += transitions.leave(rows.q[count - 1], line, tcp_state[0], stop=not keep_tool)
         tcp_state[0] = False
@@ -365,6 +382,8 @@ def program_body(
         body.append(Tcp(on=False))
     if motion is not None:
         motion.append(holes)
+    if smooth[0] and close:
+        body.append(Smoothing(False))
     return body
 
 

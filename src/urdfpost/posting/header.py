@@ -109,6 +109,7 @@ def header_text(
     zero: str | None = None,
     tool_lengths: Mapping[int, float] | None = None,
     offsets: Mapping[str, np.ndarray] | None = None,
+    rollover: frozenset[str] = frozenset(),
 ) -> str:
     """The header's comment lines (without comment marks), one per line.
 
@@ -132,6 +133,9 @@ def header_text(
     offsets : mapping of str to ndarray, optional
         A work offset per MCS (``--mcs-offsets``): each offset as the control names it and
         its MCS's origin in the first MCS (shape (3,), mm); the first is ``work_offset``.
+    rollover : frozenset of str
+        Rotary axes the control rolls over: their range counts turns, the program writes
+        them modulo 360 (the line says so).
 
     Returns
     -------
@@ -150,7 +154,8 @@ def header_text(
         if not (np.isfinite(lo) and np.isfinite(hi)):
             continue
         d = 4 if name in figures.rotary else decimals
-        ranges.append(f"{name}{lo:.{d}f}..{hi:.{d}f}")
+        rolls = " (rolls over: written modulo 360)" if name in rollover else ""
+        ranges.append(f"{name}{lo:.{d}f}..{hi:.{d}f}{rolls}")
     offset_line = f"work offset: {work_offset}" + (f"; {zero}" if zero else "")
     if offsets and len(offsets) > 1:
         shifted = "; ".join(
@@ -215,6 +220,7 @@ def job_header(
         zero=zero,
         tool_lengths=tool_lengths,
         offsets=None if not offsets else {named(n): v for n, v in sorted(offsets.items())},
+        rollover=job.rollover,
     )
 
 

@@ -7,6 +7,7 @@ it reads the :class:`Job` and never looks at the options or the machine settings
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -18,6 +19,7 @@ from urdfpost.planning.rewinds import DEFAULT_RETRACT
 from urdfpost.planning.singularity import DEFAULT_DETECTOR, DETECTORS, with_detector
 from urdfpost.planning.strategies import DEFAULT_STRATEGY, STRATEGIES
 from urdfpost.posting.transitions import DEFAULT_CLEARANCE
+from urdfpost.program import Smoothing
 from urdfpost.tolerances import Tolerances
 from urdfpost.units import mm_per_unit, program_units
 
@@ -95,6 +97,13 @@ class PostOptions:
     expand_cycles : bool
         Write the CL data's canned cycles (``CYCLE/DRILL`` ...) as the motion they make
         instead of the control's cycles (``G81``, ``CYCLE81``, ``CYCL DEF 200``).
+    smoothing : bool or None
+        Write the control's path smoothing (tolerance) cycle before the cut and its cancel
+        after it; None: the machine file's ``smoothing`` setting (default on).
+    smoothing_tolerance : float or None
+        Its path tolerance, program units; default the tool-tip tolerance
+        (:attr:`tolerance`). The rotary axes' tolerance, where the control takes one, is the
+        orientation tolerance.
     """
 
     controller: str | None = None
@@ -123,6 +132,8 @@ class PostOptions:
     tool_table: Mapping[int, float] | None = None
     mcs_offsets: bool = False
     expand_cycles: bool = False
+    smoothing: bool | None = None
+    smoothing_tolerance: float | None = None
 
 
 @dataclass(frozen=True)
@@ -177,6 +188,11 @@ class Job:
         A work offset per MCS.
     expand_cycles : bool
         Canned cycles written as their motion.
+    smoothing : Smoothing or None
+        The path smoothing switched on before the cut (tolerance mm, rotary tolerance
+        degrees); None: none written.
+    rollover : frozenset of str
+        The rotary axes the control rolls over (the machine file's ``rollover`` setting).
     """
 
     machine: Machine
@@ -205,6 +221,57 @@ class Job:
     tool_table: Mapping[int, float] = field(default_factory=dict)
     mcs_offsets: bool = False
     expand_cycles: bool = False
+    smoothing: Smoothing | None = None
+    rollover: frozenset[str] = frozenset()
+
+
+def smoothing_of(
+    options: PostOptions, machine: Machine, dialect: Dialect, tol: Tolerances, units: str
+) -> Smoothing | None:
+    """The smoothing a post writes: asked for (else the machine file's setting), at the
+    asked tolerance (in the program ``units``) or the tool-tip tolerance, with
+    the orientation tolerance for the rotary axes where the control takes one.
+
+    The default tolerance is at least one unit of the program's last linear decimal (0.001
+    mm, 0.0001 in): a tool-tip tolerance below it cannot be written, and the control is told
+    the smallest tolerance it can be.
+
+    Raises
+    ------
+    UrdfpostError
+        A tolerance that is not a positive number, or one asked for below the program's last
+        decimal; smoothing asked for on a control that has no smoothing cycle.
+    """
+    on = machine.settings.smoothing if options.smoothing is None else options.smoothing
+    spec = dialect.spec
+    if not on:
+        return None
+    if not spec.smoothing_on:
+        if options.smoothing:
+            raise UrdfpostError(f"{dialect.name} has no path smoothing cycle; use --no-smoothing")
+        return None
+    scale = mm_per_unit(units)
+    smallest = dialect.resolution("X", units)  # mm
+    tolerance = max(tol.tip, smallest)
+    if options.smoothing_tolerance is not None:
+        tolerance = options.smoothing_tolerance * scale
+        if not (math.isfinite(tolerance) and tolerance > 0.0):
+            raise UrdfpostError(
+                f"smoothing tolerance {options.smoothing_tolerance!r}: expected a positive "
+                "length in program units"
+            )
+        if tolerance < smallest * (1.0 - 1e-9):
+            raise UrdfpostError(
+                f"smoothing tolerance {options.smoothing_tolerance!r}: below the program's "
+                f"last decimal ({smallest / scale:g} {units}); expected at least that"
+            )
+    takes = any("{tol}" in t for t in spec.smoothing_on)
+    angles = any("{angle}" in t for t in spec.smoothing_on)
+    return Smoothing(
+        True,
+        tolerance if takes else None,
+        math.degrees(tol.orientation) if angles else None,
+    )
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -293,13 +360,14 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
             "a work offset per MCS needs TCP: machine-coordinate positions hold where the part "
             "sits, and their work offset must be zero (post without --mcs-offsets)"
         )
+    tol = with_detector(
+        Tolerances.for_units(units, options.tolerance), detector_name(options.detector)
+    )
     return Job(
         machine=machine,
         dialect=dialect,
         units=units,
-        tol=with_detector(
-            Tolerances.for_units(units, options.tolerance), detector_name(options.detector)
-        ),
+        tol=tol,
         strategy=strategy_name(machine, options.strategy),
         tcp=options.tcp,
         tool_length=settings.tool_length if options.tool_length is None else options.tool_length,
@@ -324,4 +392,6 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         tool_table=dict(options.tool_table or {}),
         mcs_offsets=options.mcs_offsets,
         expand_cycles=options.expand_cycles,
+        smoothing=smoothing_of(options, machine, dialect, tol, units),
+        rollover=settings.rollover,
     )

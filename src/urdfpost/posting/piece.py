@@ -35,6 +35,7 @@ from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget
 from urdfpost.posting.options import Job
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
+from urdfpost.posting.rollover import with_rollover
 from urdfpost.posting.transitions import Transitions
 from urdfpost.program import REWIND_BEGIN, Blocks, Program
 from urdfpost.toolpath import Event, Motion, Toolpath
@@ -315,6 +316,7 @@ def post_piece(
         warnings.append(f"{toolpath.source}: no tool change before the first move; tool 1 assumed")
         tool_events = (Event(index=0, kind="tool", line=int(toolpath.line[0]), data={"number": 1}),)
     rows = Rows.empty(len(machine.axis_names))
+    start_position = None  # program position where a continued piece starts
     reference = toolpath
     joints = np.zeros((0, len(machine.axis_names)))
     joint_lines = np.zeros(0, dtype=int)
@@ -391,6 +393,7 @@ def post_piece(
             rows = Rows(
                 q=out_q[1:], tip=out_tip[1:], point=group[1:], reaches=is_cl[1:], kind=out_kind[1:]
             )
+            start_position = program_position(machine, job.tcp, out_q[0], out_tip[0])
         joints, joint_lines = out_q, toolpath.line[group]
         if plan.bent or plan.lift.any():
             out_axis = np.concatenate(parts_axis)
@@ -406,8 +409,9 @@ def post_piece(
         spans=tuple(plan.spans),
     )
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
-    transitions = Transitions(machine, job.tcp, tool_length, job.clearance)
     holes: list = []  # the record of the canned cycles' holes (their joint rows)
+    rollover = job.rollover & frozenset(a.name for a in machine.rotary if a.continuous)
+    transitions = Transitions(machine, job.tcp, tool_length, job.clearance, rollover=rollover)
     body = program_body(
         toolpath,
         machine,
@@ -428,7 +432,16 @@ def post_piece(
         notes=warnings,
         runs_cycle=job.dialect.spec.runs_cycle,
         motion=holes,
+        smoothing=job.smoothing,
     )
+    body, rolled = with_rollover(body, machine.axis_names, rollover, tol, start_position)
+    if rolled.splits:
+        log.info(
+            "%s: %d moves that turn a rollover axis by more than %.0f deg split",
+            toolpath.source,
+            rolled.splits,
+            np.degrees(tol.rollover_turn),
+        )
     program = Program(
         name=program_name(toolpath, job.program_name),
         axes=machine.axis_names,
@@ -438,6 +451,7 @@ def post_piece(
         blocks=Blocks(body),
         tool_length=tool_length,
         continuous=frozenset(a.name for a in machine.rotary if a.continuous),
+        rollover=rollover,
     )
     figures = PieceFigures(
         branch_switches=branch_switches,
@@ -472,6 +486,16 @@ def _work_offset(job: Job, piece: Continuation | None) -> int | None:
     if piece is None or (piece.start is None and piece.entry is None):
         return job.work_offset
     return piece.offset if piece.entry is not None else None
+
+
+def program_position(machine: Machine, tcp: bool, q: np.ndarray, tip: np.ndarray) -> np.ndarray:
+    """The program's axis values of one row: degrees for the rotary axes, the tip (TCP) or
+    the joints (mm) for the linear ones; shape (m,)."""
+    rotary = np.array([a.rotary for a in machine.axes])
+    position = np.where(rotary, np.degrees(q), q)
+    if tcp:
+        position[list(machine.linear_columns)] = tip
+    return position
 
 
 CLEARANCE_POINTS = 500

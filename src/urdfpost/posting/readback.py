@@ -17,7 +17,7 @@ from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.posting.tools import Section, gauge_lengths, program_sections, tool_sections
-from urdfpost.program import Blocks, Move, MoveTable, Program, rewind_moves
+from urdfpost.program import Blocks, Move, MoveTable, Program, Smoothing, rewind_moves
 from urdfpost.readers._stream import text_pieces
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath, joined, toolpath_slice
@@ -265,7 +265,8 @@ def verify_stream(
     -------
     verification : Verification
     header : Program
-        The program's header (name, units, TCP, tool length) without blocks.
+        The program's header (name, units, TCP, tool length); its blocks are only its path
+        smoothing blocks (:class:`~urdfpost.program.Smoothing`), in order.
 
     Raises
     ------
@@ -274,7 +275,8 @@ def verify_stream(
     """
     if piece_points < 2:
         raise ValueError(f"piece_points must be at least 2, got {piece_points}")
-    reader = dialect_for(controller).reader(path=str(program_path))
+    rollover = machine.settings.rollover
+    reader = dialect_for(controller).reader(path=str(program_path), rollover=rollover)
     text_source = iter(program_texts(program_path) if texts is None else texts)
     cl_source = iter(cl_pieces)
     program: Program | None = None
@@ -282,6 +284,7 @@ def verify_stream(
     program_ends = cl_ends = False
     parts: list[Verification] = []
     header: Program | None = None
+    smoothing: list[Smoothing] = []  # the program's path smoothing blocks, in order
     want = piece_points
     rows_per_point = 1.5  # a first guess, then as the pieces so far had
     rows_done = points_done = 0
@@ -308,7 +311,9 @@ def verify_stream(
                 program_ends = True
                 continue
             reader.feed(text)
-            program = _joined_programs(program, reader.take())
+            taken = reader.take()
+            smoothing += [b for b in taken.parts if isinstance(b, Smoothing)]
+            program = _joined_programs(program, taken)
         if program is None:
             program = reader.take()
         if header is None:
@@ -368,4 +373,4 @@ def verify_stream(
         want = piece_points
         log.info("verified a piece: CL lines to %d, program rows to %d", cl.line[0], rows_done)
     assert header is not None
-    return merge_verifications(parts, fresh), header
+    return merge_verifications(parts, fresh), replace(header, blocks=Blocks(tuple(smoothing)))

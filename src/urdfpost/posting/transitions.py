@@ -84,6 +84,9 @@ class Transitions:
         mm.
     clearance : float
         Approach point above the first point, along its tool axis, mm.
+    rollover : frozenset of str
+        Rotary axes the control rolls over: their positioning turns go the shortest way
+        (:mod:`urdfpost.posting.rollover`), and :attr:`paths` has them so.
 
     Attributes
     ----------
@@ -97,6 +100,7 @@ class Transitions:
     tool_length: float
     clearance: float = DEFAULT_CLEARANCE
     paths: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    rollover: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         self.column, self.top = retract_axis(self.machine)
@@ -104,6 +108,18 @@ class Transitions:
         self._rotary = list(m.rotary_columns)
         self._linear = list(m.linear_columns)
         self._names = m.axis_names
+        self._rolled = [j for j, a in enumerate(m.axis_names) if a in self.rollover]
+
+    def _shortest(self, rows: np.ndarray, turning: int) -> np.ndarray:
+        """``rows`` (joint rows, shape (k, m)) with the rollover axes from row ``turning`` on
+        moved by the whole turns that make the turn into that row the shortest way (no pose
+        changes: the collision check sees the turn the control makes)."""
+        out = rows.copy()
+        for j in self._rolled:
+            step = out[turning, j] - out[turning - 1, j]
+            short = math.remainder(step, 2.0 * math.pi)
+            out[turning:, j] += short - step
+        return out
 
     # -- positions ------------------------------------------------------------------------
 
@@ -197,7 +213,8 @@ class Transitions:
         path = [retracted, turned, high, approach, q]
         if before is not None:
             path.insert(0, start)
-        self.paths.append((line, np.array(path)))
+        turning = 2 if before is not None else 1  # the row the rotary axes turn into
+        self.paths.append((line, self._shortest(np.array(path), turning)))
         blocks: list[Block] = []
         if self._rotary:
             blocks.append(Move(True, self._position(turned, self._rotary)))
@@ -222,7 +239,7 @@ class Transitions:
         retracted = self._retracted(q)
         home = retracted.copy()
         home[self._rotary] = self.machine.home[self._rotary]
-        self.paths.append((line, np.array([q, retracted, home])))
+        self.paths.append((line, self._shortest(np.array([q, retracted, home]), 2)))
         blocks: list[Block] = [Tcp(on=False)] if tcp_on else []
         blocks += [self.retract_block(), Spindle("off"), Coolant("off")]
         if self._rotary:

@@ -83,7 +83,8 @@ def written(
         program, block_numbers=job.block_numbers, header=header, blank=stock_box(job)
     )
     inserts = [b.text for b in program.parts if isinstance(b, Insert)]
-    readback = dialect.read(text, path=f"<{dialect.name} program>", verbatim=inserts)
+    path = f"<{dialect.name} program>"
+    readback = dialect.read(text, path=path, verbatim=inserts, rollover=program.rollover)
     return text, readback, check_piece(readback, job.machine, posted.target, job.tol)
 
 

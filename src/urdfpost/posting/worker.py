@@ -109,7 +109,8 @@ class PieceVerifier:
         from urdfpost.dialects import dialect_for
 
         self.machine, self.tol, self.units = machine, tol, units
-        self.reader = dialect_for(controller).reader(path=path)
+        rollover = machine.settings.rollover
+        self.reader = dialect_for(controller).reader(path=path, rollover=rollover)
         self.previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
 
     def check(

@@ -748,7 +748,7 @@ class PieceProcess:
         self.checker = ProcessChecker(
             machine, tol=tol, tool_length=tool_length, rounding=rounding, end=end_words(dialect)
         )
-        self.reader = dialect.reader(path)
+        self.reader = dialect.reader(path, rollover=machine.settings.rollover)
         self._last: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
 
     def add(
@@ -792,7 +792,11 @@ class PieceProcess:
 
 
 def read_with_end(
-    dialect: Dialect, text: str, path: str = "<string>", verbatim: Iterable[str] = ()
+    dialect: Dialect,
+    text: str,
+    path: str = "<string>",
+    verbatim: Iterable[str] = (),
+    rollover: frozenset[str] = frozenset(),
 ) -> tuple[Program, bool]:
     """A program read from its text, and whether the text has the program end (M30, M2,
     END PGM): what :meth:`Dialect.read` gives, and the end it does not say.
@@ -802,7 +806,7 @@ def read_with_end(
     ProgramParseError
         A line that cannot be read.
     """
-    reader = dialect.reader(path)
+    reader = dialect.reader(path, rollover=rollover)
     reader.feed(text, verbatim)
     return reader.take(), reader.builder.ended
 
