@@ -296,6 +296,16 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
         "(default: such a move is an error)",
     )
     p.add_argument(
+        "--feed-mode",
+        choices=("auto", "tip", "inverse-time", "per-block"),
+        default="auto",
+        help="how the F words are made: 'tip' the CL tip feed (right with TCP), "
+        "'inverse-time' G93 (F = 1/block time), 'per-block' F per minute of each block's "
+        "axis-space length; 'auto' (default): tip with TCP, else inverse time where the "
+        "control has it, else per block. Every block's F is lowered where an axis would "
+        "exceed its URDF velocity limit",
+    )
+    p.add_argument(
         "--spindle",
         type=_positive,
         metavar="RPM",
@@ -625,6 +635,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         clearance=args.clearance,
         feed=args.feed,
         spindle=args.spindle,
+        feed_mode=args.feed_mode,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {
@@ -787,6 +798,11 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         end=end_words(dialect),
     )
 
+    from urdfpost.verification.feeds import FeedRules
+
+    # how the control times the blocks (the largest inverse-time F counts in G93 only)
+    feed_rules = FeedRules(dialect.spec.axis_feed_rule, dialect.spec.inverse_time_max)
+
     def expected(cl: Any, state: Any = None) -> tuple[Any, Any]:
         cl, state, _ = checked_process(
             cl, feed=math.nan, spindle=math.nan, units=program.units, state=state
@@ -817,12 +833,21 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             pivot=pivot,
             piece_points=pieces,
             process=process,
+            feeds=feed_rules,
         )
         toolpath = replace(toolpath, warnings=tuple(warnings))
         process_check = process.result()
         faults = located(process_check, dialect, lambda: program_texts(args.program), args.program)
     else:
-        check = verify(program, machine, toolpath, tool_length=tool_length, tol=tol, pivot=pivot)
+        check = verify(
+            program,
+            machine,
+            toolpath,
+            tool_length=tool_length,
+            tol=tol,
+            pivot=pivot,
+            feeds=feed_rules,
+        )
         process.add(program, expected(toolpath)[0], ended=ended)
         process_check = process.result()
         faults = located(process_check, dialect, lambda: [text], args.program)

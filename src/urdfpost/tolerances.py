@@ -72,6 +72,10 @@ class Tolerances:
         Largest turn of the first rotary axis between rows the ``spline`` strategy inserts
         along its curve, rad. 2 degrees (ModuleWorks interpolates poles in 3-degree steps);
         the generic subdivision adds more where the nonlinear error needs them.
+    feed_share : float
+        How far the tip feed a feed block gives may differ from the CL feed, as a share of
+        it (verification, :mod:`urdfpost.verification.feeds`). 1 %: well above the rounding
+        of the written F words and positions, well below what a cut shows.
     """
 
     tip: float = 0.01
@@ -89,6 +93,7 @@ class Tolerances:
     swing_limit: float = 0.17453292519943295  # 10 deg
     singular_margin: int = 1
     spline_step: float = 0.03490658503988659  # 2 deg
+    feed_share: float = 0.01
 
     @property
     def chord(self) -> float:

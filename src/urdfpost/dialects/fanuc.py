@@ -55,7 +55,8 @@ G_CODES = MappingProxyType(
         "80": "noop",
         "90": "absolute",
         "91": "incremental",
-        "94": "noop",
+        "93": "inverse_time",
+        "94": "per_minute",
     }
 )
 
@@ -95,4 +96,13 @@ SPEC = DialectSpec(
     require_point=True,
     block_max=99999,
     motion_layout=MotionLayout(),
+    # G93: F is 1/time in minutes, 0.001 to 9999.999 whatever the units, on every G1 block
+    # (Series 16/18 Operator's Manual B-62764EN, "Inverse time feed (G93)")
+    inverse_time="G93",
+    per_minute="G94",
+    inverse_time_feed=NumberFormat(3, trim=True, point=True),
+    inverse_time_max=9999.999,
+    # G94 with linear and rotary axes: F is the feed along sqrt(dx^2 + ... + dc^2), degrees
+    # counted as mm (inch input: as inch) (Power Mate i Operator's Manual B-63174EN, G01)
+    axis_feed_rule="combined",
 )

@@ -294,4 +294,8 @@ SPEC = DialectSpec(
     format_motion=format_motion,
     motion_layout=MotionLayout(lead="L", rapid_word="FMAX"),
     parse_line=parse_line,
+    # no inverse-time feed: machine-coordinate programs get a feed per block (docs/job.md);
+    # the TNC applies F to the block's axis-space length, degrees counted as mm (the manual
+    # says rotary-only F is degrees per minute; the mixed-block rule is assumed, docs/job.md)
+    axis_feed_rule="combined",
 )

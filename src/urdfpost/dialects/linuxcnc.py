@@ -35,7 +35,7 @@ from __future__ import annotations
 import re
 from types import MappingProxyType
 
-from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout, NumberFormat
 
 _ACTIVE_COMMENT = re.compile(
     r"^(\s*(?:MSG|DEBUG|PRINT|LOG|LOGOPEN|LOGAPPEND|LOGCLOSE|PROBEOPEN|PROBECLOSE|ABORT))\s*,",
@@ -69,7 +69,8 @@ G_CODES = MappingProxyType(
         "80": "noop",
         "90": "absolute",
         "91": "incremental",
-        "94": "noop",
+        "93": "inverse_time",
+        "94": "per_minute",
     }
 )
 
@@ -103,4 +104,12 @@ SPEC = DialectSpec(
     home=("G28 G91 Z0", "G28 X0 Y0", "G90"),
     block_max=99999,
     motion_layout=MotionLayout(),
+    # G93: the move takes 1/F minutes; an F word on every G1 line (LinuxCNC G-code manual,
+    # G93 G94 G95; rs274 refuses a G1 without F in G93)
+    inverse_time="G93",
+    per_minute="G94",
+    inverse_time_feed=NumberFormat(4, trim=True),
+    # G94: F along X, Y, Z as if the rotary axes did not move; degrees per minute along the
+    # rotary axes when X, Y, Z do not move (RS274NGC 3, NIST IR 6556, 2.1.2.5 "Feed Rate")
+    axis_feed_rule="linear-first",
 )

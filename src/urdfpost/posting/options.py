@@ -16,6 +16,7 @@ from urdfpost.planning.branches import Preference
 from urdfpost.planning.rewinds import DEFAULT_RETRACT
 from urdfpost.planning.singularity import DEFAULT_DETECTOR, DETECTORS, with_detector
 from urdfpost.planning.strategies import DEFAULT_STRATEGY, STRATEGIES
+from urdfpost.posting.feeds import FEED_AUTO, FEED_INVERSE, FEED_MODES, FEED_PER_BLOCK, FEED_TIP
 from urdfpost.posting.transitions import DEFAULT_CLEARANCE
 from urdfpost.tolerances import Tolerances
 from urdfpost.units import mm_per_unit, program_units
@@ -83,6 +84,11 @@ class PostOptions:
     spindle : float or None
         Spindle speed (rpm, clockwise) for cutting with the spindle off (reported as a
         warning); None: such a move is an error.
+    feed_mode : str or None
+        How the F words are made (:data:`urdfpost.posting.feeds.FEED_MODES`): "tip" (the CL
+        tip feed; right with TCP), "inverse-time" (G93: F = 1 / block time), "per-block" (F
+        per minute, the block's axis-space length over its time); None or "auto": "tip" with
+        TCP, else inverse time where the control has it, else per block (``docs/job.md``).
     """
 
     controller: str | None = None
@@ -108,6 +114,7 @@ class PostOptions:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    feed_mode: str | None = None
 
 
 @dataclass(frozen=True)
@@ -156,6 +163,8 @@ class Job:
         mm/min.
     spindle : float or None
         rpm.
+    feed_mode : str
+        "tip", "inverse-time" or "per-block" (:func:`feed_mode_name`).
     """
 
     machine: Machine
@@ -181,6 +190,32 @@ class Job:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    feed_mode: str = FEED_TIP
+
+
+def feed_mode_name(name: str | None, tcp: bool, dialect: Dialect) -> str:
+    """The feed mode of a post: ``name``, ``auto`` (or None) resolved for TCP and the control.
+
+    ``auto``: the tip feed with TCP (the control applies F at the tip); without TCP inverse
+    time where the control has it (G93), else F per block.
+
+    Raises
+    ------
+    UrdfpostError
+        An unknown mode, or inverse time on a control without it.
+    """
+    name = name or FEED_AUTO
+    if name not in FEED_MODES:
+        raise UrdfpostError(f"unknown feed mode {name!r}; expected one of {', '.join(FEED_MODES)}")
+    has_inverse = dialect.spec.inverse_time is not None
+    if name == FEED_AUTO:
+        return FEED_TIP if tcp else (FEED_INVERSE if has_inverse else FEED_PER_BLOCK)
+    if name == FEED_INVERSE and not has_inverse:
+        raise UrdfpostError(
+            f"feed mode inverse-time: {dialect.name} has no inverse-time feed; expected "
+            f"{FEED_PER_BLOCK} or {FEED_TIP} (docs/job.md)"
+        )
+    return name
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -292,4 +327,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         work_offset=options.work_offset,
         feed=mm(options.feed),
         spindle=options.spindle,
+        feed_mode=feed_mode_name(options.feed_mode, options.tcp, dialect),
     )

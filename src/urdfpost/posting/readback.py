@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from urdfpost.verification.feeds import FeedCheck, FeedRules
 from urdfpost.dialects import dialect_for
 from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
@@ -90,6 +91,7 @@ def merge_verifications(parts: list[Verification]) -> Verification:
         notes=notes,
         compared=compared,
         rewind_moves=rewinds,
+        feeds=FeedCheck.merged([v.feeds for v in parts if v.feeds is not None]),
     )
 
 
@@ -223,6 +225,7 @@ def verify_stream(
     piece_points: int = PIECE_POINTS,
     texts: Iterable[str] | None = None,
     process: ProcessChecker | None = None,
+    feeds: FeedRules | None = None,
 ) -> tuple[Verification, Program]:
     """:func:`urdfpost.verification.verify` of a program file against CL data given in pieces, in
     bounded memory: the program is read and checked a piece at a time.
@@ -299,8 +302,11 @@ def verify_stream(
         assert cl is not None
         if cl_ends and program_ends:
             parts.append(
-                verify(program, machine, cl, tool_length=tool_length, tol=tol, pivot=pivot)
-            )
+                verify(
+                    program, machine, cl, tool_length=tool_length, tol=tol, pivot=pivot,
+                    feeds=feeds,
+                )
+            )  # fmt: skip
             if process is not None:
                 process.add(program, cl, ended=reader.builder.ended)
             break
@@ -313,7 +319,7 @@ def verify_stream(
         parts.append(
             verify(
                 head, machine, toolpath_slice(cl, 0, c + 1), tool_length=tool_length, tol=tol,
-                pivot=pivot,
+                pivot=pivot, feeds=feeds,
             )
         )  # fmt: skip
         if process is not None:

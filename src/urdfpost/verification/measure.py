@@ -39,6 +39,7 @@ from urdfpost.machine import Machine
 from urdfpost.program import Program, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
+from urdfpost.verification.feeds import FeedCheck, FeedRules, measure_feeds, tip_lengths
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
 
 log = logging.getLogger(__name__)
@@ -86,6 +87,10 @@ class Verification:
     rewind_moves : int
         Moves of rewinds, not compared with the CL path (:func:`rewind_note`; kept out of
         :meth:`as_dict` too).
+    feeds : FeedCheck or None
+        The tip feed of the feed blocks against the CL feed, and the axes' speeds against
+        their limits (:mod:`urdfpost.verification.feeds`); None where not measured. Part of
+        :attr:`ok`.
     """
 
     ok: bool
@@ -104,6 +109,7 @@ class Verification:
     notes: list[str] = field(default_factory=list)
     compared: int = 0
     rewind_moves: int = 0
+    feeds: FeedCheck | None = None
 
     def as_dict(self) -> dict:
         """Plain data for JSON reports."""
@@ -117,7 +123,7 @@ class Verification:
         fmt = ".5f" if units == "inch" else ".4f"
         steps = ", ".join(f"{k} {v:.3f}" for k, v in self.max_rotary_step_deg.items())
         verdict = "within tolerance" if self.ok else "BEYOND TOLERANCE"
-        return (
+        text = (
             f"verification {verdict}: {self.reached}/{self.cl_points} CL points reached, "
             f"{self.blocks} blocks; tool tip deviation max {self.max_tip_deviation / scale:{fmt}} "
             f"mean {self.mean_tip_deviation / scale:{fmt}} {units} (tolerance "
@@ -125,6 +131,7 @@ class Verification:
             f"{self.max_orientation_deviation_deg:.4f} deg (tolerance "
             f"{self.orientation_tolerance_deg:.3f}); largest rotary step {steps or 'none'} deg"
         )
+        return text if self.feeds is None else f"{text}; {self.feeds.summary()}"
 
 
 def rewind_note(moves: int) -> str:
@@ -575,6 +582,7 @@ def verify(
     tool_length: float | None = None,
     tol: Tolerances | None = None,
     pivot: float = 0.0,
+    feeds: FeedRules | None = None,
 ) -> Verification:
     """Run a program through the machine and compare it with the CL data.
 
@@ -592,13 +600,18 @@ def verify(
         Measure the point this far up the tool axis from the tip instead of the tip, on both
         sides (the ball centre of a ball-end tool, about which a strategy that bends the tool
         axis pivots). 0 measures the tip.
+    feeds : FeedRules, optional
+        How the program's control times its blocks: the tip feed of every feed block is
+        measured against the CL feed (:attr:`Verification.feeds`). None: not measured.
 
     Returns
     -------
     Verification
     """
     tol = tol or Tolerances.for_units(program.units)
-    (check,) = verify_checks(program, machine, [Check(toolpath, tol, pivot)], tool_length)
+    (check,) = verify_checks(
+        program, machine, [Check(toolpath, tol, pivot)], tool_length, feeds=feeds
+    )
     return check
 
 
@@ -607,6 +620,7 @@ def verify_checks(
     machine: Machine,
     checks: list[Check],
     tool_length: float | None = None,
+    feeds: FeedRules | None = None,
 ) -> list[Verification]:
     """:func:`verify` of one program against several CL paths, tolerances or pivots.
 
@@ -620,6 +634,8 @@ def verify_checks(
     checks : list of Check
     tool_length : float, optional, mm
         As :func:`verify`.
+    feeds : FeedRules, optional
+        As :func:`verify`: the tip feed is measured against each check's CL feed.
 
     Returns
     -------
@@ -635,6 +651,7 @@ def verify_checks(
             "a feed move of X/Y/Z with TCP off in a TCP program; expected TCP on before "
             "every cutting move",
         )
+    rules = feeds
     tool_length = program.tool_length if tool_length is None else tool_length
     values, rapid = program_joints(machine, program)
     notes: list[str] = []
@@ -646,7 +663,7 @@ def verify_checks(
         notes.append(rewind_note(int(rewind.sum())))
     if len(values) == 0 or not all(len(c.toolpath) for c in checks):
         if len(values) and len(checks) > 1:  # compare those with CL points on their own
-            return [verify_checks(program, machine, [c], tool_length)[0] for c in checks]
+            return [verify_checks(program, machine, [c], tool_length, feeds)[0] for c in checks]
         return [_nothing_to_compare(program, values, c) for c in checks]
     rows = row_poses_at_tip(machine, values, program.tcp, tool_length)
     steps: dict[str, float] = {}
@@ -675,13 +692,39 @@ def verify_checks(
     deviations = _block_deviation(
         feeds, [part.levels(c.tol) for c, part in zip(checks, parts, strict=True)]
     )
-    return [
+    out = [
         replace(
             part.verification(program, c, deviation, blocks, steps, notes),
             rewind_moves=int(rewind.sum()),
         )
         for c, part, deviation in zip(checks, parts, deviations, strict=True)
     ]
+    if rules is None:
+        return out
+    q0, q1 = values[blocks - 1], values[blocks]
+    tip = tip_lengths(machine, q0, q1, program.tcp, tool_length)
+    feed = program.move_table().feed[blocks]
+    measured = []
+    for v, c, part in zip(out, checks, parts, strict=True):
+        compared = np.ones(len(blocks), dtype=bool) if part.valid is None else part.valid
+        cl_feed = np.where(compared, c.toolpath.feed[part.jb], np.nan)
+        check = measure_feeds(
+            machine,
+            program.feed_mode,
+            program.tcp,
+            program.units,
+            q0,
+            q1,
+            feed,
+            cl_feed,
+            c.toolpath.line[part.jb],
+            rules,
+            c.tol.feed_share,
+            tool_length,
+            tip=tip,
+        )
+        measured.append(replace(v, feeds=check, ok=v.ok and check.ok))
+    return measured
 
 
 def _nothing_to_compare(program: Program, values: np.ndarray, check: Check) -> Verification:
