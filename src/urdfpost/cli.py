@@ -872,7 +872,11 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if check.missed_lines:
         shown = ", ".join(str(x) for x in check.missed_lines[:10])
         print(f"missed CL lines: {shown}{' ...' if len(check.missed_lines) > 10 else ''}")
-    if not check.ok and check.worst_cl_line:
+    feeds = check.feeds
+    if feeds is not None and not feeds.ok:  # the geometry may be right: say where the feed is not
+        line = feeds.worst_cl_line if feeds.max_axis_share <= 1.0 else feeds.max_axis_cl_line
+        print(f"worst tip feed near CL line {line}")
+    elif not check.ok and check.worst_cl_line:
         print(f"worst deviation near CL line {check.worst_cl_line}")
     print(f"{args.program}: {process_check.summary()}")
     for line in faults:

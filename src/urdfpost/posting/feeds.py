@@ -26,6 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from urdfpost.dialects._bulk import scaled_integers
 from urdfpost.dialects.spec import DialectSpec
 from urdfpost.machine import Machine
 from urdfpost.posting.report import FeedFigures
@@ -81,9 +82,14 @@ def written_values(
     out = values.copy()
     scale = mm_per_unit(units)
     linear = spec.linear_inch if units == "inch" else spec.linear_mm
-    lin, rot = list(machine.linear_columns), list(machine.rotary_columns)
-    out[:, lin] = np.round(values[:, lin] / scale, linear.decimals) * scale
-    out[:, rot] = np.radians(np.round(np.degrees(values[:, rot]), spec.rotary.decimals))
+    for j, axis in enumerate(machine.axes):
+        fmt = spec.rotary if axis.rotary else linear
+        column = np.degrees(values[:, j]) if axis.rotary else values[:, j] / scale
+        ints = scaled_integers(column, fmt.decimals)  # the digits the writer writes
+        if ints is None:
+            continue  # (too large to be written in bulk: the writer refuses or writes it)
+        text = ints / 10.0**fmt.decimals
+        out[:, j] = np.radians(text) if axis.rotary else text * scale
     return out
 
 
@@ -163,17 +169,20 @@ def timed_program(
     # it); a turn in place has no tip feed to reduce: it is not counted as capped
     near = limited | ((limit > 0.0) & (limit >= time * (1.0 - 1e-3)))
     capped = limited & (tip >= IN_PLACE)
+    time = np.where(tcp & (tip < IN_PLACE), 0.0, time)  # (not timed: the control's own)
     still = time <= 0.0  # no motion in the written values: any F
     with np.errstate(divide="ignore", invalid="ignore"):
         if inverse:
             feed = 1.0 / time
             unit, decimals = 1.0, spec.inverse_time_feed.decimals
         else:
-            feed = np.where(tcp & in_place, cl_feed, control_len / time)
+            feed = np.where(tcp & (tip < IN_PLACE), cl_feed, control_len / time)
             fmt = spec.feed_inch if units == "inch" else spec.feed_mm
             unit = spec.feed_inch_unit if units == "inch" else 1.0
             decimals = fmt.decimals
-    near &= ~(tcp & in_place)  # (F applies to a tip that does not move: left at the CL feed)
+    # (with TCP, F applies to a tip that does not move: left at the CL feed)
+    still_tip = tcp & (tip < IN_PLACE)
+    near &= ~still_tip
     feed = np.where(near, _floored(np.where(near, feed, 1.0), decimals, unit), feed)
     if still.any():
         feed[still] = (spec.inverse_time_max or 1e4) if inverse else cl_feed[still]
@@ -181,7 +190,8 @@ def timed_program(
     new_feed[blocks] = feed
     # figures: the lowest share of the CL feed a capped block keeps, and what capped it
     if capped.any():
-        share = np.where(capped, base / time, np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            share = np.where(capped, base / time, np.inf)
         k = int(np.argmin(share))
         lines = _following_lines(table.cl_line)
         names = [RANGE_CAP if c == -2 else machine.axis_names[c] for c in cause[capped].tolist()]
