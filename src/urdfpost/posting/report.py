@@ -141,12 +141,14 @@ class FeedFigures:
         """The warning of a post that reduced feeds (None when it reduced none)."""
         if not self.capped_blocks or self.worst_share is None:
             return None
-        axes = ", ".join(f"{name} {count}" for name, count in self.capped_by.items())
+        axes = ", ".join(f"{n} {c}" for n, c in self.capped_by.items() if n != "F range")
+        why = [f"axis velocity limits: {axes}"] if axes else []
+        if "F range" in self.capped_by:
+            why.append(f"the control's largest inverse-time F: {self.capped_by['F range']}")
         line = f" at CL line {self.worst_cl_line}" if self.worst_cl_line is not None else ""
         return (
-            f"{source}: feed reduced on {self.capped_blocks} blocks to keep the axes within "
-            f"their velocity limits ({axes}), worst{line} (to {100.0 * self.worst_share:.1f}% "
-            f"of programmed)"
+            f"{source}: feed reduced on {self.capped_blocks} blocks ({'; '.join(why)}), "
+            f"worst{line} (to {100.0 * self.worst_share:.1f}% of programmed)"
         )
 
     def as_json(self) -> dict[str, Any]:

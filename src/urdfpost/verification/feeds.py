@@ -285,7 +285,8 @@ class FeedCheck:
         )
         if self.capped:
             text += (
-                f"; {self.capped} blocks slowed to an axis limit, slowest at "
+                f"; {self.capped} blocks slowed to a limit (an axis' velocity or the control's "
+                f"largest inverse-time F), slowest at "
                 f"{self.slowest_capped_pct:.1f}% of the CL feed (CL line "
                 f"{self.slowest_capped_cl_line})"
             )
