@@ -266,7 +266,9 @@ def _verify(path: Path, controller: str, cl: Path, capsys: pytest.CaptureFixture
     return f"{code}\n{out}"
 
 
-@pytest.mark.parametrize(("controller", "factor"), [("fanuc", 1.5), ("linuxcnc", 0.5), ("heidenhain", 2.0)])
+@pytest.mark.parametrize(
+    ("controller", "factor"), [("fanuc", 1.5), ("linuxcnc", 0.5), ("heidenhain", 2.0)]
+)
 def test_verify_reports_a_wrong_feed(
     controller: str, factor: float, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -289,7 +291,8 @@ def test_verify_reports_a_wrong_feed(
     out = _verify(bad, controller, cl, capsys)
     assert out.startswith("1\n"), out
     share = abs(factor - 1.0)  # the tip feed goes with F (1/time, or length/time)
-    match = re.search(r"tip feed BEYOND TOLERANCE: .* deviation from the CL feed max ([\d.]+)%", out)
+    found = r"tip feed BEYOND TOLERANCE: .* deviation from the CL feed max ([\d.]+)%"
+    match = re.search(found, out)
     assert match, out
     assert float(match[1]) == pytest.approx(100.0 * share, rel=0.02)
     assert "worst tip feed near CL line" in out

@@ -24,11 +24,11 @@ checks and the harness fail when they should.
 from __future__ import annotations
 
 import math
-from typing import Any
 import re
 from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import pytest
 from jobs import TWO_TOOLS

@@ -833,7 +833,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             pivot=pivot,
             piece_points=pieces,
             process=process,
-            feeds=feed_rules,
+            feed_rules=feed_rules,
         )
         toolpath = replace(toolpath, warnings=tuple(warnings))
         process_check = process.result()
@@ -846,7 +846,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             tool_length=tool_length,
             tol=tol,
             pivot=pivot,
-            feeds=feed_rules,
+            feed_rules=feed_rules,
         )
         process.add(program, expected(toolpath)[0], ended=ended)
         process_check = process.result()
@@ -874,8 +874,8 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         print(f"missed CL lines: {shown}{' ...' if len(check.missed_lines) > 10 else ''}")
     feeds = check.feeds
     if feeds is not None and not feeds.ok:  # the geometry may be right: say where the feed is not
-        line = feeds.worst_cl_line if feeds.max_axis_share <= 1.0 else feeds.max_axis_cl_line
-        print(f"worst tip feed near CL line {line}")
+        at = feeds.worst_cl_line if feeds.max_axis_share <= 1.0 else feeds.max_axis_cl_line
+        print(f"worst tip feed near CL line {at}")
     elif not check.ok and check.worst_cl_line:
         print(f"worst deviation near CL line {check.worst_cl_line}")
     print(f"{args.program}: {process_check.summary()}")

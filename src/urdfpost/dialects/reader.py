@@ -797,7 +797,8 @@ def _apply_modes(builder: ProgramBuilder, block: _Block) -> None:
         elif action in ("absolute", "incremental"):
             builder.absolute = action == "absolute"
         elif action in ("inverse_time", "per_minute"):
-            builder.set_feed_mode(FEED_INVERSE_TIME if action == "inverse_time" else FEED_PER_MINUTE)
+            inverse = action == "inverse_time"
+            builder.set_feed_mode(FEED_INVERSE_TIME if inverse else FEED_PER_MINUTE)
         elif action == "work_offset":
             builder.select_work_offset(f"G{code}")
 

@@ -98,12 +98,12 @@ def check_piece(
     length = target.tool_length
     if target.intended is None:
         return verify(
-            program, machine, target.cl, tool_length=length, tol=tol, feeds=target.feed_rules
+            program, machine, target.cl, tool_length=length, tol=tol, feed_rules=target.feed_rules
         ), None
     pivot = target.pivot_mm
     loose = bent_tolerances(tol, target.angle_tolerance_deg, pivot)
     checks = [Check(target.intended, tol), Check(target.cl, loose, pivot)]
-    intended, cl = verify_checks(program, machine, checks, length, feeds=target.feed_rules)
+    intended, cl = verify_checks(program, machine, checks, length, feed_rules=target.feed_rules)
     if target.lifts:
         cl = replace(
             cl,

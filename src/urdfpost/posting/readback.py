@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from urdfpost.verification.feeds import FeedCheck, FeedRules
 from urdfpost.dialects import dialect_for
 from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
@@ -32,6 +31,7 @@ from urdfpost.verification import (
     row_poses_at_tip,
     verify,
 )
+from urdfpost.verification.feeds import FeedCheck, FeedRules
 from urdfpost.verification.process import ProcessChecker
 
 log = logging.getLogger(__name__)
@@ -225,7 +225,7 @@ def verify_stream(
     piece_points: int = PIECE_POINTS,
     texts: Iterable[str] | None = None,
     process: ProcessChecker | None = None,
-    feeds: FeedRules | None = None,
+    feed_rules: FeedRules | None = None,
 ) -> tuple[Verification, Program]:
     """:func:`urdfpost.verification.verify` of a program file against CL data given in pieces, in
     bounded memory: the program is read and checked a piece at a time.
@@ -255,6 +255,9 @@ def verify_stream(
     process : ProcessChecker, optional
         Is given every piece checked, with its CL data (the process of the program,
         :mod:`urdfpost.verification.process`; the CL pieces are then the expected ones).
+    feed_rules : FeedRules, optional
+        How the control times the blocks: the tip feed of every piece is measured
+        (:func:`urdfpost.verification.verify`); None: not measured.
 
     Returns
     -------
@@ -304,7 +307,7 @@ def verify_stream(
             parts.append(
                 verify(
                     program, machine, cl, tool_length=tool_length, tol=tol, pivot=pivot,
-                    feeds=feeds,
+                    feed_rules=feed_rules,
                 )
             )  # fmt: skip
             if process is not None:
@@ -319,7 +322,7 @@ def verify_stream(
         parts.append(
             verify(
                 head, machine, toolpath_slice(cl, 0, c + 1), tool_length=tool_length, tol=tol,
-                pivot=pivot, feeds=feeds,
+                pivot=pivot, feed_rules=feed_rules,
             )
         )  # fmt: skip
         if process is not None:

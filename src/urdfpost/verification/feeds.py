@@ -28,7 +28,8 @@ fail the verification.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -291,7 +292,8 @@ class FeedCheck:
                 f"{self.slowest_capped_cl_line})"
             )
         if self.max_axis is not None:
-            text += f"; fastest axis {self.max_axis} at {100.0 * self.max_axis_share:.1f}% of its limit"
+            share = 100.0 * self.max_axis_share
+            text += f"; fastest axis {self.max_axis} at {share:.1f}% of its limit"
         return text
 
     @staticmethod
@@ -379,12 +381,15 @@ def measure_feeds(
     with np.errstate(divide="ignore", invalid="ignore"):
         share = np.where(timed[:, None], np.abs(dq) / time[:, None] / velocity, 0.0)
     share = np.nan_to_num(share, nan=0.0, posinf=np.inf)
+    fields: dict[str, Any] = {}
     if timed.any() and share.size:
-        flat = int(np.argmax(share))
-        row, col = divmod(flat, share.shape[1])
+        row, col = divmod(int(np.argmax(share)), share.shape[1])
         if share[row, col] > 0.0:
-            out = _with(out, max_axis_share=float(share[row, col]), max_axis=machine.axis_names[col])
-            out = _with(out, max_axis_cl_line=int(cl_line[row]))
+            fields |= {
+                "max_axis_share": float(share[row, col]),
+                "max_axis": machine.axis_names[col],
+                "max_axis_cl_line": int(cl_line[row]),
+            }
     # the tip feed against the CL feed, where the block is not at a limit
     limit, _ = limit_times(machine, dq)
     if feed_mode == FEED_INVERSE_TIME and rules.inverse_time_max:
@@ -397,10 +402,13 @@ def measure_feeds(
     at_limit = compared & (ratio < 1.0) & (time <= limit * slack)
     free = compared & ~at_limit
     deviation = np.where(free, np.abs(ratio - 1.0), 0.0)
-    fields: dict = {"compared": int(compared.sum()), "in_place": int(in_place.sum())}
+    fields |= {"compared": int(compared.sum()), "in_place": int(in_place.sum())}
     if free.any():
         k = int(np.argmax(deviation))
-        fields |= {"max_deviation_pct": 100.0 * float(deviation[k]), "worst_cl_line": int(cl_line[k])}
+        fields |= {
+            "max_deviation_pct": 100.0 * float(deviation[k]),
+            "worst_cl_line": int(cl_line[k]),
+        }
     if at_limit.any():
         low = np.where(at_limit, ratio, np.inf)
         k = int(np.argmin(low))
@@ -409,10 +417,4 @@ def measure_feeds(
             "slowest_capped_pct": 100.0 * float(ratio[k]),
             "slowest_capped_cl_line": int(cl_line[k]),
         }
-    return _with(out, **fields)
-
-
-def _with(check: FeedCheck, **fields: object) -> FeedCheck:
-    from dataclasses import replace
-
-    return replace(check, **fields)  # type: ignore[arg-type]
+    return replace(out, **fields)

@@ -582,7 +582,7 @@ def verify(
     tool_length: float | None = None,
     tol: Tolerances | None = None,
     pivot: float = 0.0,
-    feeds: FeedRules | None = None,
+    feed_rules: FeedRules | None = None,
 ) -> Verification:
     """Run a program through the machine and compare it with the CL data.
 
@@ -600,7 +600,7 @@ def verify(
         Measure the point this far up the tool axis from the tip instead of the tip, on both
         sides (the ball centre of a ball-end tool, about which a strategy that bends the tool
         axis pivots). 0 measures the tip.
-    feeds : FeedRules, optional
+    feed_rules : FeedRules, optional
         How the program's control times its blocks: the tip feed of every feed block is
         measured against the CL feed (:attr:`Verification.feeds`). None: not measured.
 
@@ -610,7 +610,7 @@ def verify(
     """
     tol = tol or Tolerances.for_units(program.units)
     (check,) = verify_checks(
-        program, machine, [Check(toolpath, tol, pivot)], tool_length, feeds=feeds
+        program, machine, [Check(toolpath, tol, pivot)], tool_length, feed_rules
     )
     return check
 
@@ -620,7 +620,7 @@ def verify_checks(
     machine: Machine,
     checks: list[Check],
     tool_length: float | None = None,
-    feeds: FeedRules | None = None,
+    feed_rules: FeedRules | None = None,
 ) -> list[Verification]:
     """:func:`verify` of one program against several CL paths, tolerances or pivots.
 
@@ -634,7 +634,7 @@ def verify_checks(
     checks : list of Check
     tool_length : float, optional, mm
         As :func:`verify`.
-    feeds : FeedRules, optional
+    feed_rules : FeedRules, optional
         As :func:`verify`: the tip feed is measured against each check's CL feed.
 
     Returns
@@ -651,7 +651,7 @@ def verify_checks(
             "a feed move of X/Y/Z with TCP off in a TCP program; expected TCP on before "
             "every cutting move",
         )
-    rules = feeds
+    rules = feed_rules
     tool_length = program.tool_length if tool_length is None else tool_length
     values, rapid = program_joints(machine, program)
     notes: list[str] = []
@@ -663,7 +663,9 @@ def verify_checks(
         notes.append(rewind_note(int(rewind.sum())))
     if len(values) == 0 or not all(len(c.toolpath) for c in checks):
         if len(values) and len(checks) > 1:  # compare those with CL points on their own
-            return [verify_checks(program, machine, [c], tool_length, feeds)[0] for c in checks]
+            return [
+                verify_checks(program, machine, [c], tool_length, feed_rules)[0] for c in checks
+            ]
         return [_nothing_to_compare(program, values, c) for c in checks]
     rows = row_poses_at_tip(machine, values, program.tcp, tool_length)
     steps: dict[str, float] = {}
