@@ -428,9 +428,22 @@ class ProgramWriter:
 
         count = len(moves)
         if self.inverse and not self.inverse_on:
-            feeds = moves.rapid if isinstance(moves, MoveTable) else [m.rapid for m in moves]
-            if not all(bool(r) for r in np.asarray(feeds, dtype=bool)):
-                self.enter_inverse_time()  # (before the run: rapids are not affected)
+            # G93 right before the first feed move (the rapids before it are not affected)
+            rapids = moves.rapid if isinstance(moves, MoveTable) else [m.rapid for m in moves]
+            cuts = np.flatnonzero(~np.asarray(rapids, dtype=bool))
+            if cuts.size:
+                first = int(cuts[0])
+                head: Sequence[Move] | MoveTable
+                tail: Sequence[Move] | MoveTable
+                if isinstance(moves, MoveTable):
+                    head, tail = moves.rows(0, first), moves.rows(first, count)
+                else:
+                    head, tail = moves[:first], moves[first:]
+                if first:
+                    self.write_moves(head)
+                self.enter_inverse_time()
+                self.write_moves(tail)
+                return
         if self.spec.motion_layout is None or count < BULK_MIN_MOVES:
             for move in objects(0, count):
                 self.write_move(move)
