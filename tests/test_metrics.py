@@ -222,7 +222,9 @@ def test_timed_hemisphere_keeps_every_limit_and_the_feed() -> None:
     feed = prof.feed[np.isfinite(prof.feed)]
     assert np.all(prof.tip_speed[np.isfinite(prof.feed)] <= feed * (1 + 1e-3))
     assert np.all(np.diff(prof.t) >= 0) and prof.t[-1] >= metrics.time_s
-    assert metrics.time_s > metrics.velocity_only_time_s > metrics.nominal_time_s
+    # the post slowed the blocks where an axis would exceed its velocity limit (issue 19):
+    # the program's own feeds already give the velocity-only time
+    assert metrics.time_s > metrics.velocity_only_time_s >= metrics.nominal_time_s
     assert metrics.timing_failed_runs == 0
     assert 0 < metrics.slow_fraction < 1
 
@@ -280,12 +282,20 @@ def test_hemisphere_c_demand_peaks_at_feed_over_offset(y0: float, tcp: bool) -> 
     result = post(tp, m, PostOptions(tcp=tcp, strategy="none"))
     metrics = measure(readback(result, m), m, tp, tool_length=result.program.tool_length)
     closed_form = math.degrees(feed / 60.0 / y0)  # deg/s
-    assert metrics.peak_demand_velocity["C"] == pytest.approx(closed_form, rel=0.01)
     assert metrics.min_sigma == pytest.approx(y0 / 50.0, rel=0.01)  # sin(arcsin(y0 / R))
-    # the C limit (179.9 deg/s) is below F / y0 here: the axis limit sets the pace
+    # the C limit (179.9 deg/s) is below F / y0 here: the axis limit sets the pace. The post
+    # slows those blocks to it (issue 19): the slowest keeps the share limit / (F / y0) of
+    # the CL feed, and the program demands C at its limit, no more
     c_limit = math.degrees(m.axis("C").velocity)
-    assert metrics.peak_velocity["C"] == pytest.approx(c_limit, rel=1e-3)
-    assert metrics.velocity_limited_blocks > 0 and metrics.slowdown > 1.05
+    figures = result.report.figures
+    assert figures is not None and figures.feeds is not None
+    assert figures.feeds.capped_blocks > 0 and figures.feeds.capped_by.get("C", 0) > 0
+    assert figures.feeds.worst_share == pytest.approx(c_limit / closed_form, rel=0.01)
+    # (the metrics' demand takes the tip path between rows as a chord, the post samples it:
+    # within the feed tolerance of the limit)
+    assert metrics.peak_demand_velocity["C"] == pytest.approx(c_limit, rel=0.01)
+    # timed with the axes' acceleration too, C gets near its limit, never beyond it
+    assert 0.95 * c_limit <= metrics.peak_velocity["C"] <= c_limit * (1 + 1e-6)
     assert metrics.verified and metrics.cl_points_reached == len(tp)
 
 

@@ -48,11 +48,12 @@ from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
 from urdfpost.machine.load import AxisLimits, axis_limits
 from urdfpost.planning.singularity import conditioning
-from urdfpost.program import Program
+from urdfpost.program import FEED_INVERSE_TIME, Program
 from urdfpost.strict_json import json_ready
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification import Check, program_joints, verify_checks
+from urdfpost.verification.feeds import tip_feeds
 
 log = logging.getLogger(__name__)
 
@@ -298,6 +299,7 @@ def measure(
     ball_radius: float = 0.0,
     lifts: int = 0,
     limits: AxisLimits | None = None,
+    axis_feed_rule: str = "combined",
 ) -> Metrics:
     """Measure a program against its machine and the original CL data.
 
@@ -323,6 +325,10 @@ def measure(
     limits : AxisLimits, optional
         Axis velocity, acceleration and jerk limits (default: the machine file's,
         :func:`urdfpost.machine.load.axis_limits`).
+    axis_feed_rule : str
+        How the program's control applies a feed per minute without TCP
+        (:func:`urdfpost.verification.feeds.tip_feeds`): the blocks are timed by the tip feed
+        they give.
 
     Returns
     -------
@@ -353,6 +359,9 @@ def measure(
     check = found[0]
     values, rapid = program_joints(machine, program)
     moves = program.moves()
+    given = None  # the tip feed of each move where the F words are no tip feeds
+    if not program.tcp or program.feed_mode == FEED_INVERSE_TIME:
+        given = tip_feeds(machine, program, tool_length, axis_feed_rule)
     # the strategy's path only: not the post's own approach before the first CL point and
     # end after the last (moves with no CL line there); a program read back from text has no
     # CL lines and is measured whole
@@ -360,6 +369,7 @@ def measure(
     if on_cl.size:
         first, last = int(on_cl[0]), int(on_cl[-1]) + 1
         values, rapid, moves = values[first:last], rapid[first:last], moves[first:last]
+        given = None if given is None else given[first:last]
     n = len(values)
     lin = list(machine.linear_columns)
     rot = list(machine.rotary_columns)
@@ -390,6 +400,8 @@ def measure(
     missing[:1] = False
     if missing.any():
         notes.append(f"{int(missing.sum())} feed blocks have no feed: timed by axis limits only")
+    if given is not None:  # (inverse time, machine coordinates: what the block gives)
+        feed = np.where(rapid, np.nan, given / 60.0)
     feed = np.where(rapid | np.isnan(feed), np.inf, feed)
 
     dq = np.diff(q, axis=0)

@@ -37,8 +37,9 @@ from urdfpost.geometry import chunks
 from urdfpost.kinematics.forward import tip_and_axis_along
 from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
-from urdfpost.program import FEED_INVERSE_TIME
+from urdfpost.program import FEED_INVERSE_TIME, Program
 from urdfpost.units import mm_per_unit
+from urdfpost.verification.match import program_joints
 
 TIP_SAMPLES = 10
 """Tool tip positions per block (its ends included) whose polyline is the block's tip path."""
@@ -418,3 +419,52 @@ def measure_feeds(
             "slowest_capped_cl_line": int(cl_line[k]),
         }
     return replace(out, **fields)
+
+
+def tip_feeds(
+    machine: Machine, program: Program, tool_length: float, axis_feed_rule: str = "combined"
+) -> np.ndarray:
+    """The tool-tip feed each feed move of a program gives, whatever its feed mode.
+
+    For the lab tools that time a program by its tip feed (:mod:`urdfpost.analysis`): a TCP
+    program with feeds per minute gives its F; an inverse-time or machine-coordinate program
+    gives its tip path over the block time (:func:`block_times`). Modal: a feed move without
+    F keeps the F before it.
+
+    Parameters
+    ----------
+    machine : Machine
+    program : Program
+    tool_length : float, mm
+    axis_feed_rule : str
+        The control's (:attr:`~urdfpost.dialects.spec.DialectSpec.axis_feed_rule`), for
+        machine-coordinate programs with feeds per minute.
+
+    Returns
+    -------
+    ndarray, shape (N,), mm/min
+        One per move of :meth:`~urdfpost.program.Program.move_table`; NaN for rapids, moves
+        before any F, the first move (no block before it) and blocks whose tip does not move.
+    """
+    table = program.move_table()
+    feed = table.feed.copy()
+    have = np.isfinite(feed) | table.rapid
+    last = np.maximum.accumulate(np.where(np.isfinite(feed), np.arange(len(feed)), -1))
+    feed = np.where(~have & (last >= 0), feed[np.maximum(last, 0)], feed)
+    feed = np.where(table.rapid, np.nan, feed)
+    if program.tcp and program.feed_mode != FEED_INVERSE_TIME:
+        return feed
+    out = np.full(len(feed), np.nan)
+    values, _ = program_joints(machine, program)
+    blocks = np.flatnonzero(np.isfinite(feed[1:])) + 1
+    if not blocks.size:
+        return out
+    q0, q1 = values[blocks - 1], values[blocks]
+    tip = tip_lengths(machine, q0, q1, program.tcp, tool_length)
+    m0 = machine_joints(machine, q0, program.tcp, tool_length)
+    m1 = machine_joints(machine, q1, program.tcp, tool_length)
+    axis = axis_lengths(machine, m0, m1, axis_feed_rule, program.units)
+    time = block_times(feed[blocks], program.feed_mode, program.tcp, tip, axis, program.units)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[blocks] = np.where((tip >= IN_PLACE) & (time > 0.0), tip / time, np.nan)
+    return out
