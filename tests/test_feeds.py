@@ -345,3 +345,28 @@ def test_inverse_time_is_written_between_g93_and_g94() -> None:
     wrote = [m.feed for m in result.program.moves() if not m.rapid]
     read = [m.feed for m in back.moves() if not m.rapid]
     assert read == pytest.approx(wrote, abs=5e-4)
+
+
+def test_the_machine_file_gives_the_default_feed_mode(tmp_path: Path) -> None:
+    """``<urdfpost feed_mode=...>``: the machine's default, overridden by the job; an unknown
+    name, or one its control has not, is refused naming the file and line."""
+    source = (ROOT / "robots" / "urdf" / "umc750.urdf").read_text()
+    toolpath = read_cl_text(rotary_sweep(SLOW), source="sweep.apt")
+
+    def machine_with(setting: str, controller: str = "fanuc") -> Path:
+        path = tmp_path / f"m{len(list(tmp_path.iterdir()))}.urdf"
+        tag = f'controller="{controller}" {setting}'
+        path.write_text(source.replace('controller="fanuc"', tag, 1))
+        return path
+
+    per_block = load_machine(machine_with('feed_mode="per-block"'))
+    result = post(toolpath, per_block, PostOptions(tcp=False, units="mm"))
+    assert "G93" not in result.text and result.program.feed_mode == FEED_PER_MINUTE
+    assert result.verification.feeds is not None and result.verification.feeds.ok
+    overridden = PostOptions(tcp=False, units="mm", feed_mode="inverse-time")
+    assert "G93" in post(toolpath, per_block, overridden).text
+    with pytest.raises(UrdfpostError, match=r"m\d\.urdf:\d+: <urdfpost feed_mode='fast'>"):
+        load_machine(machine_with('feed_mode="fast"'))
+    heidenhain = load_machine(machine_with('feed_mode="inverse-time"', "heidenhain"))
+    with pytest.raises(UrdfpostError, match=r"m\d\.urdf:\d+: <urdfpost feed_mode=\.\.\.>: "):
+        post(toolpath, heidenhain, PostOptions(tcp=False, units="mm"))

@@ -298,12 +298,11 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--feed-mode",
         choices=("auto", "tip", "inverse-time", "per-block"),
-        default="auto",
         help="how the F words are made: 'tip' the CL tip feed (right with TCP), "
         "'inverse-time' G93 (F = 1/block time), 'per-block' F per minute of each block's "
-        "axis-space length; 'auto' (default): tip with TCP, else inverse time where the "
-        "control has it, else per block. Every block's F is lowered where an axis would "
-        "exceed its URDF velocity limit",
+        "axis-space length; 'auto': tip with TCP, else inverse time where the control has "
+        "it, else per block (default: the machine file's feed_mode, else auto). Every "
+        "block's F is lowered where an axis would exceed its URDF velocity limit",
     )
     p.add_argument(
         "--spindle",

@@ -53,6 +53,10 @@ the block's time in minutes (1/min), whatever the program units."""
 FEED_MODES = (FEED_PER_MINUTE, FEED_INVERSE_TIME)
 """The feed modes of a :class:`Program`."""
 
+JOB_FEED_MODES = ("auto", "tip", "inverse-time", "per-block")
+"""How a post makes the F words (``--feed-mode``, the machine file's ``feed_mode``; see
+:mod:`urdfpost.posting.feeds`)."""
+
 
 @dataclass(frozen=True)
 class Move:

@@ -111,6 +111,9 @@ class Settings:
     where : str
         ``file:line`` of the ``<urdfpost>`` element, for messages about its settings (empty
         when the file has none).
+    feed_mode : str or None
+        Default feed mode of a post (``feed_mode`` attribute,
+        :data:`urdfpost.program.JOB_FEED_MODES`); None: ``auto``.
     """
 
     controller: str = "heidenhain"
@@ -121,6 +124,7 @@ class Settings:
     description: str = ""
     strategy: str | None = None
     where: str = ""
+    feed_mode: str | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -33,6 +33,7 @@ from urdfpost.posting.report import FeedFigures
 from urdfpost.program import (
     FEED_INVERSE_TIME,
     FEED_PER_MINUTE,
+    JOB_FEED_MODES,
     Blocks,
     Move,
     MoveTable,
@@ -53,7 +54,7 @@ FEED_INVERSE = "inverse-time"
 FEED_PER_BLOCK = "per-block"
 FEED_AUTO = "auto"
 
-FEED_MODES = (FEED_AUTO, FEED_TIP, FEED_INVERSE, FEED_PER_BLOCK)
+FEED_MODES = JOB_FEED_MODES
 """The feed modes a job can ask for; ``auto``: ``tip`` with TCP, else ``inverse-time`` where
 the control has it, else ``per-block``."""
 

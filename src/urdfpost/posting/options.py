@@ -218,6 +218,19 @@ def feed_mode_name(name: str | None, tcp: bool, dialect: Dialect) -> str:
     return name
 
 
+def _feed_mode(options: PostOptions, machine: Machine, dialect: Dialect) -> str:
+    """The job's feed mode: the options', else the machine file's (an error names the file
+    and line of its setting), else ``auto``."""
+    settings = machine.settings
+    if options.feed_mode is not None or settings.feed_mode is None:
+        return feed_mode_name(options.feed_mode, options.tcp, dialect)
+    try:
+        return feed_mode_name(settings.feed_mode, options.tcp, dialect)
+    except UrdfpostError as e:
+        where = settings.where or str(machine.path)
+        raise MachineDefinitionError(f"{where}: <urdfpost feed_mode=...>: {e}") from e
+
+
 def strategy_name(machine: Machine, name: str | None = None) -> str:
     """The strategy a post uses: ``name``, else the machine file's, else the default.
 
@@ -327,5 +340,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         work_offset=options.work_offset,
         feed=mm(options.feed),
         spindle=options.spindle,
-        feed_mode=feed_mode_name(options.feed_mode, options.tcp, dialect),
+        feed_mode=_feed_mode(options, machine, dialect),
     )
