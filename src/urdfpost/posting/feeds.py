@@ -166,24 +166,24 @@ def timed_program(
         cause = np.where((shortest > time) & (shortest > base), -2, cause)
         time = np.maximum(time, shortest)
     limited = (cause != -1) & (time > 0.0)
-    # near an axis limit the F is rounded down (the written F never drives an axis beyond
-    # it); a turn in place has no tip feed to reduce: it is not counted as capped
-    near = limited | ((limit > 0.0) & (limit >= time * (1.0 - 1e-3)))
+    # a turn in place has no tip feed to reduce: not counted as capped. With TCP and feeds
+    # per minute, F applies to a tip that does not move: the block is the control's to time,
+    # its F left at the CL feed
     capped = limited & (tip >= IN_PLACE)
-    time = np.where(tcp & (tip < IN_PLACE), 0.0, time)  # (not timed: the control's own)
-    still = time <= 0.0  # no motion in the written values: any F
+    untimed = tcp & ~inverse & (tip < IN_PLACE)
+    time = np.where(untimed, 0.0, time)
+    still = time <= 0.0  # (or no motion in the written values: any F)
+    # near an axis limit the F is rounded down: the written F never drives an axis beyond it
+    near = (limited | ((limit > 0.0) & (limit >= time * (1.0 - 1e-3)))) & ~still
     with np.errstate(divide="ignore", invalid="ignore"):
         if inverse:
             feed = 1.0 / time
             unit, decimals = 1.0, spec.inverse_time_feed.decimals
         else:
-            feed = np.where(tcp & (tip < IN_PLACE), cl_feed, control_len / time)
+            feed = control_len / time
             fmt = spec.feed_inch if units == "inch" else spec.feed_mm
             unit = spec.feed_inch_unit if units == "inch" else 1.0
             decimals = fmt.decimals
-    # (with TCP, F applies to a tip that does not move: left at the CL feed)
-    still_tip = tcp & (tip < IN_PLACE)
-    near &= ~still_tip
     feed = np.where(near, _floored(np.where(near, feed, 1.0), decimals, unit), feed)
     if still.any():
         feed[still] = (spec.inverse_time_max or 1e4) if inverse else cl_feed[still]
