@@ -38,8 +38,10 @@ from urdfpost.kinematics.forward import tip_and_axis_along
 from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
 from urdfpost.program import FEED_INVERSE_TIME, Program
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Toolpath
 from urdfpost.units import mm_per_unit
-from urdfpost.verification.match import program_joints
+from urdfpost.verification.match import match_points, program_joints, row_poses_at_tip
 
 TIP_SAMPLES = 10
 """Tool tip positions per block (its ends included) whose polyline is the block's tip path."""
@@ -467,4 +469,36 @@ def tip_feeds(
     time = block_times(feed[blocks], program.feed_mode, program.tcp, tip, axis, program.units)
     with np.errstate(divide="ignore", invalid="ignore"):
         out[blocks] = np.where((tip >= IN_PLACE) & (time > 0.0), tip / time, np.nan)
+    return out
+
+
+def cl_feeds_of_rows(
+    machine: Machine,
+    program: Program,
+    toolpath: Toolpath,
+    tol: Tolerances,
+    tool_length: float,
+) -> np.ndarray:
+    """The CL feed each move of a program moves at: that of the first CL point reached at or
+    after it (:func:`~urdfpost.verification.match.match_points`), as the post programs it.
+
+    For the lab tools that ask what the CL feed alone would demand of the axes
+    (:mod:`urdfpost.analysis.metrics`), where the program's F may be lower (an axis limit) or
+    no tip feed at all (inverse time, machine coordinates).
+
+    Returns
+    -------
+    ndarray, shape (N,), mm/min
+        NaN after the last CL point reached and where the CL data has no feed.
+    """
+    values, _ = program_joints(machine, program)
+    rows = row_poses_at_tip(machine, values, program.tcp, tool_length)
+    match = match_points(toolpath.tip, toolpath.axis, rows.tip, rows.axis, tol)
+    reached = np.flatnonzero(match >= 0)
+    out = np.full(len(values), np.nan)
+    if not reached.size:
+        return out
+    k = np.searchsorted(match[reached], np.arange(len(values)), side="left")
+    inside = k < reached.size
+    out[inside] = toolpath.feed[reached[k[inside]]]
     return out
