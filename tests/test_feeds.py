@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from jobs import rotary_sweep
-from rs274 import run_rs274
+from rs274 import Rs274Error, run_rs274
 
 from urdfpost import load_machine
 from urdfpost.cli import main
@@ -301,10 +301,15 @@ def test_verify_reports_a_wrong_feed(
 # -- reading and writing the feed mode --------------------------------------------------------
 
 
-def test_inverse_time_needs_f_in_every_feed_block() -> None:
+def test_inverse_time_needs_f_in_every_feed_block(tmp_path: Path) -> None:
+    """The reader refuses what LinuxCNC's interpreter refuses, at the same line."""
     text = "(P)\nG21\nG90 G94\nT1 M6\nS1000 M3\nG0 X0 Y0 Z0\nG93\nG1 X1 F10\nG1 X2\nM2\n"
     with pytest.raises(ProgramParseError, match=r":9: feed move in inverse time \(G93\) without"):
         DIALECTS["linuxcnc"].read(text, path="p.ngc")
+    with pytest.raises(
+        Rs274Error, match=r"F word missing with inverse time g1 move \(program line 9"
+    ):
+        run_rs274(text, {1: 0.0}, tmp_path)
 
 
 def test_one_feed_mode_for_the_feed_moves_of_a_program() -> None:
