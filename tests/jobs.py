@@ -95,3 +95,40 @@ RAPID
 GOTO/{v(20)},0,{v(30)},0,0,1
 {tilted_cycle if tilted else ""}FINI
 """
+
+
+def rotary_sweep(feed: float = 400.0, points: int = 48) -> str:
+    """A cut with large rotary moves (issue 19): the tool tip goes along a line in X at Z=0
+    while the tool axis, tilted 25 degrees from Z, turns 270 degrees about Z (the table's or
+    head's C axis turns with it), then tilts back to Z along the last stretch. One feed,
+    ``feed`` mm/min; ``points`` CL points on the turn."""
+    import math
+
+    lines = [
+        "PARTNO ROTARY SWEEP",
+        "UNITS/MM",
+        "MULTAX/ON",
+        "LOADTL/1",
+        "SPINDL/8000,CLW",
+        "RAPID",
+    ]
+    tilt = math.radians(25.0)
+
+    def goto(x: float, y: float, z: float, i: float, j: float, k: float) -> str:
+        return f"GOTO/{x:.4f},{y:.4f},{z:.4f},{i:.6f},{j:.6f},{k:.6f}"
+
+    start = (math.sin(tilt), 0.0, math.cos(tilt))
+    lines.append(goto(-20.0, 0.0, 10.0, *start))
+    lines.append(f"FEDRAT/MMPM,{feed:g}")
+    for n in range(points + 1):
+        s = n / points
+        phi = math.radians(270.0) * s
+        axis = (math.sin(tilt) * math.cos(phi), math.sin(tilt) * math.sin(phi), math.cos(tilt))
+        lines.append(goto(-20.0 + 30.0 * s, 5.0 * math.sin(math.pi * s), 0.0, *axis))
+    for n in range(1, 9):
+        s = n / 8
+        t = tilt * (1.0 - s)
+        axis = (0.0, -math.sin(t), math.cos(t))
+        lines.append(goto(10.0 + 10.0 * s, 0.0, 0.0, *axis))
+    lines += ["RAPID", goto(20.0, 0.0, 20.0, 0.0, 0.0, 1.0), "FINI", ""]
+    return "\n".join(lines)

@@ -1354,9 +1354,9 @@ VERIFY_ROWS = [
         "verify-feed-changed",
         V,
         1,
-        "prog.h:{line}: feed F900 where the CL has F1000 (CL line 6)",
-        {"job.apt": JOB, "prog.h": edited("F1000", "F900")},
-        at=("prog.h", "F900"),
+        "prog.h:{line}: feed F1100 where the CL has F1000 (CL line 6)",
+        {"job.apt": JOB, "prog.h": edited("F1000", "F1100")},
+        at=("prog.h", "F1100"),
         stream="out",
     ),
     Row(

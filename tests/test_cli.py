@@ -135,7 +135,15 @@ def test_post_writes_the_program_and_reports(
     assert data["cl_points"] == 16
     assert data["blocks"] == 23  # 19 on the path, 4 of the approach and the end
     assert data["units"] == "mm"
-    assert data["warnings"] == []
+    # C would turn beyond its velocity limit at the pole: those blocks' feed is reduced
+    feeds = data["feeds"]
+    assert feeds["mode"] == "tip" and feeds["capped_blocks"] > 0
+    assert data["warnings"] == [
+        f"{JOB}: feed reduced on {feeds['capped_blocks']} blocks (axis velocity limits: C "
+        f"{feeds['capped_blocks']}), worst at CL line {feeds['worst_cl_line']} (to "
+        f"{feeds['worst_percent_of_programmed']:.1f}% of programmed)"
+    ]
+    assert data["feed_check"]["ok"] and data["feed_check"]["capped"] == feeds["capped_blocks"]
     assert set(data["max_rotary_step_deg"]) == {"B", "C"}
     assert data["max_rotary_step_deg"]["C"] == pytest.approx(176.0049)
     assert data["max_rotary_step_deg"]["B"] == pytest.approx(30.0604)

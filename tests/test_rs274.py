@@ -28,6 +28,7 @@ import re
 from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import pytest
 from jobs import TWO_TOOLS
@@ -261,13 +262,18 @@ def check_positions(program_text: str, result: Rs274Result, tcp: bool) -> None:
     or in machine coordinates (offsets added back); and the feed in effect is the program's.
     The reader gives mm and mm/min; the interpreter, the program's units. Canned cycles are
     compared as the motion urdfpost expands them into (:func:`urdfpost.program.expand_cycles`),
-    which is LinuxCNC's own."""
+    which is LinuxCNC's own. In inverse time (G93) the interpreter turns each F (1/min) into the
+    feed per minute that gives the block that time, by its own rule: along X, Y, Z when they
+    move, else along the rotary axes in degrees (RS274NGC); the program's blocks must give the
+    same."""
     dialect = DIALECTS["linuxcnc"]
     program = expand_cycles(dialect.read(program_text))  # canned cycles: the motion they make
     inch = program.units == "inch"
     to_mm = mm_per_unit(program.units)
     feed_to_mm = dialect.spec.feed_inch_unit if inch else 1.0
-    moves = [m for m in program.moves() if not m.rapid]
+    everything = program.moves()
+    rates = _inverse_time_rates(program, everything) if program.feed_mode != "per-minute" else {}
+    moves = [m for m in everything if not m.rapid]
     found = [c for c in cuts(result) if c.call.name == "STRAIGHT_FEED"]
     assert len(found) == len(moves), (
         f"{len(found)} STRAIGHT_FEED calls for the program's {len(moves)} feed moves"
@@ -284,9 +290,34 @@ def check_positions(program_text: str, result: Rs274Result, tcp: bool) -> None:
                 f" {value:.4f} in the program (mm)"
             )
         assert move.feed is not None
+        if rates:  # the interpreter's feed per minute, program units
+            want = rates[id(move)]
+            assert cut.state.feed == pytest.approx(want, rel=1e-4, abs=1e-3), (
+                f"feed move {n + 1}: F{cut.state.feed:g}/min from rs274 for the G93 "
+                f"F{move.feed:g}, the program's block gives {want:g}/min"
+            )
+            continue
         assert cut.state.feed * feed_to_mm == pytest.approx(move.feed, abs=TOL), (
             f"feed move {n + 1}: F{cut.state.feed:g} from rs274, the program F{move.feed:g} mm/min"
         )
+
+
+def _inverse_time_rates(program: Any, moves: list[Any]) -> dict[int, float]:
+    """The feed per minute (program units or degrees) RS274NGC gives each feed move of an
+    inverse-time program: its X/Y/Z length (else its rotary length in degrees) times F."""
+    to_mm = mm_per_unit(program.units)
+    linear = [k for k, a in enumerate(program.axes) if a not in program.rotary]
+    rotary = [k for k, a in enumerate(program.axes) if a in program.rotary]
+    out: dict[int, float] = {}
+    last = [math.nan] * len(program.axes)
+    for move in moves:
+        here = [v if not math.isnan(v) else p for v, p in zip(move.position, last, strict=True)]
+        if not move.rapid:
+            d_lin = math.dist([here[k] for k in linear], [last[k] for k in linear]) / to_mm
+            d_rot = math.dist([here[k] for k in rotary], [last[k] for k in rotary])
+            out[id(move)] = (d_lin if d_lin > 1e-9 else d_rot) * move.feed
+        last = here
+    return out
 
 
 def check_rotaries_home_at_end(program_text: str, result: Rs274Result) -> None:

@@ -129,7 +129,11 @@ def test_streamed_tcp_program_within_rounding_of_the_whole_post(
         wx, wy = x.split(), y.split()
         assert [w[0] for w in wx] == [w[0] for w in wy]
         for p, q in zip(wx, wy, strict=True):
-            if p != q:
+            if p != q and p[0] == "F":
+                # the F of a block slowed to an axis limit follows its rounded positions:
+                # within the verifier's feed tolerance
+                assert abs(float(p[1:]) / float(q[1:]) - 1.0) <= 0.01, (x, y)
+            elif p != q:
                 assert abs(float(p[1:]) - float(q[1:])) <= 1.001e-3, (x, y)
     assert result.verification.ok
 

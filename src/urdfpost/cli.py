@@ -307,6 +307,15 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
         "(default: such a move is an error)",
     )
     p.add_argument(
+        "--feed-mode",
+        choices=("auto", "tip", "inverse-time", "per-block"),
+        help="how the F words are made: 'tip' the CL tip feed (right with TCP), "
+        "'inverse-time' G93 (F = 1/block time), 'per-block' F per minute of each block's "
+        "axis-space length; 'auto': tip with TCP, else inverse time where the control has "
+        "it, else per block (default: the machine file's feed_mode, else auto). Every "
+        "block's F is lowered where an axis would exceed its URDF velocity limit",
+    )
+    p.add_argument(
         "--spindle",
         type=_positive,
         metavar="RPM",
@@ -696,6 +705,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         expand_cycles=args.expand_cycles,
         smoothing=None if args.smoothing is None else args.smoothing is not False,
         smoothing_tolerance=args.smoothing if isinstance(args.smoothing, float) else None,
+        feed_mode=args.feed_mode,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {
@@ -864,6 +874,11 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         end=end_words(dialect),
     )
 
+    from urdfpost.verification.feeds import FeedRules
+
+    # how the control times the blocks (the largest inverse-time F counts in G93 only)
+    feed_rules = FeedRules(dialect.spec.axis_feed_rule, dialect.spec.inverse_time_max)
+
     def expected(cl: Any, state: Any = None) -> tuple[Any, Any]:
         cl, state, _ = checked_process(
             cl, feed=math.nan, spindle=math.nan, units=program.units, state=state
@@ -895,6 +910,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             piece_points=pieces,
             process=process,
             table=table,
+            feed_rules=feed_rules,
         )
         toolpath = replace(toolpath, warnings=tuple(warnings))
         process_check = process.result()
@@ -919,7 +935,11 @@ def _cmd_verify(args: argparse.Namespace) -> int:
                 on = mcs_machine(machine, shifts[section.mcs])
                 cl = in_own_mcs(cl, shifts[section.mcs], transformed_mcs(cl_data))
             length = section.length
-            checks.append(verify(part, on, cl, tool_length=length, tol=tol, pivot=pivot))
+            checks.append(
+                verify(
+                    part, on, cl, tool_length=length, tol=tol, pivot=pivot, feed_rules=feed_rules
+                )
+            )
             last = k == len(sections) - 1
             process.add(
                 part,
@@ -953,7 +973,11 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if check.missed_lines:
         shown = ", ".join(str(x) for x in check.missed_lines[:10])
         print(f"missed CL lines: {shown}{' ...' if len(check.missed_lines) > 10 else ''}")
-    if not check.ok and check.worst_cl_line:
+    feeds = check.feeds
+    if feeds is not None and not feeds.ok:  # the geometry may be right: say where the feed is not
+        at = feeds.worst_cl_line if feeds.max_axis_share <= 1.0 else feeds.max_axis_cl_line
+        print(f"worst tip feed near CL line {at}")
+    elif not check.ok and check.worst_cl_line:
         print(f"worst deviation near CL line {check.worst_cl_line}")
     print(f"{args.program}: {process_check.summary()}")
     for line in faults:

@@ -43,6 +43,20 @@ REWIND_BEGIN = "urdfpost rewind at"
 REWIND_END = "urdfpost rewind end"
 """The comment after them."""
 
+FEED_PER_MINUTE = "per-minute"
+"""Feed mode of a program whose F words are feeds per minute (G94): :attr:`Move.feed` in mm/min."""
+
+FEED_INVERSE_TIME = "inverse-time"
+"""Feed mode of a program whose F words are inverse times (G93): :attr:`Move.feed` is one over
+the block's time in minutes (1/min), whatever the program units."""
+
+FEED_MODES = (FEED_PER_MINUTE, FEED_INVERSE_TIME)
+"""The feed modes of a :class:`Program`."""
+
+JOB_FEED_MODES = ("auto", "tip", "inverse-time", "per-block")
+"""How a post makes the F words (``--feed-mode``, the machine file's ``feed_mode``; see
+:mod:`urdfpost.posting.feeds`)."""
+
 
 @dataclass(frozen=True)
 class Move:
@@ -57,7 +71,8 @@ class Move:
         In TCP programs X, Y, Z are the tool tip in the workpiece frame; otherwise they are the
         machine's linear axis positions.
     feed : float or None
-        Feed in mm/min (None for rapids, or to keep the modal feed).
+        Feed in mm/min (None for rapids, or to keep the modal feed); in a program whose
+        :attr:`Program.feed_mode` is inverse time, one over the block's time, 1/min.
     cl_line : int or None
         Source line of the CL record the block ends on (None for inserted blocks).
     """
@@ -607,6 +622,12 @@ class Program:
         Continuous rotary axes the control rolls over (modulo 360 display): written in
         [0, 360), and the control turns them the way :func:`rollover_direction` says rather
         than counting turns. A program read from text has the axes its reader was told of.
+    feed_mode : str
+        What the feeds of its feed moves are (:data:`FEED_MODES`): feeds per minute
+        (:data:`FEED_PER_MINUTE`, G94; in a machine-coordinate program the control applies
+        them to the axes' own path, see ``docs/job.md``) or inverse times
+        (:data:`FEED_INVERSE_TIME`, G93: one over each block's time in minutes). A program
+        read from text has the mode its feed moves were read in.
     """
 
     name: str
@@ -620,8 +641,13 @@ class Program:
     cut_without_tcp: tuple[str, int] | None = field(default=None, compare=False)
     offset_change: tuple[str, int, str] | None = field(default=None, compare=False)
     rollover: frozenset[str] = frozenset()
+    feed_mode: str = FEED_PER_MINUTE
 
     def __post_init__(self) -> None:
+        if self.feed_mode not in FEED_MODES:
+            raise ValueError(
+                f"Program.feed_mode {self.feed_mode!r}: expected one of {', '.join(FEED_MODES)}"
+            )
         if not isinstance(self.blocks, Blocks):
             object.__setattr__(self, "blocks", Blocks(self.blocks))
 

@@ -77,6 +77,10 @@ class Tolerances:
         longer turns are split). 179 degrees: less than the half turn at which a control that
         takes the shortest way could go either way, with room for the written rounding
         (0.0001 degree).
+    feed_share : float
+        How far the tip feed a feed block gives may differ from the CL feed, as a share of
+        it (verification, :mod:`urdfpost.verification.feeds`). 1 %: well above the rounding
+        of the written F words and positions, well below what a cut shows.
     """
 
     tip: float = 0.01
@@ -95,6 +99,7 @@ class Tolerances:
     singular_margin: int = 1
     spline_step: float = 0.03490658503988659  # 2 deg
     rollover_turn: float = 3.12413936106985  # 179 deg
+    feed_share: float = 0.01
 
     @property
     def chord(self) -> float:

@@ -424,6 +424,7 @@ def _outcome(
         pivot=ball,
         ball_radius=ball,
         lifts=plan.lifts,
+        axis_feed_rule=job.dialect.spec.axis_feed_rule,
     )
     cl_index = deviation = None
     if metrics.profile is not None:

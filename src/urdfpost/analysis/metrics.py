@@ -19,8 +19,10 @@ Velocity-only estimate (the former model, kept for comparison)
     units, see :class:`~urdfpost.program.Move`) and ``vmax_j`` each axis' velocity limit from the
     URDF (``inf`` when none is given). A rapid lasts ``max_j |dq_jk| / vmax_j``: the machine's
     rapid traverse is taken as every axis at its limit, there is no separate rapid rate; rapids
-    are timed this way in both models. The *demanded* velocity ``|dq_k| / (L_k / F_k)`` is what
-    the feed alone would ask of an axis (the closed-form ``F / y0`` of the hemisphere raster);
+    are timed this way in both models. The *demanded* velocity ``|dq_k| / (L_k / F_k)``, with
+    ``F_k`` the CL feed of the block (the post's F may be lower, where it slowed the block to
+    an axis limit), is what the feed alone would ask of an axis (the closed-form ``F / y0`` of
+    the hemisphere raster);
     it is not defined for blocks that do not move the tip (less than :data:`STILL`): those are
     the turns in place, counted in ``turns_in_place``.
 
@@ -48,11 +50,12 @@ from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
 from urdfpost.machine.load import AxisLimits, axis_limits
 from urdfpost.planning.singularity import conditioning
-from urdfpost.program import Program
+from urdfpost.program import FEED_INVERSE_TIME, Program
 from urdfpost.strict_json import json_ready
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification import Check, program_joints, verify_checks
+from urdfpost.verification.feeds import cl_feeds_of_rows, tip_feeds
 
 log = logging.getLogger(__name__)
 
@@ -94,8 +97,9 @@ class Profile:
     t_velocity_only : ndarray, shape (N,), s
         Time at each point in the velocity-only estimate (the module docstring).
     demand : ndarray, shape (N, m), deg/s / mm/s
-        Speed ``|dq| / (L / F)`` the feed alone would demand over the block: ``inf`` where a
-        feed block moves the axis without moving the tool tip, NaN for rapids.
+        Speed ``|dq| / (L / F)`` the feed alone would demand over the block, F the CL feed of
+        the block (the program's F may be lower: the post slows a block to an axis limit):
+        ``inf`` where a feed block moves the axis without moving the tool tip, NaN for rapids.
     rapid : ndarray, shape (N,), bool
         Whether the block ending at the row is a rapid (row 0: True).
     limit : ndarray, shape (m,), deg/s / mm/s
@@ -149,8 +153,9 @@ class Metrics:
     jerk_over_limit_s : dict of str to float
         Time each axis spends above its jerk limit (0 for an axis without one).
     peak_demand_velocity : dict of str to float
-        Largest ``|dq| / (L / F)`` per axis over the feed blocks that move the tool tip: what
-        the feed alone would demand (turns in place are counted in ``turns_in_place``).
+        Largest ``|dq| / (L / F)`` per axis over the feed blocks that move the tool tip, F the
+        CL feed: what the feed alone would demand (turns in place are counted in
+        ``turns_in_place``).
     velocity_limit, acceleration_limit, jerk_limit : dict of str to float
         Each axis' limits (``inf`` when the machine file gives none).
     time_s : float
@@ -298,6 +303,7 @@ def measure(
     ball_radius: float = 0.0,
     lifts: int = 0,
     limits: AxisLimits | None = None,
+    axis_feed_rule: str = "combined",
 ) -> Metrics:
     """Measure a program against its machine and the original CL data.
 
@@ -323,6 +329,10 @@ def measure(
     limits : AxisLimits, optional
         Axis velocity, acceleration and jerk limits (default: the machine file's,
         :func:`urdfpost.machine.load.axis_limits`).
+    axis_feed_rule : str
+        How the program's control applies a feed per minute without TCP
+        (:func:`urdfpost.verification.feeds.tip_feeds`): the blocks are timed by the tip feed
+        they give.
 
     Returns
     -------
@@ -353,6 +363,12 @@ def measure(
     check = found[0]
     values, rapid = program_joints(machine, program)
     moves = program.moves()
+    given = None  # the tip feed of each move where the F words are no tip feeds
+    if not program.tcp or program.feed_mode == FEED_INVERSE_TIME:
+        given = tip_feeds(machine, program, tool_length, axis_feed_rule)
+    # what the CL feed alone demands of the axes: the post may have slowed a block to an axis
+    # limit, its F is then below the CL feed
+    asked = cl_feeds_of_rows(machine, program, toolpath, tol, tool_length)
     # the strategy's path only: not the post's own approach before the first CL point and
     # end after the last (moves with no CL line there); a program read back from text has no
     # CL lines and is measured whole
@@ -360,6 +376,8 @@ def measure(
     if on_cl.size:
         first, last = int(on_cl[0]), int(on_cl[-1]) + 1
         values, rapid, moves = values[first:last], rapid[first:last], moves[first:last]
+        given = None if given is None else given[first:last]
+        asked = asked[first:last]
     n = len(values)
     lin = list(machine.linear_columns)
     rot = list(machine.rotary_columns)
@@ -390,6 +408,8 @@ def measure(
     missing[:1] = False
     if missing.any():
         notes.append(f"{int(missing.sum())} feed blocks have no feed: timed by axis limits only")
+    if given is not None:  # (inverse time, machine coordinates: what the block gives)
+        feed = np.where(rapid, np.nan, given / 60.0)
     feed = np.where(rapid | np.isnan(feed), np.inf, feed)
 
     dq = np.diff(q, axis=0)
@@ -398,10 +418,12 @@ def measure(
     blk_feed = feed[1:]
     blk_rapid = rapid[1:]
     time, limited = block_times(dq, length, blk_feed, limit)
+    cl_feed = np.where(np.isfinite(asked[1:]), asked[1:] / 60.0, blk_feed)  # mm/s
     with np.errstate(divide="ignore", invalid="ignore"):
         nominal = np.where(blk_rapid | ~np.isfinite(blk_feed), 0.0, length / blk_feed)
-        demand = np.where((~blk_rapid & (nominal > 0))[:, None], np.abs(dq) / nominal[:, None], 0.0)
-        demand = np.where((~blk_rapid & (nominal == 0))[:, None] & (dq != 0), np.inf, demand)
+        at_cl = np.where(blk_rapid | ~np.isfinite(cl_feed), 0.0, length / cl_feed)
+        demand = np.where((~blk_rapid & (at_cl > 0))[:, None], np.abs(dq) / at_cl[:, None], 0.0)
+        demand = np.where((~blk_rapid & (at_cl == 0))[:, None] & (dq != 0), np.inf, demand)
         demand = np.where(blk_rapid[:, None], np.nan, demand)
     is_feed = ~blk_rapid
     scale = np.where([a.rotary for a in machine.axes], 180.0 / math.pi, 1.0)

@@ -58,10 +58,11 @@ from urdfpost.machine import Machine
 from urdfpost.machine.shapes import Box, Cylinder, LinkShape, Mesh, Sphere, link_shapes
 from urdfpost.planning.singularity import conditioning
 from urdfpost.posting.tools import row_lengths
-from urdfpost.program import Program, rewind_moves
+from urdfpost.program import FEED_INVERSE_TIME, Program, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification import program_joints
+from urdfpost.verification.feeds import tip_feeds
 
 log = logging.getLogger(__name__)
 
@@ -118,7 +119,7 @@ class Timeline:
 
 
 def program_rows(
-    machine: Machine, program: Program, tool_length: float
+    machine: Machine, program: Program, tool_length: float, axis_feed_rule: str = "combined"
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint values, rapid flags and feeds of a program's moves.
 
@@ -129,6 +130,9 @@ def program_rows(
         As written or read back.
     tool_length : float, mm
         The tool a TCP program's linear axes are solved for.
+    axis_feed_rule : str
+        The control's rule for a feed per minute without TCP
+        (:func:`urdfpost.verification.feeds.tip_feeds`).
 
     Returns
     -------
@@ -136,13 +140,17 @@ def program_rows(
         Machine joint values (a TCP program's linear axes solved for its tip).
     rapid : ndarray, shape (N,), bool
     feed : ndarray, shape (N,), mm/min
-        The modal feed of each move (NaN before the first).
+        The modal feed of each move (NaN before the first); the tip feed each block gives
+        where the F words are no tip feeds (inverse time, machine coordinates).
     """
     values, rapid = program_joints(machine, program)
     feed = program.move_table().feed.copy()
     ok = ~np.isnan(feed)
     idx = np.maximum.accumulate(np.where(ok, np.arange(len(feed)), -1))
     feed = np.where(idx >= 0, feed[np.maximum(idx, 0)], np.nan)
+    if not program.tcp or program.feed_mode == FEED_INVERSE_TIME:
+        # F words that are no tip feeds: the tip feed each block gives, by the control's rule
+        feed = np.where(rapid, feed, tip_feeds(machine, program, tool_length, axis_feed_rule))
     if program.tcp and len(values):
         values = _tcp_joints(machine, values, tool_length)
     return values, rapid, feed
@@ -533,7 +541,7 @@ def view_data(
             if not program.tcp and program.tool_length > 0
             else machine.settings.tool_length
         )
-    q, rapid, feed = program_rows(machine, program, tool_length)
+    q, rapid, feed = program_rows(machine, program, tool_length, dialect.spec.axis_feed_rule)
     lengths = None
     if tool_lengths and not program.tcp:
         lengths = row_lengths(program, tool_lengths, tool_length)

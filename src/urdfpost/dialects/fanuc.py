@@ -61,7 +61,8 @@ G_CODES = MappingProxyType(
         "99": "cycle_r",
         "90": "absolute",
         "91": "incremental",
-        "94": "noop",
+        "93": "inverse_time",
+        "94": "per_minute",
     }
 )
 
@@ -109,4 +110,13 @@ SPEC = DialectSpec(
     # tolerance and precision level are the control's parameters, not program words
     smoothing_on=("G05.1 Q1",),
     smoothing_off=("G05.1 Q0",),
+    # G93: F is 1/time in minutes, 0.001 to 9999.999 whatever the units, on every G1 block
+    # (Series 16/18 Operator's Manual B-62764EN, "Inverse time feed (G93)")
+    inverse_time="G93",
+    per_minute="G94",
+    inverse_time_feed=NumberFormat(3, trim=True, point=True),
+    inverse_time_max=9999.999,
+    # G94 with linear and rotary axes: F is the feed along sqrt(dx^2 + ... + dc^2), degrees
+    # counted as mm (inch input: as inch) (Power Mate i Operator's Manual B-63174EN, G01)
+    axis_feed_rule="combined",
 )

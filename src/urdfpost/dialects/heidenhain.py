@@ -400,4 +400,8 @@ SPEC = DialectSpec(
         "CYCL DEF 32.2 HSC-MODE:0 TA{angle}",
     ),
     smoothing_off=("CYCL DEF 32.0 TOLERANCE", "CYCL DEF 32.1"),
+    # no inverse-time feed: machine-coordinate programs get a feed per block (docs/job.md);
+    # the TNC applies F to the block's axis-space length, degrees counted as mm (the manual
+    # says rotary-only F is degrees per minute; the mixed-block rule is assumed, docs/job.md)
+    axis_feed_rule="combined",
 )

@@ -37,7 +37,7 @@ import re
 from types import MappingProxyType
 
 from urdfpost.dialects._cycles import iso_lines
-from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout, NumberFormat
 
 _ACTIVE_COMMENT = re.compile(
     r"^(\s*(?:MSG|DEBUG|PRINT|LOG|LOGOPEN|LOGAPPEND|LOGCLOSE|PROBEOPEN|PROBECLOSE|ABORT))\s*,",
@@ -74,7 +74,8 @@ G_CODES = MappingProxyType(
         "99": "cycle_r",
         "90": "absolute",
         "91": "incremental",
-        "94": "noop",
+        "93": "inverse_time",
+        "94": "per_minute",
     }
 )
 
@@ -119,4 +120,12 @@ SPEC = DialectSpec(
     # [AXIS_C] WRAPPED_ROTARY = 1: the sign of an absolute value is the direction of the
     # turn, its magnitude (less than 360) the position (interp_convert.cc unwrap_rotary)
     rollover_direction="sign",
+    # G93: the move takes 1/F minutes; an F word on every G1 line (LinuxCNC G-code manual,
+    # G93 G94 G95; rs274 refuses a G1 without F in G93)
+    inverse_time="G93",
+    per_minute="G94",
+    inverse_time_feed=NumberFormat(4, trim=True),
+    # G94: F along X, Y, Z as if the rotary axes did not move; degrees per minute along the
+    # rotary axes when X, Y, Z do not move (RS274NGC 3, NIST IR 6556, 2.1.2.5 "Feed Rate")
+    axis_feed_rule="linear-first",
 )

@@ -16,6 +16,10 @@ Reading rules:
   An axis that has not been programmed yet, or whose position became unknown after a home
   return or a machine-coordinate block, is NaN.
 * Rapid moves have ``feed=None``; feed moves carry the modal feed (None before any F word).
+* Feed mode (G93 / G94, where the control has them): in inverse time (G93) the F words are
+  1/min whatever the units and every feed block must have one; a switch of mode forgets the
+  modal feed. The feed moves of a program are all in one mode, the program's
+  :attr:`~urdfpost.program.Program.feed_mode`.
 * Consecutive motion blocks come out as one :class:`~urdfpost.program.MoveTable` in the
   program's parts (``cl_line`` -1: a program read from text does not know its CL lines).
 * A program's ``axes`` are the axis letters used in motion blocks, in X Y Z A B C order.
@@ -51,6 +55,8 @@ from urdfpost.dialects._cycles import (
 from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec
 from urdfpost.errors import ProgramParseError
 from urdfpost.program import (
+    FEED_INVERSE_TIME,
+    FEED_PER_MINUTE,
     Block,
     Blocks,
     Comment,
@@ -183,6 +189,9 @@ class ProgramBuilder:
         self.finished = False  # the program end (M30, M2, END PGM) was read
         self.closed = not spec.program_close  # its closing line (Fanuc %, END PGM) too
         self.code_seen = False
+        self.feed_mode = FEED_PER_MINUTE  # the control's (G94 / G93)
+        self.moves_feed_mode: str | None = None  # the mode of the feed moves read
+        self.feed_word_line = 0  # line of the last F word
         self.items: list[Block | _ReadMove | _ReadMoves | _ReadCycle] = []
         # the text line of every move read, in order (the 3-D view shows each block's line)
         self.move_lines: list[int | np.ndarray] = []
@@ -288,10 +297,39 @@ class ProgramBuilder:
             self.feed_scale = self.spec.feed_inch_unit if units == "inch" else 1.0
 
     def set_feed(self, value: float) -> None:
-        """Modal feed in file units per minute."""
+        """Modal feed in file units per minute (in inverse time: 1/min)."""
         if value <= 0.0:
             raise self.error(f"feed F{value:g} must be positive")
-        self.feed = value * self.feed_scale
+        self.feed = value * (1.0 if self.feed_mode == FEED_INVERSE_TIME else self.feed_scale)
+        self.feed_word_line = self.line
+
+    def set_feed_mode(self, mode: str) -> None:
+        """Feed per minute (G94) or inverse time (G93); a change forgets the modal feed."""
+        if mode != self.feed_mode:
+            self.feed_mode = mode
+            self.feed = None
+
+    def _feed_move_mode(self, line: int, has_feed: bool) -> None:
+        """Check a feed move against the feed mode: an F word in its block in inverse time,
+        the mode of the program's other feed moves."""
+        inverse = self.feed_mode == FEED_INVERSE_TIME
+        if inverse and not has_feed:
+            raise ProgramParseError(
+                self.path,
+                line,
+                "feed move in inverse time (G93) without an F word; expected F (1/min) in "
+                "every feed block",
+            )
+        if self.moves_feed_mode is None:
+            self.moves_feed_mode = self.feed_mode
+        elif self.moves_feed_mode != self.feed_mode:
+            raise ProgramParseError(
+                self.path,
+                line,
+                f"feed move in {self.feed_mode} feed after feed moves in "
+                f"{self.moves_feed_mode} feed; expected one feed mode for the feed moves of "
+                "a program",
+            )
 
     def select_work_offset(self, code: str) -> None:
         """Work offset (G54... or "preset N"): a WorkOffset block (1 for G54 or preset 1, 2
@@ -395,6 +433,8 @@ class ProgramBuilder:
         self.axes_seen.update(values)
         if not rapid and self.tcp_at_first_feed is None:
             self.tcp_at_first_feed = self.tcp
+        if not rapid:
+            self._feed_move_mode(self.line, self.feed_word_line == self.line)
         if not rapid and not self.tcp and self.cut_without_tcp is None:
             if any(a not in ROTARY_ADDRESSES for a in values):
                 self.cut_without_tcp = self.line
@@ -459,7 +499,14 @@ class ProgramBuilder:
         for j, address in enumerate(AXIS_ORDER):
             start = self.position.get(address, math.nan)
             position[:, j] = _fill_forward(written[:, j] * scale[j], start)
-        feed_words = lines.feed[rows] * self.feed_scale
+        inverse = self.feed_mode == FEED_INVERSE_TIME
+        feed_words = lines.feed[rows] * (1.0 if inverse else self.feed_scale)
+        if not rapid.all():
+            if inverse and np.isnan(feed_words[~rapid]).any():
+                return False  # (line by line: the error names the line)
+            if self.moves_feed_mode not in (None, self.feed_mode):
+                return False
+            self._feed_move_mode(first_line, True)
         start_feed = math.nan if self.feed is None else self.feed
         feed = _fill_forward(feed_words, start_feed)
         self.code_seen = True
@@ -635,6 +682,7 @@ class ProgramBuilder:
             else (self.path, self.cut_without_tcp),
             offset_change=None if self.offset_change is None else (self.path, *self.offset_change),
             rollover=self.rollover & rotary,
+            feed_mode=self.moves_feed_mode or FEED_PER_MINUTE,
         )
 
 
@@ -950,6 +998,9 @@ def _apply_modes(builder: ProgramBuilder, block: _Block) -> None:
             builder.set_units(action.removesuffix("_geometry"), feeds=False)
         elif action in ("absolute", "incremental"):
             builder.absolute = action == "absolute"
+        elif action in ("inverse_time", "per_minute"):
+            inverse = action == "inverse_time"
+            builder.set_feed_mode(FEED_INVERSE_TIME if inverse else FEED_PER_MINUTE)
         elif action == "work_offset":
             builder.select_work_offset(f"G{code}")
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 from types import MappingProxyType
 
 from urdfpost.dialects._cycles import siemens_lines
-from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout
+from urdfpost.dialects.spec import STANDARD_M_CODES, DialectSpec, MotionLayout, NumberFormat
 
 G_CODES = MappingProxyType(
     {
@@ -51,7 +51,8 @@ G_CODES = MappingProxyType(
         "64": "noop",
         "90": "absolute",
         "91": "incremental",
-        "94": "noop",
+        "93": "inverse_time",
+        "94": "per_minute",
     }
 )
 
@@ -99,4 +100,13 @@ SPEC = DialectSpec(
     # turns without passing 0 (MD30455 $MA_MISC_FUNCTION_MASK bit 2 = 0, the default)
     rollover_value="=DC({value})",
     rollover_direction="direct",
+    # G93: "the time required to execute the motion commands in a block", F in 1/min; the
+    # feed is reprogrammed after a change of G93/G94/G95 (Programming Manual Fundamentals
+    # 6FC5398-2EP40-0BA0, 12/2019, 2.7.1 Feedrate)
+    inverse_time="G93",
+    per_minute="G94",
+    inverse_time_feed=NumberFormat(4, trim=True),
+    # G94 without TRAORI: "the feedrate F acts only on path axes" (FGROUP, by default the
+    # geometry axes X, Y, Z); the rotary axes follow (same manual, 2.7.1)
+    axis_feed_rule="linear-first",
 )

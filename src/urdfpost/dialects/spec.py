@@ -41,7 +41,10 @@ Reader actions for G-codes and keywords:
     nano smoothing, which need it) or off (``Q0``), with an optional ``R`` level.
 ``noop``
     Modes that do not change linear motion (plane, cutter compensation off, cycle cancel,
-    feed per minute, path control).
+    path control).
+``inverse_time``, ``per_minute``
+    Feed mode (G93 / G94): F words are inverse times (1/min) or feeds per minute; the modal
+    feed is forgotten at a switch (the next feed move must program F).
 
 Reader actions for M-codes: ``stop``, ``optional_stop``, ``end``, ``spindle_cw``,
 ``spindle_ccw``, ``spindle_off``, ``tool_change``, ``coolant_mist``, ``coolant_flood``,
@@ -75,6 +78,10 @@ STANDARD_M_CODES: Mapping[int, str] = MappingProxyType(
         9: "coolant_off",
     }
 )
+
+#: How a control applies a feed per minute to the machine axes of a block without TCP (see
+#: :attr:`DialectSpec.axis_feed_rule`).
+AXIS_FEED_RULES = ("combined", "linear-first")
 
 #: Axis addresses the dialects know, in output order; A, B, C are rotary (degrees).
 AXIS_ORDER = ("X", "Y", "Z", "A", "B", "C")
@@ -361,6 +368,25 @@ class DialectSpec:
     call_keywords : mapping
         Keywords the reader takes with an argument list, to an action (Siemens
         ``CYCLE832(0.01,_ORI_FINISH,0.5)``: "smoothing").
+    inverse_time : str or None
+        The line that switches to inverse-time feed (``G93``); None: the control has none.
+        In inverse time every feed block carries its F (one over the block's time in
+        minutes), whatever the units.
+    per_minute : str
+        The line that switches back to feed per minute (``G94``), written before a tool
+        change, a home return and the program end when inverse time is on.
+    inverse_time_feed : NumberFormat
+        Format of an inverse-time F word.
+    inverse_time_max : float or None
+        Largest inverse-time F the control takes, 1/min (None: no documented limit): a block
+        is never programmed shorter than ``1 / inverse_time_max`` minutes.
+    axis_feed_rule : str
+        How the control applies a feed per minute to a block without TCP, whose axes are
+        machine axes (:data:`AXIS_FEED_RULES`): ``"combined"``, to the length
+        ``sqrt(sum dlinear^2 + sum drotary_deg^2)`` of the block in axis space, degrees
+        counted as program length units (Fanuc); ``"linear-first"``, to the X/Y/Z length
+        when a linear axis moves, else to the rotary length in degrees (RS274NGC, LinuxCNC;
+        Siemens with its path axes X, Y, Z). See ``docs/job.md``.
     """
 
     name: str
@@ -439,6 +465,11 @@ class DialectSpec:
     rollover_value: str = "{value}"
     rollover_direction: str = "shortest"
     call_keywords: Mapping[str, str] = field(default_factory=_empty)
+    inverse_time: str | None = None
+    per_minute: str = "G94"
+    inverse_time_feed: NumberFormat = NumberFormat(4, trim=True, point=True)
+    inverse_time_max: float | None = None
+    axis_feed_rule: str = "combined"
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

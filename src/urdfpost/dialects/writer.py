@@ -34,6 +34,7 @@ from urdfpost.dialects.spec import (
 )
 from urdfpost.errors import DialectError
 from urdfpost.program import (
+    FEED_INVERSE_TIME,
     Block,
     Comment,
     Coolant,
@@ -134,6 +135,18 @@ class ProgramWriter:
         self.feed_scale = spec.feed_inch_unit if program.units == "inch" else 1.0
         self.linear = spec.linear_inch if program.units == "inch" else spec.linear_mm
         self.feed_format = spec.feed_inch if program.units == "inch" else spec.feed_mm
+        # inverse time: F is 1/min whatever the units, written in every feed block, between
+        # the control's G93 and G94 (on: the control is in G93)
+        self.inverse = program.feed_mode == FEED_INVERSE_TIME
+        self.inverse_on = False
+        if self.inverse:
+            if spec.inverse_time is None:
+                raise DialectError(
+                    f"{spec.name} has no inverse-time feed; expected a program with feeds per "
+                    "minute (a feed per block, docs/job.md)"
+                )
+            self.feed_scale = 1.0
+            self.feed_format = spec.inverse_time_feed
         prefix, n, suffix = spec.block_format.partition("{n}")
         plain = n and "{" not in prefix + suffix and "}" not in prefix + suffix
         self._number_affixes = (prefix, suffix) if plain else None
@@ -222,6 +235,11 @@ class ProgramWriter:
                     f"{program.units}, TCP {program.tcp}; the program has "
                     f"{self.program.axes}, {self.program.units}, TCP {self.program.tcp}"
                 )
+            if program.feed_mode != self.program.feed_mode:
+                raise DialectError(
+                    f"a piece of program {self.program.name} has feed mode "
+                    f"{program.feed_mode}; the program has {self.program.feed_mode}"
+                )
             self.program = program
             self._merges = {}
         self._plan_spindle_merges()
@@ -242,7 +260,8 @@ class ProgramWriter:
                         self.write_block(index, part)
 
     def close(self) -> None:
-        """Write the program end."""
+        """Write the program end (after leaving inverse time)."""
+        self.leave_inverse_time()
         self.emit_templates(self.spec.finish)
         self.emit_templates(self.spec.program_close, self.spec.number_frame)
 
@@ -304,6 +323,7 @@ class ProgramWriter:
             case Move():
                 self.write_move(block)
             case ToolChange():
+                self.leave_inverse_time()
                 self.write_tool_change(index, block)
             case Spindle():
                 self._rpm = block.rpm if block.direction != "off" else None
@@ -321,6 +341,7 @@ class ProgramWriter:
             case Stop():
                 self.emit(self.spec.m_code_for("optional_stop" if block.optional else "stop"))
             case Home():
+                self.leave_inverse_time()
                 if self.spec.home_comment is not None:
                     self.emit_comment(self.spec.home_comment)
                 self.emit_templates(self.spec.home)
@@ -464,11 +485,19 @@ class ProgramWriter:
             code = self.spec.g_code_for("rapid" if move.rapid else "linear")
         modal.motion = move.rapid
         feed = None
+        if not move.rapid and self.inverse:
+            if move.feed is None:
+                raise DialectError(
+                    f"move {move}: a feed move of an inverse-time program without its F "
+                    "(one over the block's time)"
+                )
+            self.enter_inverse_time()
         if not move.rapid and move.feed is not None:
             text = self.feed_format.format(move.feed / self.feed_scale)
             if float(text) <= 0.0:
-                raise DialectError(f"feed {move.feed} mm/min is written as F{text}")
-            if text != modal.feed:
+                unit = "1/min" if self.inverse else "mm/min"
+                raise DialectError(f"feed {move.feed} {unit} is written as F{text}")
+            if text != modal.feed or self.inverse:  # G93: F in every feed block
                 feed = modal.feed = text
         modal.force = False
         words = MotionWords(move.rapid, code, tuple(changed), feed)
@@ -502,6 +531,23 @@ class ProgramWriter:
                 return run[start:stop]
 
         count = len(moves)
+        if self.inverse and not self.inverse_on:
+            # G93 right before the first feed move (the rapids before it are not affected)
+            rapids = moves.rapid if isinstance(moves, MoveTable) else [m.rapid for m in moves]
+            cuts = np.flatnonzero(~np.asarray(rapids, dtype=bool))
+            if cuts.size:
+                first = int(cuts[0])
+                head: Sequence[Move] | MoveTable
+                tail: Sequence[Move] | MoveTable
+                if isinstance(moves, MoveTable):
+                    head, tail = moves.rows(0, first), moves.rows(first, count)
+                else:
+                    head, tail = moves[:first], moves[first:]
+                if first:
+                    self.write_moves(head)
+                self.enter_inverse_time()
+                self.write_moves(tail)
+                return
         if self.spec.motion_layout is None or count < BULK_MIN_MOVES:
             for move in objects(0, count):
                 self.write_move(move)
@@ -551,6 +597,8 @@ class ProgramWriter:
             return False
         if pos.shape != (k, len(axes)) or not np.isfinite(pos).all():
             return False
+        if self.inverse and (not self.inverse_on or not has_feed[~rapid].all()):
+            return False  # (the block-by-block writer says what is wrong)
         # -- axis values: scaled integers stand for their texts ---------------------------
         formats: list[NumberFormat] = []
         scaled = np.empty((k, len(axes)), dtype=np.int64)
@@ -591,7 +639,7 @@ class ProgramWriter:
             if last_feed is None:
                 return False
         feed_written = np.ones(feed_rows.size, dtype=bool)
-        if feed_rows.size:
+        if feed_rows.size and not self.inverse:  # (inverse time: F in every feed block)
             feed_written[1:] = feed_scaled[1:] != feed_scaled[:-1]
             feed_written[0] = last_feed is None or feed_scaled[0] != last_feed
         # -- the lines, one column each: cells of four characters, NUL where none ---------
@@ -647,6 +695,23 @@ class ProgramWriter:
         if feed_rows.size:
             modal.feed = self.feed_format.format(float(feed[feed_rows[-1]]) / self.feed_scale)
         return True
+
+    def enter_inverse_time(self) -> None:
+        """Switch the control to inverse-time feed (G93) unless it is in it; the next feed
+        block writes its F."""
+        if self.inverse and not self.inverse_on:
+            assert self.spec.inverse_time is not None  # (checked at construction)
+            self.emit(self.spec.inverse_time)
+            self.inverse_on = True
+            self.modal.feed = None
+
+    def leave_inverse_time(self) -> None:
+        """Switch the control back to feed per minute (G94) when it is in inverse time
+        (before a tool change, a home return, the program end)."""
+        if self.inverse_on:
+            self.emit(self.spec.per_minute)
+            self.inverse_on = False
+            self.modal.feed = None
 
     def _block_number_cells(self, k: int) -> np.ndarray:
         """Block numbers of the next ``k`` lines (without the blank after them), one column

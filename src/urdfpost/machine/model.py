@@ -118,6 +118,9 @@ class Settings:
         Continuous rotary axes the control rolls over (``rollover`` attribute, e.g. "C"):
         modulo 360 display, an absolute value reached the way the control's dialect says
         (shortest way, or the sign's direction on LinuxCNC); the others count turns.
+    feed_mode : str or None
+        Default feed mode of a post (``feed_mode`` attribute,
+        :data:`urdfpost.program.JOB_FEED_MODES`); None: ``auto``.
     """
 
     controller: str = "heidenhain"
@@ -130,6 +133,7 @@ class Settings:
     where: str = ""
     smoothing: bool = True
     rollover: frozenset[str] = frozenset()
+    feed_mode: str | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,6 +30,7 @@ from lxml import etree
 from urdfpost.dialects import DIALECTS
 from urdfpost.errors import MachineDefinitionError
 from urdfpost.machine.model import NC_ADDRESSES, Settings
+from urdfpost.program import JOB_FEED_MODES
 from urdfpost.units import M_TO_MM
 
 
@@ -557,7 +558,8 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         At the line of the element: for an unknown controller (one not in
         :data:`urdfpost.dialects.DIALECTS`) or units, a ``tool_length`` that is not a finite
         length >= 0, a preference or home naming a missing axis, a home value that is not a
-        finite number or is outside the travel. The ``strategy`` name is not checked here:
+        finite number or is outside the travel, a ``feed_mode`` that is none of
+        :data:`urdfpost.program.JOB_FEED_MODES`. The ``strategy`` name is not checked here:
         :attr:`Settings.where` lets the post report an unknown one against the file.
     """
     axis_names = [j.name for j in joints]
@@ -608,6 +610,12 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
     strategy = el.get("strategy")
     smoothing = _switch(where, el, "smoothing", True)
     rollover = _rollover(where, el, joints)
+    feed_mode = el.get("feed_mode")
+    if feed_mode is not None and feed_mode not in JOB_FEED_MODES:
+        raise MachineDefinitionError(
+            f"{where}: <urdfpost feed_mode={feed_mode!r}>: expected one of "
+            f"{', '.join(JOB_FEED_MODES)}"
+        )
     desc_el = el.find("description")
     description = " ".join((desc_el.text or "").split()) if desc_el is not None else ""
     return Settings(
@@ -621,6 +629,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         where=where,
         smoothing=smoothing,
         rollover=rollover,
+        feed_mode=feed_mode,
     )
 
 

@@ -18,6 +18,7 @@ from urdfpost.program import Program
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification import Check, Verification, verify, verify_checks
+from urdfpost.verification.feeds import FeedRules
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,9 @@ class CheckTarget:
         How far the strategy may bend the tool axis.
     tool_length : float
         mm: the length the machine-coordinate positions include.
+    feed_rules : FeedRules or None
+        How the control times the blocks (:mod:`urdfpost.verification.feeds`): the tip feed
+        of every feed block is checked against the CL feed; None: not checked.
     """
 
     cl: Toolpath
@@ -47,6 +51,7 @@ class CheckTarget:
     pivot_mm: float
     angle_tolerance_deg: float
     tool_length: float
+    feed_rules: FeedRules | None = None
 
 
 def bent_tolerances(tol: Tolerances, angle_tolerance_deg: float, pivot: float) -> Tolerances:
@@ -92,11 +97,13 @@ def check_piece(
     """
     length = target.tool_length
     if target.intended is None:
-        return verify(program, machine, target.cl, tool_length=length, tol=tol), None
+        return verify(
+            program, machine, target.cl, tool_length=length, tol=tol, feed_rules=target.feed_rules
+        ), None
     pivot = target.pivot_mm
     loose = bent_tolerances(tol, target.angle_tolerance_deg, pivot)
     checks = [Check(target.intended, tol), Check(target.cl, loose, pivot)]
-    intended, cl = verify_checks(program, machine, checks, length)
+    intended, cl = verify_checks(program, machine, checks, length, feed_rules=target.feed_rules)
     if target.lifts:
         cl = replace(
             cl,

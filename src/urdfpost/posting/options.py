@@ -18,6 +18,7 @@ from urdfpost.planning.branches import Preference
 from urdfpost.planning.rewinds import DEFAULT_RETRACT
 from urdfpost.planning.singularity import DEFAULT_DETECTOR, DETECTORS, with_detector
 from urdfpost.planning.strategies import DEFAULT_STRATEGY, STRATEGIES
+from urdfpost.posting.feeds import FEED_AUTO, FEED_INVERSE, FEED_MODES, FEED_PER_BLOCK, FEED_TIP
 from urdfpost.posting.transitions import DEFAULT_CLEARANCE
 from urdfpost.program import Smoothing
 from urdfpost.tolerances import Tolerances
@@ -104,6 +105,11 @@ class PostOptions:
         Its path tolerance, program units; default the tool-tip tolerance
         (:attr:`tolerance`). The rotary axes' tolerance, where the control takes one, is the
         orientation tolerance.
+    feed_mode : str or None
+        How the F words are made (:data:`urdfpost.posting.feeds.FEED_MODES`): "tip" (the CL
+        tip feed; right with TCP), "inverse-time" (G93: F = 1 / block time), "per-block" (F
+        per minute, the block's axis-space length over its time); None or "auto": "tip" with
+        TCP, else inverse time where the control has it, else per block (``docs/job.md``).
     """
 
     controller: str | None = None
@@ -134,6 +140,7 @@ class PostOptions:
     expand_cycles: bool = False
     smoothing: bool | None = None
     smoothing_tolerance: float | None = None
+    feed_mode: str | None = None
 
 
 @dataclass(frozen=True)
@@ -193,6 +200,8 @@ class Job:
         degrees); None: none written.
     rollover : frozenset of str
         The rotary axes the control rolls over (the machine file's ``rollover`` setting).
+    feed_mode : str
+        "tip", "inverse-time" or "per-block" (:func:`feed_mode_name`).
     """
 
     machine: Machine
@@ -223,6 +232,45 @@ class Job:
     expand_cycles: bool = False
     smoothing: Smoothing | None = None
     rollover: frozenset[str] = frozenset()
+    feed_mode: str = FEED_TIP
+
+
+def feed_mode_name(name: str | None, tcp: bool, dialect: Dialect) -> str:
+    """The feed mode of a post: ``name``, ``auto`` (or None) resolved for TCP and the control.
+
+    ``auto``: the tip feed with TCP (the control applies F at the tip); without TCP inverse
+    time where the control has it (G93), else F per block.
+
+    Raises
+    ------
+    UrdfpostError
+        An unknown mode, or inverse time on a control without it.
+    """
+    name = name or FEED_AUTO
+    if name not in FEED_MODES:
+        raise UrdfpostError(f"unknown feed mode {name!r}; expected one of {', '.join(FEED_MODES)}")
+    has_inverse = dialect.spec.inverse_time is not None
+    if name == FEED_AUTO:
+        return FEED_TIP if tcp else (FEED_INVERSE if has_inverse else FEED_PER_BLOCK)
+    if name == FEED_INVERSE and not has_inverse:
+        raise UrdfpostError(
+            f"feed mode inverse-time: {dialect.name} has no inverse-time feed; expected "
+            f"{FEED_PER_BLOCK} or {FEED_TIP} (docs/job.md)"
+        )
+    return name
+
+
+def _feed_mode(options: PostOptions, machine: Machine, dialect: Dialect) -> str:
+    """The job's feed mode: the options', else the machine file's (an error names the file
+    and line of its setting), else ``auto``."""
+    settings = machine.settings
+    if options.feed_mode is not None or settings.feed_mode is None:
+        return feed_mode_name(options.feed_mode, options.tcp, dialect)
+    try:
+        return feed_mode_name(settings.feed_mode, options.tcp, dialect)
+    except UrdfpostError as e:
+        where = settings.where or str(machine.path)
+        raise MachineDefinitionError(f"{where}: <urdfpost feed_mode=...>: {e}") from e
 
 
 def smoothing_of(
@@ -394,4 +442,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         expand_cycles=options.expand_cycles,
         smoothing=smoothing_of(options, machine, dialect, tol, units),
         rollover=settings.rollover,
+        feed_mode=_feed_mode(options, machine, dialect),
     )

@@ -33,6 +33,7 @@ from urdfpost.planning.strategies import (
 )
 from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget
+from urdfpost.posting.feeds import timed_program
 from urdfpost.posting.options import Job
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
 from urdfpost.posting.rollover import with_rollover
@@ -40,6 +41,7 @@ from urdfpost.posting.transitions import Transitions
 from urdfpost.program import REWIND_BEGIN, Blocks, Program
 from urdfpost.toolpath import Event, Motion, Toolpath
 from urdfpost.units import mm_per_unit
+from urdfpost.verification.feeds import FeedRules
 
 if TYPE_CHECKING:
     from urdfpost.collision import CollisionWorld
@@ -320,6 +322,7 @@ def post_piece(
     reference = toolpath
     joints = np.zeros((0, len(machine.axis_names)))
     joint_lines = np.zeros(0, dtype=int)
+    before: np.ndarray | None = None  # the program row before a continued piece's first
     if n:
         q, tip, axis = realise(problem, plan)
         q, tip, axis, param, kind = with_rewinds(problem, plan, q, tip, axis)
@@ -394,6 +397,9 @@ def post_piece(
                 q=out_q[1:], tip=out_tip[1:], point=group[1:], reaches=is_cl[1:], kind=out_kind[1:]
             )
             start_position = program_position(machine, job.tcp, out_q[0], out_tip[0])
+            before = out_q[0].copy()
+            if job.tcp:
+                before[list(machine.linear_columns)] = out_tip[0]
         joints, joint_lines = out_q, toolpath.line[group]
         if plan.bent or plan.lift.any():
             out_axis = np.concatenate(parts_axis)
@@ -453,6 +459,10 @@ def post_piece(
         continuous=frozenset(a.name for a in machine.rotary if a.continuous),
         rollover=rollover,
     )
+    spec = job.dialect.spec
+    program, feed_figures = timed_program(
+        program, machine, job.feed_mode, spec, tool_length, before
+    )
     figures = PieceFigures(
         branch_switches=branch_switches,
         pole_points=pole_points,
@@ -461,6 +471,7 @@ def post_piece(
         pole_turns=pole_turns,
         strategy=strategy,
         warnings=tuple(warnings),
+        feeds=feed_figures,
     )
     intended = reference if reference is not plan.toolpath or plan.bent else None
     target = CheckTarget(
@@ -470,6 +481,8 @@ def post_piece(
         pivot_mm=problem.pivot,
         angle_tolerance_deg=job.angle_tolerance_deg,
         tool_length=tool_length,
+        # (the largest inverse-time F counts in inverse time only)
+        feed_rules=FeedRules(spec.axis_feed_rule, spec.inverse_time_max),
     )
     # the moves as the program makes them: a canned cycle's holes drilled, not its CL points
     moved, moved_lines = (

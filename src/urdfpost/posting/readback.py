@@ -32,6 +32,7 @@ from urdfpost.verification import (
     row_poses_at_tip,
     verify,
 )
+from urdfpost.verification.feeds import FeedCheck, FeedRules
 from urdfpost.verification.process import ProcessChecker
 
 log = logging.getLogger(__name__)
@@ -93,6 +94,7 @@ def merge_verifications(parts: list[Verification], fresh: Sequence[bool] = ()) -
         notes=notes,
         compared=compared,
         rewind_moves=rewinds,
+        feeds=FeedCheck.merged([v.feeds for v in parts if v.feeds is not None]),
     )
 
 
@@ -227,6 +229,7 @@ def verify_stream(
     texts: Iterable[str] | None = None,
     process: ProcessChecker | None = None,
     table: Mapping[int, float] | None = None,
+    feed_rules: FeedRules | None = None,
 ) -> tuple[Verification, Program]:
     """:func:`urdfpost.verification.verify` of a program file against CL data given in pieces, in
     bounded memory: the program is read and checked a piece at a time.
@@ -260,6 +263,9 @@ def verify_stream(
         A machine-coordinate program: the tool table (tool number to gauge length, mm). Each
         tool section (:mod:`urdfpost.posting.tools`) is checked with its tool's length: the
         table's, else the CL data's ``LOADTL LENGTH``, else ``tool_length``.
+    feed_rules : FeedRules, optional
+        How the control times the blocks: the tip feed of every piece is measured
+        (:func:`urdfpost.verification.verify`); None: not measured.
 
     Returns
     -------
@@ -343,7 +349,12 @@ def verify_stream(
                 length, starts = sections[1].length, True
                 continue
         if cl_ends and program_ends:
-            parts.append(verify(program, machine, cl, tool_length=length, tol=tol, pivot=pivot))
+            parts.append(
+                verify(
+                    program, machine, cl, tool_length=length, tol=tol, pivot=pivot,
+                    feed_rules=feed_rules,
+                )
+            )  # fmt: skip
             fresh.append(starts)
             if process is not None:
                 process.add(
@@ -359,7 +370,7 @@ def verify_stream(
         parts.append(
             verify(
                 head, machine, toolpath_slice(cl, 0, c + 1), tool_length=length, tol=tol,
-                pivot=pivot,
+                pivot=pivot, feed_rules=feed_rules,
             )
         )  # fmt: skip
         fresh.append(starts)

@@ -92,6 +92,75 @@ class StrategyFigures:
 
 
 @dataclass(frozen=True)
+class FeedFigures:
+    """How the post programmed the feeds (:mod:`urdfpost.posting.feeds`).
+
+    Attributes
+    ----------
+    mode : str
+        The job's feed mode: "tip", "inverse-time" or "per-block".
+    feed_blocks : int
+        Feed blocks timed.
+    capped_blocks : int
+        Blocks whose F was reduced so that no axis exceeds its velocity limit (or, in
+        inverse time, so that F stays within the control's range).
+    worst_cl_line : int or None
+        CL line of the block reduced most.
+    worst_share : float or None
+        The share of the CL tip feed that block keeps (0.25: a quarter).
+    capped_by : dict of str to int
+        Blocks capped per axis (or "F range").
+    """
+
+    mode: str
+    feed_blocks: int = 0
+    capped_blocks: int = 0
+    worst_cl_line: int | None = None
+    worst_share: float | None = None
+    capped_by: dict[str, int] = field(default_factory=dict)
+
+    def joined(self, other: FeedFigures) -> FeedFigures:
+        """These figures and those of the next piece, added up."""
+        worst = self
+        if other.worst_share is not None and (
+            self.worst_share is None or other.worst_share < self.worst_share
+        ):
+            worst = other
+        by = dict(self.capped_by)
+        for name, count in other.capped_by.items():
+            by[name] = by.get(name, 0) + count
+        return FeedFigures(
+            mode=self.mode,
+            feed_blocks=self.feed_blocks + other.feed_blocks,
+            capped_blocks=self.capped_blocks + other.capped_blocks,
+            worst_cl_line=worst.worst_cl_line,
+            worst_share=worst.worst_share,
+            capped_by=dict(sorted(by.items())),
+        )
+
+    def warning(self, source: str) -> str | None:
+        """The warning of a post that reduced feeds (None when it reduced none)."""
+        if not self.capped_blocks or self.worst_share is None:
+            return None
+        axes = ", ".join(f"{n} {c}" for n, c in self.capped_by.items() if n != "F range")
+        why = [f"axis velocity limits: {axes}"] if axes else []
+        if "F range" in self.capped_by:
+            why.append(f"the control's largest inverse-time F: {self.capped_by['F range']}")
+        line = f" at CL line {self.worst_cl_line}" if self.worst_cl_line is not None else ""
+        return (
+            f"{source}: feed reduced on {self.capped_blocks} blocks ({'; '.join(why)}), "
+            f"worst{line} (to {100.0 * self.worst_share:.1f}% of programmed)"
+        )
+
+    def as_json(self) -> dict[str, Any]:
+        """Plain data for JSON (the worst share in percent)."""
+        out = asdict(self)
+        share = out.pop("worst_share")
+        out["worst_percent_of_programmed"] = None if share is None else 100.0 * share
+        return out
+
+
+@dataclass(frozen=True)
 class PieceFigures:
     """Counts a post gathers on the way from the plan to the program (one piece, or a whole
     job once the pieces are added up with :meth:`joined`).
@@ -110,6 +179,8 @@ class PieceFigures:
     strategy : StrategyFigures
     warnings : tuple of str
         The post's warnings (the readers' are the toolpath's).
+    feeds : FeedFigures or None
+        How the feeds were programmed (None: a post that did not time them).
     """
 
     branch_switches: int
@@ -119,6 +190,7 @@ class PieceFigures:
     pole_turns: int
     strategy: StrategyFigures
     warnings: tuple[str, ...] = ()
+    feeds: FeedFigures | None = None
 
     def joined(self, other: PieceFigures, offset: int) -> PieceFigures:
         """These figures and those of the piece after, added up.
@@ -142,6 +214,9 @@ class PieceFigures:
             pole_turns=self.pole_turns + other.pole_turns,
             strategy=replace(strategy, spans=s.spans + spans),
             warnings=self.warnings + tuple(w for w in other.warnings if w not in self.warnings),
+            feeds=other.feeds
+            if self.feeds is None
+            else (self.feeds if other.feeds is None else self.feeds.joined(other.feeds)),
         )
 
 
@@ -307,6 +382,10 @@ class Report:
                 "pole_turns": f.pole_turns,
                 "strategy": f.strategy.as_json(),
             }
+            if f.feeds is not None:
+                out["feeds"] = f.feeds.as_json()
+        if v.feeds is not None:
+            out["feed_check"] = asdict(v.feeds) | {"ok": v.feeds.ok}
         out["warnings"] = list(self.warnings)
         if f is not None:
             out["collisions"] = self.collisions.as_json(self.units)

@@ -462,6 +462,9 @@ def post_stream(
         strategy = figures.strategy
         if intents:
             strategy = replace(strategy, intended_path_check=merge_verifications(intents))
+        reduced = None if figures.feeds is None else figures.feeds.warning(last_piece.source)
+        if reduced is not None:
+            warnings += (reduced,)
         figures = replace(figures, strategy=strategy, warnings=warnings)
         report = Report(
             machine=machine.name,

@@ -352,6 +352,9 @@ def make_report(
     figures = posted.figures
     if intent is not None:
         figures = replace(figures, strategy=replace(figures.strategy, intended_path_check=intent))
+    reduced = None if figures.feeds is None else figures.feeds.warning(toolpath.source)
+    if reduced is not None:
+        figures = replace(figures, warnings=(*figures.warnings, reduced))
     return Report(
         machine=job.machine.name,
         controller=job.dialect.name,

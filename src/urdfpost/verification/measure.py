@@ -39,6 +39,7 @@ from urdfpost.machine import Machine
 from urdfpost.program import Program, WorkOffset, cycle_moves, expand_cycles, rewind_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
+from urdfpost.verification.feeds import FeedCheck, FeedRules, measure_feeds, tip_lengths
 from urdfpost.verification.holes import HOLES_NOTE, check_holes, without_holes
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
 
@@ -87,6 +88,10 @@ class Verification:
     rewind_moves : int
         Moves of rewinds, not compared with the CL path (:func:`rewind_note`; kept out of
         :meth:`as_dict` too).
+    feeds : FeedCheck or None
+        The tip feed of the feed blocks against the CL feed, and the axes' speeds against
+        their limits (:mod:`urdfpost.verification.feeds`); None where not measured. Part of
+        :attr:`ok`.
     """
 
     ok: bool
@@ -105,6 +110,7 @@ class Verification:
     notes: list[str] = field(default_factory=list)
     compared: int = 0
     rewind_moves: int = 0
+    feeds: FeedCheck | None = None
 
     def as_dict(self) -> dict:
         """Plain data for JSON reports."""
@@ -118,7 +124,7 @@ class Verification:
         fmt = ".5f" if units == "inch" else ".4f"
         steps = ", ".join(f"{k} {v:.3f}" for k, v in self.max_rotary_step_deg.items())
         verdict = "within tolerance" if self.ok else "BEYOND TOLERANCE"
-        return (
+        text = (
             f"verification {verdict}: {self.reached}/{self.cl_points} CL points reached, "
             f"{self.blocks} blocks; tool tip deviation max {self.max_tip_deviation / scale:{fmt}} "
             f"mean {self.mean_tip_deviation / scale:{fmt}} {units} (tolerance "
@@ -127,6 +133,7 @@ class Verification:
             f"{self.orientation_tolerance_deg:.3f}); largest rotary step {steps or 'none'} deg"
             + "".join(f"; {note}" for note in self.notes if HOLES_NOTE in note)
         )
+        return text if self.feeds is None else f"{text}; {self.feeds.summary()}"
 
 
 def rewind_note(moves: int) -> str:
@@ -577,6 +584,7 @@ def verify(
     tool_length: float | None = None,
     tol: Tolerances | None = None,
     pivot: float = 0.0,
+    feed_rules: FeedRules | None = None,
 ) -> Verification:
     """Run a program through the machine and compare it with the CL data.
 
@@ -594,13 +602,18 @@ def verify(
         Measure the point this far up the tool axis from the tip instead of the tip, on both
         sides (the ball centre of a ball-end tool, about which a strategy that bends the tool
         axis pivots). 0 measures the tip.
+    feed_rules : FeedRules, optional
+        How the program's control times its blocks: the tip feed of every feed block is
+        measured against the CL feed (:attr:`Verification.feeds`). None: not measured.
 
     Returns
     -------
     Verification
     """
     tol = tol or Tolerances.for_units(program.units)
-    (check,) = verify_checks(program, machine, [Check(toolpath, tol, pivot)], tool_length)
+    (check,) = verify_checks(
+        program, machine, [Check(toolpath, tol, pivot)], tool_length, feed_rules
+    )
     return check
 
 
@@ -609,6 +622,7 @@ def verify_checks(
     machine: Machine,
     checks: list[Check],
     tool_length: float | None = None,
+    feed_rules: FeedRules | None = None,
 ) -> list[Verification]:
     """:func:`verify` of one program against several CL paths, tolerances or pivots.
 
@@ -622,6 +636,8 @@ def verify_checks(
     checks : list of Check
     tool_length : float, optional, mm
         As :func:`verify`.
+    feed_rules : FeedRules, optional
+        As :func:`verify`: the tip feed is measured against each check's CL feed.
 
     Returns
     -------
@@ -681,12 +697,14 @@ def verify_checks(
         return [
             _with_holes(v, h, program.units)
             for v, h in zip(
-                _verify_rows(program, machine, checks, tool_length, values, rapid, notes),
+                _verify_rows(
+                    program, machine, checks, tool_length, values, rapid, notes, feed_rules
+                ),
                 holes,
                 strict=True,
             )
         ]
-    return _verify_rows(program, machine, checks, tool_length, values, rapid, notes)
+    return _verify_rows(program, machine, checks, tool_length, values, rapid, notes, feed_rules)
 
 
 def _with_holes(verification: Verification, holes, units: str) -> Verification:
@@ -714,12 +732,14 @@ def _verify_rows(
     values: np.ndarray,
     rapid: np.ndarray,
     notes: list[str],
+    rules: FeedRules | None = None,
 ) -> list[Verification]:
-    """:func:`verify_checks` of the program's rows (``values``, ``rapid`` as compared)."""
+    """:func:`verify_checks` of the program's rows (``values``, ``rapid`` as compared;
+    ``rules``: the tip feed measured, as :func:`verify_checks` says)."""
     rewind = rewind_moves(program)
     if len(values) == 0 or not all(len(c.toolpath) for c in checks):
         if len(values) and len(checks) > 1:  # compare those with CL points on their own
-            return [verify_checks(program, machine, [c], tool_length)[0] for c in checks]
+            return [verify_checks(program, machine, [c], tool_length, rules)[0] for c in checks]
         return [_nothing_to_compare(program, values, c) for c in checks]
     rows = row_poses_at_tip(machine, values, program.tcp, tool_length)
     steps: dict[str, float] = {}
@@ -748,13 +768,39 @@ def _verify_rows(
     deviations = _block_deviation(
         feeds, [part.levels(c.tol) for c, part in zip(checks, parts, strict=True)]
     )
-    return [
+    out = [
         replace(
             part.verification(program, c, deviation, blocks, steps, notes),
             rewind_moves=int(rewind.sum()),
         )
         for c, part, deviation in zip(checks, parts, deviations, strict=True)
     ]
+    if rules is None:
+        return out
+    q0, q1 = values[blocks - 1], values[blocks]
+    tip = tip_lengths(machine, q0, q1, program.tcp, tool_length)
+    feed = program.move_table().feed[blocks]
+    measured = []
+    for v, c, part in zip(out, checks, parts, strict=True):
+        compared = np.ones(len(blocks), dtype=bool) if part.valid is None else part.valid
+        cl_feed = np.where(compared, c.toolpath.feed[part.jb], np.nan)
+        check = measure_feeds(
+            machine,
+            program.feed_mode,
+            program.tcp,
+            program.units,
+            q0,
+            q1,
+            feed,
+            cl_feed,
+            c.toolpath.line[part.jb],
+            rules,
+            c.tol.feed_share,
+            tool_length,
+            tip=tip,
+        )
+        measured.append(replace(v, feeds=check, ok=v.ok and check.ok))
+    return measured
 
 
 def _nothing_to_compare(program: Program, values: np.ndarray, check: Check) -> Verification:
