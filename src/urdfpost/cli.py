@@ -877,7 +877,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from urdfpost.verification.feeds import FeedRules
 
     # how the control times the blocks (the largest inverse-time F counts in G93 only)
-    feed_rules = FeedRules(dialect.spec.axis_feed_rule, dialect.spec.inverse_time_max)
+    feed_rules = FeedRules.of(dialect.spec, program.units)
 
     def expected(cl: Any, state: Any = None) -> tuple[Any, Any]:
         cl, state, _ = checked_process(

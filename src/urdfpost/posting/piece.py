@@ -482,7 +482,7 @@ def post_piece(
         angle_tolerance_deg=job.angle_tolerance_deg,
         tool_length=tool_length,
         # (the largest inverse-time F counts in inverse time only)
-        feed_rules=FeedRules(spec.axis_feed_rule, spec.inverse_time_max),
+        feed_rules=FeedRules.of(spec, job.units),
     )
     # the moves as the program makes them: a canned cycle's holes drilled, not its CL points
     moved, moved_lines = (

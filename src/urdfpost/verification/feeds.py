@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from urdfpost.dialects.spec import DialectSpec
 from urdfpost.geometry import chunks
 from urdfpost.kinematics.forward import tip_and_axis_along
 from urdfpost.kinematics.inverse import solve_linear
@@ -68,10 +69,29 @@ class FeedRules:
         :attr:`~urdfpost.dialects.spec.DialectSpec.axis_feed_rule`.
     inverse_time_max : float or None
         Largest inverse-time F, 1/min (None: no limit).
+    feed_step : float, mm/min
+        One unit of the last decimal of a written feed per minute (0: not known): a block
+        slowed to an axis limit has its F rounded down by less than that.
+    inverse_step : float, 1/min
+        The same of a written inverse-time F.
     """
 
     axis_feed_rule: str = "combined"
     inverse_time_max: float | None = None
+    feed_step: float = 0.0
+    inverse_step: float = 0.0
+
+    @classmethod
+    def of(cls, spec: DialectSpec, units: str) -> FeedRules:
+        """The rules of a control's programs in ``units`` ("mm" or "inch")."""
+        inch = units == "inch"
+        per_minute = spec.feed_inch if inch else spec.feed_mm
+        return cls(
+            spec.axis_feed_rule,
+            spec.inverse_time_max,
+            per_minute.resolution * (spec.feed_inch_unit if inch else 1.0),
+            spec.inverse_time_feed.resolution,
+        )
 
 
 def machine_joints(
@@ -402,7 +422,11 @@ def measure_feeds(
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = tip / time / cl_feed
     slack = 1.0 + tolerance_share
-    at_limit = compared & (ratio < 1.0) & (time <= limit * slack)
+    # at a limit: within the slack of it, or the next F the program could write would be
+    # over it (a slow block's F rounded down to its last decimal)
+    step = rules.inverse_step if feed_mode == FEED_INVERSE_TIME else rules.feed_step
+    faster = block_times(feed + step, feed_mode, tcp, tip, axis_len, units) if step else time
+    at_limit = compared & (ratio < 1.0) & ((time <= limit * slack) | (faster < limit))
     free = compared & ~at_limit
     deviation = np.where(free, np.abs(ratio - 1.0), 0.0)
     fields |= {"compared": int(compared.sum()), "in_place": int(in_place.sum())}
