@@ -36,10 +36,12 @@ G_CODES = MappingProxyType(
     {
         "0": "rapid",
         "1": "linear",
+        "2": "arc_cw",
+        "3": "arc_ccw",
         "4": "dwell",
-        "17": "noop",
-        "18": "noop",
-        "19": "noop",
+        "17": "plane_xy",
+        "18": "plane_zx",
+        "19": "plane_yz",
         "21": "mm",
         "20": "inch",
         "28": "home",
@@ -95,4 +97,6 @@ SPEC = DialectSpec(
     require_point=True,
     block_max=99999,
     motion_layout=MotionLayout(),
+    arc_planes=frozenset({"XY", "ZX", "YZ"}),
+    arc_helix=True,
 )

@@ -35,6 +35,7 @@ from types import MappingProxyType
 from urdfpost.dialects.reader import BEFORE_MOTION_M, ProgramBuilder, apply_m_action
 from urdfpost.dialects.spec import (
     STANDARD_M_CODES,
+    ArcWords,
     DialectSpec,
     MotionLayout,
     MotionWords,
@@ -63,6 +64,20 @@ def format_motion(words: MotionWords) -> str:
     elif words.feed is not None:
         parts.append(f"F{words.feed}")
     return " ".join(parts)
+
+
+def format_arc(words: ArcWords) -> tuple[str, ...]:
+    """``CC X+1.000 Y+2.000`` (the centre, absolute) and ``C X+3.000 Y+2.000 DR+ F500``.
+
+    DR+ is the mathematically positive sense, counter-clockwise seen from the positive tool
+    axis (Z); the post writes arcs in the working plane only (``arc_planes``).
+    """
+    centre = " ".join(f"{address}{value}" for address, value in words.centre)
+    parts = ["C", *(f"{address}{value}" for address, value in words.axes)]
+    parts.append("DR-" if words.clockwise else "DR+")
+    if words.feed is not None:
+        parts.append(f"F{words.feed}")
+    return (f"CC {centre}", " ".join(parts))
 
 
 def parse_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
@@ -135,6 +150,10 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
         builder.set_tcp(True)
     elif words[0] == "L":
         _line(spec, builder, words[1:])
+    elif words[0] == "CC":
+        _circle_centre(builder, words[1:])
+    elif words[0] == "C":
+        _circle(spec, builder, words[1:])
     elif words[0] == "STOP":
         builder.stop(False)
         _m_only(spec, builder, words[1:])
@@ -142,8 +161,8 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
         _m_only(spec, builder, words)
     else:
         raise builder.error(
-            f"unknown block {code!r}; expected L, TOOL CALL, FUNCTION TCPM, FUNCTION RESET "
-            "TCPM, M.., STOP or a ; comment"
+            f"unknown block {code!r}; expected L, CC, C, TOOL CALL, FUNCTION TCPM, FUNCTION "
+            "RESET TCPM, M.., STOP or a ; comment"
         )
 
 
@@ -235,6 +254,68 @@ def _line(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
             apply_m_action(builder, action)
 
 
+def _circle_centre(builder: ProgramBuilder, words: list[str]) -> None:
+    """``CC X.. Y..``: the circle centre (modal, file units) in the working plane XY; no
+    motion."""
+    centre: dict[str, float] = {}
+    for word in words:
+        axis = _AXIS.match(word)
+        if axis is None or axis.group(2) not in "XY" or axis.group(1):
+            raise builder.error(f"unknown word {word!r} in CC; expected X.. Y.. (absolute)")
+        if axis.group(2) in centre:
+            raise builder.error(f"two {axis.group(2)} coordinates in one CC block")
+        centre[axis.group(2)] = builder.number(axis.group(2), axis.group(3))
+    if set(centre) != {"X", "Y"}:
+        raise builder.error("CC without both X and Y; expected CC X.. Y..")
+    builder.circle_centre = (centre["X"], centre["Y"])
+
+
+def _circle(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
+    """``C X.. Y.. DR+|DR- [R0] [F..] [M..]``: an arc about the last CC in the XY plane."""
+    centre = builder.circle_centre
+    if centre is None:
+        raise builder.error("C without a CC before it; expected CC X.. Y.. first")
+    values: dict[str, tuple[float, bool]] = {}
+    sense = None
+    m_words = []
+    for word in words:
+        axis = _AXIS.match(word)
+        if axis and axis.group(2) in "XY":
+            incremental, address, text = axis.groups()
+            if address in values:
+                raise builder.error(f"two {address} coordinates in one block")
+            values[address] = (builder.number(address, text), bool(incremental))
+        elif word in ("DR+", "DR-"):
+            sense = word
+        elif word.startswith("F") and word != "FMAX":
+            builder.set_feed(builder.number("F", word[1:]))
+        elif word == "R0":
+            continue
+        elif word.startswith("M"):
+            m_words.append(word)
+        else:
+            raise builder.error(
+                f"unknown word {word!r} in C block; expected X.. Y.. DR+ or DR-, F.., M.."
+            )
+    if sense is None:
+        raise builder.error("C without DR+ or DR-; expected the sense of rotation")
+    actions = _m_codes(spec, builder, m_words)
+    if "machine" in actions:
+        raise builder.error("M91/M92 in a C block; expected them in L blocks only")
+    for action in actions:
+        if action in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+    builder.arc_move(
+        values,
+        {"X": (centre[0], True), "Y": (centre[1], True)},
+        sense == "DR-",
+        plane="XY",
+    )
+    for action in actions:
+        if action not in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+
+
 M_CODES = MappingProxyType(
     {
         **{code: action for code, action in STANDARD_M_CODES.items() if code != 6},
@@ -294,4 +375,7 @@ SPEC = DialectSpec(
     format_motion=format_motion,
     motion_layout=MotionLayout(lead="L", rapid_word="FMAX"),
     parse_line=parse_line,
+    arc_planes=frozenset({"XY"}),
+    arc_centre_absolute=True,
+    format_arc=format_arc,
 )

@@ -52,10 +52,12 @@ G_CODES = MappingProxyType(
     {
         "0": "rapid",
         "1": "linear",
+        "2": "arc_cw",
+        "3": "arc_ccw",
         "4": "dwell",
-        "17": "noop",
-        "18": "noop",
-        "19": "noop",
+        "17": "plane_xy",
+        "18": "plane_zx",
+        "19": "plane_yz",
         "21": "mm",
         "20": "inch",
         "28": "home",
@@ -103,4 +105,6 @@ SPEC = DialectSpec(
     home=("G28 G91 Z0", "G28 X0 Y0", "G90"),
     block_max=99999,
     motion_layout=MotionLayout(),
+    arc_planes=frozenset({"XY", "ZX", "YZ"}),
+    arc_helix=True,
 )

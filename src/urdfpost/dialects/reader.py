@@ -44,6 +44,8 @@ from urdfpost.dialects import _bulk
 from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec
 from urdfpost.errors import ProgramParseError
 from urdfpost.program import (
+    ARC_PLANES,
+    Arc,
     Block,
     Blocks,
     Comment,
@@ -80,6 +82,17 @@ _G_HINTS = {
 class _ReadMove:
     rapid: bool
     position: dict[str, float]
+    feed: float | None
+
+
+@dataclass
+class _ReadArc:
+    """An arc read: its end (every axis known so far), centre (X, Y, Z, mm), plane, sense."""
+
+    position: dict[str, float]
+    centre: tuple[float, float, float]
+    plane: str
+    clockwise: bool
     feed: float | None
 
 
@@ -139,6 +152,9 @@ class ProgramBuilder:
         self.feed_scale = 1.0
         self.absolute = True
         self.motion: bool | None = None  # True rapid, False linear
+        self.arc: bool | None = None  # in arc mode: True clockwise (G2), False (G3)
+        self.plane = "XY"  # the arc plane (G17)
+        self.circle_centre: tuple[float, float] | None = None  # Heidenhain CC, file units
         self.feed: float | None = None
         self.position: dict[str, float] = {}
         self.axes_seen: set[str] = set()
@@ -157,7 +173,7 @@ class ProgramBuilder:
         self.finished = False  # the program end (M30, M2, END PGM) was read
         self.closed = not spec.program_close  # its closing line (Fanuc %, END PGM) too
         self.code_seen = False
-        self.items: list[Block | _ReadMove | _ReadMoves] = []
+        self.items: list[Block | _ReadMove | _ReadMoves | _ReadArc] = []
         # the text line of every move read, in order (the 3-D view shows each block's line)
         self.move_lines: list[int | np.ndarray] = []
 
@@ -177,7 +193,7 @@ class ProgramBuilder:
         """File units -> mm (linear axes) or degrees (rotary)."""
         return value if address in ROTARY_ADDRESSES else value * self.linear_scale
 
-    def _add(self, item: Block | _ReadMove | _ReadMoves) -> None:
+    def _add(self, item: Block | _ReadMove | _ReadMoves | _ReadArc) -> None:
         if self.finished and not isinstance(item, Comment):
             raise self.error("code after the program end; expected nothing but comments")
         self.items.append(item)
@@ -259,6 +275,57 @@ class ProgramBuilder:
                 self.cut_without_tcp = self.line
         self._add(_ReadMove(rapid, position, None if rapid else self.feed))
         self.move_lines.append(self.line)
+
+    def arc_move(
+        self,
+        values: dict[str, tuple[float, bool]],
+        centre: dict[str, tuple[float, bool]],
+        clockwise: bool,
+        plane: str | None = None,
+    ) -> None:
+        """An arc block from where the axes stand.
+
+        Parameters
+        ----------
+        values : dict
+            End: address -> (value in file units, incremental), as :meth:`move`.
+        centre : dict
+            Centre of the plane's two axes: axis letter -> (value in file units, absolute);
+            an axis not given is the start's (an I, J or K of 0).
+        clockwise : bool
+            G2 (clockwise seen from the positive end of the plane's normal).
+        plane : str, optional
+            The plane (default the modal one, :attr:`plane`).
+
+        Raises
+        ------
+        ProgramParseError
+            The start is not known, or the arc turns a rotary axis.
+        """
+        plane = plane or self.plane
+        first, second, normal = ARC_PLANES[plane]
+        unknown = [a for a in (first, second, normal) if math.isnan(self.position.get(a, math.nan))]
+        if unknown:
+            raise self.error(
+                f"arc from an unknown {unknown[0]} position; expected a move to the arc's start "
+                "first"
+            )
+        rotary = [a for a in values if a in ROTARY_ADDRESSES]
+        if rotary:
+            raise self.error(f"{rotary[0]} word in an arc block; expected only X, Y, Z")
+        start = dict(self.position)
+        centre_mm = [start.get(a, 0.0) for a in "XYZ"]
+        for address, (value, absolute) in centre.items():
+            k = "XYZ".index(address)
+            mm = self.to_internal(address, value)
+            centre_mm[k] = mm if absolute else start[address] + mm
+        self.move(values, False)  # the end, modal state and checks of a feed move
+        read = self.items.pop()
+        assert isinstance(read, _ReadMove)
+        self.move_lines.pop()
+        self.motion = None  # no linear mode: an axis word alone continues the arc
+        x, y, z = centre_mm
+        self._add(_ReadArc(read.position, (x, y, z), plane, clockwise, read.feed))
 
     def moves(self, lines: _bulk.MotionLines, rows: slice, first_line: int) -> bool:
         """Plain motion blocks, read at once: as :meth:`move` (and the feed and motion code of
@@ -443,6 +510,18 @@ class ProgramBuilder:
                 run.clear()
 
         for item in self.items:
+            if isinstance(item, _ReadArc):
+                end_run()
+                parts.append(
+                    Arc(
+                        position=tuple(item.position.get(a, math.nan) for a in axes),
+                        centre=item.centre,
+                        plane=item.plane,
+                        clockwise=item.clockwise,
+                        feed=item.feed,
+                    )
+                )
+                continue
             if isinstance(item, _ReadMove):
                 singles.append(item)
             elif isinstance(item, _ReadMoves):
@@ -727,6 +806,10 @@ def _check_words(builder: ProgramBuilder, block: _Block, actions: set[str]) -> N
         allowed |= {"P", "U"}
     if "blend" in actions:
         allowed |= {"P", "Q"}
+    if actions & {"arc_cw", "arc_ccw"} or (
+        builder.arc is not None and not actions & {"rapid", "linear"}
+    ):
+        allowed |= {"I", "J", "K"}
     for address in block.words:
         if address not in allowed:
             raise builder.error(
@@ -742,6 +825,12 @@ def _apply_modes(builder: ProgramBuilder, block: _Block) -> None:
     for code, action in block.g_actions:
         if action in ("rapid", "linear"):
             builder.motion = action == "rapid"
+            builder.arc = None
+        elif action in ("arc_cw", "arc_ccw"):
+            builder.arc = action == "arc_cw"
+            builder.motion = None
+        elif action in ("plane_xy", "plane_zx", "plane_yz"):
+            builder.plane = action.removeprefix("plane_").upper()
         elif action in ("mm", "inch"):
             builder.set_units(action)
         elif action in ("mm_geometry", "inch_geometry"):
@@ -766,6 +855,10 @@ def _motion(spec: DialectSpec, builder: ProgramBuilder, block: _Block, actions: 
         if axes or "home" in actions:
             builder.home(named)
         return
+    centre_words = {a: w for a, w in block.words.items() if a in "IJK"}
+    if builder.arc is not None and (axes or centre_words):
+        _arc(spec, builder, axes, centre_words)
+        return
     if not axes:
         return
     values = {}
@@ -773,6 +866,29 @@ def _motion(spec: DialectSpec, builder: ProgramBuilder, block: _Block, actions: 
         if address in axes:
             values[address] = _axis_value(spec, builder, axes[address])
     builder.move(values, builder.motion)
+
+
+def _arc(
+    spec: DialectSpec, builder: ProgramBuilder, axes: dict[str, _Word], centre: dict[str, _Word]
+) -> None:
+    """A G2/G3 block: end words and I J K (incremental from the start unless ``=AC(..)``)."""
+    assert builder.arc is not None
+    first, second, _ = ARC_PLANES[builder.plane]
+    letters = {"I": "X", "J": "Y", "K": "Z"}
+    stray = [w for w in centre if letters[w] not in (first, second)]
+    if stray:
+        raise builder.error(
+            f"{stray[0]} word in a {builder.plane} arc; expected the centre words of "
+            f"{first} and {second}"
+        )
+    values = {a: _axis_value(spec, builder, axes[a]) for a in AXIS_ORDER if a in axes}
+    given = {}
+    for letter, word in centre.items():
+        if word.mode not in (None, "AC", "IC"):
+            raise builder.error(f"{letter}={word.mode}(...): expected {letter}=AC(...) or IC(...)")
+        value = builder.number(letter, word.text)
+        given[letters[letter]] = (value, word.mode == "AC")
+    builder.arc_move(values, given, builder.arc)
 
 
 def _check_axis_number(spec: DialectSpec, builder: ProgramBuilder, word: _Word) -> float:

@@ -33,10 +33,12 @@ G_CODES = MappingProxyType(
     {
         "0": "rapid",
         "1": "linear",
+        "2": "arc_cw",
+        "3": "arc_ccw",
         "4": "dwell",
-        "17": "noop",
-        "18": "noop",
-        "19": "noop",
+        "17": "plane_xy",
+        "18": "plane_zx",
+        "19": "plane_yz",
         "40": "noop",
         "710": "mm",
         "700": "inch",
@@ -85,4 +87,7 @@ SPEC = DialectSpec(
     machine_move="SUPA G0 {words}",
     work_offsets=4,
     motion_layout=MotionLayout(),
+    arc_planes=frozenset({"XY", "ZX", "YZ"}),
+    arc_helix=True,
+    arc_centre_suffix="=",
 )

@@ -175,6 +175,57 @@ class MotionLayout:
     rapid_word: str | None = None
 
 
+@dataclass(frozen=True)
+class ArcWords:
+    """One arc block, formatted, handed to :attr:`DialectSpec.format_arc`.
+
+    Attributes
+    ----------
+    plane : str
+        "XY", "ZX" or "YZ" (:data:`urdfpost.program.ARC_PLANES`).
+    plane_code : str or None
+        The plane's code to write before the arc (``"G17"``) when the plane changes; None.
+    clockwise : bool
+        Clockwise seen from the positive end of the plane's normal (G2).
+    axes : tuple of (str, str)
+        Address and formatted value of each axis of the end point to write.
+    centre : tuple of (str, str)
+        Address and formatted value of the centre: ``I``/``J``/``K`` incremental from the
+        start for the plane's two axes (G-code), or the plane's axis letters and absolute
+        values (:attr:`DialectSpec.arc_centre_absolute`, Heidenhain ``CC``).
+    feed : str or None
+        Formatted feed to write, or None to keep the modal feed.
+    """
+
+    plane: str
+    plane_code: str | None
+    clockwise: bool
+    axes: tuple[tuple[str, str], ...]
+    centre: tuple[tuple[str, str], ...]
+    feed: str | None
+
+
+def format_gcode_arc(words: ArcWords) -> tuple[str, ...]:
+    """Word-address arc block: ``G17 G2 X1.000 Y2.000 I0.500 J0.000 F500``.
+
+    Parameters
+    ----------
+    words : ArcWords
+
+    Returns
+    -------
+    tuple of str
+        The block (one line), without block number.
+    """
+    parts = [words.plane_code] if words.plane_code else []
+    parts.append("G2" if words.clockwise else "G3")
+    parts += [f"{address}{value}" for address, value in words.axes]
+    parts += [f"{address}{value}" for address, value in words.centre]
+    if words.feed is not None:
+        parts.append(f"F{words.feed}")
+    return (" ".join(parts),)
+
+
 def format_gcode_motion(words: MotionWords) -> str:
     """Word-address motion block: ``G1 X1.000 Y2.000 F500``.
 
@@ -324,6 +375,20 @@ class DialectSpec:
         None writes every block through ``format_motion``.
     parse_line : callable or None
         Reader hook for non-G-code syntax; None uses the shared word-address parser.
+    arc_planes : frozenset of str
+        The planes ("XY", "ZX", "YZ") the control takes :class:`~urdfpost.program.Arc` blocks
+        in (empty: none; the post writes arcs as lines).
+    arc_tcp : bool
+        Arcs with TCP on (in the workpiece frame, the rotary axes standing still).
+    arc_helix : bool
+        Arcs whose normal axis moves (helices).
+    arc_centre_absolute : bool
+        The centre is written absolute in the plane's axis letters (Heidenhain ``CC X Y``);
+        else incremental from the start as ``I J K``.
+    arc_centre_suffix : str
+        Written between a centre address and its value (Siemens ``I=0.5``: ``"="``).
+    format_arc : callable or None
+        Arc block formatter (:class:`ArcWords` to the lines of the block).
     """
 
     name: str
@@ -387,6 +452,12 @@ class DialectSpec:
     format_motion: Callable[[MotionWords], str] = format_gcode_motion
     motion_layout: MotionLayout | None = None
     parse_line: LineParser | None = None
+    arc_planes: frozenset[str] = frozenset()
+    arc_tcp: bool = True
+    arc_helix: bool = False
+    arc_centre_absolute: bool = False
+    arc_centre_suffix: str = ""
+    format_arc: Callable[[ArcWords], tuple[str, ...]] = format_gcode_arc
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

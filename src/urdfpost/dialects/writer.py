@@ -27,12 +27,15 @@ from urdfpost.dialects import _bulk
 from urdfpost.dialects.spec import (
     AXIS_ORDER,
     ROTARY_ADDRESSES,
+    ArcWords,
     DialectSpec,
     MotionWords,
     NumberFormat,
 )
 from urdfpost.errors import DialectError
 from urdfpost.program import (
+    ARC_PLANES,
+    Arc,
     Block,
     Comment,
     Coolant,
@@ -80,6 +83,7 @@ class _Modal:
     rpm: str | None = None
     spindle: str = "off"
     force: bool = True
+    plane: str | None = None  # the arc plane last written
 
     def invalidate(self) -> None:
         """Forget axes, motion code and feed: the next motion block writes them all."""
@@ -318,6 +322,8 @@ class ProgramWriter:
                 self.modal.invalidate()
             case MachineMove():
                 self.write_machine_move(block)
+            case Arc():
+                self.write_arc(block)
             case WorkOffset():
                 count = self.spec.work_offsets
                 if not 1 <= block.number <= count:
@@ -369,6 +375,74 @@ class ProgramWriter:
         modal.force = False
         words = MotionWords(move.rapid, code, tuple(changed), feed)
         self.emit(self.spec.format_motion(words))
+
+    def write_arc(self, arc: Arc) -> None:
+        """Write an arc block from where the axes stand (their last written values).
+
+        The plane's two axes are always written, the other axes when their text changes; the
+        centre incremental from the start as written (I, J, K), or absolute
+        (:attr:`DialectSpec.arc_centre_absolute`). The next linear block writes its motion
+        code again.
+
+        Raises
+        ------
+        DialectError
+            The control takes no arcs in the plane, the start is not known (no motion block
+            before, or after a home return), a rotary axis would move, or the arc climbs on a
+            control without helices.
+        """
+        spec, modal, axes = self.spec, self.modal, self.program.axes
+        if arc.plane not in spec.arc_planes:
+            raise DialectError(f"{spec.name} takes no arcs in the {arc.plane} plane: {arc}")
+        if len(arc.position) != len(axes):
+            raise DialectError(f"arc {arc} has {len(arc.position)} values for axes {axes}")
+        first, second, normal = ARC_PLANES[arc.plane]
+        if modal.force or any(modal.axes.get(a) is None for a in (first, second, normal)):
+            raise DialectError(
+                f"arc {arc}: expected a motion block before it (the arc starts where the axes "
+                "stand)"
+            )
+        texts = {a: self.format_axis(a, v) for a, v in zip(axes, arc.position, strict=True)}
+        moved = [a for a in axes if a in ROTARY_ADDRESSES and texts[a] != modal.axes.get(a)]
+        if moved:
+            raise DialectError(f"arc {arc}: rotary axis {moved[0]} moves on an arc")
+        if texts[normal] != modal.axes[normal] and not spec.arc_helix:
+            raise DialectError(f"{spec.name} takes no helix: {arc}")
+        words = [(a, texts[a]) for a in axes if a in (first, second)]
+        words += [(a, t) for a, t in texts.items() if a not in (first, second) and t != modal.axes.get(a)]
+        centre = dict(zip("XYZ", arc.centre, strict=True))
+        if spec.arc_centre_absolute:
+            centre_words = tuple((a, self.format_axis(a, centre[a])) for a in (first, second))
+        else:
+            letters = {"X": "I", "Y": "J", "Z": "K"}
+            start = {a: float(modal.axes[a]) for a in (first, second)}
+            order = sorted((first, second))  # I J K in that order
+            centre_words = tuple(
+                (
+                    letters[a] + spec.arc_centre_suffix,
+                    self.linear.format(centre[a] / self.scale - start[a]),
+                )
+                for a in order
+            )
+        feed = None
+        if arc.feed is not None:
+            text = self.feed_format.format(arc.feed / self.feed_scale)
+            if float(text) <= 0.0:
+                raise DialectError(f"feed {arc.feed} mm/min is written as F{text}")
+            if text != modal.feed:
+                feed = modal.feed = text
+        plane_code = None
+        if arc.plane != modal.plane:
+            action = {"XY": "plane_xy", "ZX": "plane_zx", "YZ": "plane_yz"}[arc.plane]
+            plane_code = spec.g_code_for(action) if action in spec.g_codes.values() else None
+            modal.plane = arc.plane
+        lines = spec.format_arc(
+            ArcWords(arc.plane, plane_code, arc.clockwise, tuple(words), centre_words, feed)
+        )
+        for line in lines:
+            self.emit(line)
+        modal.axes.update(texts)
+        modal.motion = None  # the next linear block writes G1 (L on Heidenhain anyway)
 
     def write_moves(self, moves: Sequence[Move] | MoveTable) -> None:
         """Write consecutive motion blocks: as :meth:`write_move` on each, many at a time.

@@ -10,7 +10,7 @@ the blocks.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +20,7 @@ from urdfpost.planning.rewinds import LIFT, RETURN, TURN
 from urdfpost.posting.transitions import Transitions
 from urdfpost.program import (
     REWIND_END,
+    Arc,
     Block,
     Comment,
     Coolant,
@@ -99,6 +100,23 @@ def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]
         text = " ".join(f"{k}={v}" for k, v in data.items())
         out.append(Comment(f"{kind} {text}".strip()))
     return out
+
+
+@dataclass(frozen=True)
+class ArcSpan:
+    """Rows of a program's move table that one :class:`Arc` block replaces.
+
+    Attributes
+    ----------
+    first, last : int
+        The first row replaced and the last (the one reaching the arc's end point),
+        inclusive.
+    block : Arc
+    """
+
+    first: int
+    last: int
+    block: Arc
 
 
 @dataclass(frozen=True)
@@ -192,6 +210,7 @@ def program_body(
     transitions: Transitions | None = None,
     work_offset: int | None = None,
     coolant: str | None = None,
+    arcs: Sequence[ArcSpan] = (),
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -226,6 +245,10 @@ def program_body(
     coolant : str, optional
         The coolant on before the body (a streamed piece): a tool change stops it and, unless
         the CL data sets the coolant there, starts it again.
+    arcs : sequence of ArcSpan
+        Rows written as :class:`~urdfpost.program.Arc` blocks instead (in row order; none
+        holds a row before which a block other than moves comes,
+        :func:`urdfpost.posting.arcs.arc_spans`).
 
     Returns
     -------
@@ -244,6 +267,18 @@ def program_body(
     if count:
         starts = np.union1d(starts, [0])
     body: list[Block | MoveTable] = []
+    spans = list(arcs)
+
+    def rows_of(a: int, b: int) -> list[Block | MoveTable]:
+        """Rows ``a`` to ``b - 1`` as table rows, and the arcs among them."""
+        out: list[Block | MoveTable] = []
+        while spans and spans[0].first < b:
+            span = spans.pop(0)
+            assert a <= span.first and span.last < b, "an arc across a block between rows"
+            out += [table.rows(a, span.first), span.block]
+            a = span.last + 1
+        return [*out, table.rows(a, b)]
+
     tcp_state = [tcp_on]
     by_row: dict[int, list[Event]] = {}
     for event, row in zip(events, at.tolist(), strict=True):
@@ -285,13 +320,13 @@ def program_body(
         after_return = k > 0 and kind[k - 1] == RETURN
         if before or after_return:
             if k > done:
-                body.append(table.rows(done, k))
+                body += rows_of(done, k)
                 done = k
             if after_return:
                 body.append(Comment(REWIND_END))
             body += before
     if count > done:
-        body.append(table.rows(done, count))
+        body += rows_of(done, count)
     if count and kind[count - 1] == RETURN:
         body.append(Comment(REWIND_END))
     for event in by_row.get(count, []):

@@ -83,6 +83,10 @@ class PostOptions:
     spindle : float or None
         Spindle speed (rpm, clockwise) for cutting with the spindle off (reported as a
         warning); None: such a move is an error.
+    arcs : bool
+        Write the CL data's arcs (CIRCLE records) as arcs (G2/G3, Heidenhain C) where the
+        control, the tool axis and the plane allow it (:mod:`urdfpost.posting.arcs`); False
+        writes them as lines, as interpolated.
     """
 
     controller: str | None = None
@@ -108,6 +112,7 @@ class PostOptions:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    arcs: bool = True
 
 
 @dataclass(frozen=True)
@@ -156,6 +161,8 @@ class Job:
         mm/min.
     spindle : float or None
         rpm.
+    arcs : bool
+        Write arcs as arcs (:attr:`PostOptions.arcs`).
     """
 
     machine: Machine
@@ -181,6 +188,7 @@ class Job:
     work_offset: int = 1
     feed: float | None = None
     spindle: float | None = None
+    arcs: bool = True
 
 
 def strategy_name(machine: Machine, name: str | None = None) -> str:
@@ -292,4 +300,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         work_offset=options.work_offset,
         feed=mm(options.feed),
         spindle=options.spindle,
+        arcs=options.arcs,
     )

@@ -31,6 +31,7 @@ from urdfpost.planning.strategies import (
     midpoint_solver,
     realise,
 )
+from urdfpost.posting.arcs import arc_spans
 from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget
 from urdfpost.posting.options import Job
@@ -387,6 +388,20 @@ def post_piece(
         spans=tuple(plan.spans),
     )
     events = sorted(tool_events + toolpath.events, key=lambda e: e.index)
+    arc_events = [e for e in events if e.kind == "arc"]
+    events = [e for e in events if e.kind != "arc"]
+    arcs = arc_spans(
+        toolpath,
+        arc_events,
+        machine,
+        rows,
+        tcp=job.tcp,
+        tool_length=tool_length,
+        tol=tol,
+        spec=job.dialect.spec if job.arcs else None,
+        events=events,
+    )
+    warnings += [f"{toolpath.source}: {note}" for note in arcs.notes]
     transitions = Transitions(machine, job.tcp, tool_length, job.clearance)
     body = program_body(
         toolpath,
@@ -401,6 +416,7 @@ def post_piece(
         close=piece is None or piece.last,
         transitions=transitions,
         work_offset=None if continued else job.work_offset,
+        arcs=arcs.spans,
     )
     program = Program(
         name=program_name(toolpath, job.program_name),
@@ -420,6 +436,8 @@ def post_piece(
         pole_turns=pole_turns,
         strategy=strategy,
         warnings=tuple(warnings),
+        arcs=arcs.arcs,
+        arcs_linear=arcs.linear,
     )
     intended = reference if reference is not plan.toolpath or plan.bent else None
     target = CheckTarget(

@@ -109,6 +109,10 @@ class PieceFigures:
     strategy : StrategyFigures
     warnings : tuple of str
         The post's warnings (the readers' are the toolpath's).
+    arcs : int
+        CL arcs written as arcs (:mod:`urdfpost.posting.arcs`).
+    arcs_linear : int
+        CL arcs written as lines (a warning says why).
     """
 
     branch_switches: int
@@ -118,6 +122,8 @@ class PieceFigures:
     pole_turns: int
     strategy: StrategyFigures
     warnings: tuple[str, ...] = ()
+    arcs: int = 0
+    arcs_linear: int = 0
 
     def joined(self, other: PieceFigures, offset: int) -> PieceFigures:
         """These figures and those of the piece after, added up.
@@ -141,6 +147,8 @@ class PieceFigures:
             pole_turns=self.pole_turns + other.pole_turns,
             strategy=replace(strategy, spans=s.spans + spans),
             warnings=self.warnings + tuple(w for w in other.warnings if w not in self.warnings),
+            arcs=self.arcs + other.arcs,
+            arcs_linear=self.arcs_linear + other.arcs_linear,
         )
 
 
@@ -300,6 +308,8 @@ class Report:
                 "rewinds": [r.as_json() for r in f.rewinds],
                 "pole_turns": f.pole_turns,
                 "strategy": f.strategy.as_json(),
+                "arcs": f.arcs,
+                "arcs_linear": f.arcs_linear,
             }
         out["warnings"] = list(self.warnings)
         if f is not None:

@@ -64,6 +64,16 @@ Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
   the points after it are transformed into MCS 0), ``text`` (the same in words, lengths in
   the file's units: "MCS 0 origin 3 3 0 inch, x-axis 1 0 0, z-axis 0 0 1"; the post writes
   it as a comment)
+- ``"arc"``: a CIRCLE and the GOTO after it, before the points interpolated on it:
+  ``centre`` (mm, a point of the circle axis), ``normal`` (unit: the arc turns
+  counter-clockwise about it, the sense rules below applied), ``radius`` (mm), ``points``
+  (how many points were interpolated: the event's index is the first, the point before it
+  the arc's start, the last the GOTO's point), ``sweep`` (rad, the angle turned, ``TIMES``
+  turns included). The points are the path; the event lets a post write the arc as one
+  (G2/G3).
+- ``"cutcom"``: ``CUTCOM/LEFT|RIGHT|OFF``: ``side`` ("left", "right", "off"), and when
+  given ``register`` (int, the offset register of ``CUTCOM/LEFT,n`` or ``CUTCOM/LEFT,
+  ...,n``) and ``plane`` ("XY", "ZX", "YZ" from ``XYPLAN``, ``ZXPLAN``, ``YZPLAN``)
 - ``"unknown"``: ``text`` (the record as written; a warning is added too)
 
 Text carried into the program as a comment (``comment``, ``partno`` and ``unknown`` texts, an
@@ -1326,6 +1336,16 @@ class _AptInterpreter:
             np.asarray(end, dtype=float),
             arc.end_tangent,
             self._incoming_cosine(arc.start_tangent),
+        )
+        # the arc itself, for a post that writes it as an arc (its points follow the event)
+        self.builder.add_event(
+            "arc",
+            circle.line,
+            centre=circle.centre,
+            normal=circle.rotation_axis,
+            radius=circle.radius,
+            points=int(arc.points.shape[0]),
+            sweep=arc.sweep,
         )
         self.builder.add_points(
             arc.points, axis_before, self._current_feed(), Motion.FEED, circle.line
