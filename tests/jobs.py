@@ -49,3 +49,40 @@ FINI
 
 #: :func:`two_tools` at its default feed.
 TWO_TOOLS = two_tools()
+
+
+def arc_job() -> str:
+    """A planar arc job (mm, fixed vertical tool): two quarter circles of radius 20 about the
+    origin (counter-clockwise), a straight line, a quarter circle of radius 10 clockwise
+    (normal -Z), a half circle of radius 10 in the ZX plane (normal -Y, down a wall), a
+    straight line and a helical quarter circle (down 2 mm), each continued tangentially by
+    the moves around it."""
+    return """\
+PARTNO ARC JOB
+UNITS/MM
+LOADTL/3
+SPINDL/8000,CLW
+RAPID
+GOTO/20,0,10
+FEDRAT/MMPM,600
+GOTO/20,0,-1
+CIRCLE/0,0,-1,0,0,1,20
+GOTO/0,20,-1
+CIRCLE/0,0,-1,0,0,1,20
+GOTO/-20,0,-1
+GOTO/-20,-10,-1
+CIRCLE/-10,-10,-1,0,0,1,10
+GOTO/-10,-20,-1
+FEDRAT/MMPM,400
+GOTO/0,-20,-1
+CIRCLE/0,-30,-1,0,0,-1,10
+GOTO/10,-30,-1
+CIRCLE/20,-30,-1,0,-1,0,10
+GOTO/30,-30,-1
+GOTO/30,-20,-1
+CIRCLE/20,-20,-1,0,0,1,10
+GOTO/20,-10,-3
+RAPID
+GOTO/20,-10,10
+FINI
+"""

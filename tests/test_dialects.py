@@ -668,7 +668,7 @@ def test_control_discovery_errors(
         ("siemens", "G0 X1\nG1 X2 ZZ=5\n", 2, r"unexpected ZZ="),
         ("heidenhain", "0 BEGIN PGM P MM\n1 L X+1 Q5 FMAX\n", 2, r"unknown word 'Q5' in L block"),
         ("fanuc", "G0 X10\n", 1, r"X10 has no decimal point.*expected X10\."),
-        ("fanuc", "G0 X1.\nG2 X2. Y1. R1.\n", 2, r"G2: circular interpolation is not supported"),
+        ("fanuc", "G0 X1.\nG2 X2. Y1. R1.\n", 2, r"unknown word R1\.; expected A B C F I J K"),
         ("linuxcnc", "g41 d1\n", 1, r"G41: cutter radius compensation"),
         ("fanuc", "M50\n", 1, r"unknown M-code M50; this reader understands M0 M1"),
         ("fanuc", "X1.\n", 1, r"axis words before any motion mode; expected G0 or G1"),

@@ -1,0 +1,284 @@
+"""Arcs: CIRCLE records written as G2/G3 (Heidenhain CC + C), read back and verified (issue 19).
+
+The planar arc job of ``tests/jobs.py`` (:func:`jobs.arc_job`: arcs in the XY plane both ways,
+a half circle in the ZX plane, a helix) is posted on the table-table machine for every control
+and compared with ``tests/golden/arcs/dmu50_<control>.<ext>`` (regenerate with
+``URDFPOST_REGEN_GOLDEN=1``); LinuxCNC's interpreter reads the LinuxCNC program (its ARC_FEED
+calls are sampled as LinuxCNC defines them and compared with the CL points); a program whose arc
+turns the wrong way or has its centre moved is refused by the verifier; the real NX
+15-operation file's CIRCLE records come out as arcs.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import shared_cl
+from jobs import arc_job
+from rs274 import run_rs274
+
+from urdfpost import load_machine
+from urdfpost.dialects import DIALECTS
+from urdfpost.errors import DialectError
+from urdfpost.posting.options import PostOptions
+from urdfpost.posting.whole import post
+from urdfpost.program import ARC_PLANES, Arc, MoveTable, Program, arcs_as_moves
+from urdfpost.readers import read_cl, read_cl_text
+from urdfpost.tolerances import Tolerances
+from urdfpost.verification import verify
+
+GOLDEN = Path(__file__).parent / "golden" / "arcs"
+REGEN = os.environ.get("URDFPOST_REGEN_GOLDEN") == "1"
+CONTROLLERS = ("heidenhain", "siemens", "fanuc", "linuxcnc")
+
+#: Arc blocks of the job per control: 6 CIRCLE records, the 270 and 180 degree ones in two
+#: blocks each (at most half a turn a block) but for the arc job's two quarter circles of
+#: radius 20 and the other quarter circles; Heidenhain writes XY arcs without helix only.
+ARC_BLOCKS = {"heidenhain": 4, "siemens": 7, "fanuc": 7, "linuxcnc": 7}
+
+
+def job():
+    return read_cl_text(arc_job(), source="arc_job.apt")
+
+
+def posted(controller: str, tcp: bool = True):
+    return post(job(), load_machine("dmu50"), PostOptions(controller=controller, tcp=tcp))
+
+
+def arc_lines(controller: str, text: str) -> list[str]:
+    pattern = r"^\d+ C X" if controller == "heidenhain" else r"^(G1[789] )?G[23] "
+    return [line for line in text.splitlines() if re.match(pattern, line)]
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_golden_arc_program(controller: str) -> None:
+    result = posted(controller)
+    path = GOLDEN / f"dmu50_{controller}{DIALECTS[controller].extensions[0]}"
+    if REGEN:
+        path.parent.mkdir(exist_ok=True)
+        path.write_text(result.text, encoding="utf-8", newline="\n")
+    expected = path.read_text(encoding="utf-8")
+    if result.text != expected:
+        diff = difflib.unified_diff(expected.splitlines(True), result.text.splitlines(True))
+        pytest.fail("".join(list(diff)[:60]))
+    v = result.verification
+    assert v.ok and v.reached == v.cl_points == len(job())
+    # (measured at moves half the tolerance apart along each arc: up to a quarter of the
+    # tolerance shows where a CL point falls between two of them)
+    assert v.max_tip_deviation <= 0.3 * v.tip_tolerance
+    back = DIALECTS[controller].read(result.text)
+    arcs = [p for p in back.parts if isinstance(p, Arc)]
+    assert len(arcs) == len(arc_lines(controller, result.text)) == ARC_BLOCKS[controller]
+    assert [(a.plane, a.clockwise) for a in arcs] == [
+        (a.plane, a.clockwise) for a in result.program.parts if isinstance(a, Arc)
+    ]
+    r = result.report.as_json()
+    linear = {"heidenhain": 2}.get(controller, 0)  # the ZX half circle, the helix
+    assert (r["arcs"], r["arcs_linear"]) == (6 - linear, linear)
+    notes = [w for w in r["warnings"] if "CL arcs written as lines" in w]
+    assert len(notes) == linear
+    if controller == "heidenhain":
+        assert any("no arcs in the ZX plane (first at CIRCLE line 20)" in w for w in notes)
+        assert any("no helix (first at CIRCLE line 23)" in w for w in notes)
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_machine_coordinate_arcs(controller: str) -> None:
+    """Without TCP the arcs are in the machine's linear axes (rotaries at 0: the same planes)."""
+    result = posted(controller, tcp=False)
+    assert result.verification.ok
+    assert len(arc_lines(controller, result.text)) == ARC_BLOCKS[controller]
+
+
+def test_no_arcs_option_writes_lines() -> None:
+    result = post(job(), load_machine("dmu50"), PostOptions(controller="fanuc", arcs=False))
+    assert not arc_lines("fanuc", result.text)
+    assert result.report.as_json()["arcs"] == 0
+    assert len(result.program.moves()) > 400
+
+
+def _sample_arc_feed(start: np.ndarray, call, plane: str, step: float) -> np.ndarray:
+    """Points of an rs274 ARC_FEED(first_end, second_end, first_axis, second_axis, rotation,
+    axis_end_point, a, b, c) as LinuxCNC's canon defines it: the plane's first and second
+    axes (XY: X Y; XZ, G18: Z X; YZ: Y Z), rotation > 0 counter-clockwise (|rotation| - 1 more
+    full turns), the third axis linear."""
+    first, second, normal = ARC_PLANES[plane]
+    i, j, n = ("XYZ".index(a) for a in (first, second, normal))
+    end = np.empty(3)
+    end[i], end[j], end[n] = call.number(0), call.number(1), call.number(5)
+    centre = (call.number(2), call.number(3))
+    rotation = int(call.number(4))
+    a0 = math.atan2(start[j] - centre[1], start[i] - centre[0])
+    a1 = math.atan2(end[j] - centre[1], end[i] - centre[0])
+    sweep = (a1 - a0) % (2 * math.pi) if rotation > 0 else -((a0 - a1) % (2 * math.pi))
+    sweep += math.copysign(2 * math.pi * (abs(rotation) - 1), rotation)
+    r0 = math.hypot(start[i] - centre[0], start[j] - centre[1])
+    r1 = math.hypot(end[i] - centre[0], end[j] - centre[1])
+    k = max(2, math.ceil(abs(sweep) * max(r0, r1) / step))
+    t = np.linspace(0.0, 1.0, k + 1)[1:]
+    out = np.empty((k, 3))
+    out[:, i] = centre[0] + (r0 + (r1 - r0) * t) * np.cos(a0 + sweep * t)
+    out[:, j] = centre[1] + (r0 + (r1 - r0) * t) * np.sin(a0 + sweep * t)
+    out[:, n] = start[n] + (end[n] - start[n]) * t
+    return out
+
+
+def _polyline_distance(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Distance of each of ``points`` (k, 3) from the polyline through ``vertices`` (n, 3)."""
+    a, b = vertices[:-1], vertices[1:]
+    d = b - a
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-30)
+    t = np.clip(np.einsum("kij,ij->ki", points[:, None, :] - a[None], d) / dd, 0.0, 1.0)
+    nearest = a[None] + t[..., None] * d[None]
+    return np.linalg.norm(points[:, None, :] - nearest, axis=2).min(axis=1)
+
+
+def test_linuxcnc_arcs_through_rs274(tmp_path: Path) -> None:
+    """rs274 reads the LinuxCNC program (TCP: the tip in the workpiece frame, G54 zero); its
+    ARC_FEED calls, sampled as LinuxCNC defines them, lie on the CL arcs."""
+    result = posted("linuxcnc")
+    run = run_rs274(result.text, {3: result.program.tool_length}, tmp_path)
+    assert run.ended
+    arcs = run.named("ARC_FEED")
+    assert len(arcs) == ARC_BLOCKS["linuxcnc"]
+    tp = job()
+    tol = Tolerances.for_units("mm")
+    plane, position = "XY", None
+    seen = 0
+    for call in run.calls:
+        if call.name == "SELECT_PLANE":
+            plane = {"CANON_PLANE_XY": "XY", "CANON_PLANE_XZ": "ZX", "CANON_PLANE_YZ": "YZ"}[
+                str(call.args[0])
+            ]
+        elif call.name in ("STRAIGHT_FEED", "STRAIGHT_TRAVERSE"):
+            position = np.array([call.number(0), call.number(1), call.number(2)])
+        elif call.name == "ARC_FEED":
+            assert position is not None
+            points = _sample_arc_feed(position, call, plane, 0.01)
+            # every sample near the CL polyline (the arc's points, chord tolerance apart)
+            d = _polyline_distance(points, tp.tip)
+            assert d.max() <= tol.tip, (call.text, d.max())
+            position = points[-1]
+            seen += 1
+    assert seen == len(arcs)
+
+
+def _damage(text: str, controller: str, how: str) -> str:
+    """The program with its first arc turned the other way, or its centre moved 0.5 mm."""
+    lines = text.splitlines()
+    k = next(i for i, line in enumerate(lines) if line in arc_lines(controller, text))
+    if how == "direction":
+        swap = {"G2": "G3", "G3": "G2", "DR+": "DR-", "DR-": "DR+"}
+        lines[k] = " ".join(swap.get(w, w) for w in lines[k].split())
+    elif controller == "heidenhain":  # the CC before the C
+        lines[k - 1] = re.sub(r"X([+-]\d+\.\d+)", lambda m: f"X{float(m[1]) + 0.5:+.3f}", lines[k - 1])
+    else:
+        lines[k] = re.sub(r"\bI(=?)(-?\d+\.\d+)", lambda m: f"I{m[1]}{float(m[2]) + 0.5:.3f}", lines[k])
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("how", ["direction", "centre"])
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_damaged_arc_is_caught(controller: str, how: str) -> None:
+    result = posted(controller)
+    machine = load_machine("dmu50")
+    good = DIALECTS[controller].read(result.text)
+    assert verify(good, machine, job(), tool_length=result.program.tool_length).ok
+    damaged = _damage(result.text, controller, how)
+    assert damaged != result.text
+    bad = DIALECTS[controller].read(damaged)
+    v = verify(bad, machine, job(), tool_length=result.program.tool_length)
+    assert not v.ok
+    if how == "centre":  # a 0.5 mm shift: far beyond the 0.01 mm tolerance, every point reached
+        assert v.max_tip_deviation > 0.1
+    else:  # the other way round: the arc's points are not reached
+        assert v.reached < v.cl_points
+
+
+def test_arc_samples_as_the_control_runs_it() -> None:
+    """A quarter circle G3 from (10, 0) about the origin to (0, 10), sampled 0.01 mm apart."""
+    axes = ("X", "Y", "Z")
+    arc = Arc((0.0, 10.0, 0.0), (0.0, 0.0, 0.0), "XY", False, 500.0, 7)
+    program = Program(
+        "P",
+        axes,
+        frozenset(),
+        "mm",
+        True,
+        (MoveTable(np.array([[10.0, 0.0, 0.0]]), np.array([False]), np.array([500.0]), np.array([-1])), arc),
+    )
+    moves = arcs_as_moves(program, 0.01).move_table()
+    assert len(moves) == 1 + math.ceil(0.5 * math.pi * 10 / 0.01)
+    radius = np.linalg.norm(moves.position[:, :2], axis=1)
+    assert np.abs(radius - 10.0).max() < 1e-12
+    assert (np.diff(np.arctan2(moves.position[:, 1], moves.position[:, 0])) > 0).all()
+    assert moves.cl_line[-1] == 7 and (moves.cl_line[1:-1] == -1).all()
+    assert arc.sweep((10.0, 0.0, 0.0), axes) == pytest.approx(0.5 * math.pi)
+    clockwise = Arc((0.0, 10.0, 0.0), (0.0, 0.0, 0.0), "XY", True)
+    assert clockwise.sweep((10.0, 0.0, 0.0), axes) == pytest.approx(1.5 * math.pi)
+
+
+def test_writer_refuses_an_arc_it_cannot_write() -> None:
+    axes = ("X", "Y", "Z")
+    arc = Arc((0.0, 10.0, 0.0), (0.0, 0.0, 0.0), "ZX", False)
+    program = Program("P", axes, frozenset(), "mm", False, (arc,))
+    with pytest.raises(DialectError, match="heidenhain takes no arcs in the ZX plane"):
+        DIALECTS["heidenhain"].write(program)
+    with pytest.raises(DialectError, match="expected a motion block before it"):
+        DIALECTS["fanuc"].write(program)
+
+
+def test_reader_records_the_arc() -> None:
+    tp = job()
+    arcs = [e for e in tp.events if e.kind == "arc"]
+    assert [e.line for e in arcs] == [9, 11, 14, 18, 20, 23]
+    first = arcs[0]
+    assert first.data["centre"] == (0.0, 0.0, -1.0)
+    assert first.data["normal"] == (0.0, 0.0, 1.0)
+    assert first.data["radius"] == 20.0
+    assert first.data["sweep"] == pytest.approx(0.5 * math.pi)
+    end = first.index + first.data["points"] - 1
+    assert tp.tip[first.index - 1].tolist() == [20.0, 0.0, -1.0]
+    assert tp.tip[end].tolist() == [0.0, 20.0, -1.0]
+    assert (tp.line[first.index : end + 1] == 9).all()
+
+
+# --------------------------------------------------------------------------------------------
+# the real NX 15-operation file (inch) on the UMC-750
+
+
+NX_CIRCLES = 146
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_nx_circles_come_out_as_arcs(controller: str) -> None:
+    machine = load_machine("umc750")
+    tol = Tolerances.for_units("inch")
+    tp = read_cl(
+        shared_cl("nx_project2_15ops_inch.cls"), units=machine.settings.units, chord_tolerance=tol.chord
+    )
+    assert sum(e.kind == "arc" for e in tp.events) == NX_CIRCLES
+    result = post(
+        tp,
+        machine,
+        PostOptions(controller=controller, strategy="recursive", spindle=8000.0),
+    )
+    v = result.verification
+    assert v.ok and v.reached == v.cl_points == len(tp)
+    r = result.report.as_json()
+    assert r["arcs"] + r["arcs_linear"] == NX_CIRCLES
+    # the arcs of the tilted operations (tool axis off Z, in no XY/ZX/YZ plane of the
+    # workpiece frame) stay lines; every arc in a plane of the frame is an arc, Heidenhain
+    # leaves its helices (ramps) as lines
+    written = {"heidenhain": 87}.get(controller, 102)
+    assert r["arcs"] == written
+    blocks = [p for p in result.program.parts if isinstance(p, Arc)]
+    back = DIALECTS[controller].read(result.text)
+    assert len([p for p in back.parts if isinstance(p, Arc)]) == len(blocks) >= written
+    assert len(arc_lines(controller, result.text)) == len(blocks)
