@@ -177,9 +177,13 @@ def _damage(text: str, controller: str, how: str) -> str:
         swap = {"G2": "G3", "G3": "G2", "DR+": "DR-", "DR-": "DR+"}
         lines[k] = " ".join(swap.get(w, w) for w in lines[k].split())
     elif controller == "heidenhain":  # the CC before the C
-        lines[k - 1] = re.sub(r"X([+-]\d+\.\d+)", lambda m: f"X{float(m[1]) + 0.5:+.3f}", lines[k - 1])
+        lines[k - 1] = re.sub(
+            r"X([+-]\d+\.\d+)", lambda m: f"X{float(m[1]) + 0.5:+.3f}", lines[k - 1]
+        )
     else:
-        lines[k] = re.sub(r"\bI(=?)(-?\d+\.\d+)", lambda m: f"I{m[1]}{float(m[2]) + 0.5:.3f}", lines[k])
+        lines[k] = re.sub(
+            r"\bI(=?)(-?\d+\.\d+)", lambda m: f"I{m[1]}{float(m[2]) + 0.5:.3f}", lines[k]
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -211,7 +215,12 @@ def test_arc_samples_as_the_control_runs_it() -> None:
         frozenset(),
         "mm",
         True,
-        (MoveTable(np.array([[10.0, 0.0, 0.0]]), np.array([False]), np.array([500.0]), np.array([-1])), arc),
+        (
+            MoveTable(
+                np.array([[10.0, 0.0, 0.0]]), np.array([False]), np.array([500.0]), np.array([-1])
+            ),
+            arc,
+        ),
     )
     moves = arcs_as_moves(program, 0.01).move_table()
     assert len(moves) == 1 + math.ceil(0.5 * math.pi * 10 / 0.01)
@@ -261,7 +270,9 @@ def test_nx_circles_come_out_as_arcs(controller: str) -> None:
     machine = load_machine("umc750")
     tol = Tolerances.for_units("inch")
     tp = read_cl(
-        shared_cl("nx_project2_15ops_inch.cls"), units=machine.settings.units, chord_tolerance=tol.chord
+        shared_cl("nx_project2_15ops_inch.cls"),
+        units=machine.settings.units,
+        chord_tolerance=tol.chord,
     )
     assert sum(e.kind == "arc" for e in tp.events) == NX_CIRCLES
     result = post(

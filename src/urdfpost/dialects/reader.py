@@ -166,7 +166,7 @@ class ProgramBuilder:
         self.offset: int | None = None  # the H word since the last tool change
         self.rpm = 0.0
         self.spindle_state: tuple[str, float] = ("off", 0.0)
-        self._speed_change: Block | _ReadMove | _ReadMoves | None = None
+        self._speed_change: Block | _ReadMove | _ReadMoves | _ReadArc | None = None
         self.continuous = False
         self.work_offset: str | None = None
         self.cycle: int | None = None  # a cycle whose parameters follow on the next lines

@@ -409,7 +409,9 @@ class ProgramWriter:
         if texts[normal] != modal.axes[normal] and not spec.arc_helix:
             raise DialectError(f"{spec.name} takes no helix: {arc}")
         words = [(a, texts[a]) for a in axes if a in (first, second)]
-        words += [(a, t) for a, t in texts.items() if a not in (first, second) and t != modal.axes.get(a)]
+        words += [
+            (a, t) for a, t in texts.items() if a not in (first, second) and t != modal.axes.get(a)
+        ]
         centre = dict(zip("XYZ", arc.centre, strict=True))
         if spec.arc_centre_absolute:
             centre_words = tuple((a, self.format_axis(a, centre[a])) for a in (first, second))

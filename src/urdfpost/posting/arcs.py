@@ -146,8 +146,12 @@ def arc_spans(
     if spec is None or not arcs:
         return ArcFigures([], 0, 0, [])
     if any(a not in machine.axis_names for a in "XYZ"):
-        return ArcFigures([], 0, len(arcs), [f"{len(arcs)} CL arcs written as lines: the "
-                          "machine has no X, Y and Z axes"])
+        return ArcFigures(
+            [],
+            0,
+            len(arcs),
+            [f"{len(arcs)} CL arcs written as lines: the machine has no X, Y and Z axes"],
+        )
     n = len(toolpath)
     position = program_positions(machine, rows, tcp)
     reasons: dict[str, list[int]] = {}
