@@ -26,10 +26,13 @@ from rs274 import run_rs274
 from urdfpost import load_machine
 from urdfpost.dialects import DIALECTS
 from urdfpost.errors import DialectError
-from urdfpost.posting.options import PostOptions
+from urdfpost.posting.options import PostOptions, resolve
+from urdfpost.posting.piece import post_piece
+from urdfpost.posting.stream import post_stream
 from urdfpost.posting.whole import post
 from urdfpost.program import ARC_PLANES, Arc, MoveTable, Program, arcs_as_moves
-from urdfpost.readers import read_cl, read_cl_text
+from urdfpost.readers import read_cl, read_cl_chunks, read_cl_text
+from urdfpost.toolpath import toolpath_slice
 from urdfpost.tolerances import Tolerances
 from urdfpost.verification import verify
 
@@ -293,3 +296,40 @@ def test_nx_circles_come_out_as_arcs(controller: str) -> None:
     back = DIALECTS[controller].read(result.text)
     assert len([p for p in back.parts if isinstance(p, Arc)]) == len(blocks) >= written
     assert len(arc_lines(controller, result.text)) == len(blocks)
+
+
+def test_an_arc_cut_by_the_end_of_a_piece_is_written_as_lines() -> None:
+    """A piece that ends inside an arc (a streamed post never cuts there: its cuts need a new
+    CL line on both sides; a piece of a toolpath can) writes the arc's points as lines, and
+    says so."""
+    tp = job()
+    machine = load_machine("dmu50")
+    first = next(e for e in tp.events if e.kind == "arc")
+    piece = toolpath_slice(tp, 0, first.index + first.data["points"] // 2)
+    posted = post_piece(piece, resolve(PostOptions(controller="fanuc"), machine, tp.units))
+    assert not any(isinstance(p, Arc) for p in posted.program.parts)
+    assert (posted.figures.arcs, posted.figures.arcs_linear) == (0, 1)
+    assert any(
+        "1 CL arcs written as lines: the arc is cut by the end of a streamed piece (first at "
+        "CIRCLE line 9)" in w
+        for w in posted.figures.warnings
+    )
+
+
+def test_streamed_nx_post_writes_the_arcs_of_the_whole_post(tmp_path: Path) -> None:
+    """Streamed in pieces of 1500 CL points from the file read in chunks, the NX job's arcs
+    are those of the whole post: its cuts never fall inside an arc, and an arc that starts at
+    a cut starts from the row the piece before wrote."""
+    machine = load_machine("umc750")
+    tol = Tolerances.for_units("inch")
+    path = shared_cl("nx_project2_15ops_inch.cls")
+    options = PostOptions(controller="fanuc", strategy="recursive", spindle=8000.0)
+    whole = post(read_cl(path, units="inch", chord_tolerance=tol.chord), machine, options)
+    out = tmp_path / "nx.nc"
+    pieces = read_cl_chunks(path, max_points=1000, units="inch", chord_tolerance=tol.chord)
+    streamed = post_stream(pieces, machine, out, options, piece_points=1500, parallel=False)
+    r = streamed.report.as_json()
+    assert r["verified"] and r["streamed"]["pieces"] > 1
+    assert (r["arcs"], r["arcs_linear"]) == (102, NX_CIRCLES - 102)
+    text = out.read_text()
+    assert len(arc_lines("fanuc", text)) == len(arc_lines("fanuc", whole.text))

@@ -118,6 +118,7 @@ def arc_spans(
     tol: Tolerances,
     spec: DialectSpec | None,
     events: list[Event],
+    start: np.ndarray | None = None,
 ) -> ArcFigures:
     """The arcs of a piece that its program writes as :class:`Arc` blocks.
 
@@ -138,6 +139,10 @@ def arc_spans(
         The control; None: arcs are not written (all are lines, no note).
     events : list of Event
         The piece's other events (an arc with one among its points is written as lines).
+    start : ndarray, shape (m,), optional
+        A streamed piece that continues another: the joint vector at its first CL point,
+        whose row the piece before wrote (``rows`` start after it); an arc from that point
+        starts from that row.
 
     Returns
     -------
@@ -153,6 +158,16 @@ def arc_spans(
             [f"{len(arcs)} CL arcs written as lines: the machine has no X, Y and Z axes"],
         )
     n = len(toolpath)
+    shift = 0  # rows put before the piece's own: the row of its first point, already written
+    if start is not None and n:
+        shift = 1
+        rows = Rows(
+            q=np.vstack([start, rows.q]),
+            tip=np.vstack([toolpath.tip[:1], rows.tip]),
+            point=np.concatenate([[0], rows.point]),
+            reaches=np.concatenate([[True], rows.reaches]),
+            kind=np.concatenate([[CUT], rows.kind]),
+        )
     position = program_positions(machine, rows, tcp)
     reasons: dict[str, list[int]] = {}
     spans: list[ArcSpan] = []
@@ -190,7 +205,7 @@ def arc_spans(
             continue
         r0, r1 = int(reach_row[start]), int(reach_row[end])
         if r0 < 0 or r1 <= r0:
-            linear("the arc starts where a streamed piece starts", line)
+            linear("the program has no row at the arc's start or end", line)
             continue
         span = slice(r0, r1 + 1)
         if (rows.kind[span] != CUT).any() or (rows.point[r0 + 1 : r1 + 1] < first).any():
@@ -240,8 +255,8 @@ def arc_spans(
         for a, b, row in blocks:
             spans.append(
                 ArcSpan(
-                    first=r0 + a + 1,
-                    last=r0 + b,
+                    first=r0 + a + 1 - shift,
+                    last=r0 + b - shift,
                     block=Arc(
                         position=tuple(float(v) for v in position[r0 + b]),
                         centre=row,
