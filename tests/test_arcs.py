@@ -32,8 +32,8 @@ from urdfpost.posting.stream import post_stream
 from urdfpost.posting.whole import post
 from urdfpost.program import ARC_PLANES, Arc, MoveTable, Program, arcs_as_moves
 from urdfpost.readers import read_cl, read_cl_chunks, read_cl_text
-from urdfpost.toolpath import toolpath_slice
 from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import toolpath_slice
 from urdfpost.verification import verify
 
 GOLDEN = Path(__file__).parent / "golden" / "arcs"

@@ -118,7 +118,7 @@ def arc_spans(
     tol: Tolerances,
     spec: DialectSpec | None,
     events: list[Event],
-    start: np.ndarray | None = None,
+    joints_before: np.ndarray | None = None,
 ) -> ArcFigures:
     """The arcs of a piece that its program writes as :class:`Arc` blocks.
 
@@ -139,7 +139,7 @@ def arc_spans(
         The control; None: arcs are not written (all are lines, no note).
     events : list of Event
         The piece's other events (an arc with one among its points is written as lines).
-    start : ndarray, shape (m,), optional
+    joints_before : ndarray, shape (m,), optional
         A streamed piece that continues another: the joint vector at its first CL point,
         whose row the piece before wrote (``rows`` start after it); an arc from that point
         starts from that row.
@@ -159,10 +159,10 @@ def arc_spans(
         )
     n = len(toolpath)
     shift = 0  # rows put before the piece's own: the row of its first point, already written
-    if start is not None and n:
+    if joints_before is not None and n:
         shift = 1
         rows = Rows(
-            q=np.vstack([start, rows.q]),
+            q=np.vstack([joints_before, rows.q]),
             tip=np.vstack([toolpath.tip[:1], rows.tip]),
             point=np.concatenate([[0], rows.point]),
             reaches=np.concatenate([[True], rows.reaches]),

@@ -400,7 +400,7 @@ def post_piece(
         tol=tol,
         spec=job.dialect.spec if job.arcs else None,
         events=events,
-        start=piece.start if piece is not None and continued else None,
+        joints_before=piece.start if piece is not None and continued else None,
     )
     warnings += [f"{toolpath.source}: {note}" for note in arcs.notes]
     transitions = Transitions(machine, job.tcp, tool_length, job.clearance)
