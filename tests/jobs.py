@@ -86,3 +86,32 @@ RAPID
 GOTO/20,-10,10
 FINI
 """
+
+
+def cutcom_job() -> str:
+    """A pocket wall with cutter radius compensation (mm, vertical tool): ``CUTCOM/LEFT``
+    before a straight entry move, a square with a rounded corner, ``CUTCOM/OFF`` before the
+    straight exit move."""
+    return """\
+PARTNO CUTCOM JOB
+UNITS/MM
+LOADTL/3
+SPINDL/8000,CLW
+RAPID
+GOTO/-20,-20,10
+FEDRAT/MMPM,500
+GOTO/-20,-20,-2
+CUTCOM/LEFT,XYPLAN
+GOTO/-10,-10,-2
+GOTO/10,-10,-2
+GOTO/10,5,-2
+CIRCLE/5,5,-2,0,0,1,5
+GOTO/5,10,-2
+GOTO/-10,10,-2
+GOTO/-10,-10,-2
+CUTCOM/OFF
+GOTO/-20,-20,-2
+RAPID
+GOTO/-20,-20,10
+FINI
+"""

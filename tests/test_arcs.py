@@ -20,17 +20,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import shared_cl
-from jobs import arc_job
+from jobs import arc_job, cutcom_job
 from rs274 import run_rs274
 
 from urdfpost import load_machine
 from urdfpost.dialects import DIALECTS
-from urdfpost.errors import DialectError
+from urdfpost.errors import CLDataError, DialectError
 from urdfpost.posting.options import PostOptions, resolve
 from urdfpost.posting.piece import post_piece
 from urdfpost.posting.stream import post_stream
 from urdfpost.posting.whole import post
-from urdfpost.program import ARC_PLANES, Arc, MoveTable, Program, arcs_as_moves
+from urdfpost.program import ARC_PLANES, Arc, CutterComp, MoveTable, Program, arcs_as_moves
 from urdfpost.readers import read_cl, read_cl_chunks, read_cl_text
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import toolpath_slice
@@ -333,3 +333,71 @@ def test_streamed_nx_post_writes_the_arcs_of_the_whole_post(tmp_path: Path) -> N
     assert (r["arcs"], r["arcs_linear"]) == (102, NX_CIRCLES - 102)
     text = out.read_text()
     assert len(arc_lines("fanuc", text)) == len(arc_lines("fanuc", whole.text))
+
+
+# --------------------------------------------------------------------------------------------
+# cutter radius compensation (CUTCOM)
+
+#: The compensation lines (or L blocks) each control writes for the CUTCOM job.
+CUTCOM_LINES = {
+    "fanuc": [r"^G17 G41 D3$", r"^G40$"],
+    "linuxcnc": [r"^G17 G41 D3$", r"^G40$"],
+    "siemens": [r"^G17 G41$", r"^G40$"],
+    "heidenhain": [r"^\d+ L X-10\.000 Y-10\.000 RL$", r"^\d+ L X-20\.000 Y-20\.000 R0$"],
+}
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_cutcom_round_trip(controller: str) -> None:
+    tp = read_cl_text(cutcom_job(), source="cutcom.apt")
+    comps = [e for e in tp.events if e.kind == "cutcom"]
+    assert [(e.line, e.data) for e in comps] == [
+        (9, {"side": "left", "plane": "XY"}),
+        (17, {"side": "off"}),
+    ]
+    result = post(tp, load_machine("dmu50"), PostOptions(controller=controller))
+    assert result.verification.ok
+    lines = result.text.splitlines()
+    for pattern in CUTCOM_LINES[controller]:
+        assert sum(bool(re.match(pattern, line)) for line in lines) == 1, pattern
+    written = [p for p in result.program.parts if isinstance(p, CutterComp)]
+    back = [p for p in DIALECTS[controller].read(result.text).parts if isinstance(p, CutterComp)]
+    assert [(c.side, c.plane) for c in written] == [(c.side, c.plane) for c in back]
+    assert [c.side for c in back] == ["left", "off"]
+    # the compensation is the control's: the report says so
+    warnings = result.report.as_json()["warnings"]
+    assert any("cutter radius compensation left is the control's" in w for w in warnings)
+
+
+def test_cutcom_through_rs274(tmp_path: Path) -> None:
+    """LinuxCNC's interpreter takes the compensated program (the tool table's radius: 0)."""
+    tp = read_cl_text(cutcom_job(), source="cutcom.apt")
+    result = post(tp, load_machine("dmu50"), PostOptions(controller="linuxcnc"))
+    run = run_rs274(result.text, {3: result.program.tool_length}, tmp_path)
+    assert run.ended
+    assert len(run.named("ARC_FEED")) == 1
+
+
+@pytest.mark.parametrize(
+    ("record", "match"),
+    [
+        ("CUTCOM/LEFT,BOTH", r"unexpected 'BOTH' in CUTCOM; expected CUTCOM/LEFT, RIGHT or OFF"),
+        ("CUTCOM/XYPLAN", r"expected LEFT, RIGHT or OFF in CUTCOM, got none"),
+    ],
+)
+def test_cutcom_errors(record: str, match: str) -> None:
+    text = cutcom_job().replace("CUTCOM/LEFT,XYPLAN", record)
+    with pytest.raises(CLDataError, match=rf"cutcom\.apt:9: {match}"):
+        read_cl_text(text, source="cutcom.apt")
+
+
+def test_cutcom_register_and_plane() -> None:
+    text = cutcom_job().replace("CUTCOM/LEFT,XYPLAN", "CUTCOM/ON,RIGHT,7")
+    tp = read_cl_text(text, source="cutcom.apt")
+    comp = next(e for e in tp.events if e.kind == "cutcom")
+    assert comp.data == {"side": "right", "register": 7}
+    result = post(tp, load_machine("dmu50"), PostOptions(controller="fanuc"))
+    assert re.search(r"^G17 G42 D7$", result.text, re.MULTILINE)
+    # controls that take the radius of the tool called refuse another register
+    with pytest.raises(DialectError, match="offset register 7"):
+        post(tp, load_machine("dmu50"), PostOptions(controller="heidenhain"))

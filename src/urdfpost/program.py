@@ -279,6 +279,21 @@ class Arc:
         return out
 
 
+@dataclass(frozen=True)
+class CutterComp:
+    """Cutter radius compensation (G41 left, G42 right, G40 off; Heidenhain RL, RR, R0).
+
+    The path programmed stays the CL path (the tool tip); the control offsets it by the
+    tool's radius from its tool table. ``register``: the offset register (the G-code ``D``
+    word; the CL's ``CUTCOM/LEFT,n``), None for the tool's own. ``plane``: "XY", "ZX" or
+    "YZ".
+    """
+
+    side: str
+    register: int | None = None
+    plane: str = "XY"
+
+
 Block = (
     Move
     | ToolChange
@@ -292,6 +307,7 @@ Block = (
     | MachineMove
     | WorkOffset
     | Arc
+    | CutterComp
 )
 
 

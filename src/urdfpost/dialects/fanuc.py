@@ -45,7 +45,9 @@ G_CODES = MappingProxyType(
         "21": "mm",
         "20": "inch",
         "28": "home",
-        "40": "noop",
+        "40": "comp_off",
+        "41": "comp_left",
+        "42": "comp_right",
         "43.4": "tcp_on",
         "49": "tcp_off",
         "53": "machine",
@@ -99,4 +101,7 @@ SPEC = DialectSpec(
     motion_layout=MotionLayout(),
     arc_planes=frozenset({"XY", "ZX", "YZ"}),
     arc_helix=True,
+    cutter_comp=MappingProxyType(
+        {"left": "{plane} G41 D{register}", "right": "{plane} G42 D{register}", "off": "G40"}
+    ),
 )

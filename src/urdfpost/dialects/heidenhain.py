@@ -57,8 +57,8 @@ def format_name(name: str) -> str:
 
 
 def format_motion(words: MotionWords) -> str:
-    """``L X+1.000 Y-2.000 FMAX`` or ``L Z+2.000 F500``."""
-    parts = ["L", *(f"{address}{value}" for address, value in words.axes)]
+    """``L X+1.000 Y-2.000 FMAX`` or ``L Z+2.000 RL F500``."""
+    parts = ["L", *(f"{address}{value}" for address, value in words.axes), *words.extra]
     if words.rapid:
         parts.append("FMAX")
     elif words.feed is not None:
@@ -233,10 +233,10 @@ def _line(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
             continue
         elif word.startswith("F"):
             builder.set_feed(builder.number("F", word[1:]))
-        elif word == "R0":
-            continue
-        elif word in ("RL", "RR", "R+", "R-"):
-            raise builder.error(f"radius compensation {word} is not supported; expected R0")
+        elif word in ("R0", "RL", "RR"):
+            builder.cutter_comp({"R0": "off", "RL": "left", "RR": "right"}[word], None, "XY")
+        elif word in ("R+", "R-"):
+            raise builder.error(f"paraxial radius compensation {word} is not supported")
         elif word.startswith("M"):
             m_words.append(word)
         else:
@@ -378,4 +378,5 @@ SPEC = DialectSpec(
     arc_planes=frozenset({"XY"}),
     arc_centre_absolute=True,
     format_arc=format_arc,
+    cutter_comp_words=MappingProxyType({"left": "RL", "right": "RR", "off": "R0"}),
 )

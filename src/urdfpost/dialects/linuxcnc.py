@@ -61,7 +61,9 @@ G_CODES = MappingProxyType(
         "21": "mm",
         "20": "inch",
         "28": "home",
-        "40": "noop",
+        "40": "comp_off",
+        "41": "comp_left",
+        "42": "comp_right",
         "43": "length_on",
         "49": "noop",
         "53": "machine",
@@ -107,4 +109,7 @@ SPEC = DialectSpec(
     motion_layout=MotionLayout(),
     arc_planes=frozenset({"XY", "ZX", "YZ"}),
     arc_helix=True,
+    cutter_comp=MappingProxyType(
+        {"left": "{plane} G41 D{register}", "right": "{plane} G42 D{register}", "off": "G40"}
+    ),
 )

@@ -50,6 +50,7 @@ from urdfpost.program import (
     Blocks,
     Comment,
     Coolant,
+    CutterComp,
     Home,
     Insert,
     MoveTable,
@@ -155,6 +156,7 @@ class ProgramBuilder:
         self.arc: bool | None = None  # in arc mode: True clockwise (G2), False (G3)
         self.plane = "XY"  # the arc plane (G17)
         self.circle_centre: tuple[float, float] | None = None  # Heidenhain CC, file units
+        self.comp: tuple[str, int | None, str] = ("off", None, "XY")  # radius compensation
         self.feed: float | None = None
         self.position: dict[str, float] = {}
         self.axes_seen: set[str] = set()
@@ -275,6 +277,15 @@ class ProgramBuilder:
                 self.cut_without_tcp = self.line
         self._add(_ReadMove(rapid, position, None if rapid else self.feed))
         self.move_lines.append(self.line)
+
+    def cutter_comp(self, side: str, register: int | None, plane: str | None = None) -> None:
+        """Cutter radius compensation ("left", "right", "off"): a block when it changes."""
+        state = (side, register if side != "off" else None, plane or self.plane)
+        if side == "off":
+            state = ("off", None, self.comp[2])
+        if state[0] != self.comp[0] or (side != "off" and state != self.comp):
+            self._add(CutterComp(state[0], state[1], state[2]))
+        self.comp = state
 
     def arc_move(
         self,
@@ -783,6 +794,11 @@ def _execute(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
         builder.set_feed(builder.number("F", block.words["F"].text))
     if "T" in block.words:
         builder.select_tool(_integer(builder, "T", block.words["T"].text))
+    comp = actions & {"comp_left", "comp_right", "comp_off"}
+    if comp:
+        side = next(iter(comp)).removeprefix("comp_")
+        register = _integer(builder, "D", block.words["D"].text) if "D" in block.words else None
+        builder.cutter_comp(side, register)
     if "H" in block.words:  # (only with tcp_on or length_on: _check_words)
         builder.select_offset(_integer(builder, "H", block.words["H"].text))
     if "S" in block.words and not dwell:
@@ -806,6 +822,8 @@ def _check_words(builder: ProgramBuilder, block: _Block, actions: set[str]) -> N
         allowed |= {"P", "U"}
     if "blend" in actions:
         allowed |= {"P", "Q"}
+    if actions & {"comp_left", "comp_right"}:
+        allowed.add("D")
     if actions & {"arc_cw", "arc_ccw"} or (
         builder.arc is not None and not actions & {"rapid", "linear"}
     ):

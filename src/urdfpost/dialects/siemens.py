@@ -39,7 +39,9 @@ G_CODES = MappingProxyType(
         "17": "plane_xy",
         "18": "plane_zx",
         "19": "plane_yz",
-        "40": "noop",
+        "40": "comp_off",
+        "41": "comp_left",
+        "42": "comp_right",
         "710": "mm",
         "700": "inch",
         "71": "mm_geometry",
@@ -89,5 +91,6 @@ SPEC = DialectSpec(
     motion_layout=MotionLayout(),
     arc_planes=frozenset({"XY", "ZX", "YZ"}),
     arc_helix=True,
+    cutter_comp=MappingProxyType({"left": "{plane} G41", "right": "{plane} G42", "off": "G40"}),
     arc_centre_suffix="=",
 )

@@ -147,12 +147,16 @@ class MotionWords:
         Address and formatted value of each axis to write.
     feed : str or None
         Formatted feed to write, or None to keep the modal feed.
+    extra : tuple of str
+        Words written after the axes (Heidenhain's radius compensation ``RL``, ``RR``,
+        ``R0``: :attr:`DialectSpec.cutter_comp_words`).
     """
 
     rapid: bool
     code: str | None
     axes: tuple[tuple[str, str], ...]
     feed: str | None
+    extra: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -389,6 +393,14 @@ class DialectSpec:
         Written between a centre address and its value (Siemens ``I=0.5``: ``"="``).
     format_arc : callable or None
         Arc block formatter (:class:`ArcWords` to the lines of the block).
+    cutter_comp : mapping
+        Lines of :class:`~urdfpost.program.CutterComp` by side ("left", "right", "off"):
+        ``{register}`` its offset register (the tool number when it gives none), ``{plane}``
+        the plane's code (``G17``); empty: the control writes them as words of the next
+        straight line (:attr:`cutter_comp_words`).
+    cutter_comp_words : mapping
+        Words of the next straight line by side (Heidenhain ``RL``, ``RR``, ``R0``), in the
+        working plane XY only.
     """
 
     name: str
@@ -458,6 +470,8 @@ class DialectSpec:
     arc_centre_absolute: bool = False
     arc_centre_suffix: str = ""
     format_arc: Callable[[ArcWords], tuple[str, ...]] = format_gcode_arc
+    cutter_comp: Mapping[str, str] = field(default_factory=_empty)
+    cutter_comp_words: Mapping[str, str] = field(default_factory=_empty)
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

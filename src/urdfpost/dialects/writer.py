@@ -39,6 +39,7 @@ from urdfpost.program import (
     Block,
     Comment,
     Coolant,
+    CutterComp,
     Home,
     Insert,
     MachineMove,
@@ -84,6 +85,7 @@ class _Modal:
     spindle: str = "off"
     force: bool = True
     plane: str | None = None  # the arc plane last written
+    comp_word: str | None = None  # a radius compensation word for the next straight line
 
     def invalidate(self) -> None:
         """Forget axes, motion code and feed: the next motion block writes them all."""
@@ -324,6 +326,8 @@ class ProgramWriter:
                 self.write_machine_move(block)
             case Arc():
                 self.write_arc(block)
+            case CutterComp():
+                self.write_cutter_comp(block)
             case WorkOffset():
                 count = self.spec.work_offsets
                 if not 1 <= block.number <= count:
@@ -373,8 +377,55 @@ class ProgramWriter:
             if text != modal.feed:
                 feed = modal.feed = text
         modal.force = False
-        words = MotionWords(move.rapid, code, tuple(changed), feed)
+        extra: tuple[str, ...] = ()
+        if modal.comp_word is not None:
+            extra, modal.comp_word = (modal.comp_word,), None
+        words = MotionWords(move.rapid, code, tuple(changed), feed, extra)
         self.emit(self.spec.format_motion(words))
+
+    def write_cutter_comp(self, block: CutterComp) -> None:
+        """Cutter radius compensation: the control's line (G41 D1, G42, G40), or a word the
+        next straight line carries (Heidenhain RL, RR, R0).
+
+        Raises
+        ------
+        DialectError
+            A side other than left, right or off; on a control with words, another plane than
+            XY.
+        """
+        spec = self.spec
+        if block.side not in ("left", "right", "off"):
+            raise DialectError(
+                f"cutter compensation side {block.side!r}; expected 'left', 'right' or 'off'"
+            )
+        if spec.cutter_comp:
+            action = {"XY": "plane_xy", "ZX": "plane_zx", "YZ": "plane_yz"}[block.plane]
+            plane = spec.g_code_for(action) if action in spec.g_codes.values() else ""
+            template = spec.cutter_comp[block.side]
+            if block.register is not None and "{register}" not in template:
+                raise DialectError(
+                    f"{spec.name}: cutter compensation with offset register {block.register}: "
+                    "the control takes the radius of the tool's own edge; expected no register"
+                )
+            register = block.register if block.register is not None else self.modal.tool or 1
+            line = template.format(register=register, plane=plane)
+            self.emit(" ".join(line.split()))
+            if block.side != "off":
+                self.modal.plane = block.plane
+            return
+        if not spec.cutter_comp_words:
+            raise DialectError(f"{spec.name} writes no cutter radius compensation")
+        if block.register is not None:
+            raise DialectError(
+                f"{spec.name}: cutter compensation with offset register {block.register}: the "
+                "control takes the radius from the tool table; expected no register"
+            )
+        if block.plane != "XY":
+            raise DialectError(
+                f"{spec.name}: cutter radius compensation in the {block.plane} plane; expected "
+                "the working plane XY"
+            )
+        self.modal.comp_word = spec.cutter_comp_words[block.side]
 
     def write_arc(self, arc: Arc) -> None:
         """Write an arc block from where the axes stand (their last written values).
@@ -392,6 +443,11 @@ class ProgramWriter:
             control without helices.
         """
         spec, modal, axes = self.spec, self.modal, self.program.axes
+        if modal.comp_word is not None:
+            raise DialectError(
+                f"{spec.name}: radius compensation {modal.comp_word} on an arc; expected it on "
+                "a straight line"
+            )
         if arc.plane not in spec.arc_planes:
             raise DialectError(f"{spec.name} takes no arcs in the {arc.plane} plane: {arc}")
         if len(arc.position) != len(axes):

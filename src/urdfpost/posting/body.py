@@ -24,6 +24,7 @@ from urdfpost.program import (
     Block,
     Comment,
     Coolant,
+    CutterComp,
     Home,
     Insert,
     MachineMove,
@@ -94,6 +95,15 @@ def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]
         out.append(Home())
     elif kind == "stop":
         out.append(Stop(optional=bool(data.get("optional", False))))
+    elif kind == "cutcom":
+        register = data.get("register")
+        out.append(
+            CutterComp(
+                side=str(data["side"]),
+                register=None if register is None else int(register),
+                plane=str(data.get("plane", "XY")),
+            )
+        )
     elif kind == "msys":  # where the program zero lies in the part (information only)
         out.append(Comment(f"MSYS {data.get('text', '')}".strip()))
     else:

@@ -403,6 +403,13 @@ def post_piece(
         joints_before=piece.start if piece is not None and continued else None,
     )
     warnings += [f"{toolpath.source}: {note}" for note in arcs.notes]
+    comp = next((e for e in events if e.kind == "cutcom" and e.data.get("side") != "off"), None)
+    if comp is not None:
+        warnings.append(
+            f"{toolpath.source}:{comp.line}: cutter radius compensation {comp.data['side']} "
+            "is the control's (G41/G42, RL/RR): the program is the CL path, which "
+            "verification checks; the control offsets it by the radius in its tool table"
+        )
     transitions = Transitions(machine, job.tcp, tool_length, job.clearance)
     body = program_body(
         toolpath,

@@ -870,6 +870,7 @@ class _AptInterpreter:
             "TOOL PATH": self._tool_path,
             "MSYS": self._msys,
             "MULTAX": self._multax,
+            "CUTCOM": self._cutcom,
             "UNITS": self._units,
             "PARTNO": self._text_event("partno"),
             "PPRINT": self._text_event("comment"),
@@ -1742,6 +1743,38 @@ class _AptInterpreter:
             self.multiaxis = True
         elif mode != ["OFF"]:
             self._unknown(record)
+
+    def _cutcom(self, record: Record) -> None:
+        """``CUTCOM/LEFT|RIGHT|OFF`` with, in any order after it, a plane (``XYPLAN``,
+        ``ZXPLAN``, ``YZPLAN``), an offset register (a whole number) and ``ON`` (NX writes
+        ``CUTCOM/ON,LEFT``): a ``cutcom`` event.
+
+        Raises
+        ------
+        CLDataError
+            No side, two of them, or a value that is none of these.
+        """
+        sides = {"LEFT": "left", "RIGHT": "right", "OFF": "off"}
+        planes = {"XYPLAN": "XY", "ZXPLAN": "ZX", "YZPLAN": "YZ"}
+        data: dict[str, object] = {}
+        for token in (t.strip().upper() for t in record.args or []):
+            if token in sides and "side" not in data:
+                data["side"] = sides[token]
+            elif token in planes and "plane" not in data:
+                data["plane"] = planes[token]
+            elif token == "ON":
+                continue
+            elif re.fullmatch(r"\d+", token) and "register" not in data:
+                data["register"] = int(token)
+            else:
+                raise self.error(
+                    record,
+                    f"unexpected '{quote(token)}' in CUTCOM; expected CUTCOM/LEFT, RIGHT or OFF, "
+                    "then optionally XYPLAN, ZXPLAN or YZPLAN and an offset register",
+                )
+        if "side" not in data:
+            raise self.error(record, "expected LEFT, RIGHT or OFF in CUTCOM, got none")
+        self.builder.add_event("cutcom", record.line, **data)
 
     def _units(self, record: Record) -> None:
         units = _UNITS_WORDS.get(record.args[0].upper()) if record.args else None
