@@ -51,10 +51,12 @@ _ITERATIONS = 14
 """Golden-section iterations of the refinement: the bracket of two sample spacings shrinks to
 under 3e-4 of the block."""
 
-ARC_STEP_SHARE = 0.5
+ARC_STEP_SHARE = 0.2
 """Longest chord between the moves an arc block is measured as, in shares of the tip
-tolerance (:func:`urdfpost.program.arcs_as_moves`): every point of the arc is within a
-quarter of the tolerance of one of them."""
+tolerance (:func:`urdfpost.program.arcs_as_moves`). Every point of the arc is within a tenth
+of the tolerance of one of them: the CL points on the arc are reached, and the row that reaches
+one, compared with the CL segment from it on, adds at most that tenth to the deviation
+measured (the rows of lines pass through their CL points; an arc's need not)."""
 
 _NEGLIGIBLE = 1e-9
 """Share of a tolerance below which a deviation is not refined (when nothing larger is seen)."""
