@@ -35,6 +35,7 @@ from urdfpost.readers import read_cl, read_cl_chunks, read_cl_text
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import toolpath_slice
 from urdfpost.verification import verify
+from urdfpost.verification.process import check_process, located
 
 GOLDEN = Path(__file__).parent / "golden" / "arcs"
 REGEN = os.environ.get("URDFPOST_REGEN_GOLDEN") == "1"
@@ -401,3 +402,25 @@ def test_cutcom_register_and_plane() -> None:
     # controls that take the radius of the tool called refuse another register
     with pytest.raises(DialectError, match="offset register 7"):
         post(tp, load_machine("dmu50"), PostOptions(controller="heidenhain"))
+
+
+def test_process_check_sees_the_feed_of_an_arc() -> None:
+    """The feed of an arc block is checked as any move's: F300 on the G2 of CIRCLE line 18
+    (FEDRAT 400 there) is a fault naming that line; as written the process is the CL's."""
+    result = posted("fanuc")
+    machine = load_machine("dmu50")
+    tp = job()
+    good = check_process(DIALECTS["fanuc"].read(result.text), machine, tp)
+    assert good.ok and good.cutting_moves == 4 + 7  # the straight feed moves, the arc blocks
+    lines = result.text.splitlines()
+    k = next(i for i, line in enumerate(lines) if line.startswith("G2 X10.000 Y-30.000"))
+    lines[k] += " F300."
+    text = "\n".join(lines) + "\n"
+    bad = check_process(DIALECTS["fanuc"].read(text), machine, tp)
+    assert not bad.ok
+    # the fault is at the arc block: its line in the text
+    (where,) = located(bad, DIALECTS["fanuc"], lambda: [text], "p.nc")
+    # and the blocks after it at the modal F300: the ZX half circle's two, the line, the helix
+    assert where == (
+        f"p.nc:{k + 1}: feed F300 where the CL has F400 (CL line 18) (and 4 more cutting moves)"
+    )

@@ -302,6 +302,13 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
         help="spindle speed (clockwise) for cutting the CL data does not start the spindle "
         "for (default: such a move is an error)",
     )
+    p.add_argument(
+        "--no-arcs",
+        dest="arcs",
+        action="store_false",
+        help="write the CL data's arcs (CIRCLE) as lines, as interpolated (default: as G2/G3, "
+        "Heidenhain CC + C, where the control, the plane and a fixed tool axis allow it)",
+    )
 
 
 def _cl_units_argument(p: argparse.ArgumentParser, *aliases: str) -> None:
@@ -625,6 +632,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         clearance=args.clearance,
         feed=args.feed,
         spindle=args.spindle,
+        arcs=args.arcs,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {
