@@ -24,8 +24,12 @@ Reading rules:
 * Spindle and TCP blocks are emitted when the state changes, so a repeated ``M3`` or a ``G49``
   in the safety line with TCP already off adds nothing.
 * Consecutive home returns (Fanuc ``G28 G91 Z0.`` then ``G28 X0. Y0.``) are one :class:`Home`.
+* Arcs (G2/G3 with I J K, incremental from the start unless ``I=AC(..)``, in the plane of
+  G17/G18/G19; Heidenhain ``CC`` + ``C``) come out as :class:`~urdfpost.program.Arc` blocks
+  between the tables; cutter compensation (G41/G42 with D, G40; Heidenhain RL/RR/R0) as
+  :class:`~urdfpost.program.CutterComp` blocks when it changes.
 * Nothing that can move the machine is skipped: an unknown word, code or line, a malformed
-  number, circular moves, cutter compensation, canned cycles and the like raise
+  number, arcs by radius (``R``), canned cycles and the like raise
   :class:`~urdfpost.errors.ProgramParseError` with the file, line and what was expected.
 """
 

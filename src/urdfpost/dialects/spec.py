@@ -36,8 +36,14 @@ Reader actions for G-codes and keywords:
 ``blend``
     Path blending with tolerance words (LinuxCNC ``G64 P0.01 Q0.01``).
 ``noop``
-    Modes that do not change linear motion (plane, cutter compensation off, cycle cancel,
-    feed per minute, path control).
+    Modes that do not change linear motion (cycle cancel, feed per minute, path control).
+``arc_cw``, ``arc_ccw``
+    Circular motion (G2, G3), modal like G0/G1: takes I, J, K words (the centre, incremental
+    from the start).
+``plane_xy``, ``plane_zx``, ``plane_yz``
+    The arc plane (G17, G18, G19).
+``comp_left``, ``comp_right``, ``comp_off``
+    Cutter radius compensation (G41, G42, G40); G41/G42 take a D word (the offset register).
 
 Reader actions for M-codes: ``stop``, ``optional_stop``, ``end``, ``spindle_cw``,
 ``spindle_ccw``, ``spindle_off``, ``tool_change``, ``coolant_mist``, ``coolant_flood``,
