@@ -23,7 +23,9 @@ that cannot go into a tool call is written as ``TOOL CALL Z S<rpm>`` (speed-only
 
 Arcs are ``CC X.. Y..`` (the centre, absolute) then ``C X.. Y.. DR+`` (counter-clockwise seen
 from +Z) or ``DR-``, in the working plane XY only; radius compensation is ``RL``, ``RR`` or
-``R0`` on the next straight ``L`` block. The reader accepts the lines above plus ``* - structure comments``, inline ``; comments``,
+``R0`` on the next straight ``L`` block.
+
+The reader accepts the lines above plus ``* - structure comments``, inline ``; comments``,
 ``STOP``, ``TOOL DEF``, ``BLK FORM``, ``CYCL DEF 32`` (tolerance), ``M128``/``M129`` (older TCPM),
 ``IX+..`` incremental coordinates and ``R0``. ``L ... M91``/``M92`` blocks are machine
 coordinates and read as a home return.
