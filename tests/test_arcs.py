@@ -25,7 +25,7 @@ from rs274 import run_rs274
 
 from urdfpost import load_machine
 from urdfpost.dialects import DIALECTS
-from urdfpost.errors import CLDataError, DialectError
+from urdfpost.errors import CLDataError, DialectError, ProgramParseError
 from urdfpost.posting.options import PostOptions, resolve
 from urdfpost.posting.piece import post_piece
 from urdfpost.posting.stream import post_stream
@@ -424,3 +424,81 @@ def test_process_check_sees_the_feed_of_an_arc() -> None:
     assert where == (
         f"p.nc:{k + 1}: feed F300 where the CL has F400 (CL line 18) (and 4 more cutting moves)"
     )
+
+
+# --------------------------------------------------------------------------------------------
+# reading arcs written by hand
+
+
+def _arcs_of(controller: str, text: str) -> list[Arc]:
+    return [p for p in DIALECTS[controller].read(text).parts if isinstance(p, Arc)]
+
+
+def test_read_gcode_arcs_in_every_plane() -> None:
+    text = (
+        "G21\nG90\nG0 X10. Y0. Z0.\nG17 G3 X0. Y10. I-10. J0. F500.\n"
+        "G18 G2 X-10. Z-10. I0. K-10.\nG19 G3 Y0. Z0. J-10. K10.\nG1 X0.\nM30\n"
+    )
+    arcs = _arcs_of("linuxcnc", text)
+    assert [(a.plane, a.clockwise, a.centre) for a in arcs] == [
+        ("XY", False, (0.0, 0.0, 0.0)),
+        ("ZX", True, (0.0, 10.0, -10.0)),
+        ("YZ", False, (-10.0, 0.0, 0.0)),
+    ]
+    assert arcs[0].feed == 500.0 and arcs[0].position == (0.0, 10.0, 0.0)
+
+
+def test_read_siemens_absolute_centre() -> None:
+    text = "G710\nG90\nG0 X10 Y0 Z0\nG2 X0 Y-10 I=AC(0) J=AC(0) F500\nM30\n"
+    (arc,) = _arcs_of("siemens", text)
+    assert (arc.plane, arc.clockwise, arc.centre) == ("XY", True, (0.0, 0.0, 0.0))
+
+
+def test_read_heidenhain_circle() -> None:
+    text = (
+        "0 BEGIN PGM P MM\n1 L X+10 Y+0 Z+0 FMAX\n2 CC X+0 Y+0\n3 C X+0 Y+10 DR+ F500\n"
+        "4 L X+5\n5 END PGM P MM\n"
+    )
+    (arc,) = _arcs_of("heidenhain", text)
+    assert (arc.plane, arc.clockwise, arc.centre, arc.feed) == ("XY", False, (0.0, 0.0, 0.0), 500.0)
+
+
+@pytest.mark.parametrize(
+    ("controller", "text", "line", "match"),
+    [
+        ("fanuc", "G21\nG2 X1. Y1. I1. J0.\n", 2, r"arc from an unknown X position"),
+        ("fanuc", "G21\nG0 X0. Y0. Z0.\nG17 G2 X1. Y1. K1.\n", 3, r"K word in a XY arc"),
+        ("fanuc", "G21\nG0 X0. Y0. Z0. B0.\nG2 X1. Y1. I1. B5.\n", 3, r"B word in an arc block"),
+        (
+            "heidenhain",
+            "0 BEGIN PGM P MM\n1 L X+1 Y+0 Z+0 FMAX\n2 C X+0 Y+1 DR+\n",
+            3,
+            r"C without a CC",
+        ),
+        (
+            "heidenhain",
+            "0 BEGIN PGM P MM\n1 CC X+0 Y+0\n2 C X+0 Y+1\n",
+            3,
+            r"C without DR\+ or DR-",
+        ),
+        ("heidenhain", "0 BEGIN PGM P MM\n1 CC X+0 Z+0\n", 2, r"unknown word 'Z\+0' in CC"),
+    ],
+)
+def test_read_arc_errors(controller: str, text: str, line: int, match: str) -> None:
+    path = "job" + DIALECTS[controller].extensions[0]
+    with pytest.raises(ProgramParseError, match=rf"^job\.\w+:{line}: .*{match}"):
+        DIALECTS[controller].read(text, path=path)
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_arc_blocks_round_trip(controller: str) -> None:
+    """The posted program's arcs read back as written (to the written decimals)."""
+    result = posted(controller)
+    written = [p for p in result.program.parts if isinstance(p, Arc)]
+    back = _arcs_of(controller, result.text)
+    assert len(back) == len(written)
+    for a, b in zip(written, back, strict=True):
+        assert (a.plane, a.clockwise) == (b.plane, b.clockwise)
+        assert a.feed == b.feed  # the reader gives the modal feed, the post each arc's
+        assert np.abs(np.subtract(a.centre, b.centre)).max() <= 0.0005 + 1e-9
+        assert np.abs(np.subtract(a.position[:3], b.position[:3])).max() <= 0.0005 + 1e-9
