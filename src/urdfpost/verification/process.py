@@ -312,8 +312,6 @@ class ProcessChecker:
         # fault on one is at that block (a motion block: a move or an arc)
         self._block_of_row = _blocks_of_rows(written, program)
         n_blocks = int(self._block_of_row[-1]) + 1 if len(self._block_of_row) else 0
-        extra = len(self._block_of_row) - n_blocks
-        cutting_before = self._cutting
         continued = self._pieces > 0
         self._pieces += 1
         if ended is not None:
@@ -338,8 +336,6 @@ class ProcessChecker:
             )
         if n_rows:
             self._row0 += n_blocks - 1  # the next piece starts with this piece's last row
-        if extra:
-            self._cutting = max(cutting_before, self._cutting - extra)
 
     def result(self) -> ProcessCheck:
         """What the pieces added so far show."""
@@ -476,14 +472,14 @@ class ProcessChecker:
         feed_point = expected.motion == int(Motion.FEED)
         aside = rewind_moves(program)
         cutting = ~table.rapid & ~aside & (owner >= 0) & feed_point[o]
-        self._cutting += int(cutting.sum())
+        self._cutting += self._blocks_in(np.flatnonzero(cutting))
         lines = expected.line
 
         # feeds: the cutting moves at their point's feed; no rapid arriving at a feed point
         want = expected.feed[o]
         got = table.feed
         free = cutting & ~np.isfinite(want)
-        self._free_feed += int(free.sum())
+        self._free_feed += self._blocks_in(np.flatnonzero(free))
         slack = 0.5 * self.rounding.feed + 1e-9 * np.abs(np.where(np.isfinite(want), want, 0.0))
         off = cutting & ~free & ~(np.abs(got - want) <= slack)  # (NaN: no feed programmed)
         j = np.flatnonzero((match >= 0) & feed_point & sure)
@@ -516,7 +512,7 @@ class ProcessChecker:
         # spindle: running in the CL's direction at its speed at every cutting move
         want_dir, want_rpm = cl_dir[o], cl_rpm[o]
         any_speed = cutting & np.isnan(want_rpm)
-        self._free_speed += int(any_speed.sum())
+        self._free_speed += self._blocks_in(np.flatnonzero(any_speed))
         speed_slack = 0.5 * self.rounding.speed + 1e-9 * np.nan_to_num(np.abs(want_rpm))
         wrong = cutting & (
             (directions != want_dir) | (~any_speed & ~(np.abs(speeds - want_rpm) <= speed_slack))
