@@ -502,3 +502,46 @@ def test_arc_blocks_round_trip(controller: str) -> None:
         assert a.feed == b.feed  # the reader gives the modal feed, the post each arc's
         assert np.abs(np.subtract(a.centre, b.centre)).max() <= 0.0005 + 1e-9
         assert np.abs(np.subtract(a.position[:3], b.position[:3])).max() <= 0.0005 + 1e-9
+
+
+def _tilted_job() -> str:
+    """A quarter circle of radius 20 in a plane tilted 30 degrees about X, the tool along its
+    normal (a 3+2 arc)."""
+    a = math.radians(30.0)
+    rotation = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+    k = rotation @ np.array([0.0, 0.0, 1.0])
+    out = ["PARTNO TILTED", "UNITS/MM", "MULTAX/ON", "LOADTL/3", "SPINDL/8000,CLW"]
+    out.append("FEDRAT/MMPM,500")
+    for word, point in [
+        ("GOTO", (20, 0, 2)),
+        ("GOTO", (20, 0, -1)),
+        ("CIRCLE", (0, 0, -1)),
+        ("GOTO", (0, 20, -1)),
+        ("GOTO", (-20, 20, -1)),
+    ]:
+        q = rotation @ np.array(point, dtype=float)
+        if word == "GOTO":
+            out.append("GOTO/{:.6f},{:.6f},{:.6f},{:.7f},{:.7f},{:.7f}".format(*q, *k))
+        else:
+            out.append("CIRCLE/{:.6f},{:.6f},{:.6f},{:.7f},{:.7f},{:.7f},20".format(*q, *k))
+    return "\n".join([*out, "FINI"]) + "\n"
+
+
+@pytest.mark.parametrize(
+    ("machine_name", "tcp", "arcs"),
+    [
+        ("dmu50", True, 0),  # tilted in the workpiece frame
+        ("dmu50", False, 1),  # the table tilts the part: the arc is in the machine's XY
+        ("gantry-ca", False, 0),  # the head tilts: the arc stays tilted in the machine's axes
+        ("monoblock", False, 0),
+    ],
+)
+def test_tilted_arc_through_the_kinematics(machine_name: str, tcp: bool, arcs: int) -> None:
+    tp = read_cl_text(_tilted_job(), source="tilted.apt")
+    result = post(tp, load_machine(machine_name), PostOptions(controller="fanuc", tcp=tcp))
+    assert result.verification.ok
+    r = result.report.as_json()
+    assert (r["arcs"], r["arcs_linear"]) == (arcs, 1 - arcs)
+    assert len(arc_lines("fanuc", result.text)) == arcs
+    if not arcs:
+        assert any("the arc is in no XY, ZX or YZ plane of the program" in w for w in r["warnings"])
