@@ -57,6 +57,10 @@ PLANE_SLACK = 0.01
 #: standing still.
 STILL = 1e-9
 
+#: Largest move along the plane's normal (mm) of an arc that is no helix (a thousandth of the
+#: last decimal a program writes: the rounding of the kinematics, not a climb).
+CLIMB = 1e-6
+
 
 @dataclass(frozen=True)
 class ArcFigures:
@@ -243,7 +247,7 @@ def arc_spans(
         xyz = position[span][:, [axes.index(a) for a in "XYZ"]]
         normal_axis = "XYZ".index(ARC_PLANES[name][2])
         climb = float(np.abs(xyz[:, normal_axis] - xyz[0, normal_axis]).max())
-        if climb > 0.0 and not spec.arc_helix:
+        if climb > CLIMB and not spec.arc_helix:
             linear(f"{spec.name} takes no helix", line)
             continue
         cut = _cut_points(count, float(arc.data["sweep"]))
