@@ -24,6 +24,7 @@ from jobs import arc_job, cutcom_job
 from rs274 import run_rs274
 
 from urdfpost import load_machine
+from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
 from urdfpost.errors import CLDataError, DialectError, ProgramParseError
 from urdfpost.posting.options import PostOptions, resolve
@@ -545,3 +546,14 @@ def test_tilted_arc_through_the_kinematics(machine_name: str, tcp: bool, arcs: i
     assert len(arc_lines("fanuc", result.text)) == arcs
     if not arcs:
         assert any("the arc is in no XY, ZX or YZ plane of the program" in w for w in r["warnings"])
+
+
+def test_command_line_no_arcs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cl = tmp_path / "arc_job.apt"
+    cl.write_text(arc_job())
+    for extra, count in (([], ARC_BLOCKS["linuxcnc"]), (["--no-arcs"], 0)):
+        out = tmp_path / "out.ngc"
+        argv = ["post", str(cl), "-m", "dmu50", "--controller", "linuxcnc", "-o", str(out)]
+        assert main(argv + extra) == 0
+        assert len(arc_lines("linuxcnc", out.read_text())) == count
+    capsys.readouterr()
