@@ -468,6 +468,7 @@ def test_read_heidenhain_circle() -> None:
     ("controller", "text", "line", "match"),
     [
         ("fanuc", "G21\nG2 X1. Y1. I1. J0.\n", 2, r"arc from an unknown X position"),
+        ("fanuc", "G21\nG0 X0. Y0. Z0.\nG2 X1. Y1.\n", 3, r"G2 without I, J or K; expected"),
         ("fanuc", "G21\nG0 X0. Y0. Z0.\nG17 G2 X1. Y1. K1.\n", 3, r"K word in a XY arc"),
         ("fanuc", "G21\nG0 X0. Y0. Z0. B0.\nG2 X1. Y1. I1. B5.\n", 3, r"B word in an arc block"),
         (

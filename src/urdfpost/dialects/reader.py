@@ -903,6 +903,11 @@ def _arc(
             f"{stray[0]} word in a {builder.plane} arc; expected the centre words of "
             f"{first} and {second}"
         )
+    if not centre:
+        raise builder.error(
+            f"G{'2' if builder.arc else '3'} without I, J or K; expected the centre of the "
+            f"{builder.plane} arc (I J K incremental from the start)"
+        )
     values = {a: _axis_value(spec, builder, axes[a]) for a in AXIS_ORDER if a in axes}
     given = {}
     for letter, word in centre.items():
