@@ -48,6 +48,12 @@ class Event:
           optional ``data["tool_name"]``
         - ``"cutter"``: tool size (CUTTER, TLDATA): ``data["diameter"]``, optional
           ``data["corner_radius"]``, ``data["length"]`` (mm)
+        - ``"arc"``: a circular arc whose interpolated points follow the event (a CIRCLE):
+          ``data["centre"]`` (mm), ``data["normal"]`` (unit; the arc turns counter-clockwise
+          about it), ``data["radius"]`` (mm), ``data["points"]`` (how many points follow; the
+          point before the event is the arc's start), ``data["sweep"]`` (rad)
+        - ``"cutcom"``: cutter radius compensation, ``data["side"]`` ("left", "right",
+          "off"), optional ``data["register"]`` (int), ``data["plane"]`` ("XY", "ZX", "YZ")
         - ``"unknown"``: a record the reader does not translate, ``data["text"]`` (carried
           into the program as a comment; the reader also adds a warning)
     line : int
