@@ -558,3 +558,24 @@ def test_command_line_no_arcs(tmp_path: Path, capsys: pytest.CaptureFixture[str]
         assert main(argv + extra) == 0
         assert len(arc_lines("linuxcnc", out.read_text())) == count
     capsys.readouterr()
+
+
+@pytest.mark.parametrize("tcp", [True, False], ids=["tcp", "mc"])
+def test_nx_arcs_through_rs274(tmp_path: Path, tcp: bool) -> None:
+    """LinuxCNC's interpreter takes every arc of the NX job (inch, four decimals: the radius
+    at the end within its tolerance of the start's), with TCP and in machine coordinates, where
+    the trunnion table turns the tilted operations' arcs into the machine's planes too."""
+    machine = load_machine("umc750")
+    tol = Tolerances.for_units("inch")
+    path = shared_cl("nx_project2_15ops_inch.cls")
+    tp = read_cl(path, units="inch", chord_tolerance=tol.chord)
+    options = PostOptions(controller="linuxcnc", strategy="recursive", spindle=8000.0, tcp=tcp)
+    result = post(tp, machine, options)
+    assert result.verification.ok
+    r = result.report.as_json()
+    assert r["arcs"] + r["arcs_linear"] == NX_CIRCLES
+    assert r["arcs"] == 102 if tcp else r["arcs"] > 102
+    length = result.program.tool_length / 25.4 if tcp else 0.0
+    run = run_rs274(result.text, dict.fromkeys((1, 2, 3), length), tmp_path, units="inch")
+    assert run.ended
+    assert len(run.named("ARC_FEED")) == len(arc_lines("linuxcnc", result.text)) >= r["arcs"]

@@ -19,7 +19,8 @@ block replaces) where all of these hold; elsewhere the rows stay, linear, with a
   linear axes, ``tip = M lin + c``; ``M`` must be a rotation, the linear axes orthonormal, and
   the arc's normal ``M^T n`` a machine axis);
 - the start and end points are as far from the centre within :data:`RADIUS_SLACK` of the tip
-  tolerance (a control refuses an arc whose end is off its circle).
+  tolerance (a control refuses an arc whose end is off its circle), and at least
+  :data:`MIN_CHORD` apart (rounded, a shorter arc could turn the other way round).
 
 An arc of more than half a turn is written as several blocks of at most half a turn each
 (:data:`MAX_SWEEP`), ending on interpolated CL points, so that a full circle, or several turns
@@ -56,6 +57,10 @@ PLANE_SLACK = 0.01
 #: Largest turn of a rotary axis (rad), or of the tool axis, over an arc that still counts as
 #: standing still.
 STILL = 1e-9
+
+#: Shortest chord (mm) of an arc block: a shorter one could turn the other way round once its
+#: ends are rounded to the written decimals (0.001 mm, 0.0001 in).
+MIN_CHORD = 0.05
 
 #: Largest move along the plane's normal (mm) of an arc that is no helix (a thousandth of the
 #: last decimal a program writes: the rounding of the kinematics, not a climb).
@@ -253,7 +258,10 @@ def arc_spans(
         cut = _cut_points(count, float(arc.data["sweep"]))
         blocks = _blocks(xyz, frame_centre, name, cut, rows.point[span] - start, tol.tip)
         if blocks is None:
-            linear("the arc's ends are not as far from its centre", line)
+            linear(
+                f"the arc's ends are not as far from its centre, or closer than {MIN_CHORD} mm",
+                line,
+            )
             continue
         feed = float(toolpath.feed[end])
         for a, b, row in blocks:
@@ -311,7 +319,8 @@ def _blocks(
     counted from the arc's start row; None when an end is off the circle.
 
     ``xyz`` (k, 3) are the rows' X, Y, Z, ``point`` the CL point of each row counted from the
-    start point (0) to the end (count).
+    start point (0) to the end (count). None too when a block's chord is shorter than
+    :data:`MIN_CHORD`.
     """
     first, second, normal = ARC_PLANES[plane]
     i, j, n = ("XYZ".index(a) for a in (first, second, normal))
@@ -324,6 +333,8 @@ def _blocks(
             return None
         b = int(at[-1])
         if abs(radius[b] - radius[a]) > RADIUS_SLACK * tip_tol:
+            return None
+        if math.hypot(xyz[b, i] - xyz[a, i], xyz[b, j] - xyz[a, j]) < MIN_CHORD:
             return None
         row = centre.copy()
         row[n] = xyz[a, n]  # the centre is given at the start's height
