@@ -257,11 +257,8 @@ def arc_spans(
             continue
         cut = _cut_points(count, float(arc.data["sweep"]))
         blocks = _blocks(xyz, frame_centre, name, cut, rows.point[span] - start, tol.tip)
-        if blocks is None:
-            linear(
-                f"the arc's ends are not as far from its centre, or closer than {MIN_CHORD} mm",
-                line,
-            )
+        if isinstance(blocks, str):
+            linear(blocks, line)
             continue
         feed = float(toolpath.feed[end])
         for a, b, row in blocks:
@@ -314,12 +311,12 @@ def _blocks(
     cuts: list[int],
     point: np.ndarray,
     tip_tol: float,
-) -> list[tuple[int, int, tuple[float, float, float]]] | None:
+) -> list[tuple[int, int, tuple[float, float, float]]] | str:
     """The blocks of one arc: (row after which it starts, row it ends on, centre) with rows
-    counted from the arc's start row; None when an end is off the circle.
+    counted from the arc's start row; why not, when an end is off the circle.
 
     ``xyz`` (k, 3) are the rows' X, Y, Z, ``point`` the CL point of each row counted from the
-    start point (0) to the end (count). None too when a block's chord is shorter than
+    start point (0) to the end (count). Why not too when a block's chord is shorter than
     :data:`MIN_CHORD`.
     """
     first, second, normal = ARC_PLANES[plane]
@@ -330,12 +327,12 @@ def _blocks(
     for cut in cuts:
         at = np.flatnonzero(point == cut)
         if not at.size:
-            return None
+            return "the program has no row at an interpolated point of the arc"
         b = int(at[-1])
         if abs(radius[b] - radius[a]) > RADIUS_SLACK * tip_tol:
-            return None
+            return "the arc's ends are not as far from its centre"
         if math.hypot(xyz[b, i] - xyz[a, i], xyz[b, j] - xyz[a, j]) < MIN_CHORD:
-            return None
+            return f"the arc's ends are closer than {MIN_CHORD} mm"
         row = centre.copy()
         row[n] = xyz[a, n]  # the centre is given at the start's height
         out.append((a, b, (float(row[0]), float(row[1]), float(row[2]))))
