@@ -313,11 +313,12 @@ def _blocks(
     tip_tol: float,
 ) -> list[tuple[int, int, tuple[float, float, float]]] | str:
     """The blocks of one arc: (row after which it starts, row it ends on, centre) with rows
-    counted from the arc's start row; why not, when an end is off the circle.
+    counted from the arc's start row; or, when one cannot be written, why not (an end off the
+    circle, a chord under :data:`MIN_CHORD`).
 
-    ``xyz`` (k, 3) are the rows' X, Y, Z, ``point`` the CL point of each row counted from the
-    start point (0) to the end (count). Why not too when a block's chord is shorter than
-    :data:`MIN_CHORD`.
+    ``xyz`` (k, 3) are the rows' X, Y, Z (mm), ``centre`` (3,) the arc's (mm), ``cuts`` the
+    interpolated points the blocks end on (:func:`_cut_points`), ``point`` (k,) the CL point
+    of each row counted from the start point (0) to the end (count).
     """
     first, second, normal = ARC_PLANES[plane]
     i, j, n = ("XYZ".index(a) for a in (first, second, normal))
