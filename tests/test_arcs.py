@@ -579,3 +579,21 @@ def test_nx_arcs_through_rs274(tmp_path: Path, tcp: bool) -> None:
     run = run_rs274(result.text, dict.fromkeys((1, 2, 3), length), tmp_path, units="inch")
     assert run.ended
     assert len(run.named("ARC_FEED")) == len(arc_lines("linuxcnc", result.text)) >= r["arcs"]
+
+
+def test_streamed_reading_carries_the_arcs() -> None:
+    """read_cl_chunks gives every arc event, at the same point as the whole file's reading
+    (an arc's points may run on into the next piece)."""
+    tol = Tolerances.for_units("inch")
+    path = shared_cl("nx_project2_15ops_inch.cls")
+    whole = [
+        (e.index, e.line, e.data)
+        for e in read_cl(path, units="inch", chord_tolerance=tol.chord).events
+        if e.kind == "arc"
+    ]
+    pieces, offset = [], 0
+    for piece in read_cl_chunks(path, max_points=500, units="inch", chord_tolerance=tol.chord):
+        pieces += [(e.index + offset, e.line, e.data) for e in piece.events if e.kind == "arc"]
+        offset += len(piece)
+    assert len(whole) == NX_CIRCLES
+    assert pieces == whole
