@@ -597,3 +597,25 @@ def test_streamed_reading_carries_the_arcs() -> None:
         offset += len(piece)
     assert len(whole) == NX_CIRCLES
     assert pieces == whole
+
+
+def test_view_shows_the_arcs_as_the_control_runs_them() -> None:
+    """The 3-D view samples an arc block along the arc (not as the chord to its end): its
+    worst tip deviation from the CL path is that of the arcs, and the NC line of the moves
+    along an arc is the arc's line."""
+    from urdfpost.analysis.view import view_data
+
+    result = posted("linuxcnc")
+    dialect = DIALECTS["linuxcnc"]
+    program = dialect.read(result.text)
+    data = view_data(load_machine("dmu50"), program, result.text, dialect, cl=job())
+    (worst,) = [m for m in data["marks"] if m["kind"] == "worst"]
+    deviation = float(re.search(r"worst tip deviation ([\d.]+) mm", worst["label"])[1])
+    assert deviation < 0.01
+    arc_numbers = {
+        str(k + 1)
+        for k, line in enumerate(result.text.splitlines())
+        if line in arc_lines("linuxcnc", result.text)
+    }
+    assert len(arc_numbers) == ARC_BLOCKS["linuxcnc"]
+    assert arc_numbers <= set(data["text"])  # the NC lines the samples show

@@ -180,8 +180,10 @@ class ProgramBuilder:
         self.closed = not spec.program_close  # its closing line (Fanuc %, END PGM) too
         self.code_seen = False
         self.items: list[Block | _ReadMove | _ReadMoves | _ReadArc] = []
-        # the text line of every move read, in order (the 3-D view shows each block's line)
+        # the text line of every move read, in order (the 3-D view shows each block's line),
+        # and of every arc
         self.move_lines: list[int | np.ndarray] = []
+        self.arc_lines: list[int] = []
 
     # -- helpers -----------------------------------------------------------------------------
 
@@ -341,6 +343,7 @@ class ProgramBuilder:
         self.motion = None  # no linear mode: an axis word alone continues the arc
         x, y, z = centre_mm
         self._add(_ReadArc(read.position, (x, y, z), plane, clockwise, read.feed))
+        self.arc_lines.append(self.line)
 
     def moves(self, lines: _bulk.MotionLines, rows: slice, first_line: int) -> bool:
         """Plain motion blocks, read at once: as :meth:`move` (and the feed and motion code of
