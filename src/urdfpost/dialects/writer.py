@@ -407,7 +407,12 @@ class ProgramWriter:
                     f"{spec.name}: cutter compensation with offset register {block.register}: "
                     "the control takes the radius of the tool's own edge; expected no register"
                 )
-            register = block.register if block.register is not None else self.modal.tool or 1
+            register = block.register if block.register is not None else self.modal.tool
+            if register is None and "{register}" in template:
+                raise DialectError(
+                    f"{spec.name}: cutter compensation {block.side} before any tool change; "
+                    "expected a ToolChange before it (its number is the D word)"
+                )
             line = template.format(register=register, plane=plane)
             self.emit(" ".join(line.split()))
             if block.side != "off":
