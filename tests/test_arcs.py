@@ -42,10 +42,10 @@ GOLDEN = Path(__file__).parent / "golden" / "arcs"
 REGEN = os.environ.get("URDFPOST_REGEN_GOLDEN") == "1"
 CONTROLLERS = ("heidenhain", "siemens", "fanuc", "linuxcnc")
 
-#: Arc blocks of the job per control: 6 CIRCLE records, the 270 and 180 degree ones in two
-#: blocks each (at most half a turn a block) but for the arc job's two quarter circles of
-#: radius 20 and the other quarter circles; Heidenhain writes XY arcs without helix only.
-ARC_BLOCKS = {"heidenhain": 4, "siemens": 7, "fanuc": 7, "linuxcnc": 7}
+#: Arc blocks of the job per control: 6 CIRCLE records, five quarter circles (one a helix) in
+#: one block each, the ZX half circle in two (at most 0.9 of half a turn a block); Heidenhain
+#: writes arcs in the XY plane only (the helix as CP IPA IZ).
+ARC_BLOCKS = {"heidenhain": 5, "siemens": 7, "fanuc": 7, "linuxcnc": 7}
 
 
 def job():
@@ -57,7 +57,7 @@ def posted(controller: str, tcp: bool = True):
 
 
 def arc_lines(controller: str, text: str) -> list[str]:
-    pattern = r"^\d+ C X" if controller == "heidenhain" else r"^(G1[789] )?G[23] "
+    pattern = r"^\d+ (C X|CP IPA)" if controller == "heidenhain" else r"^(G1[789] )?G[23] "
     return [line for line in text.splitlines() if re.match(pattern, line)]
 
 
@@ -84,13 +84,13 @@ def test_golden_arc_program(controller: str) -> None:
         (a.plane, a.clockwise) for a in result.program.parts if isinstance(a, Arc)
     ]
     r = result.report.as_json()
-    linear = {"heidenhain": 2}.get(controller, 0)  # the ZX half circle, the helix
+    linear = {"heidenhain": 1}.get(controller, 0)  # the ZX half circle
     assert (r["arcs"], r["arcs_linear"]) == (6 - linear, linear)
     notes = [w for w in r["warnings"] if "CL arcs written as lines" in w]
     assert len(notes) == linear
     if controller == "heidenhain":
         assert any("no arcs in the ZX plane (first at CIRCLE line 20)" in w for w in notes)
-        assert any("no helix (first at CIRCLE line 23)" in w for w in notes)
+        assert re.search(r"^\d+ CP IPA\+90\.0000 IZ-2\.000 DR\+$", result.text, re.MULTILINE)
 
 
 @pytest.mark.parametrize("controller", CONTROLLERS)
@@ -290,9 +290,9 @@ def test_nx_circles_come_out_as_arcs(controller: str) -> None:
     r = result.report.as_json()
     assert r["arcs"] + r["arcs_linear"] == NX_CIRCLES
     # the arcs of the tilted operations (tool axis off Z, in no XY/ZX/YZ plane of the
-    # workpiece frame) stay lines; every arc in a plane of the frame is an arc, Heidenhain
-    # leaves its helices (ramps) as lines
-    written = {"heidenhain": 87}.get(controller, 102)
+    # workpiece frame) stay lines; every arc in a plane of the frame is an arc (helical ramps
+    # included: Heidenhain CP IPA IZ)
+    written = 102
     assert r["arcs"] == written
     blocks = [p for p in result.program.parts if isinstance(p, Arc)]
     back = DIALECTS[controller].read(result.text)
@@ -453,6 +453,18 @@ def test_read_siemens_absolute_centre() -> None:
     text = "G710\nG90\nG0 X10 Y0 Z0\nG2 X0 Y-10 I=AC(0) J=AC(0) F500\nM30\n"
     (arc,) = _arcs_of("siemens", text)
     assert (arc.plane, arc.clockwise, arc.centre) == ("XY", True, (0.0, 0.0, 0.0))
+
+
+def test_read_heidenhain_helix() -> None:
+    text = (
+        "0 BEGIN PGM P MM\n1 L X+10 Y+0 Z+0 FMAX\n2 CC X+0 Y+0\n3 CP IPA-90 IZ-2 DR- F500\n"
+        "4 END PGM P MM\n"
+    )
+    (arc,) = _arcs_of("heidenhain", text)
+    assert (arc.plane, arc.clockwise, arc.centre) == ("XY", True, (0.0, 0.0, 0.0))
+    assert np.allclose(arc.position, (0.0, -10.0, -2.0), atol=1e-12)
+    with pytest.raises(ProgramParseError, match=r"job\.h:4: CP IPA-90 with DR\+; expected one"):
+        DIALECTS["heidenhain"].read(text.replace("DR-", "DR+"), path="job.h")
 
 
 def test_read_heidenhain_circle() -> None:

@@ -22,7 +22,8 @@ programs coordinates are inch and feeds are in 0.1 inch/min (TNC convention). A 
 that cannot go into a tool call is written as ``TOOL CALL Z S<rpm>`` (speed-only tool call).
 
 Arcs are ``CC X.. Y..`` (the centre, absolute) then ``C X.. Y.. DR+`` (counter-clockwise seen
-from +Z) or ``DR-``, in the working plane XY only; radius compensation is ``RL``, ``RR`` or
+from +Z) or ``DR-``, in the working plane XY only; a helix is ``CP IPA.. IZ.. DR..`` after the
+``CC`` (the angle turned and the climb, incremental); radius compensation is ``RL``, ``RR`` or
 ``R0`` on the next straight ``L`` block.
 
 The reader accepts the lines above plus ``* - structure comments``, inline ``; comments``,
@@ -33,6 +34,7 @@ coordinates and read as a home return.
 
 from __future__ import annotations
 
+import math
 import re
 from types import MappingProxyType
 
@@ -71,13 +73,19 @@ def format_motion(words: MotionWords) -> str:
 
 
 def format_arc(words: ArcWords) -> tuple[str, ...]:
-    """``CC X+1.000 Y+2.000`` (the centre, absolute) and ``C X+3.000 Y+2.000 DR+ F500``.
+    """``CC X+1.000 Y+2.000`` (the centre, absolute) and ``C X+3.000 Y+2.000 DR+ F500``, or
+    for a helix ``CP IPA+90.0000 IZ-2.000 DR+ F500`` (the angle turned and the climb, both
+    incremental from the start; IPA and DR of one sign).
 
     DR+ is the mathematically positive sense, counter-clockwise seen from the positive tool
     axis (Z); the post writes arcs in the working plane only (``arc_planes``).
     """
     centre = " ".join(f"{address}{value}" for address, value in words.centre)
-    parts = ["C", *(f"{address}{value}" for address, value in words.axes)]
+    if words.climb is not None:  # a helix: the incremental polar angle and climb about CC
+        address, rise = words.climb
+        parts = ["CP", f"IPA{words.turn}", f"I{address}{rise}"]
+    else:
+        parts = ["C", *(f"{address}{value}" for address, value in words.axes)]
     parts.append("DR-" if words.clockwise else "DR+")
     if words.feed is not None:
         parts.append(f"F{words.feed}")
@@ -158,6 +166,8 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
         _circle_centre(builder, words[1:])
     elif words[0] == "C":
         _circle(spec, builder, words[1:])
+    elif words[0] == "CP":
+        _polar_circle(spec, builder, words[1:])
     elif words[0] == "STOP":
         builder.stop(False)
         _m_only(spec, builder, words[1:])
@@ -320,6 +330,65 @@ def _circle(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> Non
             apply_m_action(builder, action)
 
 
+_POLAR = re.compile(r"(IPA|IZ)(.*)\Z")
+
+
+def _polar_circle(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
+    """``CP IPA.. [IZ..] DR+|DR- [F..] [M..]``: a helix (or arc) about the last CC, turning
+    ``IPA`` degrees from the start at the start's distance from CC, climbing ``IZ``."""
+    centre = builder.circle_centre
+    if centre is None:
+        raise builder.error("CP without a CC before it; expected CC X.. Y.. first")
+    given: dict[str, float] = {}
+    sense = None
+    m_words = []
+    for word in words:
+        polar = _POLAR.match(word)
+        if polar:
+            if polar.group(1) in given:
+                raise builder.error(f"two {polar.group(1)} words in one CP block")
+            given[polar.group(1)] = builder.number(polar.group(1), polar.group(2))
+        elif word in ("DR+", "DR-"):
+            sense = word
+        elif word.startswith("F") and word != "FMAX":
+            builder.set_feed(builder.number("F", word[1:]))
+        elif word == "R0":
+            continue
+        elif word.startswith("M"):
+            m_words.append(word)
+        else:
+            raise builder.error(
+                f"unknown word {word!r} in CP block; expected IPA.., IZ.., DR+ or DR-, F.., M.."
+            )
+    if sense is None or "IPA" not in given:
+        raise builder.error("CP without IPA and DR+ or DR-; expected CP IPA.. IZ.. DR+")
+    if (given["IPA"] < 0) != (sense == "DR-"):
+        raise builder.error(f"CP IPA{given['IPA']:+g} with {sense}; expected one sign for both")
+    start = {a: builder.position.get(a, math.nan) / builder.linear_scale for a in "XYZ"}
+    if any(math.isnan(v) for v in start.values()):
+        raise builder.error("CP from an unknown position; expected a move to its start first")
+    dx, dy = start["X"] - centre[0], start["Y"] - centre[1]
+    angle = math.atan2(dy, dx) + math.radians(given["IPA"])
+    radius = math.hypot(dx, dy)
+    end = {
+        "X": (centre[0] + radius * math.cos(angle), False),
+        "Y": (centre[1] + radius * math.sin(angle), False),
+        "Z": (start["Z"] + given.get("IZ", 0.0), False),
+    }
+    actions = _m_codes(spec, builder, m_words)
+    if "machine" in actions:
+        raise builder.error("M91/M92 in a CP block; expected them in L blocks only")
+    for action in actions:
+        if action in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+    builder.arc_move(
+        end, {"X": (centre[0], True), "Y": (centre[1], True)}, sense == "DR-", plane="XY"
+    )
+    for action in actions:
+        if action not in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+
+
 M_CODES = MappingProxyType(
     {
         **{code: action for code, action in STANDARD_M_CODES.items() if code != 6},
@@ -380,6 +449,7 @@ SPEC = DialectSpec(
     motion_layout=MotionLayout(lead="L", rapid_word="FMAX"),
     parse_line=parse_line,
     arc_planes=frozenset({"XY"}),
+    arc_helix=True,
     arc_centre_absolute=True,
     format_arc=format_arc,
     cutter_comp_words=MappingProxyType({"left": "RL", "right": "RR", "off": "R0"}),

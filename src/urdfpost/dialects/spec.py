@@ -205,6 +205,13 @@ class ArcWords:
         values (:attr:`DialectSpec.arc_centre_absolute`, Heidenhain ``CC``).
     feed : str or None
         Formatted feed to write, or None to keep the modal feed.
+    turn : str
+        The angle turned from the start as written to the end, degrees, signed
+        (counter-clockwise positive), formatted as the rotary axes are (Heidenhain's helix
+        ``CP IPA``).
+    climb : tuple of (str, str) or None
+        A helix: the normal axis' address and its increment from the start to the end,
+        formatted (Heidenhain ``IZ``); None for a planar arc.
     """
 
     plane: str
@@ -213,6 +220,8 @@ class ArcWords:
     axes: tuple[tuple[str, str], ...]
     centre: tuple[tuple[str, str], ...]
     feed: str | None
+    turn: str = ""
+    climb: tuple[str, str] | None = None
 
 
 def format_gcode_arc(words: ArcWords) -> tuple[str, ...]:

@@ -499,8 +499,38 @@ class ProgramWriter:
             action = {"XY": "plane_xy", "ZX": "plane_zx", "YZ": "plane_yz"}[arc.plane]
             plane_code = spec.g_code_for(action) if action in spec.g_codes.values() else None
             modal.plane = arc.plane
+        # the turn and the climb from the start as written (for a control that takes an
+        # incremental angle, Heidenhain CP IPA)
+        scale = self.scale
+        start_xyz = [math.nan] * 3
+        for a in (first, second, normal):
+            start_xyz["XYZ".index(a)] = float(modal.axes[a]) * scale
+        end_xyz = [math.nan] * 3
+        for a in (first, second, normal):
+            end_xyz["XYZ".index(a)] = float(texts[a]) * scale
+        centre_xyz = list(arc.centre)
+        for a, text in centre_words if spec.arc_centre_absolute else ():
+            centre_xyz["XYZ".index(a)] = float(text) * scale
+        written = Arc(
+            tuple(end_xyz), (centre_xyz[0], centre_xyz[1], centre_xyz[2]), arc.plane, arc.clockwise
+        )
+        sweep = math.degrees(written.sweep(start_xyz, ("X", "Y", "Z")))
+        turn = spec.rotary.format(-sweep if arc.clockwise else sweep)
+        climb = None
+        if texts[normal] != modal.axes[normal]:
+            rise = float(texts[normal]) - float(modal.axes[normal])
+            climb = (normal, self.linear.format(rise))
         lines = spec.format_arc(
-            ArcWords(arc.plane, plane_code, arc.clockwise, tuple(words), centre_words, feed)
+            ArcWords(
+                arc.plane,
+                plane_code,
+                arc.clockwise,
+                tuple(words),
+                centre_words,
+                feed,
+                turn,
+                climb,
+            )
         )
         for line in lines:
             self.emit(line)
