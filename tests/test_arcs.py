@@ -631,3 +631,18 @@ def test_view_shows_the_arcs_as_the_control_runs_them() -> None:
     }
     assert len(arc_numbers) == ARC_BLOCKS["linuxcnc"]
     assert arc_numbers <= set(data["text"])  # the NC lines the samples show
+
+
+def test_arcs_read_with_a_coarse_chord_tolerance_are_written_as_lines() -> None:
+    """CL points read 0.01 mm chords off the arcs (the whole tip tolerance): the arcs would be
+    that far from the points the program is checked against, so they are lines, said so."""
+    tp = read_cl_text(arc_job(), source="arc_job.apt", chord_tolerance=0.01)
+    result = post(tp, load_machine("dmu50"), PostOptions(controller="fanuc"))
+    assert result.verification.ok
+    r = result.report.as_json()
+    assert (r["arcs"], r["arcs_linear"]) == (0, 6)
+    assert any(
+        "6 CL arcs written as lines: its CL points are chords more than half the tip tolerance "
+        "off the arc" in w
+        for w in r["warnings"]
+    )

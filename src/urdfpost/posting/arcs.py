@@ -11,6 +11,8 @@ block replaces) where all of these hold; elsewhere the rows stay, linear, with a
   (:attr:`~urdfpost.dialects.spec.DialectSpec.arc_planes`, ``arc_tcp``, ``arc_helix``);
 - the points are still the arc's: every one of them in the piece (a streamed piece may cut an
   arc), on the CIRCLE line, feed moves, with no event among them;
+- the CL points are close chords of the arc (within :data:`CHORD_SHARE` of the tip
+  tolerance), as the post's own reading gives them: the program is checked against them;
 - the tool axis is fixed over the arc and the rotary axes stand still in every row of it (no
   rewind, no turn);
 - the arc's plane is the XY, ZX or YZ plane of the program's frame: in TCP programs the
@@ -57,6 +59,11 @@ PLANE_SLACK = 0.01
 #: Largest turn of a rotary axis (rad), or of the tool axis, over an arc that still counts as
 #: standing still.
 STILL = 1e-9
+
+#: Largest share of the tip tolerance the chords between an arc's CL points may leave it by:
+#: the program is checked against those points, and the arc itself is that far from them
+#: (the CL file read with a coarse chord tolerance: its arcs are written as lines).
+CHORD_SHARE = 0.5
 
 #: Shortest chord (mm) of an arc block: a shorter one could turn the other way round once its
 #: ends are rounded to the written decimals (0.001 mm, 0.0001 in).
@@ -227,6 +234,14 @@ def arc_spans(
         if rotary and (np.ptp(rows.q[span][:, rotary], axis=0) > STILL).any():
             linear("the rotary axes move over the arc", line)
             continue
+        sagitta = _sagitta(float(arc.data["radius"]), float(arc.data["sweep"]), count)
+        if sagitta > CHORD_SHARE * tol.tip:
+            linear(
+                "its CL points are chords more than half the tip tolerance off the arc (the CL "
+                "data was read with a coarser chord tolerance)",
+                line,
+            )
+            continue
         if tcp and not spec.arc_tcp:
             linear(f"{spec.name} takes no arcs with TCP on", line)
             continue
@@ -282,6 +297,12 @@ def arc_spans(
         for why, lines in reasons.items()
     ]
     return ArcFigures(spans, written, sum(map(len, reasons.values())), notes)
+
+
+def _sagitta(radius: float, sweep: float, count: int) -> float:
+    """Largest distance (mm) of the arc from the chords between its ``count`` interpolated
+    points (evenly spaced over ``sweep`` rad, radius ``radius`` mm)."""
+    return radius * (1.0 - math.cos(0.5 * sweep / max(count, 1)))
 
 
 def program_positions(machine: Machine, rows: Rows, tcp: bool) -> np.ndarray:
