@@ -132,3 +132,69 @@ def rotary_sweep(feed: float = 400.0, points: int = 48) -> str:
         lines.append(goto(10.0 + 10.0 * s, 0.0, 0.0, *axis))
     lines += ["RAPID", goto(20.0, 0.0, 20.0, 0.0, 0.0, 1.0), "FINI", ""]
     return "\n".join(lines)
+
+
+def arc_job() -> str:
+    """A planar arc job (mm, fixed vertical tool): two quarter circles of radius 20 about the
+    origin (counter-clockwise), a straight line, a quarter circle of radius 10 clockwise
+    (normal -Z), a half circle of radius 10 in the ZX plane (normal -Y, down a wall), a
+    straight line and a helical quarter circle (down 2 mm), each continued tangentially by
+    the moves around it."""
+    return """\
+PARTNO ARC JOB
+UNITS/MM
+LOADTL/3
+SPINDL/8000,CLW
+RAPID
+GOTO/20,0,10
+FEDRAT/MMPM,600
+GOTO/20,0,-1
+CIRCLE/0,0,-1,0,0,1,20
+GOTO/0,20,-1
+CIRCLE/0,0,-1,0,0,1,20
+GOTO/-20,0,-1
+GOTO/-20,-10,-1
+CIRCLE/-10,-10,-1,0,0,1,10
+GOTO/-10,-20,-1
+FEDRAT/MMPM,400
+GOTO/0,-20,-1
+CIRCLE/0,-30,-1,0,0,-1,10
+GOTO/10,-30,-1
+CIRCLE/20,-30,-1,0,-1,0,10
+GOTO/30,-30,-1
+GOTO/30,-20,-1
+CIRCLE/20,-20,-1,0,0,1,10
+GOTO/20,-10,-3
+RAPID
+GOTO/20,-10,10
+FINI
+"""
+
+
+def cutcom_job() -> str:
+    """A pocket wall with cutter radius compensation (mm, vertical tool): ``CUTCOM/LEFT``
+    before a straight entry move, a square with a rounded corner, ``CUTCOM/OFF`` before the
+    straight exit move."""
+    return """\
+PARTNO CUTCOM JOB
+UNITS/MM
+LOADTL/3
+SPINDL/8000,CLW
+RAPID
+GOTO/-20,-20,10
+FEDRAT/MMPM,500
+GOTO/-20,-20,-2
+CUTCOM/LEFT,XYPLAN
+GOTO/-10,-10,-2
+GOTO/10,-10,-2
+GOTO/10,5,-2
+CIRCLE/5,5,-2,0,0,1,5
+GOTO/5,10,-2
+GOTO/-10,10,-2
+GOTO/-10,-10,-2
+CUTCOM/OFF
+GOTO/-20,-20,-2
+RAPID
+GOTO/-20,-20,10
+FINI
+"""

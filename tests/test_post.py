@@ -441,8 +441,10 @@ def test_every_feed_move_has_a_feed() -> None:
 def _post_real(name: str, tcp: bool) -> tuple[Toolpath, PostResult]:
     m = machine("umc750")
     tp = read_cl(shared_cl(name), units=m.settings.units, chord_tolerance=INCH_TOL_MM)
-    # the file starts no spindle: the job gives one (as --spindle)
-    return tp, post(tp, m, PostOptions(strategy="recursive", tcp=tcp, spindle=8000.0))
+    # the file starts no spindle: the job gives one (as --spindle); its arcs as lines, every
+    # CL point a block (the arcs themselves: tests/test_arcs.py)
+    options = PostOptions(strategy="recursive", tcp=tcp, spindle=8000.0, arcs=False)
+    return tp, post(tp, m, options)
 
 
 def _check_real(tp: Toolpath, result: PostResult, tcp: bool) -> None:

@@ -387,7 +387,11 @@ def test_nx_project2_events(project2):
     comments = [e.data["text"] for e in tp.events if e.kind == "comment"]
     assert len(comments) == 20
     assert "centerline and contact point" in comments
-    assert {e.kind for e in tp.events} == {"operation", "cutter", "tool", "comment", "msys"}
+    assert {e.kind for e in tp.events} == {"operation", "cutter", "tool", "comment", "msys", "arc"}
+    # every CIRCLE record, before the points interpolated on it
+    arcs = [e for e in tp.events if e.kind == "arc"]
+    assert len(arcs) == 146
+    assert all((tp.line[e.index : e.index + e.data["points"]] == e.line).all() for e in arcs)
     # one MSYS per operation, all of the same MCS (at the part's zero): no point is moved
     msys = [e for e in tp.events if e.kind == "msys"]
     assert len(msys) == 15

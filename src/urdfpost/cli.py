@@ -323,6 +323,13 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
         "for (default: such a move is an error)",
     )
     p.add_argument(
+        "--no-arcs",
+        dest="arcs",
+        action="store_false",
+        help="write the CL data's arcs (CIRCLE) as lines, as interpolated (default: as G2/G3, "
+        "Heidenhain CC + C, where the control, the plane and a fixed tool axis allow it)",
+    )
+    p.add_argument(
         "--expand-cycles",
         action="store_true",
         help="write the CL data's canned cycles (CYCLE/DRILL...) as the motion they make "
@@ -706,6 +713,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         smoothing=None if args.smoothing is None else args.smoothing is not False,
         smoothing_tolerance=args.smoothing if isinstance(args.smoothing, float) else None,
         feed_mode=args.feed_mode,
+        arcs=args.arcs,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {

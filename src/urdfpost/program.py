@@ -287,6 +287,133 @@ class Smoothing:
     angle: float | None = None
 
 
+#: Planes an :class:`Arc` lies in, with the axis of its normal (G17 XY: Z, G18 ZX: Y, G19 YZ:
+#: X) and its two axes in the order the angle turns from the first to the second
+#: counter-clockwise seen from the normal's positive end.
+ARC_PLANES: dict[str, tuple[str, str, str]] = {
+    "XY": ("X", "Y", "Z"),
+    "ZX": ("Z", "X", "Y"),
+    "YZ": ("Y", "Z", "X"),
+}
+
+
+@dataclass(frozen=True)
+class Arc:
+    """A circular (or helical) feed move of the linear axes (G2/G3, Heidenhain C).
+
+    The arc runs from where the axes stand (the end of the block before) to ``position``,
+    turning about the line through ``centre`` along the normal of ``plane``; a change of the
+    normal's axis between start and end makes a helix (that axis moves linearly with the
+    angle). The rotary axes do not move on an arc. Positions are those of :class:`Move`: in
+    TCP programs X, Y, Z are the tool tip in the workpiece frame, otherwise the machine's
+    linear axes.
+
+    Attributes
+    ----------
+    position : tuple of float
+        End, one value per axis of :attr:`Program.axes` (mm, degrees).
+    centre : tuple of 3 floats, mm
+        X, Y, Z of the centre; the value along the plane's normal is the start's.
+    plane : str
+        "XY" (G17), "ZX" (G18) or "YZ" (G19): a key of :data:`ARC_PLANES`.
+    clockwise : bool
+        Clockwise seen from the positive end of the plane's normal (G2); else G3.
+    feed : float or None
+        mm/min (None keeps the modal feed).
+    cl_line : int or None
+        The CIRCLE record's line.
+    """
+
+    position: tuple[float, ...]
+    centre: tuple[float, float, float]
+    plane: str
+    clockwise: bool
+    feed: float | None = None
+    cl_line: int | None = None
+
+    def sweep(self, start: Sequence[float], axes: Sequence[str]) -> float:
+        """Angle turned from ``start`` (X, Y, Z, mm) to the end (rad, in (0, 2 pi]).
+
+        An end at the start's angle is a full turn. ``axes``: the program's.
+        """
+        first, second, _ = ARC_PLANES[self.plane]
+        i, j = "XYZ".index(first), "XYZ".index(second)
+        end = self.xyz(axes)
+        a0 = math.atan2(start[j] - self.centre[j], start[i] - self.centre[i])
+        a1 = math.atan2(end[j] - self.centre[j], end[i] - self.centre[i])
+        turn = (a0 - a1) if self.clockwise else (a1 - a0)
+        turn %= 2.0 * math.pi
+        return turn if turn > 0.0 else 2.0 * math.pi
+
+    def xyz(self, axes: Sequence[str]) -> tuple[float, float, float]:
+        """End X, Y, Z (mm) of :attr:`position`, whose values are those of ``axes`` (the
+        program's; an axis it lacks is NaN)."""
+        x, y, z = (self.position[axes.index(a)] if a in axes else math.nan for a in "XYZ")
+        return (x, y, z)
+
+    def radii(self, start: Sequence[float], axes: Sequence[str]) -> tuple[float, float]:
+        """Distance of the start and of the end from the centre, in the plane (mm)."""
+        first, second, _ = ARC_PLANES[self.plane]
+        i, j = "XYZ".index(first), "XYZ".index(second)
+        end = self.xyz(axes)
+        r0 = math.hypot(start[i] - self.centre[i], start[j] - self.centre[j])
+        r1 = math.hypot(end[i] - self.centre[i], end[j] - self.centre[j])
+        return r0, r1
+
+    def points(self, start: Sequence[float], axes: Sequence[str], max_step: float) -> np.ndarray:
+        """Points of the arc as the control runs it, after the start, the last the end.
+
+        The angle turns evenly; the distance from the centre goes linearly from the start's
+        to the end's (what a control does with end points a rounding off the circle) and so
+        does the axis along the normal (a helix).
+
+        Parameters
+        ----------
+        start : sequence of 3 floats, mm
+            X, Y, Z where the arc starts.
+        axes : sequence of str
+            The program's axes (those of :attr:`position`).
+        max_step : float, mm
+            Longest chord between two points (in the plane).
+
+        Returns
+        -------
+        ndarray, shape (k, 3), mm
+            X, Y, Z of each point.
+        """
+        first, second, normal = ARC_PLANES[self.plane]
+        i, j, n = ("XYZ".index(a) for a in (first, second, normal))
+        end = self.xyz(axes)
+        r0, r1 = self.radii(start, axes)
+        sweep = self.sweep(start, axes)
+        count = max(1, math.ceil(sweep * max(r0, r1) / max_step))
+        t = np.arange(1, count + 1, dtype=float) / count
+        a0 = math.atan2(start[j] - self.centre[j], start[i] - self.centre[i])
+        angle = a0 + (-sweep if self.clockwise else sweep) * t
+        rho = r0 + (r1 - r0) * t
+        out = np.empty((count, 3))
+        out[:, i] = self.centre[i] + rho * np.cos(angle)
+        out[:, j] = self.centre[j] + rho * np.sin(angle)
+        out[:, n] = start[n] + (end[n] - start[n]) * t
+        out[-1] = end
+        return out
+
+
+@dataclass(frozen=True)
+class CutterComp:
+    """Cutter radius compensation (G41 left, G42 right, G40 off; Heidenhain RL, RR, R0).
+
+    The path programmed stays the CL path (the tool tip); the control offsets it by the
+    tool's radius from its tool table. ``register``: the offset register (the G-code ``D``
+    word; the CL's ``CUTCOM/LEFT,n``), None for the tool's own. ``plane``: "XY", "ZX" or
+    "YZ".
+    """
+
+    side: str
+    register: int | None = None
+    plane: str = "XY"
+
+
 Block = (
     Move
     | ToolChange
@@ -302,6 +429,8 @@ Block = (
     | Cycle
     | Dwell
     | Smoothing
+    | Arc
+    | CutterComp
 )
 
 
@@ -960,3 +1089,62 @@ def smoothing_summary(program: Program, units: str) -> str:
         parts.append(f"off {offs} times")
     parts.append("off at the end" if not states[-1].on else "still on at the end")
     return ", ".join(parts)
+
+
+def arcs_as_moves(program: Program, max_step: float) -> Program:
+    """The program with each :class:`Arc` block replaced by feed moves along it, as the
+    control runs it (:meth:`Arc.points`): what verification measures.
+
+    The moves of an arc carry its feed; the last one its CL line and the arc's end (every
+    axis), the others no CL line. A program without arcs is returned as it is.
+
+    Parameters
+    ----------
+    program : Program
+    max_step : float, mm
+        Longest chord between two moves on an arc.
+
+    Raises
+    ------
+    ValueError
+        An arc whose start is not known (no motion block before it gives X, Y and Z).
+    """
+    parts = program.parts
+    if not any(isinstance(p, Arc) for p in parts):
+        return program
+    width = len(program.axes)
+    xyz = [program.axes.index(a) if a in program.axes else -1 for a in "XYZ"]
+    last = np.full(width, np.nan)  # where the axes stand (NaN: not known yet)
+    out: list[Block | MoveTable] = []
+    for part in parts:
+        if isinstance(part, MoveTable | Move):
+            table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], width)
+            if len(table):
+                known = ~np.isnan(table.position)
+                for j in range(width):
+                    rows = np.flatnonzero(known[:, j])
+                    if rows.size:
+                        last[j] = table.position[rows[-1], j]
+            out.append(part)
+            continue
+        if not isinstance(part, Arc):
+            if isinstance(part, Home | MachineMove):
+                last[:] = np.nan  # the axes stand where the program does not say
+            out.append(part)
+            continue
+        start = [last[j] if j >= 0 else math.nan for j in xyz]
+        if not all(math.isfinite(v) for v in start):
+            raise ValueError(f"arc {part} from an unknown position")
+        points = part.points(start, program.axes, max_step)
+        k = len(points)
+        position = np.tile(np.where(np.isnan(last), np.asarray(part.position), last), (k, 1))
+        for axis, j in zip(range(3), xyz, strict=True):
+            if j >= 0:
+                position[:, j] = points[:, axis]
+        position[-1] = part.position
+        feed = math.nan if part.feed is None else part.feed
+        line = np.full(k, -1, dtype=np.int64)
+        line[-1] = -1 if part.cl_line is None else part.cl_line
+        out.append(MoveTable(position, np.zeros(k, bool), np.full(k, feed), line))
+        last = np.asarray(part.position, dtype=float).copy()
+    return replace(program, blocks=Blocks(out))

@@ -59,6 +59,12 @@ class Event:
           or ends (``CYCLE/OFF``): ``data["cycle"]`` "off". The points between a cycle's
           start and its end are its holes: the hole tops with their tool axes
           (:func:`cycle_holes`), RAPID points
+        - ``"arc"``: a circular arc whose interpolated points follow the event (a CIRCLE):
+          ``data["centre"]`` (mm), ``data["normal"]`` (unit; the arc turns counter-clockwise
+          about it), ``data["radius"]`` (mm), ``data["points"]`` (how many points follow; the
+          point before the event is the arc's start), ``data["sweep"]`` (rad)
+        - ``"cutcom"``: cutter radius compensation, ``data["side"]`` ("left", "right",
+          "off"), optional ``data["register"]`` (int), ``data["plane"]`` ("XY", "ZX", "YZ")
         - ``"unknown"``: a record the reader does not translate, ``data["text"]`` (carried
           into the program as a comment; the reader also adds a warning)
     line : int

@@ -339,7 +339,9 @@ def compare(
         )
     outcomes: list[Outcome] = []
     spans: list[Span] | None = None
-    job = resolve(options, machine, toolpath.units)
+    # the strategies' programs as lines: their figures (timing, metrics) are of moves, and an
+    # arc block is none (urdfpost.posting.arcs writes arcs in a post)
+    job = replace(resolve(options, machine, toolpath.units), arcs=False)
     acceptance: dict[str, float] = {}
     for name in strategies:
         if progress:

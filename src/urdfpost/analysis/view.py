@@ -58,7 +58,15 @@ from urdfpost.machine import Machine
 from urdfpost.machine.shapes import Box, Cylinder, LinkShape, Mesh, Sphere, link_shapes
 from urdfpost.planning.singularity import conditioning
 from urdfpost.posting.tools import row_lengths
-from urdfpost.program import FEED_INVERSE_TIME, Program, rewind_moves
+from urdfpost.program import (
+    FEED_INVERSE_TIME,
+    Arc,
+    Move,
+    MoveTable,
+    Program,
+    arcs_as_moves,
+    rewind_moves,
+)
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification import program_joints
@@ -405,6 +413,44 @@ def _tip_deviation(tip: np.ndarray, cl: Toolpath) -> np.ndarray:
     return best
 
 
+ARC_STEP = 0.1
+"""Longest chord between the moves an arc block is shown as, mm."""
+
+
+def _motion_lines(
+    dialect: Any, text: str, path: str, inserts: list[str] | None = None
+) -> tuple[np.ndarray, list[int]]:
+    """The NC line of each move of a program (:func:`move_lines`) and of each arc."""
+    lines = move_lines(dialect, text, path, inserts)
+    reader = dialect.reader(path)
+    reader.feed(text, list(inserts or ()))
+    return lines, list(reader.builder.arc_lines)
+
+
+def _lines_of_runs(
+    written: Program, run: Program, lines: np.ndarray, arc_lines: list[int]
+) -> np.ndarray:
+    """The NC line of each move of ``run`` (``written`` with its arcs as moves): the moves'
+    own lines, and the arc's line for each move along an arc; ``lines`` as they are when the
+    lines of the arcs are not known (they are not the text's)."""
+    arcs = [p for p in written.parts if isinstance(p, Arc)]
+    if not arcs:
+        return lines
+    if len(arcs) != len(arc_lines) or len(lines) != len(written.move_table()):
+        return lines
+    out: list[np.ndarray] = []
+    at, arc = 0, iter(arc_lines)
+    for part, ran in zip(written.parts, run.parts, strict=True):
+        if isinstance(part, Arc):
+            assert isinstance(ran, MoveTable)
+            out.append(np.full(len(ran), next(arc), dtype=np.int64))
+        elif isinstance(part, MoveTable | Move):
+            k = len(part) if isinstance(part, MoveTable) else 1
+            out.append(lines[at : at + k])
+            at += k
+    return np.concatenate(out) if out else lines
+
+
 def move_lines(dialect: Any, text: str, path: str, inserts: list[str] | None = None) -> np.ndarray:
     """The NC text line (1-based) of each move of a program, in the order of its moves.
 
@@ -541,6 +587,8 @@ def view_data(
             if not program.tcp and program.tool_length > 0
             else machine.settings.tool_length
         )
+    written = program
+    program = arcs_as_moves(program, ARC_STEP)  # the moves the control makes along its arcs
     q, rapid, feed = program_rows(machine, program, tool_length, dialect.spec.axis_feed_rule)
     lengths = None
     if tool_lengths and not program.tcp:
@@ -559,7 +607,7 @@ def view_data(
     fixed = [lk for lk in links if lk not in moving]
     poses = _poses(machine, line.q, moving)
     still = _poses(machine, line.q[:1], fixed)[0]
-    lines = move_lines(dialect, text, program.name, inserts)
+    lines = _lines_of_runs(written, program, *_motion_lines(dialect, text, program.name, inserts))
     nc = text.splitlines()
     move_line = lines[line.move] if len(lines) == len(q) else np.zeros(len(line.move), np.int64)
     if len(lines) != len(q):

@@ -38,15 +38,19 @@ G_CODES = MappingProxyType(
     {
         "0": "rapid",
         "1": "linear",
+        "2": "arc_cw",
+        "3": "arc_ccw",
         "4": "dwell",
         "5.1": "smoothing",
-        "17": "noop",
-        "18": "noop",
-        "19": "noop",
+        "17": "plane_xy",
+        "18": "plane_zx",
+        "19": "plane_yz",
         "21": "mm",
         "20": "inch",
         "28": "home",
-        "40": "noop",
+        "40": "comp_off",
+        "41": "comp_left",
+        "42": "comp_right",
         "43.4": "tcp_on",
         "49": "tcp_off",
         "53": "machine",
@@ -119,4 +123,9 @@ SPEC = DialectSpec(
     # G94 with linear and rotary axes: F is the feed along sqrt(dx^2 + ... + dc^2), degrees
     # counted as mm (inch input: as inch) (Power Mate i Operator's Manual B-63174EN, G01)
     axis_feed_rule="combined",
+    arc_planes=frozenset({"XY", "ZX", "YZ"}),
+    arc_helix=True,
+    cutter_comp=MappingProxyType(
+        {"left": "{plane} G41 D{register}", "right": "{plane} G42 D{register}", "off": "G40"}
+    ),
 )

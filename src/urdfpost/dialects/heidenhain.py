@@ -21,6 +21,11 @@ Written (every line numbered from 0)::
 programs coordinates are inch and feeds are in 0.1 inch/min (TNC convention). A spindle speed
 that cannot go into a tool call is written as ``TOOL CALL Z S<rpm>`` (speed-only tool call).
 
+Arcs are ``CC X.. Y..`` (the centre, absolute) then ``C X.. Y.. DR+`` (counter-clockwise seen
+from +Z) or ``DR-``, in the working plane XY only; a helix is ``CP IPA.. IZ.. DR..`` after the
+``CC`` (the angle turned and the climb, incremental); radius compensation is ``RL``, ``RR`` or
+``R0`` on the next straight ``L`` block.
+
 The reader accepts the lines above plus ``* - structure comments``, inline ``; comments``,
 ``STOP``, ``TOOL DEF``, ``BLK FORM``, ``CYCL DEF 32`` (tolerance: read as a
 :class:`~urdfpost.program.Smoothing` block, which the writer writes as ``CYCL DEF 32.0
@@ -31,6 +36,7 @@ coordinates and read as a home return.
 
 from __future__ import annotations
 
+import math
 import re
 from types import MappingProxyType
 
@@ -43,6 +49,7 @@ from urdfpost.dialects._cycles import (
 from urdfpost.dialects.reader import BEFORE_MOTION_M, ProgramBuilder, apply_m_action
 from urdfpost.dialects.spec import (
     STANDARD_M_CODES,
+    ArcWords,
     DialectSpec,
     MotionLayout,
     MotionWords,
@@ -64,13 +71,33 @@ def format_name(name: str) -> str:
 
 
 def format_motion(words: MotionWords) -> str:
-    """``L X+1.000 Y-2.000 FMAX`` or ``L Z+2.000 F500``."""
-    parts = ["L", *(f"{address}{value}" for address, value in words.axes)]
+    """``L X+1.000 Y-2.000 FMAX`` or ``L Z+2.000 RL F500``."""
+    parts = ["L", *(f"{address}{value}" for address, value in words.axes), *words.extra]
     if words.rapid:
         parts.append("FMAX")
     elif words.feed is not None:
         parts.append(f"F{words.feed}")
     return " ".join(parts)
+
+
+def format_arc(words: ArcWords) -> tuple[str, ...]:
+    """``CC X+1.000 Y+2.000`` (the centre, absolute) and ``C X+3.000 Y+2.000 DR+ F500``, or
+    for a helix ``CP IPA+90.0000 IZ-2.000 DR+ F500`` (the angle turned and the climb, both
+    incremental from the start; IPA and DR of one sign).
+
+    DR+ is the mathematically positive sense, counter-clockwise seen from the positive tool
+    axis (Z); the post writes arcs in the working plane only (``arc_planes``).
+    """
+    centre = " ".join(f"{address}{value}" for address, value in words.centre)
+    if words.climb is not None:  # a helix: the incremental polar angle and climb about CC
+        address, rise = words.climb
+        parts = ["CP", f"IPA{words.turn}", f"I{address}{rise}"]
+    else:
+        parts = ["C", *(f"{address}{value}" for address, value in words.axes)]
+    parts.append("DR-" if words.clockwise else "DR+")
+    if words.feed is not None:
+        parts.append(f"F{words.feed}")
+    return (f"CC {centre}", " ".join(parts))
 
 
 def parse_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
@@ -159,6 +186,12 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
         builder.set_tcp(True)
     elif words[0] == "L":
         _line(spec, builder, words[1:])
+    elif words[0] == "CC":
+        _circle_centre(builder, words[1:])
+    elif words[0] == "C":
+        _circle(spec, builder, words[1:])
+    elif words[0] == "CP":
+        _polar_circle(spec, builder, words[1:])
     elif words[0] == "STOP":
         builder.stop(False)
         _m_only(spec, builder, words[1:])
@@ -166,8 +199,8 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
         _m_only(spec, builder, words)
     else:
         raise builder.error(
-            f"unknown block {code!r}; expected L, TOOL CALL, FUNCTION TCPM, FUNCTION RESET "
-            "TCPM, M.., STOP or a ; comment"
+            f"unknown block {code!r}; expected L, CC, C, TOOL CALL, FUNCTION TCPM, FUNCTION "
+            "RESET TCPM, M.., STOP or a ; comment"
         )
 
 
@@ -271,10 +304,10 @@ def _line(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
             continue
         elif word.startswith("F"):
             builder.set_feed(builder.number("F", word[1:]))
-        elif word == "R0":
-            continue
-        elif word in ("RL", "RR", "R+", "R-"):
-            raise builder.error(f"radius compensation {word} is not supported; expected R0")
+        elif word in ("R0", "RL", "RR"):
+            builder.cutter_comp({"R0": "off", "RL": "left", "RR": "right"}[word], None, "XY")
+        elif word in ("R+", "R-"):
+            raise builder.error(f"paraxial radius compensation {word} is not supported")
         elif word.startswith("M"):
             m_words.append(word)
         else:
@@ -326,6 +359,127 @@ def _cycle_call(builder: ProgramBuilder, values: dict[str, tuple[float, bool]]) 
     if builder.drill is not definition:
         builder.cycle_start(definition)
     builder.cycle_hole(values)
+
+
+def _circle_centre(builder: ProgramBuilder, words: list[str]) -> None:
+    """``CC X.. Y..``: the circle centre (modal, file units) in the working plane XY; no
+    motion."""
+    centre: dict[str, float] = {}
+    for word in words:
+        axis = _AXIS.match(word)
+        if axis is None or axis.group(2) not in "XY" or axis.group(1):
+            raise builder.error(f"unknown word {word!r} in CC; expected X.. Y.. (absolute)")
+        if axis.group(2) in centre:
+            raise builder.error(f"two {axis.group(2)} coordinates in one CC block")
+        centre[axis.group(2)] = builder.number(axis.group(2), axis.group(3))
+    if set(centre) != {"X", "Y"}:
+        raise builder.error("CC without both X and Y; expected CC X.. Y..")
+    builder.circle_centre = (centre["X"], centre["Y"])
+
+
+def _circle(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
+    """``C X.. Y.. DR+|DR- [R0] [F..] [M..]``: an arc about the last CC in the XY plane."""
+    centre = builder.circle_centre
+    if centre is None:
+        raise builder.error("C without a CC before it; expected CC X.. Y.. first")
+    values: dict[str, tuple[float, bool]] = {}
+    sense = None
+    m_words = []
+    for word in words:
+        axis = _AXIS.match(word)
+        if axis and axis.group(2) in "XY":
+            incremental, address, text = axis.groups()
+            if address in values:
+                raise builder.error(f"two {address} coordinates in one block")
+            values[address] = (builder.number(address, text), bool(incremental))
+        elif word in ("DR+", "DR-"):
+            sense = word
+        elif word.startswith("F") and word != "FMAX":
+            builder.set_feed(builder.number("F", word[1:]))
+        elif word == "R0":
+            continue
+        elif word.startswith("M"):
+            m_words.append(word)
+        else:
+            raise builder.error(
+                f"unknown word {word!r} in C block; expected X.. Y.. DR+ or DR-, F.., M.."
+            )
+    if sense is None:
+        raise builder.error("C without DR+ or DR-; expected the sense of rotation")
+    actions = _m_codes(spec, builder, m_words)
+    if "machine" in actions:
+        raise builder.error("M91/M92 in a C block; expected them in L blocks only")
+    for action in actions:
+        if action in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+    builder.arc_move(
+        values,
+        {"X": (centre[0], True), "Y": (centre[1], True)},
+        sense == "DR-",
+        plane="XY",
+    )
+    for action in actions:
+        if action not in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+
+
+_POLAR = re.compile(r"(IPA|IZ)(.*)\Z")
+
+
+def _polar_circle(spec: DialectSpec, builder: ProgramBuilder, words: list[str]) -> None:
+    """``CP IPA.. [IZ..] DR+|DR- [F..] [M..]``: a helix (or arc) about the last CC, turning
+    ``IPA`` degrees from the start at the start's distance from CC, climbing ``IZ``."""
+    centre = builder.circle_centre
+    if centre is None:
+        raise builder.error("CP without a CC before it; expected CC X.. Y.. first")
+    given: dict[str, float] = {}
+    sense = None
+    m_words = []
+    for word in words:
+        polar = _POLAR.match(word)
+        if polar:
+            if polar.group(1) in given:
+                raise builder.error(f"two {polar.group(1)} words in one CP block")
+            given[polar.group(1)] = builder.number(polar.group(1), polar.group(2))
+        elif word in ("DR+", "DR-"):
+            sense = word
+        elif word.startswith("F") and word != "FMAX":
+            builder.set_feed(builder.number("F", word[1:]))
+        elif word == "R0":
+            continue
+        elif word.startswith("M"):
+            m_words.append(word)
+        else:
+            raise builder.error(
+                f"unknown word {word!r} in CP block; expected IPA.., IZ.., DR+ or DR-, F.., M.."
+            )
+    if sense is None or "IPA" not in given:
+        raise builder.error("CP without IPA and DR+ or DR-; expected CP IPA.. IZ.. DR+")
+    if (given["IPA"] < 0) != (sense == "DR-"):
+        raise builder.error(f"CP IPA{given['IPA']:+g} with {sense}; expected one sign for both")
+    start = {a: builder.position.get(a, math.nan) / builder.linear_scale for a in "XYZ"}
+    if any(math.isnan(v) for v in start.values()):
+        raise builder.error("CP from an unknown position; expected a move to its start first")
+    dx, dy = start["X"] - centre[0], start["Y"] - centre[1]
+    angle = math.atan2(dy, dx) + math.radians(given["IPA"])
+    radius = math.hypot(dx, dy)
+    end = {
+        "X": (centre[0] + radius * math.cos(angle), False),
+        "Y": (centre[1] + radius * math.sin(angle), False),
+        "Z": (start["Z"] + given.get("IZ", 0.0), False),
+    }
+    actions = _m_codes(spec, builder, m_words)
+    if "machine" in actions:
+        raise builder.error("M91/M92 in a CP block; expected them in L blocks only")
+    for action in actions:
+        if action in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
+    builder.arc_move(
+        end, {"X": (centre[0], True), "Y": (centre[1], True)}, sense == "DR-", plane="XY"
+    )
+    for action in actions:
+        if action not in BEFORE_MOTION_M:
+            apply_m_action(builder, action)
 
 
 M_CODES = MappingProxyType(
@@ -404,4 +558,9 @@ SPEC = DialectSpec(
     # the TNC applies F to the block's axis-space length, degrees counted as mm (the manual
     # says rotary-only F is degrees per minute; the mixed-block rule is assumed, docs/job.md)
     axis_feed_rule="combined",
+    arc_planes=frozenset({"XY"}),
+    arc_helix=True,
+    arc_centre_absolute=True,
+    format_arc=format_arc,
+    cutter_comp_words=MappingProxyType({"left": "RL", "right": "RR", "off": "R0"}),
 )

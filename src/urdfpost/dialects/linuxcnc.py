@@ -54,14 +54,18 @@ G_CODES = MappingProxyType(
     {
         "0": "rapid",
         "1": "linear",
+        "2": "arc_cw",
+        "3": "arc_ccw",
         "4": "dwell",
-        "17": "noop",
-        "18": "noop",
-        "19": "noop",
+        "17": "plane_xy",
+        "18": "plane_zx",
+        "19": "plane_yz",
         "21": "mm",
         "20": "inch",
         "28": "home",
-        "40": "noop",
+        "40": "comp_off",
+        "41": "comp_left",
+        "42": "comp_right",
         "43": "length_on",
         "49": "noop",
         "53": "machine",
@@ -128,4 +132,9 @@ SPEC = DialectSpec(
     # G94: F along X, Y, Z as if the rotary axes did not move; degrees per minute along the
     # rotary axes when X, Y, Z do not move (RS274NGC 3, NIST IR 6556, 2.1.2.5 "Feed Rate")
     axis_feed_rule="linear-first",
+    arc_planes=frozenset({"XY", "ZX", "YZ"}),
+    arc_helix=True,
+    cutter_comp=MappingProxyType(
+        {"left": "{plane} G41 D{register}", "right": "{plane} G42 D{register}", "off": "G40"}
+    ),
 )

@@ -28,8 +28,12 @@ Reading rules:
 * Spindle and TCP blocks are emitted when the state changes, so a repeated ``M3`` or a ``G49``
   in the safety line with TCP already off adds nothing.
 * Consecutive home returns (Fanuc ``G28 G91 Z0.`` then ``G28 X0. Y0.``) are one :class:`Home`.
+* Arcs (G2/G3 with I J K, incremental from the start unless ``I=AC(..)``, in the plane of
+  G17/G18/G19; Heidenhain ``CC`` + ``C``) come out as :class:`~urdfpost.program.Arc` blocks
+  between the tables; cutter compensation (G41/G42 with D, G40; Heidenhain RL/RR/R0) as
+  :class:`~urdfpost.program.CutterComp` blocks when it changes.
 * Nothing that can move the machine is skipped: an unknown word, code or line, a malformed
-  number, circular moves, cutter compensation, canned cycles and the like raise
+  number, arcs by radius (``R``), canned cycles and the like raise
   :class:`~urdfpost.errors.ProgramParseError` with the file, line and what was expected.
 """
 
@@ -55,12 +59,15 @@ from urdfpost.dialects._cycles import (
 from urdfpost.dialects.spec import AXIS_ORDER, ROTARY_ADDRESSES, DialectSpec
 from urdfpost.errors import ProgramParseError
 from urdfpost.program import (
+    ARC_PLANES,
     FEED_INVERSE_TIME,
     FEED_PER_MINUTE,
+    Arc,
     Block,
     Blocks,
     Comment,
     Coolant,
+    CutterComp,
     Dwell,
     Home,
     Insert,
@@ -105,6 +112,17 @@ class _ReadCycle:
 
     definition: CycleDefinition
     holes: list[dict[str, float]]
+
+
+@dataclass
+class _ReadArc:
+    """An arc read: its end (every axis known so far), centre (X, Y, Z, mm), plane, sense."""
+
+    position: dict[str, float]
+    centre: tuple[float, float, float]
+    plane: str
+    clockwise: bool
+    feed: float | None
 
 
 class _ReadMoves:
@@ -163,6 +181,10 @@ class ProgramBuilder:
         self.feed_scale = 1.0
         self.absolute = True
         self.motion: bool | None = None  # True rapid, False linear
+        self.arc: bool | None = None  # in arc mode: True clockwise (G2), False (G3)
+        self.plane = "XY"  # the arc plane (G17)
+        self.circle_centre: tuple[float, float] | None = None  # Heidenhain CC, file units
+        self.comp: tuple[str, int | None, str] = ("off", None, "XY")  # radius compensation
         self.feed: float | None = None
         self.position: dict[str, float] = {}
         self.axes_seen: set[str] = set()
@@ -174,7 +196,7 @@ class ProgramBuilder:
         self.offset: int | None = None  # the H word since the last tool change
         self.rpm = 0.0
         self.spindle_state: tuple[str, float] = ("off", 0.0)
-        self._speed_change: Block | _ReadMove | _ReadMoves | _ReadCycle | None = None
+        self._speed_change: Block | _ReadMove | _ReadMoves | _ReadCycle | _ReadArc | None = None
         self.continuous = False
         self.work_offset: str | None = None
         self.offset_change: tuple[int, str] | None = None  # line and words of the first change
@@ -192,7 +214,7 @@ class ProgramBuilder:
         self.feed_mode = FEED_PER_MINUTE  # the control's (G94 / G93)
         self.moves_feed_mode: str | None = None  # the mode of the feed moves read
         self.feed_word_line = 0  # line of the last F word
-        self.items: list[Block | _ReadMove | _ReadMoves | _ReadCycle] = []
+        self.items: list[Block | _ReadMove | _ReadMoves | _ReadCycle | _ReadArc] = []
         # the text line of every move read, in order (the 3-D view shows each block's line)
         self.move_lines: list[int | np.ndarray] = []
         # continuous rotary axes the control rolls over (modulo 360), as the machine says
@@ -200,6 +222,7 @@ class ProgramBuilder:
         self.smoothing_state = Smoothing(False)
         # a smoothing switched on whose rotary tolerance may follow on the next line
         self.smoothing_pending: Smoothing | None = None
+        self.arc_lines: list[int] = []  # the text line of every arc read
 
     # -- helpers -----------------------------------------------------------------------------
 
@@ -217,7 +240,7 @@ class ProgramBuilder:
         """File units -> mm (linear axes) or degrees (rotary)."""
         return value if address in ROTARY_ADDRESSES else value * self.linear_scale
 
-    def _add(self, item: Block | _ReadMove | _ReadMoves | _ReadCycle) -> None:
+    def _add(self, item: Block | _ReadMove | _ReadMoves | _ReadCycle | _ReadArc) -> None:
         if self.finished and not isinstance(item, Comment):
             raise self.error("code after the program end; expected nothing but comments")
         if not isinstance(item, _ReadCycle):
@@ -462,6 +485,67 @@ class ProgramBuilder:
             )
         return target
 
+    def cutter_comp(self, side: str, register: int | None, plane: str | None = None) -> None:
+        """Cutter radius compensation ("left", "right", "off"): a block when it changes."""
+        state = (side, register if side != "off" else None, plane or self.plane)
+        if side == "off":
+            state = ("off", None, self.comp[2])
+        if state[0] != self.comp[0] or (side != "off" and state != self.comp):
+            self._add(CutterComp(state[0], state[1], state[2]))
+        self.comp = state
+
+    def arc_move(
+        self,
+        values: dict[str, tuple[float, bool]],
+        centre: dict[str, tuple[float, bool]],
+        clockwise: bool,
+        plane: str | None = None,
+    ) -> None:
+        """An arc block from where the axes stand.
+
+        Parameters
+        ----------
+        values : dict
+            End: address -> (value in file units, incremental), as :meth:`move`.
+        centre : dict
+            Centre of the plane's two axes: axis letter -> (value in file units, absolute);
+            an axis not given is the start's (an I, J or K of 0).
+        clockwise : bool
+            G2 (clockwise seen from the positive end of the plane's normal).
+        plane : str, optional
+            The plane (default the modal one, :attr:`plane`).
+
+        Raises
+        ------
+        ProgramParseError
+            The start is not known, or the arc turns a rotary axis.
+        """
+        plane = plane or self.plane
+        first, second, normal = ARC_PLANES[plane]
+        unknown = [a for a in (first, second, normal) if math.isnan(self.position.get(a, math.nan))]
+        if unknown:
+            raise self.error(
+                f"arc from an unknown {unknown[0]} position; expected a move to the arc's start "
+                "first"
+            )
+        rotary = [a for a in values if a in ROTARY_ADDRESSES]
+        if rotary:
+            raise self.error(f"{rotary[0]} word in an arc block; expected only X, Y, Z")
+        start = dict(self.position)
+        centre_mm = [start.get(a, 0.0) for a in "XYZ"]
+        for address, (value, absolute) in centre.items():
+            k = "XYZ".index(address)
+            mm = self.to_internal(address, value)
+            centre_mm[k] = mm if absolute else start[address] + mm
+        self.move(values, False)  # the end, modal state and checks of a feed move
+        read = self.items.pop()
+        assert isinstance(read, _ReadMove)
+        self.move_lines.pop()
+        self.motion = None  # no linear mode: an axis word alone continues the arc
+        x, y, z = centre_mm
+        self._add(_ReadArc(read.position, (x, y, z), plane, clockwise, read.feed))
+        self.arc_lines.append(self.line)
+
     def moves(self, lines: _bulk.MotionLines, rows: slice, first_line: int) -> bool:
         """Plain motion blocks, read at once: as :meth:`move` (and the feed and motion code of
         each block) on each, in order.
@@ -654,6 +738,18 @@ class ProgramBuilder:
                 run.clear()
 
         for item in self.items:
+            if isinstance(item, _ReadArc):
+                end_run()
+                parts.append(
+                    Arc(
+                        position=tuple(item.position.get(a, math.nan) for a in axes),
+                        centre=item.centre,
+                        plane=item.plane,
+                        clockwise=item.clockwise,
+                        feed=item.feed,
+                    )
+                )
+                continue
             if isinstance(item, _ReadMove):
                 singles.append(item)
             elif isinstance(item, _ReadMoves):
@@ -950,6 +1046,11 @@ def _execute(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
         builder.set_feed(builder.number("F", block.words["F"].text))
     if "T" in block.words:
         builder.select_tool(_integer(builder, "T", block.words["T"].text))
+    comp = actions & {"comp_left", "comp_right", "comp_off"}
+    if comp:
+        side = next(iter(comp)).removeprefix("comp_")
+        register = _integer(builder, "D", block.words["D"].text) if "D" in block.words else None
+        builder.cutter_comp(side, register)
     if "H" in block.words:  # (only with tcp_on or length_on: _check_words)
         builder.select_offset(_integer(builder, "H", block.words["H"].text))
     if "S" in block.words and not dwell:
@@ -977,6 +1078,12 @@ def _check_words(builder: ProgramBuilder, block: _Block, actions: set[str]) -> N
         allowed |= {"R", "Q", "P"}
     if "smoothing" in actions:
         allowed |= {"Q", "R"}
+    if actions & {"comp_left", "comp_right"}:
+        allowed.add("D")
+    if actions & {"arc_cw", "arc_ccw"} or (
+        builder.arc is not None and not actions & {"rapid", "linear"}
+    ):
+        allowed |= {"I", "J", "K"}
     for address in block.words:
         if address not in allowed:
             raise builder.error(
@@ -992,6 +1099,12 @@ def _apply_modes(builder: ProgramBuilder, block: _Block) -> None:
     for code, action in block.g_actions:
         if action in ("rapid", "linear"):
             builder.motion = action == "rapid"
+            builder.arc = None
+        elif action in ("arc_cw", "arc_ccw"):
+            builder.arc = action == "arc_cw"
+            builder.motion = None
+        elif action in ("plane_xy", "plane_zx", "plane_yz"):
+            builder.plane = action.removeprefix("plane_").upper()
         elif action in ("mm", "inch"):
             builder.set_units(action)
         elif action in ("mm_geometry", "inch_geometry"):
@@ -1089,6 +1202,10 @@ def _motion(spec: DialectSpec, builder: ProgramBuilder, block: _Block, actions: 
         if axes or "home" in actions:
             builder.home(named)
         return
+    centre_words = {a: w for a, w in block.words.items() if a in "IJK"}
+    if builder.arc is not None and (axes or centre_words):
+        _arc(spec, builder, axes, centre_words)
+        return
     if not axes:
         return
     values = {}
@@ -1148,6 +1265,34 @@ def _mcall(builder: ProgramBuilder, text: str) -> None:
             f"unknown modal call {text!r}; expected MCALL CYCLE81..CYCLE85(...) or MCALL"
         )
     builder.cycle_start(definition)
+
+
+def _arc(
+    spec: DialectSpec, builder: ProgramBuilder, axes: dict[str, _Word], centre: dict[str, _Word]
+) -> None:
+    """A G2/G3 block: end words and I J K (incremental from the start unless ``=AC(..)``)."""
+    assert builder.arc is not None
+    first, second, _ = ARC_PLANES[builder.plane]
+    letters = {"I": "X", "J": "Y", "K": "Z"}
+    stray = [w for w in centre if letters[w] not in (first, second)]
+    if stray:
+        raise builder.error(
+            f"{stray[0]} word in a {builder.plane} arc; expected the centre words of "
+            f"{first} and {second}"
+        )
+    if not centre:
+        raise builder.error(
+            f"G{'2' if builder.arc else '3'} without I, J or K; expected the centre of the "
+            f"{builder.plane} arc (I J K incremental from the start)"
+        )
+    values = {a: _axis_value(spec, builder, axes[a]) for a in AXIS_ORDER if a in axes}
+    given = {}
+    for letter, word in centre.items():
+        if word.mode not in (None, "AC", "IC"):
+            raise builder.error(f"{letter}={word.mode}(...): expected {letter}=AC(...) or IC(...)")
+        value = builder.number(letter, word.text)
+        given[letters[letter]] = (value, word.mode == "AC")
+    builder.arc_move(values, given, builder.arc)
 
 
 def _check_axis_number(spec: DialectSpec, builder: ProgramBuilder, word: _Word) -> float:

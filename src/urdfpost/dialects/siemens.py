@@ -34,11 +34,15 @@ G_CODES = MappingProxyType(
     {
         "0": "rapid",
         "1": "linear",
+        "2": "arc_cw",
+        "3": "arc_ccw",
         "4": "dwell",
-        "17": "noop",
-        "18": "noop",
-        "19": "noop",
-        "40": "noop",
+        "17": "plane_xy",
+        "18": "plane_zx",
+        "19": "plane_yz",
+        "40": "comp_off",
+        "41": "comp_left",
+        "42": "comp_right",
         "710": "mm",
         "700": "inch",
         "71": "mm_geometry",
@@ -109,4 +113,8 @@ SPEC = DialectSpec(
     # G94 without TRAORI: "the feedrate F acts only on path axes" (FGROUP, by default the
     # geometry axes X, Y, Z); the rotary axes follow (same manual, 2.7.1)
     axis_feed_rule="linear-first",
+    arc_planes=frozenset({"XY", "ZX", "YZ"}),
+    arc_helix=True,
+    cutter_comp=MappingProxyType({"left": "{plane} G41", "right": "{plane} G42", "off": "G40"}),
+    arc_centre_suffix="=",
 )

@@ -40,11 +40,17 @@ Reader actions for G-codes and keywords:
     Fanuc ``G05.1``: AI contour control on (``Q1``; ``Q2``/``Q3`` smooth interpolation and
     nano smoothing, which need it) or off (``Q0``), with an optional ``R`` level.
 ``noop``
-    Modes that do not change linear motion (plane, cutter compensation off, cycle cancel,
-    path control).
+    Modes that do not change linear motion (cycle cancel, path control).
 ``inverse_time``, ``per_minute``
     Feed mode (G93 / G94): F words are inverse times (1/min) or feeds per minute; the modal
     feed is forgotten at a switch (the next feed move must program F).
+``arc_cw``, ``arc_ccw``
+    Circular motion (G2, G3), modal like G0/G1: takes I, J, K words (the centre, incremental
+    from the start).
+``plane_xy``, ``plane_zx``, ``plane_yz``
+    The arc plane (G17, G18, G19).
+``comp_left``, ``comp_right``, ``comp_off``
+    Cutter radius compensation (G41, G42, G40); G41/G42 take a D word (the offset register).
 
 Reader actions for M-codes: ``stop``, ``optional_stop``, ``end``, ``spindle_cw``,
 ``spindle_ccw``, ``spindle_off``, ``tool_change``, ``coolant_mist``, ``coolant_flood``,
@@ -158,12 +164,16 @@ class MotionWords:
         Address and formatted value of each axis to write.
     feed : str or None
         Formatted feed to write, or None to keep the modal feed.
+    extra : tuple of str
+        Words written after the axes (Heidenhain's radius compensation ``RL``, ``RR``,
+        ``R0``: :attr:`DialectSpec.cutter_comp_words`).
     """
 
     rapid: bool
     code: str | None
     axes: tuple[tuple[str, str], ...]
     feed: str | None
+    extra: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -184,6 +194,66 @@ class MotionLayout:
 
     lead: str | None = None
     rapid_word: str | None = None
+
+
+@dataclass(frozen=True)
+class ArcWords:
+    """One arc block, formatted, handed to :attr:`DialectSpec.format_arc`.
+
+    Attributes
+    ----------
+    plane : str
+        "XY", "ZX" or "YZ" (:data:`urdfpost.program.ARC_PLANES`).
+    plane_code : str or None
+        The plane's code to write before the arc (``"G17"``) when the plane changes; None.
+    clockwise : bool
+        Clockwise seen from the positive end of the plane's normal (G2).
+    axes : tuple of (str, str)
+        Address and formatted value of each axis of the end point to write.
+    centre : tuple of (str, str)
+        Address and formatted value of the centre: ``I``/``J``/``K`` incremental from the
+        start for the plane's two axes (G-code), or the plane's axis letters and absolute
+        values (:attr:`DialectSpec.arc_centre_absolute`, Heidenhain ``CC``).
+    feed : str or None
+        Formatted feed to write, or None to keep the modal feed.
+    turn : str
+        The angle turned from the start as written to the end, degrees, signed
+        (counter-clockwise positive), formatted as the rotary axes are (Heidenhain's helix
+        ``CP IPA``).
+    climb : tuple of (str, str) or None
+        A helix: the normal axis' address and its increment from the start to the end,
+        formatted (Heidenhain ``IZ``); None for a planar arc.
+    """
+
+    plane: str
+    plane_code: str | None
+    clockwise: bool
+    axes: tuple[tuple[str, str], ...]
+    centre: tuple[tuple[str, str], ...]
+    feed: str | None
+    turn: str = ""
+    climb: tuple[str, str] | None = None
+
+
+def format_gcode_arc(words: ArcWords) -> tuple[str, ...]:
+    """Word-address arc block: ``G17 G2 X1.000 Y2.000 I0.500 J0.000 F500``.
+
+    Parameters
+    ----------
+    words : ArcWords
+
+    Returns
+    -------
+    tuple of str
+        The block (one line), without block number.
+    """
+    parts = [words.plane_code] if words.plane_code else []
+    parts.append("G2" if words.clockwise else "G3")
+    parts += [f"{address}{value}" for address, value in words.axes]
+    parts += [f"{address}{value}" for address, value in words.centre]
+    if words.feed is not None:
+        parts.append(f"F{words.feed}")
+    return (" ".join(parts),)
 
 
 def format_gcode_motion(words: MotionWords) -> str:
@@ -387,6 +457,28 @@ class DialectSpec:
         counted as program length units (Fanuc); ``"linear-first"``, to the X/Y/Z length
         when a linear axis moves, else to the rotary length in degrees (RS274NGC, LinuxCNC;
         Siemens with its path axes X, Y, Z). See ``docs/job.md``.
+    arc_planes : frozenset of str
+        The planes ("XY", "ZX", "YZ") the control takes :class:`~urdfpost.program.Arc` blocks
+        in (empty: none; the post writes arcs as lines).
+    arc_tcp : bool
+        Arcs with TCP on (in the workpiece frame, the rotary axes standing still).
+    arc_helix : bool
+        Arcs whose normal axis moves (helices).
+    arc_centre_absolute : bool
+        The centre is written absolute in the plane's axis letters (Heidenhain ``CC X Y``);
+        else incremental from the start as ``I J K``.
+    arc_centre_suffix : str
+        Written between a centre address and its value (Siemens ``I=0.5``: ``"="``).
+    format_arc : callable or None
+        Arc block formatter (:class:`ArcWords` to the lines of the block).
+    cutter_comp : mapping
+        Lines of :class:`~urdfpost.program.CutterComp` by side ("left", "right", "off"):
+        ``{register}`` its offset register (the tool number when it gives none), ``{plane}``
+        the plane's code (``G17``); empty: the control writes them as words of the next
+        straight line (:attr:`cutter_comp_words`).
+    cutter_comp_words : mapping
+        Words of the next straight line by side (Heidenhain ``RL``, ``RR``, ``R0``), in the
+        working plane XY only.
     """
 
     name: str
@@ -470,6 +562,14 @@ class DialectSpec:
     inverse_time_feed: NumberFormat = NumberFormat(4, trim=True, point=True)
     inverse_time_max: float | None = None
     axis_feed_rule: str = "combined"
+    arc_planes: frozenset[str] = frozenset()
+    arc_tcp: bool = True
+    arc_helix: bool = False
+    arc_centre_absolute: bool = False
+    arc_centre_suffix: str = ""
+    format_arc: Callable[[ArcWords], tuple[str, ...]] = format_gcode_arc
+    cutter_comp: Mapping[str, str] = field(default_factory=_empty)
+    cutter_comp_words: Mapping[str, str] = field(default_factory=_empty)
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

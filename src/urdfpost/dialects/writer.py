@@ -28,16 +28,20 @@ from urdfpost.dialects._cycles import CycleFormat, seconds
 from urdfpost.dialects.spec import (
     AXIS_ORDER,
     ROTARY_ADDRESSES,
+    ArcWords,
     DialectSpec,
     MotionWords,
     NumberFormat,
 )
 from urdfpost.errors import DialectError
 from urdfpost.program import (
+    ARC_PLANES,
     FEED_INVERSE_TIME,
+    Arc,
     Block,
     Comment,
     Coolant,
+    CutterComp,
     Cycle,
     Dwell,
     Home,
@@ -85,6 +89,8 @@ class _Modal:
     rpm: str | None = None
     spindle: str = "off"
     force: bool = True
+    plane: str | None = None  # the arc plane last written
+    comp_word: str | None = None  # a radius compensation word for the next straight line
 
     def invalidate(self) -> None:
         """Forget axes, motion code and feed: the next motion block writes them all."""
@@ -351,6 +357,10 @@ class ProgramWriter:
                 self.write_machine_move(block)
             case Smoothing():
                 self.write_smoothing(block)
+            case Arc():
+                self.write_arc(block)
+            case CutterComp():
+                self.write_cutter_comp(block)
             case WorkOffset():
                 count = self.spec.work_offsets
                 if not 1 <= block.number <= count:
@@ -500,8 +510,165 @@ class ProgramWriter:
             if text != modal.feed or self.inverse:  # G93: F in every feed block
                 feed = modal.feed = text
         modal.force = False
-        words = MotionWords(move.rapid, code, tuple(changed), feed)
+        extra: tuple[str, ...] = ()
+        if modal.comp_word is not None:
+            extra, modal.comp_word = (modal.comp_word,), None
+        words = MotionWords(move.rapid, code, tuple(changed), feed, extra)
         self.emit(self.spec.format_motion(words))
+
+    def write_cutter_comp(self, block: CutterComp) -> None:
+        """Cutter radius compensation: the control's line (G41 D1, G42, G40), or a word the
+        next straight line carries (Heidenhain RL, RR, R0).
+
+        Raises
+        ------
+        DialectError
+            A side other than left, right or off; on a control with words, another plane than
+            XY.
+        """
+        spec = self.spec
+        if block.side not in ("left", "right", "off"):
+            raise DialectError(
+                f"cutter compensation side {block.side!r}; expected 'left', 'right' or 'off'"
+            )
+        if spec.cutter_comp:
+            action = {"XY": "plane_xy", "ZX": "plane_zx", "YZ": "plane_yz"}[block.plane]
+            plane = spec.g_code_for(action) if action in spec.g_codes.values() else ""
+            template = spec.cutter_comp[block.side]
+            if block.register is not None and "{register}" not in template:
+                raise DialectError(
+                    f"{spec.name}: cutter compensation with offset register {block.register}: "
+                    "the control takes the radius of the tool's own edge; expected no register"
+                )
+            register = block.register if block.register is not None else self.modal.tool
+            if register is None and "{register}" in template:
+                raise DialectError(
+                    f"{spec.name}: cutter compensation {block.side} before any tool change; "
+                    "expected a ToolChange before it (its number is the D word)"
+                )
+            line = template.format(register=register, plane=plane)
+            self.emit(" ".join(line.split()))
+            if block.side != "off":
+                self.modal.plane = block.plane
+            return
+        if not spec.cutter_comp_words:
+            raise DialectError(f"{spec.name} writes no cutter radius compensation")
+        if block.register is not None:
+            raise DialectError(
+                f"{spec.name}: cutter compensation with offset register {block.register}: the "
+                "control takes the radius from the tool table; expected no register"
+            )
+        if block.plane != "XY":
+            raise DialectError(
+                f"{spec.name}: cutter radius compensation in the {block.plane} plane; expected "
+                "the working plane XY"
+            )
+        self.modal.comp_word = spec.cutter_comp_words[block.side]
+
+    def write_arc(self, arc: Arc) -> None:
+        """Write an arc block from where the axes stand (their last written values).
+
+        The plane's two axes are always written, the other axes when their text changes; the
+        centre incremental from the start as written (I, J, K), or absolute
+        (:attr:`DialectSpec.arc_centre_absolute`). The next linear block writes its motion
+        code again.
+
+        Raises
+        ------
+        DialectError
+            The control takes no arcs in the plane, the start is not known (no motion block
+            before, or after a home return), a rotary axis would move, or the arc climbs on a
+            control without helices.
+        """
+        spec, modal, axes = self.spec, self.modal, self.program.axes
+        if modal.comp_word is not None:
+            raise DialectError(
+                f"{spec.name}: radius compensation {modal.comp_word} on an arc; expected it on "
+                "a straight line"
+            )
+        if arc.plane not in spec.arc_planes:
+            raise DialectError(f"{spec.name} takes no arcs in the {arc.plane} plane: {arc}")
+        if len(arc.position) != len(axes):
+            raise DialectError(f"arc {arc} has {len(arc.position)} values for axes {axes}")
+        first, second, normal = ARC_PLANES[arc.plane]
+        if modal.force or any(modal.axes.get(a) is None for a in (first, second, normal)):
+            raise DialectError(
+                f"arc {arc}: expected a motion block before it (the arc starts where the axes "
+                "stand)"
+            )
+        texts = {a: self.format_axis(a, v) for a, v in zip(axes, arc.position, strict=True)}
+        moved = [a for a in axes if a in ROTARY_ADDRESSES and texts[a] != modal.axes.get(a)]
+        if moved:
+            raise DialectError(f"arc {arc}: rotary axis {moved[0]} moves on an arc")
+        if texts[normal] != modal.axes[normal] and not spec.arc_helix:
+            raise DialectError(f"{spec.name} takes no helix: {arc}")
+        words = [(a, texts[a]) for a in axes if a in (first, second)]
+        words += [
+            (a, t) for a, t in texts.items() if a not in (first, second) and t != modal.axes.get(a)
+        ]
+        centre = dict(zip("XYZ", arc.centre, strict=True))
+        if spec.arc_centre_absolute:
+            centre_words = tuple((a, self.format_axis(a, centre[a])) for a in (first, second))
+        else:
+            letters = {"X": "I", "Y": "J", "Z": "K"}
+            start = {a: float(modal.axes[a]) for a in (first, second)}
+            order = sorted((first, second))  # I J K in that order
+            centre_words = tuple(
+                (
+                    letters[a] + spec.arc_centre_suffix,
+                    self.linear.format(centre[a] / self.scale - start[a]),
+                )
+                for a in order
+            )
+        feed = None
+        if arc.feed is not None:
+            text = self.feed_format.format(arc.feed / self.feed_scale)
+            if float(text) <= 0.0:
+                raise DialectError(f"feed {arc.feed} mm/min is written as F{text}")
+            if text != modal.feed:
+                feed = modal.feed = text
+        plane_code = None
+        if arc.plane != modal.plane:
+            action = {"XY": "plane_xy", "ZX": "plane_zx", "YZ": "plane_yz"}[arc.plane]
+            plane_code = spec.g_code_for(action) if action in spec.g_codes.values() else None
+            modal.plane = arc.plane
+        # the turn and the climb from the start as written (for a control that takes an
+        # incremental angle, Heidenhain CP IPA)
+        scale = self.scale
+        start_xyz = [math.nan] * 3
+        for a in (first, second, normal):
+            start_xyz["XYZ".index(a)] = float(modal.axes[a]) * scale
+        end_xyz = [math.nan] * 3
+        for a in (first, second, normal):
+            end_xyz["XYZ".index(a)] = float(texts[a]) * scale
+        centre_xyz = list(arc.centre)
+        for a, text in centre_words if spec.arc_centre_absolute else ():
+            centre_xyz["XYZ".index(a)] = float(text) * scale
+        written = Arc(
+            tuple(end_xyz), (centre_xyz[0], centre_xyz[1], centre_xyz[2]), arc.plane, arc.clockwise
+        )
+        sweep = math.degrees(written.sweep(start_xyz, ("X", "Y", "Z")))
+        turn = spec.rotary.format(-sweep if arc.clockwise else sweep)
+        climb = None
+        if texts[normal] != modal.axes[normal]:
+            rise = float(texts[normal]) - float(modal.axes[normal])
+            climb = (normal, self.linear.format(rise))
+        lines = spec.format_arc(
+            ArcWords(
+                arc.plane,
+                plane_code,
+                arc.clockwise,
+                tuple(words),
+                centre_words,
+                feed,
+                turn,
+                climb,
+            )
+        )
+        for line in lines:
+            self.emit(line)
+        modal.axes.update(texts)
+        modal.motion = None  # the next linear block writes G1 (L on Heidenhain anyway)
 
     def write_moves(self, moves: Sequence[Move] | MoveTable) -> None:
         """Write consecutive motion blocks: as :meth:`write_move` on each, many at a time.

@@ -10,7 +10,7 @@ the blocks.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,9 +22,11 @@ from urdfpost.planning.rewinds import LIFT, RETURN, TURN
 from urdfpost.posting.transitions import Transitions
 from urdfpost.program import (
     REWIND_END,
+    Arc,
     Block,
     Comment,
     Coolant,
+    CutterComp,
     Cycle,
     Home,
     Insert,
@@ -102,12 +104,38 @@ def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]
     elif kind == "cycle":  # its holes become a Cycle block (program_body); named here
         if data.get("cycle") != "off":
             out.append(Comment(f"cycle {data.get('cycle')}"))
+    elif kind == "cutcom":
+        register = data.get("register")
+        out.append(
+            CutterComp(
+                side=str(data["side"]),
+                register=None if register is None else int(register),
+                plane=str(data.get("plane", "XY")),
+            )
+        )
     elif kind == "msys":  # where the program zero lies in the part (information only)
         out.append(Comment(f"MSYS {data.get('text', '')}".strip()))
     else:
         text = " ".join(f"{k}={v}" for k, v in data.items())
         out.append(Comment(f"{kind} {text}".strip()))
     return out
+
+
+@dataclass(frozen=True)
+class ArcSpan:
+    """Rows of a program's move table that one :class:`Arc` block replaces.
+
+    Attributes
+    ----------
+    first, last : int
+        The first row replaced and the last (the one reaching the arc's end point),
+        inclusive.
+    block : Arc
+    """
+
+    first: int
+    last: int
+    block: Arc
 
 
 @dataclass(frozen=True)
@@ -209,6 +237,7 @@ def program_body(
     runs_cycle: Callable[[str, float], bool] | None = None,
     motion: list[_Holes] | None = None,
     smoothing: Smoothing | None = None,
+    arcs: Sequence[ArcSpan] = (),
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -271,6 +300,10 @@ def program_body(
         The control's path smoothing: switched on before the approach and first cut of
         each tool, off before each tool change and at the end of the program. A body
         that does not start the program (no ``work_offset``) starts with it on.
+    arcs : sequence of ArcSpan
+        Rows written as :class:`~urdfpost.program.Arc` blocks instead (in row order; none
+        holds a row before which a block other than moves comes,
+        :func:`urdfpost.posting.arcs.arc_spans`).
 
     Returns
     -------
@@ -290,6 +323,18 @@ def program_body(
     if count:
         starts = np.union1d(starts, [0])
     body: list[Block | MoveTable] = []
+    spans = list(arcs)
+
+    def rows_of(a: int, b: int) -> list[Block | MoveTable]:
+        """Rows ``a`` to ``b - 1`` as table rows, and the arcs among them."""
+        out: list[Block | MoveTable] = []
+        while spans and spans[0].first < b:
+            span = spans.pop(0)
+            assert a <= span.first and span.last < b, "an arc across a block between rows"
+            out += [table.rows(a, span.first), span.block]
+            a = span.last + 1
+        return [*out, table.rows(a, b)]
+
     tcp_state = [tcp_on]
     by_row: dict[int, list[Event]] = {}
     for event, row in zip(events, at.tolist(), strict=True):
@@ -345,13 +390,13 @@ def program_body(
         after_return = k > 0 and kind[k - 1] == RETURN
         if before or after_return:
             if k > done:
-                body += holes.parts(done, k, body)
+                body += holes.parts(done, k, body, rows_of)
                 done = k
             if after_return:
                 body.append(Comment(REWIND_END))
             body += before
     if count > done:
-        body += holes.parts(done, count, body)
+        body += holes.parts(done, count, body, rows_of)
     if count and kind[count - 1] == RETURN:
         body.append(Comment(REWIND_END))
     for event in by_row.get(count, []):
@@ -469,15 +514,24 @@ class _Holes:
         return cls(toolpath, machine, tcp, rows, table, event, expand, notes, runs, set(), {})
 
     def parts(
-        self, start: int, stop: int, body: list[Block | MoveTable]
+        self,
+        start: int,
+        stop: int,
+        body: list[Block | MoveTable],
+        plain: Callable[[int, int], list[Block | MoveTable]] | None = None,
     ) -> list[Block | MoveTable]:
-        """The blocks of rows ``start`` to ``stop`` (exclusive): the moves as a table, and the
+        """The blocks of rows ``start`` to ``stop`` (exclusive): the moves as a table (or as
+        ``plain(a, b)`` makes rows ``a`` to ``b - 1``: with the arcs among them), and the
         rows of holes as :class:`Cycle` blocks, each after a rapid to the retract height above
         its first hole (or, expanded, as their motion: :func:`expand_cycle`). The rows on the
         way to a hole (inserted by the subdivision) are not written: the control moves from
         hole to hole at the retract height."""
+
+        def rows(a: int, b: int) -> list[Block | MoveTable]:
+            return [self.table.rows(a, b)] if plain is None else plain(a, b)
+
         if not self.event:
-            return [self.table.rows(start, stop)]
+            return rows(start, stop)
         point = self.rows.point[start:stop]
         inside = np.isin(point, np.fromiter(self.event, dtype=np.int64, count=len(self.event)))
         out: list[Block | MoveTable] = []
@@ -490,7 +544,7 @@ class _Holes:
             if inside[k]:
                 out += self._cycles(start + k, start + j, body + out)
             else:
-                out.append(self.table.rows(start + k, start + j))
+                out += rows(start + k, start + j)
             k = j
         return out
 

@@ -34,6 +34,7 @@ from urdfpost.program import (
     FEED_INVERSE_TIME,
     FEED_PER_MINUTE,
     JOB_FEED_MODES,
+    Arc,
     Blocks,
     Move,
     MoveTable,
@@ -133,6 +134,15 @@ def timed_program(
         else per minute.
     figures : FeedFigures
     """
+    if any(isinstance(p, Arc) for p in program.parts):
+        # an arc keeps its CL feed (its rotary axes stand still: the tip feed is the linear
+        # axes' own); the blocks after it are timed from its end, where the axes stand
+        flat, on_arc = _arcs_as_ends(program)
+        timed, figures = timed_program(flat, machine, mode, spec, tool_length, before)
+        feeds = timed.move_table().feed[~on_arc]
+        return replace(program, blocks=_with_feeds(program, feeds), feed_mode=timed.feed_mode), (
+            figures
+        )
     inverse = mode == FEED_INVERSE
     figures = FeedFigures(mode=mode)
     table = program.move_table()
@@ -217,6 +227,25 @@ def _following_lines(cl_line: np.ndarray) -> np.ndarray:
     index = np.minimum.accumulate(index[::-1])[::-1]
     padded = np.append(cl_line, -1)
     return padded[index]
+
+
+def _arcs_as_ends(program: Program) -> tuple[Program, np.ndarray]:
+    """The program with each :class:`~urdfpost.program.Arc` as one feed move to its end, and
+    which of its moves those are (shape (N,), bool)."""
+    parts: list = []
+    on_arc: list[np.ndarray] = []
+    for part in program.parts:
+        if isinstance(part, Arc):
+            parts.append(Move(False, part.position, part.feed, part.cl_line))
+            on_arc.append(np.ones(1, dtype=bool))
+        else:
+            parts.append(part)
+            if isinstance(part, MoveTable):
+                on_arc.append(np.zeros(len(part), dtype=bool))
+            elif isinstance(part, Move):
+                on_arc.append(np.zeros(1, dtype=bool))
+    mask = np.concatenate(on_arc) if on_arc else np.zeros(0, dtype=bool)
+    return replace(program, blocks=Blocks(parts)), mask
 
 
 def _with_feeds(program: Program, feed: np.ndarray) -> Blocks:

@@ -110,6 +110,10 @@ class PostOptions:
         tip feed; right with TCP), "inverse-time" (G93: F = 1 / block time), "per-block" (F
         per minute, the block's axis-space length over its time); None or "auto": "tip" with
         TCP, else inverse time where the control has it, else per block (``docs/job.md``).
+    arcs : bool
+        Write the CL data's arcs (CIRCLE records) as arcs (G2/G3, Heidenhain C) where the
+        control, the tool axis and the plane allow it (:mod:`urdfpost.posting.arcs`); False
+        writes them as lines, as interpolated.
     """
 
     controller: str | None = None
@@ -141,6 +145,7 @@ class PostOptions:
     smoothing: bool | None = None
     smoothing_tolerance: float | None = None
     feed_mode: str | None = None
+    arcs: bool = True
 
 
 @dataclass(frozen=True)
@@ -202,6 +207,8 @@ class Job:
         The rotary axes the control rolls over (the machine file's ``rollover`` setting).
     feed_mode : str
         "tip", "inverse-time" or "per-block" (:func:`feed_mode_name`).
+    arcs : bool
+        Write arcs as arcs (:attr:`PostOptions.arcs`).
     """
 
     machine: Machine
@@ -233,6 +240,7 @@ class Job:
     smoothing: Smoothing | None = None
     rollover: frozenset[str] = frozenset()
     feed_mode: str = FEED_TIP
+    arcs: bool = True
 
 
 def feed_mode_name(name: str | None, tcp: bool, dialect: Dialect) -> str:
@@ -443,4 +451,5 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         smoothing=smoothing_of(options, machine, dialect, tol, units),
         rollover=settings.rollover,
         feed_mode=_feed_mode(options, machine, dialect),
+        arcs=options.arcs,
     )

@@ -31,9 +31,10 @@ from urdfpost.planning.strategies import (
     midpoint_solver,
     realise,
 )
+from urdfpost.posting.arcs import arc_spans
 from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget
-from urdfpost.posting.feeds import timed_program
+from urdfpost.posting.feeds import FEED_INVERSE, timed_program
 from urdfpost.posting.options import Job
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
 from urdfpost.posting.rollover import with_rollover
@@ -418,6 +419,38 @@ def post_piece(
     holes: list = []  # the record of the canned cycles' holes (their joint rows)
     rollover = job.rollover & frozenset(a.name for a in machine.rotary if a.continuous)
     transitions = Transitions(machine, job.tcp, tool_length, job.clearance, rollover=rollover)
+    arc_events = [e for e in events if e.kind == "arc"]
+    events = [e for e in events if e.kind != "arc"]
+    # an arc block has one F for its whole turn: a feed per minute; in inverse time (G93)
+    # its F would be the whole arc's time, and the feeds are timed per move: arcs as lines
+    timed_arcs = job.arcs and job.feed_mode != FEED_INVERSE
+    arcs = arc_spans(
+        toolpath,
+        arc_events,
+        machine,
+        rows,
+        tcp=job.tcp,
+        tool_length=tool_length,
+        tol=tol,
+        spec=job.dialect.spec if timed_arcs else None,
+        events=events,
+        joints_before=piece.start if piece is not None and continued else None,
+    )
+    if job.arcs and not timed_arcs and arc_events:
+        arcs = replace(arcs, linear=len(arc_events))
+        warnings.append(
+            f"{toolpath.source}:{arc_events[0].line}: {len(arc_events)} CL arcs written as "
+            "lines: the program's feed is inverse time (G93), which an arc block's one F "
+            "does not time move by move (--feed-mode per-block writes them as arcs)"
+        )
+    warnings += [f"{toolpath.source}: {note}" for note in arcs.notes]
+    comp = next((e for e in events if e.kind == "cutcom" and e.data.get("side") != "off"), None)
+    if comp is not None:
+        warnings.append(
+            f"{toolpath.source}:{comp.line}: cutter radius compensation {comp.data['side']} "
+            "is the control's (G41/G42, RL/RR): the program is the CL path, which "
+            "verification checks; the control offsets it by the radius in its tool table"
+        )
     body = program_body(
         toolpath,
         machine,
@@ -439,6 +472,7 @@ def post_piece(
         runs_cycle=job.dialect.spec.runs_cycle,
         motion=holes,
         smoothing=job.smoothing,
+        arcs=arcs.spans,
     )
     body, rolled = with_rollover(body, machine.axis_names, rollover, tol, start_position)
     if rolled.splits:
@@ -472,6 +506,8 @@ def post_piece(
         strategy=strategy,
         warnings=tuple(warnings),
         feeds=feed_figures,
+        arcs=arcs.arcs,
+        arcs_linear=arcs.linear,
     )
     intended = reference if reference is not plan.toolpath or plan.bent else None
     target = CheckTarget(

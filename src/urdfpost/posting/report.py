@@ -181,6 +181,10 @@ class PieceFigures:
         The post's warnings (the readers' are the toolpath's).
     feeds : FeedFigures or None
         How the feeds were programmed (None: a post that did not time them).
+    arcs : int
+        CL arcs written as arcs (:mod:`urdfpost.posting.arcs`).
+    arcs_linear : int
+        CL arcs written as lines (a warning says why).
     """
 
     branch_switches: int
@@ -191,6 +195,8 @@ class PieceFigures:
     strategy: StrategyFigures
     warnings: tuple[str, ...] = ()
     feeds: FeedFigures | None = None
+    arcs: int = 0
+    arcs_linear: int = 0
 
     def joined(self, other: PieceFigures, offset: int) -> PieceFigures:
         """These figures and those of the piece after, added up.
@@ -217,6 +223,8 @@ class PieceFigures:
             feeds=other.feeds
             if self.feeds is None
             else (self.feeds if other.feeds is None else self.feeds.joined(other.feeds)),
+            arcs=self.arcs + other.arcs,
+            arcs_linear=self.arcs_linear + other.arcs_linear,
         )
 
 
@@ -381,6 +389,8 @@ class Report:
                 "rewinds": [r.as_json() for r in f.rewinds],
                 "pole_turns": f.pole_turns,
                 "strategy": f.strategy.as_json(),
+                "arcs": f.arcs,
+                "arcs_linear": f.arcs_linear,
             }
             if f.feeds is not None:
                 out["feeds"] = f.feeds.as_json()

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import logging
+import math
 import multiprocessing
 import os
 import pickle
@@ -36,7 +37,7 @@ import numpy as np
 from urdfpost.errors import UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting.check import CheckTarget, check_piece, tolerance_error
-from urdfpost.program import Blocks, Insert, MoveTable, Program
+from urdfpost.program import Blocks, Insert, MoveTable, Program, arcs_as_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.verification import Verification
 
@@ -134,7 +135,7 @@ class PieceVerifier:
         if error is not None:
             raise error
         check, intent = checks
-        table = readback.move_table()
+        table = arcs_as_moves(readback, math.inf).move_table()  # (an arc's end: its last row)
         if len(table):
             self.previous = (readback.axes, np.asarray(table.position[-1]))
         return check, intent

@@ -69,6 +69,16 @@ Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
   ``dwell`` (s): a canned cycle (:mod:`urdfpost.readers._cycle`). The GOTOs between a cycle and
   its ``CYCLE/OFF`` are its holes, RAPID points at the hole tops
   (:func:`urdfpost.toolpath.cycle_holes`)
+- ``"arc"``: a CIRCLE and the GOTO after it, before the points interpolated on it:
+  ``centre`` (mm, a point of the circle axis), ``normal`` (unit: the arc turns
+  counter-clockwise about it, the sense rules below applied), ``radius`` (mm), ``points``
+  (how many points were interpolated: the event's index is the first, the point before it
+  the arc's start, the last the GOTO's point), ``sweep`` (rad, the angle turned, ``TIMES``
+  turns included). The points are the path; the event lets a post write the arc as one
+  (G2/G3).
+- ``"cutcom"``: ``CUTCOM/LEFT|RIGHT|OFF``: ``side`` ("left", "right", "off"), and when
+  given ``register`` (int, the offset register of ``CUTCOM/LEFT,n`` or ``CUTCOM/LEFT,
+  ...,n``) and ``plane`` ("XY", "ZX", "YZ" from ``XYPLAN``, ``ZXPLAN``, ``YZPLAN``)
 - ``"unknown"``: ``text`` (the record as written; a warning is added too)
 
 Text carried into the program as a comment (``comment``, ``partno`` and ``unknown`` texts, an
@@ -868,6 +878,7 @@ class _AptInterpreter:
             "TOOL PATH": self._tool_path,
             "MSYS": self._msys,
             "MULTAX": self._multax,
+            "CUTCOM": self._cutcom,
             "UNITS": self._units,
             "PARTNO": self._text_event("partno"),
             "PPRINT": self._text_event("comment"),
@@ -1339,6 +1350,16 @@ class _AptInterpreter:
             arc.end_tangent,
             self._incoming_cosine(arc.start_tangent),
         )
+        # the arc itself, for a post that writes it as an arc (its points follow the event)
+        self.builder.add_event(
+            "arc",
+            circle.line,
+            centre=circle.centre,
+            normal=circle.rotation_axis,
+            radius=circle.radius,
+            points=int(arc.points.shape[0]),
+            sweep=arc.sweep,
+        )
         self.builder.add_points(
             arc.points, axis_before, self._current_feed(), Motion.FEED, circle.line
         )
@@ -1741,6 +1762,38 @@ class _AptInterpreter:
             self.multiaxis = True
         elif mode != ["OFF"]:
             self._unknown(record)
+
+    def _cutcom(self, record: Record) -> None:
+        """``CUTCOM/LEFT|RIGHT|OFF`` with, in any order after it, a plane (``XYPLAN``,
+        ``ZXPLAN``, ``YZPLAN``), an offset register (a whole number) and ``ON`` (NX writes
+        ``CUTCOM/ON,LEFT``): a ``cutcom`` event.
+
+        Raises
+        ------
+        CLDataError
+            No side, two of them, or a value that is none of these.
+        """
+        sides = {"LEFT": "left", "RIGHT": "right", "OFF": "off"}
+        planes = {"XYPLAN": "XY", "ZXPLAN": "ZX", "YZPLAN": "YZ"}
+        data: dict[str, object] = {}
+        for token in (t.strip().upper() for t in record.args or []):
+            if token in sides and "side" not in data:
+                data["side"] = sides[token]
+            elif token in planes and "plane" not in data:
+                data["plane"] = planes[token]
+            elif token == "ON":
+                continue
+            elif re.fullmatch(r"\d+", token) and "register" not in data:
+                data["register"] = int(token)
+            else:
+                raise self.error(
+                    record,
+                    f"unexpected '{quote(token)}' in CUTCOM; expected CUTCOM/LEFT, RIGHT or OFF, "
+                    "then optionally XYPLAN, ZXPLAN or YZPLAN and an offset register",
+                )
+        if "side" not in data:
+            raise self.error(record, "expected LEFT, RIGHT or OFF in CUTCOM, got none")
+        self.builder.add_event("cutcom", record.line, **data)
 
     def _units(self, record: Record) -> None:
         units = _UNITS_WORDS.get(record.args[0].upper()) if record.args else None

@@ -258,7 +258,8 @@ class FeedCheck:
         Feed blocks compared (with a CL feed and a tip path).
     max_deviation_pct : float
         Largest deviation of the tip feed from the CL feed over the blocks not at an axis
-        limit, percent.
+        limit, percent, beyond the rounding of the block's F word (half a unit of its last
+        decimal, relative to the F written).
     worst_cl_line : int or None
         CL line of that block.
     capped : int
@@ -428,7 +429,11 @@ def measure_feeds(
     faster = block_times(feed + step, feed_mode, tcp, tip, axis_len, units) if step else time
     at_limit = compared & (ratio < 1.0) & ((time <= limit * slack) | (faster < limit))
     free = compared & ~at_limit
-    deviation = np.where(free, np.abs(ratio - 1.0), 0.0)
+    # beyond what the last decimal of the F word allows (half a unit of it, relative to F):
+    # a slow block's F, a few units of its last decimal, cannot be written closer
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rounding = np.where(feed > 0.0, 0.5 * step / feed, 0.0)
+    deviation = np.where(free, np.maximum(np.abs(ratio - 1.0) - rounding, 0.0), 0.0)
     fields |= {"compared": int(compared.sum()), "in_place": int(in_place.sum())}
     if free.any():
         k = int(np.argmax(deviation))

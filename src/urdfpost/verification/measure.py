@@ -36,7 +36,15 @@ from urdfpost.geometry import (
 from urdfpost.kinematics.forward import interpolation_bounds, tip_and_axis_along
 from urdfpost.linearize import RowPoses, orientation_path_chord2
 from urdfpost.machine import Machine
-from urdfpost.program import Program, WorkOffset, cycle_moves, expand_cycles, rewind_moves
+from urdfpost.program import (
+    Arc,
+    Program,
+    WorkOffset,
+    arcs_as_moves,
+    cycle_moves,
+    expand_cycles,
+    rewind_moves,
+)
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification.feeds import FeedCheck, FeedRules, measure_feeds, tip_lengths
@@ -52,6 +60,13 @@ second order in their spacing, so few blocks need refining after 8)."""
 _ITERATIONS = 14
 """Golden-section iterations of the refinement: the bracket of two sample spacings shrinks to
 under 3e-4 of the block."""
+
+ARC_STEP_SHARE = 0.2
+"""Longest chord between the moves an arc block is measured as, in shares of the tip
+tolerance (:func:`urdfpost.program.arcs_as_moves`). Every point of the arc is within a tenth
+of the tolerance of one of them: the CL points on the arc are reached, and the row that reaches
+one, compared with the CL segment from it on, adds at most that tenth to the deviation
+measured (the rows of lines pass through their CL points; an arc's need not)."""
 
 _NEGLIGIBLE = 1e-9
 """Share of a tolerance below which a deviation is not refined (when nothing larger is seen)."""
@@ -669,6 +684,17 @@ def verify_checks(
             "verified with --mcs-offsets)",
         )
     tool_length = program.tool_length if tool_length is None else tool_length
+    if checks and any(isinstance(p, Arc) for p in program.parts):
+        # an arc is measured as the control runs it: moves along it, at most half the tip
+        # tolerance apart (so its CL points are reached by them and checked as every move)
+        written = len(program.move_table()) + sum(isinstance(p, Arc) for p in program.parts)
+        step = ARC_STEP_SHARE * min(c.tol.tip for c in checks)
+        try:
+            run = arcs_as_moves(program, step)
+        except ValueError as e:
+            raise ProgramParseError(program.name, 0, str(e)) from None
+        out = verify_checks(run, machine, checks, tool_length, feed_rules)
+        return [replace(v, blocks=written) for v in out]
     try:  # canned cycles as the motion the control runs
         program = expand_cycles(program)
     except ValueError as e:

@@ -58,9 +58,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from urdfpost.errors import ProgramParseError
 from urdfpost.machine import Machine
 from urdfpost.program import (
     FEED_PER_MINUTE,
+    Arc,
     Blocks,
     Move,
     MoveTable,
@@ -68,6 +70,7 @@ from urdfpost.program import (
     Spindle,
     Tcp,
     ToolChange,
+    arcs_as_moves,
     rewind_moves,
 )
 from urdfpost.tolerances import Tolerances
@@ -145,8 +148,9 @@ class Fault:
         What the fault is at: "move" (a motion block), "tool" (a tool change), "tcp" (a TCP
         switch on) or "end" (the last line of the program).
     index : int
-        Index of that move (of :meth:`Program.moves`), tool change or TCP switch on (of the
-        program's), from the start of the program; 0 for "end".
+        Index of that motion block (the moves of :meth:`Program.moves` and the arcs, in
+        order), tool change or TCP switch on (of the program's), from the start of the
+        program; 0 for "end".
     count : int
         Faults of this kind in all (only the first is described).
     """
@@ -280,7 +284,8 @@ class ProcessChecker:
         self.rounding = rounding or Rounding()
         self.end = end
         self._pieces = 0
-        self._row0 = 0  # index of the piece's first move in the whole program
+        self._row0 = 0  # index of the piece's first motion block in the whole program
+        self._block_of_row = np.zeros(0, dtype=np.int64)  # of the piece's rows
         self._program_spindle: tuple[int, float] = (0, 0.0)
         self._cl_spindle: tuple[int, float] = (0, 0.0)
         self._tools = _Tools()
@@ -330,6 +335,12 @@ class ProcessChecker:
         continued = not first and not fresh
         if fresh and not first:
             self._row0 += 1  # the piece before's last row is not this piece's first
+        written = program
+        program = _arcs_as_moves(program, self.tol)
+        # the moves made along an arc are one block of the program: counted as one, and a
+        # fault on one is at that block (a motion block: a move or an arc)
+        self._block_of_row = _blocks_of_rows(written, program)
+        n_blocks = int(self._block_of_row[-1]) + 1 if len(self._block_of_row) else 0
         self._pieces += 1
         if tool_length is not None:
             self.tool_length = tool_length
@@ -354,7 +365,7 @@ class ProcessChecker:
                 program, table, expected, continued, directions, speeds, cl_dir, cl_rpm
             )
         if n_rows:
-            self._row0 += n_rows - 1  # the next piece starts with this piece's last row
+            self._row0 += n_blocks - 1  # the next piece starts with this piece's last row
 
     def result(self) -> ProcessCheck:
         """What the pieces added so far show."""
@@ -491,14 +502,14 @@ class ProcessChecker:
         feed_point = expected.motion == int(Motion.FEED)
         aside = rewind_moves(program)
         cutting = ~table.rapid & ~aside & (owner >= 0) & feed_point[o]
-        self._cutting += int(cutting.sum())
+        self._cutting += self._blocks_in(np.flatnonzero(cutting))
         lines = expected.line
 
         # feeds: the cutting moves at their point's feed; no rapid arriving at a feed point
         want = expected.feed[o]
         got = table.feed
         free = cutting & ~np.isfinite(want)
-        self._free_feed += int(free.sum())
+        self._free_feed += self._blocks_in(np.flatnonzero(free))
         slack = 0.5 * self.rounding.feed + 1e-9 * np.abs(np.where(np.isfinite(want), want, 0.0))
         off = cutting & ~free & ~(np.abs(got - want) <= slack)  # (NaN: no feed programmed)
         if program.tcp and program.feed_mode == FEED_PER_MINUTE:
@@ -534,12 +545,12 @@ class ProcessChecker:
                     f"feed {self._feed_words(float(got[row]))} where the CL has {cl_feed} "
                     f"(CL line {int(lines[point])})"
                 )
-            self._found("feed", message, row, int(bad.size))
+            self._found("feed", message, row, self._blocks_in(bad))
 
         # spindle: running in the CL's direction at its speed at every cutting move
         want_dir, want_rpm = cl_dir[o], cl_rpm[o]
         any_speed = cutting & np.isnan(want_rpm)
-        self._free_speed += int(any_speed.sum())
+        self._free_speed += self._blocks_in(np.flatnonzero(any_speed))
         speed_slack = 0.5 * self.rounding.speed + 1e-9 * np.nan_to_num(np.abs(want_rpm))
         wrong = cutting & (
             (directions != want_dir) | (~any_speed & ~(np.abs(speeds - want_rpm) <= speed_slack))
@@ -554,7 +565,7 @@ class ProcessChecker:
                 "spindle",
                 f"spindle {have} where the CL has {need} (CL line {int(lines[point])})",
                 row,
-                int(bad.size),
+                self._blocks_in(bad),
             )
 
     def _running_change(self, number: int, state: tuple[int, float]) -> None:
@@ -585,10 +596,17 @@ class ProcessChecker:
         direction = "CW" if code == 1 else "CCW"
         return f"S(any) {direction}" if math.isnan(rpm) else f"S{_fmt(rpm)} {direction}"
 
+    def _blocks_in(self, rows: np.ndarray) -> int:
+        """How many motion blocks the piece's ``rows`` are (an arc's moves are one)."""
+        if len(self._block_of_row) == 0:
+            return int(rows.size)
+        return int(np.unique(self._block_of_row[rows]).size)
+
     def _found(self, kind: str, message: str, row: int, count: int) -> None:
         self._counts[kind] = self._counts.get(kind, 0) + count
         if kind not in self._first:
-            self._first[kind] = Fault(kind, message, "move", self._row0 + row)
+            block = int(self._block_of_row[row]) if row < len(self._block_of_row) else row
+            self._first[kind] = Fault(kind, message, "move", self._row0 + block)
 
     def _counted(self, kind: str) -> Fault:
         first = self._first[kind]
@@ -792,7 +810,7 @@ class PieceProcess:
             start = MoveTable(position[None], np.zeros(1, bool), np.full(1, np.nan), np.full(1, -1))
             program = replace(program, blocks=Blocks((start, *program.parts)))
         self.checker.add(program, expected, fresh=fresh, tool_length=tool_length, machine=machine)
-        table = program.move_table()
+        table = _arcs_as_moves(program, self.checker.tol).move_table()  # where it ends
         if len(table):
             self._last = (program.axes, np.asarray(table.position[-1]))
 
@@ -833,11 +851,43 @@ def _chunks(texts: Iterable[str]) -> Iterator[list[str]]:
             yield lines[start : start + _LOCATE_LINES]
 
 
+def _arcs_as_moves(program: Program, tol: Tolerances) -> Program:
+    """``program`` with its arcs as the moves the control makes along them, at most the tip
+    tolerance apart (:func:`urdfpost.program.arcs_as_moves`): the CL points on an arc are
+    reached by them, and each carries the arc's feed and spindle, which are checked as any
+    move's."""
+    if not any(isinstance(p, Arc) for p in program.parts):
+        return program
+    try:
+        return arcs_as_moves(program, tol.tip)
+    except ValueError as e:
+        raise ProgramParseError(program.name, 0, str(e)) from None
+
+
+def _blocks_of_rows(written: Program, run: Program) -> np.ndarray:
+    """For each move of ``run`` (``written`` with its arcs as moves, :func:`_arcs_as_moves`),
+    the motion block of ``written`` it belongs to (its moves and arcs counted in order),
+    shape (rows,)."""
+    out: list[np.ndarray] = []
+    block = 0
+    for part, ran in zip(written.parts, run.parts, strict=True):
+        if isinstance(part, Arc):
+            assert isinstance(ran, MoveTable)
+            out.append(np.full(len(ran), block, dtype=np.int64))
+            block += 1
+        elif isinstance(part, MoveTable | Move):
+            k = len(part) if isinstance(part, MoveTable) else 1
+            out.append(block + np.arange(k, dtype=np.int64))
+            block += k
+    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+
+
 def _counts(program: Program) -> tuple[int, int, int]:
-    """Moves, tool changes and TCP switches on of ``program``."""
+    """Motion blocks (moves and arcs), tool changes and TCP switches on of ``program``."""
     tools = sum(1 for p in program.parts if isinstance(p, ToolChange))
     tcps = sum(1 for p in program.parts if isinstance(p, Tcp) and p.on)
-    return len(program.move_table()), tools, tcps
+    arcs = sum(1 for p in program.parts if isinstance(p, Arc))
+    return len(program.move_table()) + arcs, tools, tcps
 
 
 def located(
