@@ -53,9 +53,9 @@ def job():
     return read_cl_text(arc_job(), source="arc_job.apt")
 
 
-#: Machine-coordinate arcs are written with feeds per minute (an arc block's one F); the
-#: default inverse time (G93) writes them as lines (test_inverse_time_writes_arcs_as_lines).
-MC_FEED = "per-block"
+#: The feed mode of the machine-coordinate posts: the default (auto: G93 on Fanuc, LinuxCNC
+#: and Siemens, F per block on Heidenhain); test_arcs_in_both_feed_modes takes the other.
+MC_FEED: str | None = None
 
 
 def posted(controller: str, tcp: bool = True):
@@ -664,15 +664,26 @@ def test_arcs_read_with_a_coarse_chord_tolerance_are_written_as_lines() -> None:
 
 
 @pytest.mark.parametrize("controller", ["siemens", "fanuc", "linuxcnc"])
-def test_inverse_time_writes_arcs_as_lines(controller: str) -> None:
-    """Machine coordinates in inverse time (G93, the default where the control has it): an arc
-    block's one F would be the whole arc's time, while the feeds are timed move by move; the
-    arcs are lines, with a warning that names the way to arcs (a feed per block)."""
-    options = PostOptions(controller=controller, tcp=False)
+@pytest.mark.parametrize("mode", ["inverse-time", "per-block"])
+def test_arcs_in_both_feed_modes(controller: str, mode: str, tmp_path: Path) -> None:
+    """Machine coordinates: in inverse time an arc's F is one over its time along it (the
+    CL feed over its length: a quarter circle of radius 20 mm at 600 mm/min is F19.0986), per
+    block its CL feed; both verify with the tip feed of every move along the arc at the CL
+    feed, and LinuxCNC's interpreter runs both."""
+    options = PostOptions(controller=controller, tcp=False, feed_mode=mode)
     result = post(job(), load_machine("dmu50"), options)
     assert result.verification.ok
-    assert result.program.feed_mode == "inverse-time"
-    assert not arc_lines(controller, result.text)
-    r = result.report.as_json()
-    assert (r["arcs"], r["arcs_linear"]) == (0, 6)
-    assert any("written as lines: the program's feed is inverse time" in w for w in r["warnings"])
+    assert result.verification.feeds is not None
+    assert result.verification.feeds.max_deviation_pct < 1.0
+    assert len(arc_lines(controller, result.text)) == ARC_BLOCKS[controller]
+    program = DIALECTS[controller].read(result.text)
+    assert program.feed_mode == ("inverse-time" if mode == "inverse-time" else "per-minute")
+    first = next(p for p in program.parts if isinstance(p, Arc))
+    assert first.feed is not None
+    # the first CIRCLE: a quarter circle of radius 20 mm at FEDRAT 600
+    quarter = math.pi * 20.0 / 2.0
+    want = 600.0 / quarter if mode == "inverse-time" else 600.0
+    assert first.feed == pytest.approx(want, rel=1e-4)
+    if controller == "linuxcnc":
+        run = run_rs274(result.text, {3: 0.0}, tmp_path / "rs274")
+        assert sum(c.name == "ARC_FEED" for c in run.calls) >= ARC_BLOCKS[controller]

@@ -1095,8 +1095,10 @@ def arcs_as_moves(program: Program, max_step: float) -> Program:
     """The program with each :class:`Arc` block replaced by feed moves along it, as the
     control runs it (:meth:`Arc.points`): what verification measures.
 
-    The moves of an arc carry its feed; the last one its CL line and the arc's end (every
-    axis), the others no CL line. A program without arcs is returned as it is.
+    The moves of an arc carry its feed (in inverse time, :data:`FEED_INVERSE_TIME`, each its
+    share of the arc's time by its length: F times the arc's length over the move's); the last
+    one its CL line and the arc's end (every axis), the others no CL line. A program without
+    arcs is returned as it is.
 
     Parameters
     ----------
@@ -1142,9 +1144,15 @@ def arcs_as_moves(program: Program, max_step: float) -> Program:
             if j >= 0:
                 position[:, j] = points[:, axis]
         position[-1] = part.position
-        feed = math.nan if part.feed is None else part.feed
+        feed = np.full(k, math.nan if part.feed is None else part.feed)
+        if program.feed_mode == FEED_INVERSE_TIME and part.feed is not None:
+            # F is one over the whole arc's time: each move takes its share of it, by length
+            chords = np.linalg.norm(np.diff(np.vstack([start, points]), axis=0), axis=1)
+            total = float(chords.sum())
+            if total > 0.0:
+                feed = part.feed * total / np.maximum(chords, total * 1e-12)
         line = np.full(k, -1, dtype=np.int64)
         line[-1] = -1 if part.cl_line is None else part.cl_line
-        out.append(MoveTable(position, np.zeros(k, bool), np.full(k, feed), line))
+        out.append(MoveTable(position, np.zeros(k, bool), feed, line))
         last = np.asarray(part.position, dtype=float).copy()
     return replace(program, blocks=Blocks(out))

@@ -621,11 +621,19 @@ class ProgramWriter:
                 for a in order
             )
         feed = None
+        if self.inverse:
+            if arc.feed is None:
+                raise DialectError(
+                    f"arc {arc}: a feed move of an inverse-time program without its F (one "
+                    "over the arc's time)"
+                )
+            self.enter_inverse_time()
         if arc.feed is not None:
             text = self.feed_format.format(arc.feed / self.feed_scale)
             if float(text) <= 0.0:
-                raise DialectError(f"feed {arc.feed} mm/min is written as F{text}")
-            if text != modal.feed:
+                unit = "1/min" if self.inverse else "mm/min"
+                raise DialectError(f"feed {arc.feed} {unit} is written as F{text}")
+            if text != modal.feed or self.inverse:  # G93: F in every feed block
                 feed = modal.feed = text
         plane_code = None
         if arc.plane != modal.plane:

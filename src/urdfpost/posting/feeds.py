@@ -135,14 +135,16 @@ def timed_program(
     figures : FeedFigures
     """
     if any(isinstance(p, Arc) for p in program.parts):
-        # an arc keeps its CL feed (its rotary axes stand still: the tip feed is the linear
-        # axes' own); the blocks after it are timed from its end, where the axes stand
+        # an arc keeps its CL feed per minute (its rotary axes stand still: the tip feed is the
+        # linear axes' own), in inverse time one over its time along it; the blocks after it
+        # are timed from its end, where the axes stand
         flat, on_arc = _arcs_as_ends(program)
         timed, figures = timed_program(flat, machine, mode, spec, tool_length, before)
         feeds = timed.move_table().feed[~on_arc]
-        return replace(program, blocks=_with_feeds(program, feeds), feed_mode=timed.feed_mode), (
-            figures
-        )
+        parts = _with_feeds(program, feeds)
+        if mode == FEED_INVERSE:
+            parts = _inverse_arcs(parts, flat, on_arc, spec)
+        return replace(program, blocks=parts, feed_mode=timed.feed_mode), figures
     inverse = mode == FEED_INVERSE
     figures = FeedFigures(mode=mode)
     table = program.move_table()
@@ -246,6 +248,41 @@ def _arcs_as_ends(program: Program) -> tuple[Program, np.ndarray]:
                 on_arc.append(np.zeros(1, dtype=bool))
     mask = np.concatenate(on_arc) if on_arc else np.zeros(0, dtype=bool)
     return replace(program, blocks=Blocks(parts)), mask
+
+
+def _inverse_arcs(blocks: Blocks, flat: Program, on_arc: np.ndarray, spec: DialectSpec) -> Blocks:
+    """``blocks`` with each arc's F one over its time (1/min): its length along the arc
+    (:meth:`~urdfpost.program.Arc.points`, from where the axes stand before it: the row
+    before it in ``flat``, :func:`_arcs_as_ends`) at its CL feed, and no shorter than the
+    control's largest F allows."""
+    table = flat.move_table()
+    filled = table.position.copy()
+    for j in range(filled.shape[1]):  # modal: an axis not written stays where it was
+        column = filled[:, j]
+        known = np.where(~np.isnan(column), np.arange(len(column)), -1)
+        index = np.maximum.accumulate(known)
+        filled[:, j] = np.where(index >= 0, column[np.maximum(index, 0)], np.nan)
+    xyz = [flat.axes.index(a) for a in "XYZ"]
+    rows = np.flatnonzero(on_arc)
+    parts: list = []
+    k = 0
+    for part in blocks.parts:
+        if isinstance(part, Arc):
+            row = int(rows[k])
+            k += 1
+            if part.feed is not None and row > 0:
+                start = [float(v) for v in filled[row - 1, xyz]]
+                radius = max(max(part.radii(start, flat.axes)), 1e-6)
+                points = part.points(start, flat.axes, max(radius * 1e-3, 1e-4))
+                length = float(
+                    np.linalg.norm(np.diff(np.vstack([start, points]), axis=0), axis=1).sum()
+                )
+                time = length / part.feed
+                if spec.inverse_time_max:
+                    time = max(time, 1.0 / spec.inverse_time_max)
+                part = replace(part, feed=1.0 / time if time > 0.0 else spec.inverse_time_max)
+        parts.append(part)
+    return Blocks(parts)
 
 
 def _with_feeds(program: Program, feed: np.ndarray) -> Blocks:

@@ -34,7 +34,7 @@ from urdfpost.planning.strategies import (
 from urdfpost.posting.arcs import arc_spans
 from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget
-from urdfpost.posting.feeds import FEED_INVERSE, timed_program
+from urdfpost.posting.feeds import timed_program
 from urdfpost.posting.options import Job
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
 from urdfpost.posting.rollover import with_rollover
@@ -421,9 +421,6 @@ def post_piece(
     transitions = Transitions(machine, job.tcp, tool_length, job.clearance, rollover=rollover)
     arc_events = [e for e in events if e.kind == "arc"]
     events = [e for e in events if e.kind != "arc"]
-    # an arc block has one F for its whole turn: a feed per minute; in inverse time (G93)
-    # its F would be the whole arc's time, and the feeds are timed per move: arcs as lines
-    timed_arcs = job.arcs and job.feed_mode != FEED_INVERSE
     arcs = arc_spans(
         toolpath,
         arc_events,
@@ -432,17 +429,10 @@ def post_piece(
         tcp=job.tcp,
         tool_length=tool_length,
         tol=tol,
-        spec=job.dialect.spec if timed_arcs else None,
+        spec=job.dialect.spec if job.arcs else None,
         events=events,
         joints_before=piece.start if piece is not None and continued else None,
     )
-    if job.arcs and not timed_arcs and arc_events:
-        arcs = replace(arcs, linear=len(arc_events))
-        warnings.append(
-            f"{toolpath.source}:{arc_events[0].line}: {len(arc_events)} CL arcs written as "
-            "lines: the program's feed is inverse time (G93), which an arc block's one F "
-            "does not time move by move (--feed-mode per-block writes them as arcs)"
-        )
     warnings += [f"{toolpath.source}: {note}" for note in arcs.notes]
     comp = next((e for e in events if e.kind == "cutcom" and e.data.get("side") != "off"), None)
     if comp is not None:
