@@ -198,3 +198,48 @@ RAPID
 GOTO/-20,-20,10
 FINI
 """
+
+
+def indexed_job() -> str:
+    """A 3+2 job: a flat cut, then two operations at a fixed tilt, each entered and left at a
+    rapid: the first with the tool axis leaning 30 degrees about Y (a pocket wall's three
+    cuts), the second leaning 20 degrees about -X with a slot and a drilling cycle at two
+    holes of different heights along its axis (two cycle blocks in its plane)."""
+    one = "0.5,0,0.8660254"
+    two = "0,-0.3420201,0.9396926"
+    return f"""\
+PARTNO INDEXED
+UNITS/MM
+MULTAX/ON
+LOADTL/1
+SPINDL/RPM,8000,CLW
+COOLNT/FLOOD
+RAPID
+GOTO/0,0,30,0,0,1
+FEDRAT/MMPM,600
+GOTO/0,0,0,0,0,1
+GOTO/30,0,0,0,0,1
+RAPID
+GOTO/30,0,30,0,0,1
+RAPID
+GOTO/40,0,20,{one}
+FEDRAT/MMPM,400
+GOTO/40,0,0,{one}
+GOTO/40,20,0,{one}
+GOTO/30,20,-5,{one}
+RAPID
+GOTO/30,20,30,{one}
+RAPID
+GOTO/0,-40,20,{two}
+FEDRAT/MMPM,300
+GOTO/0,-40,0,{two}
+GOTO/20,-40,0,{two}
+CYCLE/DRILL,FEDTO,5,MMPM,90,RAPTO,2,RTRCTO,8
+GOTO/10,-30,0,{two}
+GOTO/20,-30,0,{two}
+GOTO/10,-20,3.6397023,{two}
+CYCLE/OFF
+RAPID
+GOTO/10,-20,30,{two}
+FINI
+"""

@@ -26,6 +26,7 @@ from urdfpost.dialects import DIALECTS
 from urdfpost.errors import CLDataError, ProgramParseError
 from urdfpost.machine import Machine
 from urdfpost.posting.options import PostOptions
+from urdfpost.posting.planes import plane_count
 from urdfpost.posting.whole import PostResult, post
 from urdfpost.program import (
     CHIP_BREAK_RETRACT,
@@ -274,19 +275,38 @@ def test_a_cycle_the_control_lacks_is_expanded_with_a_warning() -> None:
 
 
 @pytest.mark.parametrize("control", CONTROLS)
-def test_tilted_hole_in_tcp_is_expanded_with_a_warning(control: str) -> None:
+def test_tilted_hole_in_tcp_is_a_cycle_in_a_tilted_plane(control: str) -> None:
     toolpath = job(tilted=True)
     result = post(toolpath, machine(), PostOptions(controller=control))
+    program = DIALECTS[control].read(result.text)
+    has_plane = DIALECTS[control].spec.plane_convention is not None
+    if has_plane:  # drilled along the plane's Z by the control's own cycle
+        assert not result.report.warnings
+        assert [c.kind for c in _cycles(program)] == ["drill", "deep", "tap", "drill"]
+        assert plane_count(program) == 1
+    else:  # LinuxCNC: no tilted plane, the hole as its motion
+        (warning,) = result.report.warnings
+        assert warning.startswith("drill.apt:22: CYCLE drill: the hole at line 23 has its tool")
+        assert [c.kind for c in _cycles(program)] == ["drill", "deep", "tap"]
+    assert verify(program, machine(), toolpath).ok
+
+
+@pytest.mark.parametrize("control", CONTROLS)
+def test_tilted_hole_without_planes_is_expanded_with_a_warning(control: str) -> None:
+    toolpath = job(tilted=True)
+    result = post(toolpath, machine(), PostOptions(controller=control, tilted_planes=False))
     (warning,) = result.report.warnings
     assert warning.startswith("drill.apt:22: CYCLE drill: the hole at line 23 has its tool axis")
     program = DIALECTS[control].read(result.text)
     assert [c.kind for c in _cycles(program)] == ["drill", "deep", "tap"]
+    assert plane_count(program) == 0
     assert verify(program, machine(), toolpath).ok
     # in machine coordinates the table tilts the hole under the spindle: a cycle again
     result = post(toolpath, machine(), PostOptions(controller=control, tcp=False))
     assert not result.report.warnings
     program = DIALECTS[control].read(result.text)
     assert [c.kind for c in _cycles(program)] == ["drill", "deep", "tap", "drill"]
+    assert plane_count(program) == 0
     length = result.program.tool_length
     assert verify(program, machine(), toolpath, tool_length=length).ok
 

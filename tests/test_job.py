@@ -132,7 +132,8 @@ def test_tool_change_leaves_up_and_comes_back_from_above(
     high as it goes, the approach point 10 mm above it along its tool axis, and the point."""
     m = load_machine(machine_name)
     tp = two_tools()
-    result = post(tp, m, PostOptions(controller=controller, tcp=tcp))
+    # (the second tool's cut is at a fixed tilt: in five-axis form here, not in a plane)
+    result = post(tp, m, PostOptions(controller=controller, tcp=tcp, tilted_planes=False))
     assert result.verification.ok
     blocks = result.program.blocks
     t2 = index(blocks, ToolChange, number=2)
@@ -181,7 +182,8 @@ def test_tool_change_leaves_up_and_comes_back_from_above(
 @pytest.mark.parametrize("machine_name", MACHINES)
 def test_end_goes_up_stops_and_turns_home(controller: str, machine_name: str) -> None:
     m = load_machine(machine_name)
-    result = post(two_tools(), m, PostOptions(controller=controller, tcp=True))
+    options = PostOptions(controller=controller, tcp=True, tilted_planes=False)
+    result = post(two_tools(), m, options)
     blocks = result.program.blocks
     last_cut = max(k for k, b in enumerate(blocks) if isinstance(b, Move) and b.cl_line)
     tail = blocks[last_cut + 1 :]
@@ -386,7 +388,8 @@ def test_verify_refuses_a_tcp_program_that_cuts_with_tcp_off(
     tips, and verify says where, with exit 1 (the intact program passes)."""
     cl = tmp_path / "two.apt"
     cl.write_text(TWO_TOOLS)
-    result = post(two_tools(), load_machine("dmu50"), PostOptions(controller=controller))
+    options = PostOptions(controller=controller, tilted_planes=False)  # (TCP all along)
+    result = post(two_tools(), load_machine("dmu50"), options)
     ext = DIALECTS[controller].extensions[0]
     good, bad = tmp_path / f"good{ext}", tmp_path / f"bad{ext}"
     good.write_text(result.text)

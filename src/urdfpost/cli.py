@@ -330,6 +330,15 @@ def _job_arguments(p: argparse.ArgumentParser) -> None:
         "Heidenhain CC + C, where the control, the plane and a fixed tool axis allow it)",
     )
     p.add_argument(
+        "--tilted-planes",
+        dest="tilted_planes",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="write an operation at a fixed tilt (3+2) in a tilted working plane: PLANE "
+        "SPATIAL (Heidenhain), CYCLE800 (Siemens), G68.2 (Fanuc), in TCP programs; LinuxCNC "
+        "has none (default: the machine file's tilted_planes, else on)",
+    )
+    p.add_argument(
         "--expand-cycles",
         action="store_true",
         help="write the CL data's canned cycles (CYCLE/DRILL...) as the motion they make "
@@ -714,6 +723,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
         smoothing_tolerance=args.smoothing if isinstance(args.smoothing, float) else None,
         feed_mode=args.feed_mode,
         arcs=args.arcs,
+        tilted_planes=args.tilted_planes,
     )
     out = Path(args.output) if args.output else Path(Path(args.cl).stem + dialect.extensions[0])
     inputs = {

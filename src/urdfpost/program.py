@@ -31,6 +31,7 @@ from __future__ import annotations
 import itertools
 import math
 import operator
+import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, cast, overload
@@ -238,6 +239,12 @@ class Cycle:
         Dwell at the bottom (0: none).
     cl_lines : tuple of int or None
         The CL line of each hole (None in a program read from text); not compared.
+    up : tuple of float or None
+        A tilted hole (its tool axis off the program's Z): per program axis, its motion for
+        1 mm up the hole's axis (mm, degrees), the hole tops in the program's own coordinates.
+        Such a cycle is only a step of a post: it is written in a tilted working plane
+        (:mod:`urdfpost.posting.planes`, which gives it plane coordinates and None here) or as
+        its motion (:func:`expand_cycle`), never as it is. None: along the program's +Z.
     """
 
     kind: str
@@ -249,6 +256,7 @@ class Cycle:
     step: float = 0.0
     dwell: float = 0.0
     cl_lines: tuple[int | None, ...] = field(default=(), compare=False)
+    up: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in CYCLE_KINDS:
@@ -285,6 +293,70 @@ class Smoothing:
     on: bool
     tolerance: float | None = None
     angle: float | None = None
+
+
+PLANE_CONVENTIONS = ("xyz", "XYZ", "ZXZ")
+"""How a :class:`TiltedPlane`'s three angles give its frame, as SciPy's
+``Rotation.from_euler`` sequences: "xyz" about the fixed X, Y and Z axes in turn (Heidenhain
+``PLANE SPATIAL SPA SPB SPC``), "XYZ" about X, then the turned Y, then the twice-turned Z
+(Siemens ``CYCLE800`` axis by axis, mode 57), "ZXZ" the Euler angles about Z, the turned X
+and the twice-turned Z (Fanuc ``G68.2 I J K``)."""
+
+
+@dataclass(frozen=True)
+class TiltedPlane:
+    """A tilted working plane (3+2 machining) switched on or, ``angles`` None, off.
+
+    While it is on, a program's X, Y and Z are coordinates in the plane's frame, whose origin
+    is the program zero and whose axes are the columns of :meth:`frame` in the workpiece
+    frame; its Z is the tool axis. They give the *control point*: the tool tip in a TCP
+    program (whose length the control knows), the gauge point in machine coordinates (whose
+    tool length the control does not add: its table length is 0). The rotary axes stand where
+    the blocks before the plane put them (the plane is switched on with them there: Heidenhain
+    ``STAY``); the plane's Z is their tool axis. Off: the program's own frame again, the rotary
+    axes staying where they are (``PLANE RESET STAY``, ``CYCLE800()``, ``G69``).
+
+    Attributes
+    ----------
+    angles : tuple of float or None
+        The three angles, degrees, as written (rounded to the control's format).
+    convention : str
+        One of :data:`PLANE_CONVENTIONS`.
+    offset : int or None
+        In a program read back, the tool length offset register of the length the control
+        adds along the plane's Z (as :attr:`Tcp.offset`); not compared.
+    """
+
+    angles: tuple[float, float, float] | None
+    convention: str = "xyz"
+    offset: int | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.convention not in PLANE_CONVENTIONS:
+            raise ValueError(
+                f"plane convention {self.convention!r}; expected one of "
+                f"{', '.join(PLANE_CONVENTIONS)}"
+            )
+
+    def frame(self) -> np.ndarray:
+        """The plane's axes in the workpiece frame, as columns, shape (3, 3) (identity off)."""
+        if self.angles is None:
+            return np.eye(3)
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_euler(self.convention, self.angles, degrees=True).as_matrix()
+
+    @classmethod
+    def of(cls, frame: np.ndarray, convention: str, decimals: int) -> TiltedPlane:
+        """The plane nearest ``frame`` (shape (3, 3), columns the plane's axes) whose angles,
+        in ``convention``, are rounded to ``decimals`` places of a degree."""
+        from scipy.spatial.transform import Rotation
+
+        with warnings.catch_warnings():  # (gimbal lock: SciPy sets the third angle to 0)
+            warnings.simplefilter("ignore", UserWarning)
+            angles = Rotation.from_matrix(frame).as_euler(convention, degrees=True)
+        a, b, c = (round(float(v), decimals) + 0.0 for v in angles)
+        return cls((a, b, c), convention)
 
 
 #: Planes an :class:`Arc` lies in, with the axis of its normal (G17 XY: Z, G18 ZX: Y, G19 YZ:
@@ -431,6 +503,7 @@ Block = (
     | Smoothing
     | Arc
     | CutterComp
+    | TiltedPlane
 )
 
 
@@ -961,7 +1034,7 @@ def expand_cycles(program: Program) -> Program:
         if isinstance(part, Spindle):
             spindle = part
         if isinstance(part, Cycle):
-            parts += expand_cycle(part, program.axes, spindle)
+            parts += expand_cycle(part, program.axes, spindle, part.up)
         else:
             parts.append(part)
     return replace(program, blocks=Blocks(parts))
@@ -1156,3 +1229,109 @@ def arcs_as_moves(program: Program, max_step: float) -> Program:
         out.append(MoveTable(position, np.zeros(k, bool), feed, line))
         last = np.asarray(part.position, dtype=float).copy()
     return replace(program, blocks=Blocks(out))
+
+
+def _in_frame(frame: np.ndarray, xyz: list[int], position: np.ndarray) -> np.ndarray:
+    """``position`` (rows of program values, shape (k, m)) with its X, Y, Z taken from
+    plane coordinates to the program's frame (``frame`` columns the plane's axes); NaN stays
+    NaN where the whole of X, Y, Z is not known."""
+    out = position.copy()
+    out[:, xyz] = position[:, xyz] @ frame.T
+    return out
+
+
+def untilted(program: Program) -> Program:
+    """``program`` with its tilted working planes (:class:`TiltedPlane`) taken out: the moves
+    and the canned cycles' holes in a plane in the program's own frame, as the control runs
+    them (X, Y, Z the plane's frame's columns times the plane coordinates; a cycle in a plane
+    drills along the plane's Z: a :class:`Cycle` with :attr:`Cycle.up`), each plane's switch
+    on a :class:`Tcp` switch on (the control points through the plane, the tool tip, as TCP
+    does) and its switch off a switch off; a switch off and on again with nothing between
+    dropped. A program without planes is returned as it is.
+
+    Raises
+    ------
+    ValueError
+        A plane in a program that is not a TCP program (its coordinates would be the gauge
+        point, which machine-coordinate programs do not have), a rotary axis that moves or an
+        arc in a plane, a motion block in a plane whose X, Y and Z are not all known.
+    """
+    parts = program.parts
+    if not any(isinstance(p, TiltedPlane) for p in parts):
+        return program
+    if not program.tcp:
+        raise ValueError(
+            "a tilted working plane in a machine-coordinate program; expected one only in a TCP "
+            "program"
+        )
+    axes = program.axes
+    if not all(a in axes for a in "XYZ"):
+        raise ValueError(f"a tilted working plane in a program without X, Y and Z ({axes})")
+    xyz = [axes.index(a) for a in "XYZ"]
+    rotary = [j for j, a in enumerate(axes) if a in program.rotary]
+    frame: np.ndarray | None = None
+    stand: np.ndarray | None = None  # the rotary values in the plane
+    out: list[Block | MoveTable] = []
+    made: set[int] = set()  # the ids of the Tcp switches made of planes
+
+    def switch(on: bool, offset: int | None = None) -> Tcp:
+        block = Tcp(on, offset)
+        made.add(id(block))
+        return block
+
+    def rotaries_stand(position: np.ndarray) -> None:
+        nonlocal stand
+        values = position[:, rotary]
+        if stand is None:
+            known = ~np.isnan(values)
+            if not known.any():
+                return
+            stand = np.where(known, values, np.nan)[np.argmax(known.any(axis=1))]
+        moved = ~np.isnan(values) & ~np.isclose(values, stand, rtol=0.0, atol=1e-9)
+        if moved.any():
+            raise ValueError(
+                f"{axes[rotary[int(np.argmax(moved.any(axis=0)))]]} moves in a tilted working "
+                "plane; expected the rotary axes to stand"
+            )
+
+    for part in parts:
+        if isinstance(part, TiltedPlane):
+            if part.angles is None:
+                if frame is not None:
+                    out.append(switch(False))
+                frame, stand = None, None
+            else:
+                frame = part.frame()
+                out.append(switch(True, part.offset))
+        elif frame is None:
+            out.append(part)
+        elif isinstance(part, Move | MoveTable):
+            table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))
+            if np.isnan(table.position[:, xyz]).any():
+                raise ValueError(
+                    "a move in a tilted working plane without all of X, Y and Z known; expected "
+                    "every axis written after the plane is switched on"
+                )
+            rotaries_stand(table.position)
+            moved = _in_frame(frame, xyz, table.position)
+            out.append(MoveTable(moved, table.rapid, table.feed, table.cl_line))
+        elif isinstance(part, Cycle):
+            holes = np.array(part.holes, dtype=float)
+            rotaries_stand(holes)
+            up = np.zeros(len(axes))
+            up[xyz] = frame[:, 2]
+            turned = _in_frame(frame, xyz, holes)
+            out.append(replace(part, holes=tuple(map(tuple, turned.tolist())), up=tuple(up)))
+        elif isinstance(part, Arc):
+            raise ValueError("an arc in a tilted working plane; expected lines there")
+        else:
+            out.append(part)
+    cleaned: list[Block | MoveTable] = []
+    for part in out:  # a TCP switch off and on again, nothing between: neither
+        last = cleaned[-1] if cleaned else None
+        pair = isinstance(part, Tcp) and isinstance(last, Tcp) and not last.on and part.on
+        if pair and (id(part) in made or id(last) in made):
+            cleaned.pop()
+            continue
+        cleaned.append(part)
+    return replace(program, blocks=Blocks(cleaned))

@@ -51,14 +51,17 @@ G_CODES = MappingProxyType(
         "40": "comp_off",
         "41": "comp_left",
         "42": "comp_right",
+        "43": "length_on",
         "43.4": "tcp_on",
         "49": "tcp_off",
         "53": "machine",
+        "53.1": "tool_axis",
+        "68.2": "plane_on",
         **{str(code): "work_offset" for code in range(54, 60)},
         "54.1": "work_offset",
         "61": "noop",
         "64": "noop",
-        "69": "noop",
+        "69": "plane_off",
         "80": "cycle_off",
         **{code: "cycle" for code in ("73", "81", "82", "83", "84", "85", "89")},
         "98": "cycle_initial",
@@ -125,6 +128,16 @@ SPEC = DialectSpec(
     axis_feed_rule="combined",
     arc_planes=frozenset({"XY", "ZX", "YZ"}),
     arc_helix=True,
+    # G68.2 X Y Z (the plane's zero: the program's) I J K (Euler angles about Z, the turned
+    # X, the twice-turned Z), G53.1 (the tool axis along the plane's Z: the rotary axes are
+    # there already, the post puts them there before), G69 off; in the plane G43 adds the
+    # tool's length along its Z (30i-B Operator's Manual B-64484EN, "Tilted working plane
+    # indexing")
+    plane_convention="ZXZ",
+    plane_on=("G68.2 X0. Y0. Z0. I{a} J{b} K{c}", "G53.1"),
+    plane_off=("G69",),
+    plane_length_on=("G43 H{offset}",),
+    plane_length_off=("G49",),
     cutter_comp=MappingProxyType(
         {"left": "{plane} G41 D{register}", "right": "{plane} G42 D{register}", "off": "G40"}
     ),

@@ -146,6 +146,23 @@ def parse_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> None:
         builder.comment(comment.strip())
 
 
+_PLANE_WORDS = ("SPA", "SPB", "SPC")
+
+
+def _plane(builder: ProgramBuilder, words: list[str]) -> None:
+    """``PLANE SPATIAL SPA+0 SPB+30 SPC+0 STAY``: a tilted working plane by spatial angles, the
+    rotary axes standing where they are (``TURN`` would move them: not read)."""
+    expected = "PLANE SPATIAL SPA.. SPB.. SPC.. STAY (or PLANE RESET STAY)"
+    if len(words) != 5 or words[0] != "SPATIAL" or words[4] != "STAY":
+        raise builder.error(f"PLANE {' '.join(words)}; expected {expected}")
+    angles = []
+    for word, name in zip(words[1:4], _PLANE_WORDS, strict=True):
+        if not word.startswith(name):
+            raise builder.error(f"PLANE SPATIAL: {word}; expected {name}.. ({expected})")
+        angles.append(builder.number(name, word.removeprefix(name)))
+    builder.tilted_plane((angles[0], angles[1], angles[2]))
+
+
 def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
     if begin := _BEGIN.match(code):
         builder.code()
@@ -177,7 +194,9 @@ def _parse_code(spec: DialectSpec, builder: ProgramBuilder, code: str) -> None:
     elif code == "CYCL CALL":
         _cycle_call(builder, {})
     elif code == "PLANE RESET STAY":
-        return  # no tilted working plane (the rotary axes stay)
+        builder.tilted_plane(None)  # the rotary axes stay
+    elif words[0] == "PLANE":
+        _plane(builder, words[1:])
     elif code == "FUNCTION RESET TCPM":
         builder.set_tcp(False)
     elif code.startswith("FUNCTION TCPM"):
@@ -518,6 +537,11 @@ SPEC = DialectSpec(
     tcp_on=("FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS",),
     tcp_off=("FUNCTION RESET TCPM",),
     setup=("FUNCTION RESET TCPM", "PLANE RESET STAY"),
+    # PLANE SPATIAL: the angles about the fixed X, Y, Z in turn; STAY: the rotary axes stay
+    # where the program put them (TNC 640 User's Manual, "PLANE SPATIAL", "STAY")
+    plane_convention="xyz",
+    plane_on=("PLANE SPATIAL SPA{a} SPB{b} SPC{c} STAY",),
+    plane_off=("PLANE RESET STAY",),
     home=("L Z+0 R0 FMAX M91", "L X+0 Y+0 R0 FMAX M91"),
     home_comment="home",
     machine_move="L {words} R0 FMAX M91",

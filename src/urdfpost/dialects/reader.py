@@ -77,6 +77,7 @@ from urdfpost.program import (
     Spindle,
     Stop,
     Tcp,
+    TiltedPlane,
     ToolChange,
     WorkOffset,
     rollover_target,
@@ -223,6 +224,9 @@ class ProgramBuilder:
         # a smoothing switched on whose rotary tolerance may follow on the next line
         self.smoothing_pending: Smoothing | None = None
         self.arc_lines: list[int] = []  # the text line of every arc read
+        self.plane_on = False  # a tilted working plane is on
+        self.plane_frame = np.eye(3)  # its axes (columns) in the program's frame
+        self.plane_item: int | None = None  # its place in :attr:`items`
 
     # -- helpers -----------------------------------------------------------------------------
 
@@ -283,7 +287,7 @@ class ProgramBuilder:
         self.axes_seen.update(values)
         self.axes_seen.add("Z")
         if self.tcp_at_first_feed is None:
-            self.tcp_at_first_feed = self.tcp
+            self.tcp_at_first_feed = self.tcp or self.plane_on
         self.position = {**position, "Z": definition.top + definition.retract}
 
     def cycle_off(self) -> None:
@@ -455,10 +459,10 @@ class ProgramBuilder:
         self.position = position
         self.axes_seen.update(values)
         if not rapid and self.tcp_at_first_feed is None:
-            self.tcp_at_first_feed = self.tcp
+            self.tcp_at_first_feed = self.tcp or self.plane_on
         if not rapid:
             self._feed_move_mode(self.line, self.feed_word_line == self.line)
-        if not rapid and not self.tcp and self.cut_without_tcp is None:
+        if not rapid and not (self.tcp or self.plane_on) and self.cut_without_tcp is None:
             if any(a not in ROTARY_ADDRESSES for a in values):
                 self.cut_without_tcp = self.line
         self._add(_ReadMove(rapid, position, None if rapid else self.feed))
@@ -596,8 +600,8 @@ class ProgramBuilder:
         self.code_seen = True
         self.line = first_line + k - 1
         if self.tcp_at_first_feed is None and not rapid.all():
-            self.tcp_at_first_feed = self.tcp
-        if not self.tcp and self.cut_without_tcp is None:
+            self.tcp_at_first_feed = self.tcp or self.plane_on
+        if not (self.tcp or self.plane_on) and self.cut_without_tcp is None:
             linear = [j for j, a in enumerate(AXIS_ORDER) if a not in ROTARY_ADDRESSES]
             cuts = np.flatnonzero(~rapid & ~np.isnan(written[:, linear]).all(axis=1))
             if cuts.size:
@@ -630,8 +634,13 @@ class ProgramBuilder:
         self.tool = number
 
     def select_offset(self, register: int) -> None:
-        """H word (a tool length offset register, with the TCP or length offset switch)."""
+        """H word (a tool length offset register, with the TCP or length offset switch; in a
+        tilted plane, the register of the plane's length, Fanuc ``G43 H..``)."""
         self.offset = register
+        if self.plane_on and self.plane_item is not None:
+            block = self.items[self.plane_item]
+            assert isinstance(block, TiltedPlane)
+            self.items[self.plane_item] = replace(block, offset=register)
 
     def tool_change(self, number: int | None = None) -> None:
         """Tool change (M6, TOOL CALL)."""
@@ -675,11 +684,44 @@ class ProgramBuilder:
         since the tool change on controls that have such registers (None without one), the
         tool called on the others (they take the length from its tool table row).
         """
+        if on and self.plane_on:
+            raise self.error("TCP on in a tilted working plane; expected the plane off first")
         if on != self.tcp:
             self.tcp = on
             self.tcp_ever |= on
             register = self.offset if self.spec.length_offsets is not None else self.tool
             self._add(Tcp(on, register if on else None))
+
+    def tilted_plane(self, angles: tuple[float, float, float] | None) -> None:
+        """A tilted working plane on by ``angles`` (degrees, in the control's convention,
+        :attr:`DialectSpec.plane_convention`), or off (None; a block only when one is on)."""
+        convention = self.spec.plane_convention
+        if convention is None:
+            raise self.error(f"{self.spec.name}: a tilted working plane; expected none")
+        if angles is None:
+            if self.plane_on:
+                self.plane_on = False
+                self._turn_position(self.plane_frame)
+                self._add(TiltedPlane(None, convention))
+            return
+        if self.plane_on:
+            raise self.error("a tilted working plane while one is on; expected it off first")
+        if self.tcp:
+            raise self.error("a tilted working plane with TCP on; expected TCP off first")
+        self.plane_on = True
+        register = self.offset if self.spec.length_offsets is not None else self.tool
+        block = TiltedPlane(angles, convention, register)
+        self.plane_item = len(self.items)
+        self.plane_frame = block.frame()
+        self._turn_position(self.plane_frame.T)
+        self._add(block)
+
+    def _turn_position(self, rotation: np.ndarray) -> None:
+        """The modal X, Y, Z (where the tool stands) in a new frame: ``rotation`` times them
+        (the control shows the same point in the plane's coordinates, or out of them)."""
+        if all(a in self.position for a in "XYZ"):
+            turned = rotation @ np.array([self.position[a] for a in "XYZ"])
+            self.position = {**self.position, **dict(zip("XYZ", turned.tolist(), strict=True))}
 
     def insert(self, text: str) -> None:
         """A line inserted verbatim, taken on trust."""
@@ -1060,7 +1102,12 @@ def _execute(spec: DialectSpec, builder: ProgramBuilder, block: _Block) -> None:
     for action in block.m_actions:
         if action in BEFORE_MOTION_M:
             apply_m_action(builder, action)
-    _motion(spec, builder, block, actions)
+    if "plane_off" in actions:
+        builder.tilted_plane(None)
+    if "plane_on" in actions:
+        _iso_plane(builder, block)  # (its X Y Z are the plane's zero, not a move)
+    else:
+        _motion(spec, builder, block, actions)
     for action in block.m_actions:
         if action not in BEFORE_MOTION_M:
             apply_m_action(builder, action)
@@ -1078,6 +1125,8 @@ def _check_words(builder: ProgramBuilder, block: _Block, actions: set[str]) -> N
         allowed |= {"R", "Q", "P"}
     if "smoothing" in actions:
         allowed |= {"Q", "R"}
+    if "plane_on" in actions:
+        allowed |= {"I", "J", "K"}
     if actions & {"comp_left", "comp_right"}:
         allowed.add("D")
     if actions & {"arc_cw", "arc_ccw"} or (
@@ -1147,9 +1196,61 @@ def _apply_smoothing(spec: DialectSpec, builder: ProgramBuilder, block: _Block) 
             raise builder.error("G05.1 needs Q0 (off), Q1 (AI contour control), Q2 or Q3")
         builder.smoothing(mode != 0)
     for call in block.calls:
-        if spec.call_keywords[call.name] != "smoothing":
+        action = spec.call_keywords[call.name]
+        if action == "plane":
+            _cycle800(builder, call)
+        elif action == "smoothing":
+            _cycle832(builder, call)
+        else:
             raise builder.error(f"{call.name}(...) is not allowed here")
-        _cycle832(builder, call)
+
+
+#: CYCLE800's parameters: how many, and which hold the angles (_A, _B, _C).
+_CYCLE800_ARGS = 16
+_CYCLE800_ANGLES = (7, 8, 9)
+
+
+def _cycle800(builder: ProgramBuilder, call: _Call) -> None:
+    """``CYCLE800(_FR,_TC,_ST,_MODE,_X0,_Y0,_Z0,_A,_B,_C,_X1,_Y1,_Z1,_DIR,_FR_I,_DMODE)``: a
+    tilted plane by angles axis by axis, X then Y then Z (mode 57), with no swivelling (_DIR
+    0) and its zero at the program's; ``CYCLE800()`` switches it off."""
+    args = call.args
+    if not args or args == ("",):
+        builder.tilted_plane(None)
+        return
+    expected = (
+        'CYCLE800(0,"",0,57,0,0,0,A,B,C,0,0,0,0,0,1): mode 57 (axis by axis, X Y Z), the zero '
+        "at the program's, _DIR 0 (no swivelling)"
+    )
+    if len(args) != _CYCLE800_ARGS:
+        raise builder.error(f"{call.name} with {len(args)} arguments; expected {expected}")
+    values = [a.strip() for a in args]
+    if builder.number("_MODE", values[3]) != 57.0:
+        raise builder.error(f"{call.name}: mode {values[3]}; expected {expected}")
+    for k in (4, 5, 6, 10, 11, 12, 13):
+        if builder.number(f"{call.name} parameter {k + 1}", values[k]) != 0.0:
+            raise builder.error(
+                f"{call.name}: parameter {k + 1} is {values[k]}; expected {expected}"
+            )
+    a, b, c = (builder.number("angle", values[k]) for k in _CYCLE800_ANGLES)
+    builder.tilted_plane((a, b, c))
+
+
+def _iso_plane(builder: ProgramBuilder, block: _Block) -> None:
+    """Fanuc ``G68.2 X0. Y0. Z0. I.. J.. K..`` (the plane's zero at the program's, Euler
+    angles Z X Z)."""
+    for address in "XYZ":
+        word = block.words.get(address)
+        if word is not None and builder.number(address, word.text) != 0.0:
+            raise builder.error(
+                f"G68.2 with {address}{word.text}; expected the plane's zero at the program's "
+                "(X0. Y0. Z0.)"
+            )
+    angles = []
+    for address in "IJK":
+        word = block.words.get(address)
+        angles.append(0.0 if word is None else builder.number(address, word.text))
+    builder.tilted_plane((angles[0], angles[1], angles[2]))
 
 
 def _cycle832(builder: ProgramBuilder, call: _Call) -> None:

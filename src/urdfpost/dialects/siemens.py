@@ -60,9 +60,7 @@ G_CODES = MappingProxyType(
     }
 )
 
-KEYWORDS = MappingProxyType(
-    {"TRAORI": "tcp_on", "TRAFOOF": "tcp_off", "SUPA": "machine", "CYCLE800": "noop"}
-)
+KEYWORDS = MappingProxyType({"TRAORI": "tcp_on", "TRAFOOF": "tcp_off", "SUPA": "machine"})
 
 #: Place among the controls (see :mod:`urdfpost.dialects`).
 RANK = 1
@@ -99,7 +97,14 @@ SPEC = DialectSpec(
     # "High Speed Settings - CYCLE832")
     smoothing_on=("CYCLE832({tol},_ORI_FINISH,{angle})",),
     smoothing_off=("CYCLE832(0,_OFF,1)",),
-    call_keywords=MappingProxyType({"CYCLE832": "smoothing"}),
+    call_keywords=MappingProxyType({"CYCLE832": "smoothing", "CYCLE800": "plane"}),
+    # CYCLE800(_FR, _TC, _ST, _MODE, _X0, _Y0, _Z0, _A, _B, _C, _X1, _Y1, _Z1, _DIR, _FR_I,
+    # _DMODE): mode 57, axis by axis in the order X, Y, Z (each about the turned axes); _DIR 0,
+    # no swivelling (the rotary axes stand where the program put them); the zero and the
+    # zero after it at 0; CYCLE800() deselects the plane (SINUMERIK Operate, "Swivel plane")
+    plane_convention="XYZ",
+    plane_on=('CYCLE800(0,"",0,57,0,0,0,{a},{b},{c},0,0,0,0,0,1)',),
+    plane_off=("CYCLE800()",),
     # a modulo rotary axis is written C=DC(..): the shortest way; a plain value under G90
     # turns without passing 0 (MD30455 $MA_MISC_FUNCTION_MASK bit 2 = 0, the default)
     rollover_value="=DC({value})",

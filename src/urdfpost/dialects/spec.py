@@ -476,6 +476,22 @@ class DialectSpec:
         ``{register}`` its offset register (the tool number when it gives none), ``{plane}``
         the plane's code (``G17``); empty: the control writes them as words of the next
         straight line (:attr:`cutter_comp_words`).
+    plane_convention : str or None
+        How the control's tilted working plane gives its frame by three angles
+        (:data:`urdfpost.program.PLANE_CONVENTIONS`); None: the control has no tilted plane
+        (a post writes 3+2 operations as five-axis moves).
+    plane_on : tuple of str
+        Lines that switch a :class:`~urdfpost.program.TiltedPlane` on, with ``{a}``, ``{b}``,
+        ``{c}`` its angles (rotary format), the rotary axes staying where they stand.
+    plane_off : tuple of str
+        Lines that switch it off (the rotary axes stay).
+    plane_length_on : tuple of str
+        In a TCP program, lines after :attr:`plane_on` that make the control add the tool's
+        length along the plane's Z (``{offset}`` the length register; Fanuc ``G43 H1``): TCP
+        is off in the plane. Empty: the control adds it anyway (the length of the tool
+        called).
+    plane_length_off : tuple of str
+        Lines before :attr:`plane_off` that stop it again (Fanuc ``G49``).
     cutter_comp_words : mapping
         Words of the next straight line by side (Heidenhain ``RL``, ``RR``, ``R0``), in the
         working plane XY only.
@@ -570,6 +586,11 @@ class DialectSpec:
     format_arc: Callable[[ArcWords], tuple[str, ...]] = format_gcode_arc
     cutter_comp: Mapping[str, str] = field(default_factory=_empty)
     cutter_comp_words: Mapping[str, str] = field(default_factory=_empty)
+    plane_convention: str | None = None
+    plane_on: tuple[str, ...] = ()
+    plane_off: tuple[str, ...] = ()
+    plane_length_on: tuple[str, ...] = ()
+    plane_length_off: tuple[str, ...] = ()
 
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""

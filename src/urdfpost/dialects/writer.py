@@ -54,6 +54,7 @@ from urdfpost.program import (
     Spindle,
     Stop,
     Tcp,
+    TiltedPlane,
     ToolChange,
     WorkOffset,
 )
@@ -159,6 +160,7 @@ class ProgramWriter:
         # rollover axes: written modulo 360, each with the last value written (counted turns)
         self._rollover = program.rollover & program.rotary & frozenset(program.axes)
         self._rolled: dict[str, float] = {}
+        self._plane = False  # a tilted working plane is on
 
     # -- output primitives -------------------------------------------------------------------
 
@@ -361,6 +363,8 @@ class ProgramWriter:
                 self.write_arc(block)
             case CutterComp():
                 self.write_cutter_comp(block)
+            case TiltedPlane():
+                self.write_plane(block)
             case WorkOffset():
                 count = self.spec.work_offsets
                 if not 1 <= block.number <= count:
@@ -388,6 +392,10 @@ class ProgramWriter:
         if self.spec.cycle_lines is None:
             raise DialectError(f"{self.spec.name}: canned cycles are not written for this control")
         axes = self.program.axes
+        if cycle.up is not None:
+            raise DialectError(
+                f"cycle {cycle}: a tilted hole; expected it in a tilted plane or as its motion"
+            )
         if "Z" not in axes or len(cycle.holes[0]) != len(axes):
             raise DialectError(
                 f"cycle {cycle}: expected one position per axis of {axes}, Z among them"
@@ -406,6 +414,40 @@ class ProgramWriter:
         for line in lines:
             self.emit(line, not line.startswith(" "))
         self.modal.invalidate()
+
+    def write_plane(self, block: TiltedPlane) -> None:
+        """A tilted working plane on (:attr:`DialectSpec.plane_on`, then in a TCP program
+        :attr:`DialectSpec.plane_length_on`) or off."""
+        spec = self.spec
+        if spec.plane_convention is None:
+            raise DialectError(f"{spec.name}: no tilted working plane")
+        self._plane = block.angles is not None
+        if block.angles is None:
+            if self.program.tcp:
+                self.emit_templates(spec.plane_length_off, offset=self.modal.offset)
+            self.emit_templates(spec.plane_off)
+        else:
+            if block.convention != spec.plane_convention:
+                raise DialectError(
+                    f"{spec.name}: a tilted plane by {block.convention} angles; expected "
+                    f"{spec.plane_convention} angles"
+                )
+            a, b, c = (spec.rotary.format(v) for v in block.angles)
+            self.emit_templates(spec.plane_on, a=a, b=b, c=c)
+            if self.program.tcp:
+                if self.modal.offset is None and any("{offset}" in t for t in spec.plane_length_on):
+                    raise DialectError(
+                        f"{spec.name}: a tilted plane in a TCP program needs the tool's length "
+                        "offset register; put a ToolChange before it"
+                    )
+                self.emit_templates(spec.plane_length_on, offset=self.modal.offset)
+        # the linear axes' values are in another frame: the next motion block writes them (and
+        # its motion code and feed); the rotary axes stand, and are not written again
+        modal = self.modal
+        for address in "XYZ":
+            modal.axes.pop(address, None)
+        modal.motion = None
+        modal.feed = None
 
     def write_machine_move(self, move: MachineMove) -> None:
         """A rapid in machine coordinates; the next motion block writes every axis."""
@@ -480,9 +522,12 @@ class ProgramWriter:
             )
         pairs = zip(self.program.axes, move.position, strict=True)
         known = [(a, self._axis_text(a, v)) for a, v in pairs if not math.isnan(v)]
-        if not known:
-            raise DialectError(f"move {move} has no axis value (all NaN)")
         modal = self.modal
+        if self._plane:  # the rotary axes stand in a tilted plane: not written
+            modal.axes.update((a, t) for a, t in known if a in ROTARY_ADDRESSES)
+            known = [(a, t) for a, t in known if a not in ROTARY_ADDRESSES]
+        if not known:
+            raise DialectError(f"move {move} has no axis value (all NaN, or rotary in a plane)")
         changed = [(a, text) for a, text in known if modal.axes.get(a) != text]
         if modal.force or not self.spec.modal_axes or not changed:
             changed = known

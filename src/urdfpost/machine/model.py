@@ -121,6 +121,10 @@ class Settings:
     feed_mode : str or None
         Default feed mode of a post (``feed_mode`` attribute,
         :data:`urdfpost.program.JOB_FEED_MODES`); None: ``auto``.
+    tilted_planes : bool
+        Write operations at a fixed tilt in a tilted working plane by default
+        (``tilted_planes`` attribute, "on" or "off"; default on;
+        :mod:`urdfpost.posting.planes`).
     """
 
     controller: str = "heidenhain"
@@ -134,6 +138,7 @@ class Settings:
     smoothing: bool = True
     rollover: frozenset[str] = frozenset()
     feed_mode: str | None = None
+    tilted_planes: bool = True
 
 
 @dataclass(frozen=True, eq=False)

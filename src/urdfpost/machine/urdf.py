@@ -609,6 +609,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
             home[key] = value * (M_TO_MM if key in ("X", "Y", "Z") else 1.0)
     strategy = el.get("strategy")
     smoothing = _switch(where, el, "smoothing", True)
+    tilted_planes = _switch(where, el, "tilted_planes", True)
     rollover = _rollover(where, el, joints)
     feed_mode = el.get("feed_mode")
     if feed_mode is not None and feed_mode not in JOB_FEED_MODES:
@@ -630,6 +631,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         smoothing=smoothing,
         rollover=rollover,
         feed_mode=feed_mode,
+        tilted_planes=tilted_planes,
     )
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -238,6 +238,7 @@ def program_body(
     motion: list[_Holes] | None = None,
     smoothing: Smoothing | None = None,
     arcs: Sequence[ArcSpan] = (),
+    tilted_cycles: bool = False,
 ) -> list[Block | MoveTable]:
     """The program body: the rows' moves as tables, the events' blocks between them.
 
@@ -304,6 +305,11 @@ def program_body(
         Rows written as :class:`~urdfpost.program.Arc` blocks instead (in row order; none
         holds a row before which a block other than moves comes,
         :func:`urdfpost.posting.arcs.arc_spans`).
+    tilted_cycles : bool
+        Write a hole whose tool axis is off the program's Z as a
+        :class:`~urdfpost.program.Cycle` with its :attr:`~urdfpost.program.Cycle.up` (no rapid
+        before it), for :func:`urdfpost.posting.planes.tilted_planes` to put in a tilted plane
+        or write as its motion; else as its motion here, with a warning.
 
     Returns
     -------
@@ -312,7 +318,9 @@ def program_body(
         one table.
     """
     table = _move_table(toolpath, machine, tcp, rows, rewind_feed)
-    holes = _Holes.of(toolpath, machine, tcp, rows, table, expand_cycles, notes, runs_cycle)
+    holes = _Holes.of(
+        toolpath, machine, tcp, rows, table, expand_cycles, notes, runs_cycle, tilted_cycles
+    )
     count, kind = len(rows), rows.kind
     # the row before which each event comes (count: after the last row)
     reach = np.maximum.accumulate(rows.point) if count else rows.point
@@ -484,6 +492,9 @@ class _Holes:
         CL lines of the cycles warned of.
     motion : dict of int to ndarray
         Per hole row, the joint rows of its motion, shape (4, m) (:meth:`_hole_motion`).
+    tilted : bool
+        Write a tilted hole (its tool axis off the program's Z) as a :class:`Cycle` with
+        :attr:`Cycle.up`, for a tilted working plane (:mod:`urdfpost.posting.planes`).
     """
 
     toolpath: Toolpath
@@ -497,6 +508,7 @@ class _Holes:
     runs: Callable[[str, float], bool] | None
     warned: set[int]
     motion: dict[int, np.ndarray]
+    tilted: bool = False
 
     @classmethod
     def of(
@@ -509,9 +521,12 @@ class _Holes:
         expand: bool,
         notes: list[str] | None,
         runs: Callable[[str, float], bool] | None = None,
+        tilted: bool = False,
     ) -> _Holes:
         event = dict(cycle_holes(toolpath))
-        return cls(toolpath, machine, tcp, rows, table, event, expand, notes, runs, set(), {})
+        return cls(
+            toolpath, machine, tcp, rows, table, event, expand, notes, runs, set(), {}, tilted
+        )
 
     def parts(
         self,
@@ -632,15 +647,19 @@ class _Holes:
         plus_z[z] = 1.0
         out: list[Block | MoveTable] = []
         group: list[int] = []  # rows of holes for one Cycle block
+        tilt: list[np.ndarray | None] = [None]  # the group's up, when its holes are tilted
 
         def close() -> None:
             if not group:
                 return
             cycle = self._cycle(group)
-            above = self.table.position[group[0]].copy()
-            above[z] += cycle.retract
-            out.append(Move(True, tuple(above.tolist())))
-            out.append(cycle)
+            if tilt[0] is not None:  # in a tilted plane: :mod:`urdfpost.posting.planes`
+                out.append(replace(cycle, up=tuple(tilt[0].tolist())))
+            else:
+                above = self.table.position[group[0]].copy()
+                above[z] += cycle.retract
+                out.append(Move(True, tuple(above.tolist())))
+                out.append(cycle)
             group.clear()
 
         for row in range(start, stop):
@@ -651,7 +670,7 @@ class _Holes:
             along_z = float(np.linalg.norm(up - plus_z)) <= NATIVE_AXIS
             data = self._event(row).data
             runs = self.runs is None or self.runs(str(data["cycle"]), float(data["dwell"]))
-            if self.expand or not along_z or not runs:
+            if self.expand or not runs or (not along_z and not self.tilted):
                 close()
                 self._warn_expanded(row, "tilted" if not along_z else "control")
                 cycle = self._cycle([row])
@@ -661,11 +680,13 @@ class _Holes:
                 first, here = self.table.position[group[0]], self.table.position[row]
                 same = (
                     self._event(group[0]) is self._event(row)
-                    and abs(here[z] - first[z]) <= 1e-9 * max(1.0, abs(first[z]))
+                    and (not along_z or abs(here[z] - first[z]) <= 1e-9 * max(1.0, abs(first[z])))
                     and np.array_equal(here[rotary], first[rotary])
+                    and (tilt[0] is None) == along_z
                 )
                 if not same:
                     close()
+            tilt[0] = None if along_z else up
             group.append(row)
         close()
         return out
@@ -699,7 +720,8 @@ class _Holes:
         kind = event.data["cycle"]
         reason = (
             f"the hole at line {line} has its tool axis off the program's Z axis (a tilted hole "
-            "needs a tilted working plane, which is not written)"
+            "needs a tilted working plane: a TCP program on a control that has one, "
+            "--tilted-planes)"
             if why == "tilted"
             else f"the control has no {kind} cycle with a dwell at the bottom"
         )

@@ -114,6 +114,10 @@ class PostOptions:
         Write the CL data's arcs (CIRCLE records) as arcs (G2/G3, Heidenhain C) where the
         control, the tool axis and the plane allow it (:mod:`urdfpost.posting.arcs`); False
         writes them as lines, as interpolated.
+    tilted_planes : bool or None
+        Write operations at a fixed tilt in a tilted working plane (PLANE SPATIAL, CYCLE800,
+        G68.2) in TCP programs on controls that have one (:mod:`urdfpost.posting.planes`);
+        None: the machine file's ``tilted_planes`` setting (default on).
     """
 
     controller: str | None = None
@@ -146,6 +150,7 @@ class PostOptions:
     smoothing_tolerance: float | None = None
     feed_mode: str | None = None
     arcs: bool = True
+    tilted_planes: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -209,6 +214,9 @@ class Job:
         "tip", "inverse-time" or "per-block" (:func:`feed_mode_name`).
     arcs : bool
         Write arcs as arcs (:attr:`PostOptions.arcs`).
+    tilted_planes : bool
+        Write operations at a fixed tilt in tilted planes (:attr:`PostOptions.tilted_planes`
+        resolved with the machine file's setting).
     """
 
     machine: Machine
@@ -241,6 +249,7 @@ class Job:
     rollover: frozenset[str] = frozenset()
     feed_mode: str = FEED_TIP
     arcs: bool = True
+    tilted_planes: bool = True
 
 
 def feed_mode_name(name: str | None, tcp: bool, dialect: Dialect) -> str:
@@ -452,4 +461,7 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         rollover=settings.rollover,
         feed_mode=_feed_mode(options, machine, dialect),
         arcs=options.arcs,
+        tilted_planes=settings.tilted_planes
+        if options.tilted_planes is None
+        else options.tilted_planes,
     )

@@ -36,6 +36,7 @@ from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget
 from urdfpost.posting.feeds import timed_program
 from urdfpost.posting.options import Job
+from urdfpost.posting.planes import PlaneFigures, tilted_planes
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
 from urdfpost.posting.rollover import with_rollover
 from urdfpost.posting.transitions import Transitions
@@ -441,6 +442,13 @@ def post_piece(
             "is the control's (G41/G42, RL/RR): the program is the CL path, which "
             "verification checks; the control offsets it by the radius in its tool table"
         )
+    # 3+2 operations in tilted planes: whole TCP posts on a control that has them
+    planes = (
+        job.tilted_planes
+        and job.tcp
+        and piece is None
+        and job.dialect.spec.plane_convention is not None
+    )
     body = program_body(
         toolpath,
         machine,
@@ -463,6 +471,7 @@ def post_piece(
         motion=holes,
         smoothing=job.smoothing,
         arcs=arcs.spans,
+        tilted_cycles=planes,
     )
     body, rolled = with_rollover(body, machine.axis_names, rollover, tol, start_position)
     if rolled.splits:
@@ -487,6 +496,11 @@ def post_piece(
     program, feed_figures = timed_program(
         program, machine, job.feed_mode, spec, tool_length, before
     )
+    plane_figures = PlaneFigures()
+    if planes:
+        plane_notes: list[str] = []
+        program, plane_figures = tilted_planes(program, machine, spec, plane_notes)
+        warnings += [f"{toolpath.source}: {note}" for note in plane_notes]
     figures = PieceFigures(
         branch_switches=branch_switches,
         pole_points=pole_points,
@@ -498,6 +512,7 @@ def post_piece(
         feeds=feed_figures,
         arcs=arcs.arcs,
         arcs_linear=arcs.linear,
+        planes=plane_figures.planes,
     )
     intended = reference if reference is not plan.toolpath or plan.bent else None
     target = CheckTarget(

@@ -185,6 +185,9 @@ class PieceFigures:
         CL arcs written as arcs (:mod:`urdfpost.posting.arcs`).
     arcs_linear : int
         CL arcs written as lines (a warning says why).
+    planes : int
+        Operations at a fixed tilt written in a tilted working plane
+        (:mod:`urdfpost.posting.planes`).
     """
 
     branch_switches: int
@@ -197,6 +200,7 @@ class PieceFigures:
     feeds: FeedFigures | None = None
     arcs: int = 0
     arcs_linear: int = 0
+    planes: int = 0
 
     def joined(self, other: PieceFigures, offset: int) -> PieceFigures:
         """These figures and those of the piece after, added up.
@@ -225,6 +229,7 @@ class PieceFigures:
             else (self.feeds if other.feeds is None else self.feeds.joined(other.feeds)),
             arcs=self.arcs + other.arcs,
             arcs_linear=self.arcs_linear + other.arcs_linear,
+            planes=self.planes + other.planes,
         )
 
 
@@ -391,6 +396,7 @@ class Report:
                 "strategy": f.strategy.as_json(),
                 "arcs": f.arcs,
                 "arcs_linear": f.arcs_linear,
+                "tilted_planes": f.planes,
             }
             if f.feeds is not None:
                 out["feeds"] = f.feeds.as_json()

@@ -76,6 +76,7 @@ from urdfpost.program import (
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
+from urdfpost.verification.planes import in_own_frame
 
 if TYPE_CHECKING:
     from urdfpost.dialects.dialect import Dialect
@@ -335,6 +336,7 @@ class ProcessChecker:
         continued = not first and not fresh
         if fresh and not first:
             self._row0 += 1  # the piece before's last row is not this piece's first
+        program = in_own_frame(program, self.machine)  # (as many moves, in the program's frame)
         written = program
         program = _arcs_as_moves(program, self.tol)
         # the moves made along an arc are one block of the program: counted as one, and a

@@ -1,0 +1,84 @@
+"""A program's tilted working planes read back: their frames checked against the machine, and
+the program in its own frame for the rest of verification (:func:`urdfpost.program.untilted`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from urdfpost.errors import ProgramParseError
+from urdfpost.kinematics import tip_and_axis
+from urdfpost.machine import Machine
+from urdfpost.program import Move, MoveTable, Program, TiltedPlane, untilted
+
+PLANE_AXIS_DEG = 0.01
+"""Degrees. How far a tilted plane's Z may be from the tool axis of the rotary values it is
+switched on at: the angles are written to 0.0001 degree, and a tool axis off the plane's Z
+by this much moves the tip by 0.02 mm over a 100 mm deep move along it."""
+
+
+def plane_faults(program: Program, machine: Machine) -> list[str]:
+    """What is wrong with the tilted planes of ``program``: per plane switched on, its Z
+    against the tool axis at the rotary values that stand when it is (more than
+    :data:`PLANE_AXIS_DEG` apart, or the rotary values not known)."""
+    axes = program.axes
+    last = np.full(len(axes), np.nan)
+    faults: list[str] = []
+    count = 0
+    for part in program.parts:
+        if isinstance(part, MoveTable | Move):
+            table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))
+            for j in range(len(axes)):
+                known = np.flatnonzero(~np.isnan(table.position[:, j]))
+                if known.size:
+                    last[j] = table.position[known[-1], j]
+        elif isinstance(part, TiltedPlane) and part.angles is not None:
+            count += 1
+            q = machine.home.copy()
+            missing = []
+            for axis in machine.rotary:
+                if axis.name not in axes:
+                    continue
+                value = last[axes.index(axis.name)]
+                if math.isnan(value):
+                    missing.append(axis.name)
+                else:
+                    q[machine.axis_names.index(axis.name)] = math.radians(value)
+            if missing:
+                faults.append(
+                    f"tilted plane {count}: {' '.join(missing)} not programmed before it; "
+                    "expected the rotary axes positioned before the plane is switched on"
+                )
+                continue
+            _, tool = tip_and_axis(machine, q[None, :], 0.0)
+            z = part.frame()[:, 2]
+            angle = math.degrees(math.acos(max(-1.0, min(1.0, float(z @ tool[0])))))
+            if angle > PLANE_AXIS_DEG:
+                faults.append(
+                    f"tilted plane {count} ({' '.join(f'{a:g}' for a in part.angles)} deg): its Z "
+                    f"is {angle:.4f} deg from the tool axis of the rotary axes standing there; "
+                    f"expected within {PLANE_AXIS_DEG} deg"
+                )
+    return faults
+
+
+def in_own_frame(program: Program, machine: Machine) -> Program:
+    """``program`` with its tilted planes checked (:func:`plane_faults`) and taken out
+    (:func:`urdfpost.program.untilted`).
+
+    Raises
+    ------
+    ProgramParseError
+        A plane's frame does not fit the machine, or the program cannot be untilted.
+    """
+    if not any(isinstance(p, TiltedPlane) for p in program.parts):
+        return program
+    faults = plane_faults(program, machine)
+    if faults:
+        raise ProgramParseError(program.name, 0, "; ".join(faults))
+    try:
+        return untilted(program)
+    except ValueError as e:
+        raise ProgramParseError(program.name, 0, str(e)) from None
