@@ -31,7 +31,7 @@ from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.machine import Machine
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import PostResult, post
-from urdfpost.program import Program
+from urdfpost.program import Program, untilted
 from urdfpost.readers import read_cl, read_cl_text
 from urdfpost.toolpath import Toolpath
 
@@ -473,7 +473,7 @@ def _check_real(tp: Toolpath, result: PostResult, tcp: bool) -> None:
         # every CL point is written, converted to inch, within rounding
         on_cl = [k for k, mv in enumerate(result.program.moves()) if mv.cl_line is not None]
         assert len(on_cl) == len(tp)
-        xyz = filled_positions(back)[on_cl, :3]
+        xyz = filled_positions(untilted(back))[on_cl, :3]  # (3+2 operations: in planes)
         err = np.abs(xyz - tp.tip) / MM_PER_INCH
         assert err.max() <= 0.00005 + 1e-9
 

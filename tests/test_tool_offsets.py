@@ -22,7 +22,7 @@ from urdfpost.dialects import DIALECTS
 from urdfpost.errors import CLDataError, DialectError
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import post
-from urdfpost.program import Program, Tcp, ToolChange
+from urdfpost.program import Program, Tcp, TiltedPlane, ToolChange
 from urdfpost.readers import read_cl_text
 from urdfpost.toolpath import Toolpath
 
@@ -60,7 +60,9 @@ def test_adjust_is_the_h_word_of_the_tcp_switch(controller: str) -> None:
     result = post(two_tools(adjust=7), machine, PostOptions(controller=controller))
     assert h_words(result.text) == ["H1", "H7"]
     read = DIALECTS[controller].read(result.text)
-    assert [b.offset for b in read.blocks if isinstance(b, Tcp) and b.on] == [1, 7]
+    # (the second tool's cut is at a fixed tilt: in a plane on Fanuc, whose G43 H7 is its length)
+    on = [b for b in read.blocks if isinstance(b, Tcp | TiltedPlane) and getattr(b, "on", True)]
+    assert [b.offset for b in on if getattr(b, "angles", 0) is not None] == [1, 7]
     plain = post(two_tools(), machine, PostOptions(controller=controller))
     assert h_words(plain.text) == ["H1", "H2"]
 

@@ -361,9 +361,13 @@ def test_the_length_offset_register_is_compared_with_adjust(
         line, have = _line_at(text, match.start()), 2
     else:  # posted without the ADJUST: the tool's own length
         text = posted("two tools", controller).text
-        tcp = {"heidenhain": "FUNCTION TCPM", "siemens": "TRAORI"}[controller]
+        # the TCP switch after T2, or the plane of its cut at a fixed tilt, whose length is
+        # the tool's own too
+        tcp = {"heidenhain": r"FUNCTION TCPM|PLANE SPATIAL", "siemens": r"TRAORI|CYCLE800\(0"}
         change = text.index("TOOL CALL 2" if controller == "heidenhain" else "T2 D1")
-        line, have = _line_at(text, text.index(tcp, change)), 2
+        switch = re.compile(tcp[controller]).search(text, change)
+        assert switch is not None
+        line, have = _line_at(text, switch.start()), 2
     bad = tmp_path / f"damaged{ext}"
     bad.write_text(text)
     code, out = _verify(bad, job, capsys)

@@ -1246,8 +1246,9 @@ def untilted(program: Program) -> Program:
     them (X, Y, Z the plane's frame's columns times the plane coordinates; a cycle in a plane
     drills along the plane's Z: a :class:`Cycle` with :attr:`Cycle.up`), each plane's switch
     on a :class:`Tcp` switch on (the control points through the plane, the tool tip, as TCP
-    does) and its switch off a switch off; a switch off and on again with nothing between
-    dropped. A program without planes is returned as it is.
+    does: its length register the plane's, :attr:`TiltedPlane.offset`) and its switch off a
+    switch off: as many moves, cycles and TCP switches on as the program has moves, cycles and
+    switches on of TCP and planes. A program without planes is returned as it is.
 
     Raises
     ------
@@ -1272,21 +1273,15 @@ def untilted(program: Program) -> Program:
     frame: np.ndarray | None = None
     stand: np.ndarray | None = None  # the rotary values in the plane
     out: list[Block | MoveTable] = []
-    made: set[int] = set()  # the ids of the Tcp switches made of planes
 
     def switch(on: bool, offset: int | None = None) -> Tcp:
-        block = Tcp(on, offset)
-        made.add(id(block))
-        return block
+        return Tcp(on, offset)
+
+    where = np.full(len(rotary), np.nan)  # the rotary values last programmed
 
     def rotaries_stand(position: np.ndarray) -> None:
-        nonlocal stand
         values = position[:, rotary]
-        if stand is None:
-            known = ~np.isnan(values)
-            if not known.any():
-                return
-            stand = np.where(known, values, np.nan)[np.argmax(known.any(axis=1))]
+        assert stand is not None
         moved = ~np.isnan(values) & ~np.isclose(values, stand, rtol=0.0, atol=1e-9)
         if moved.any():
             raise ValueError(
@@ -1302,8 +1297,17 @@ def untilted(program: Program) -> Program:
                 frame, stand = None, None
             else:
                 frame = part.frame()
+                stand = where.copy()
                 out.append(switch(True, part.offset))
         elif frame is None:
+            if isinstance(part, Move | MoveTable):
+                table = (
+                    part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))
+                )
+                for i, j in enumerate(rotary):
+                    known = np.flatnonzero(~np.isnan(table.position[:, j]))
+                    if known.size:
+                        where[i] = table.position[known[-1], j]
             out.append(part)
         elif isinstance(part, Move | MoveTable):
             table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))
@@ -1326,12 +1330,4 @@ def untilted(program: Program) -> Program:
             raise ValueError("an arc in a tilted working plane; expected lines there")
         else:
             out.append(part)
-    cleaned: list[Block | MoveTable] = []
-    for part in out:  # a TCP switch off and on again, nothing between: neither
-        last = cleaned[-1] if cleaned else None
-        pair = isinstance(part, Tcp) and isinstance(last, Tcp) and not last.on and part.on
-        if pair and (id(part) in made or id(last) in made):
-            cleaned.pop()
-            continue
-        cleaned.append(part)
-    return replace(program, blocks=Blocks(cleaned))
+    return replace(program, blocks=Blocks(out))

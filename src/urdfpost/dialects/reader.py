@@ -226,7 +226,7 @@ class ProgramBuilder:
         self.arc_lines: list[int] = []  # the text line of every arc read
         self.plane_on = False  # a tilted working plane is on
         self.plane_frame = np.eye(3)  # its axes (columns) in the program's frame
-        self.plane_item: int | None = None  # its place in :attr:`items`
+        self.plane_pending: TiltedPlane | None = None  # a plane on not yet added to items
 
     # -- helpers -----------------------------------------------------------------------------
 
@@ -249,6 +249,9 @@ class ProgramBuilder:
             raise self.error("code after the program end; expected nothing but comments")
         if not isinstance(item, _ReadCycle):
             self.drill_block = None  # the next hole starts another Cycle block
+        if self.plane_pending is not None and not isinstance(item, Comment):
+            self.items.append(self.plane_pending)  # (its length register read by now)
+            self.plane_pending = None
         self.items.append(item)
 
     # -- canned cycles -----------------------------------------------------------------------
@@ -573,6 +576,8 @@ class ProgramBuilder:
             return False
         k = rows.stop - rows.start
         code = lines.code[rows]
+        if self.arc is not None and code[0] < 0:
+            return False  # (in arc mode, a block before a G0 or G1 is an arc)
         if self.spec.motion_layout is not None and self.spec.motion_layout.rapid_word:
             rapid = lines.rapid_word[rows].copy()
         else:
@@ -614,6 +619,7 @@ class ProgramBuilder:
         }
         if (code >= 0).any():
             self.motion = bool(code[code >= 0][-1] == 1)
+            self.arc = None  # (G0 / G1 end the arc mode)
         if not np.isnan(feed_words).all():
             self.feed = float(feed[-1])
         self._add(_ReadMoves(position, rapid, np.where(rapid, math.nan, feed)))
@@ -637,10 +643,8 @@ class ProgramBuilder:
         """H word (a tool length offset register, with the TCP or length offset switch; in a
         tilted plane, the register of the plane's length, Fanuc ``G43 H..``)."""
         self.offset = register
-        if self.plane_on and self.plane_item is not None:
-            block = self.items[self.plane_item]
-            assert isinstance(block, TiltedPlane)
-            self.items[self.plane_item] = replace(block, offset=register)
+        if self.plane_pending is not None:
+            self.plane_pending = replace(self.plane_pending, offset=register)
 
     def tool_change(self, number: int | None = None) -> None:
         """Tool change (M6, TOOL CALL)."""
@@ -711,10 +715,13 @@ class ProgramBuilder:
         self.plane_on = True
         register = self.offset if self.spec.length_offsets is not None else self.tool
         block = TiltedPlane(angles, convention, register)
-        self.plane_item = len(self.items)
         self.plane_frame = block.frame()
         self._turn_position(self.plane_frame.T)
-        self._add(block)
+        if self.spec.plane_length_on:
+            # added with the next block: a length switch follows with its register (G43 H..)
+            self.plane_pending = block
+        else:
+            self._add(block)
 
     def _turn_position(self, rotation: np.ndarray) -> None:
         """The modal X, Y, Z (where the tool stands) in a new frame: ``rotation`` times them
@@ -762,6 +769,9 @@ class ProgramBuilder:
 
     def build(self) -> Program:
         """The program read."""
+        if self.plane_pending is not None and self.finished:
+            self.items.append(self.plane_pending)
+            self.plane_pending = None
         axes = tuple(a for a in AXIS_ORDER if a in self.axes_seen)
         parts: list[Block | MoveTable] = []
         run: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # consecutive moves

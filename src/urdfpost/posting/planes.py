@@ -48,6 +48,7 @@ from urdfpost.program import (
     Blocks,
     Comment,
     Coolant,
+    CutterComp,
     Cycle,
     Dwell,
     Move,
@@ -102,13 +103,16 @@ class PlaneFigures:
 def _rows(parts: Sequence[Block | MoveTable], width: int):
     """The program's motion rows: positions (N, m) as written (NaN: not written), rapid (N,),
     CL line (N,), the part of each (N,), the rows before which a block comes that ends an
-    operation (a set), and the rows of tilted holes (a set: a :class:`Cycle` with ``up``)."""
+    operation (a set), the rows of tilted holes (a set: a :class:`Cycle` with ``up``), and the
+    rows before which an arc or a radius compensation switch comes (a set: in the middle of an
+    operation, which neither begins nor ends it)."""
     position: list[np.ndarray] = []
     rapid: list[np.ndarray] = []
     line: list[np.ndarray] = []
     owner: list[np.ndarray] = []
     breaks: set[int] = set()
     tilted: set[int] = set()
+    dirty: set[int] = set()
     count = 0
     for k, part in enumerate(parts):
         if isinstance(part, MoveTable | Move):
@@ -128,12 +132,14 @@ def _rows(parts: Sequence[Block | MoveTable], width: int):
         else:
             if not isinstance(part, _NEUTRAL) and not (isinstance(part, Tcp) and part.on):
                 breaks.add(count)
+            if isinstance(part, Arc | CutterComp):
+                dirty.add(count)
             continue
         owner.append(np.full(n, k))
         count += n
     if not position:
         empty = np.zeros(0, dtype=np.int64)
-        return np.zeros((0, width)), np.zeros(0, bool), empty, empty, breaks, tilted
+        return np.zeros((0, width)), np.zeros(0, bool), empty, empty, breaks, tilted, dirty
     return (
         np.concatenate(position),
         np.concatenate(rapid).astype(bool),
@@ -141,6 +147,7 @@ def _rows(parts: Sequence[Block | MoveTable], width: int):
         np.concatenate(owner),
         breaks,
         tilted,
+        dirty,
     )
 
 
@@ -162,10 +169,12 @@ def _stretches(
     rapid: np.ndarray,
     breaks: set[int],
     entries: set[int],
+    dirty: set[int],
 ) -> list[_Stretch]:
     """The operations at a fixed tilt (module docstring), in row order. ``entries``: the rows
     of tilted holes whose rotary values differ from the row before's; the cycle's rapid to
-    its first hole turns them, and may begin an operation."""
+    its first hole turns them, and may begin an operation. ``dirty``: the rows after an arc or a
+    radius compensation switch, which end a stretch but neither enter nor leave one."""
     axes = program.axes
     rotary = [j for j, a in enumerate(axes) if a in program.rotary]
     n = len(filled)
@@ -186,8 +195,8 @@ def _stretches(
         b = a
         while b + 1 < n and stands[b + 1] and (b + 1) not in breaks:
             b += 1
-        entered = a == 0 or a in breaks or bool(rapid[a - 1])  # (breaks: with the entries)
-        left = b == n - 1 or (b + 1) in breaks or bool(rapid[b + 1])
+        entered = a == 0 or (a in breaks and a not in dirty) or bool(rapid[a - 1])
+        left = b == n - 1 or ((b + 1) in breaks and (b + 1) not in dirty) or bool(rapid[b + 1])
         if not (entered and left) or bool(rapid[a : b + 1].all()):
             continue
         q = machine.home.copy()
@@ -227,7 +236,7 @@ def tilted_planes(
     """
     parts = list(program.parts)
     width = len(program.axes)
-    position, rapid, line, owner, breaks, tilted = _rows(parts, width)
+    position, rapid, line, owner, breaks, tilted, dirty = _rows(parts, width)
     filled = _filled(position)
     rotary = [j for j, a in enumerate(program.axes) if a in program.rotary]
     entries = {
@@ -236,7 +245,9 @@ def tilted_planes(
         if r == 0 or not np.allclose(filled[r, rotary], filled[r - 1, rotary], rtol=0, atol=STAND)
     }
     usable = spec.plane_convention is not None and program.tcp
-    stretches = _stretches(program, machine, spec, filled, rapid, breaks, entries) if usable else []
+    stretches = (
+        _stretches(program, machine, spec, filled, rapid, breaks, entries, dirty) if usable else []
+    )
     xyz = [program.axes.index(a) for a in "XYZ"] if usable else []
     # per part, the plane of each of its rows (-1: none)
     in_plane = np.full(len(filled), -1, dtype=np.int64)

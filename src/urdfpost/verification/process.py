@@ -69,6 +69,7 @@ from urdfpost.program import (
     Program,
     Spindle,
     Tcp,
+    TiltedPlane,
     ToolChange,
     arcs_as_moves,
     rewind_moves,
@@ -885,9 +886,14 @@ def _blocks_of_rows(written: Program, run: Program) -> np.ndarray:
 
 
 def _counts(program: Program) -> tuple[int, int, int]:
-    """Motion blocks (moves and arcs), tool changes and TCP switches on of ``program``."""
+    """Motion blocks (moves and arcs), tool changes and TCP switches on of ``program`` (a tilted
+    plane switched on counts as one: :func:`urdfpost.program.untilted`)."""
     tools = sum(1 for p in program.parts if isinstance(p, ToolChange))
-    tcps = sum(1 for p in program.parts if isinstance(p, Tcp) and p.on)
+    tcps = sum(
+        1
+        for p in program.parts
+        if (isinstance(p, Tcp) and p.on) or (isinstance(p, TiltedPlane) and p.angles is not None)
+    )
     arcs = sum(1 for p in program.parts if isinstance(p, Arc))
     return len(program.move_table()) + arcs, tools, tcps
 

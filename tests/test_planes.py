@@ -1,0 +1,345 @@
+"""3+2 operations in tilted working planes (issue 19): written, read back and verified.
+
+The 3+2 job of ``tests/jobs.py`` (:func:`jobs.indexed_job`: a flat cut, then two operations at
+a fixed tilt, the second with a drilling cycle at holes of two heights along its axis) is
+posted with TCP for every control and compared with ``tests/golden/planes/<machine>_<control>``
+(regenerate with ``URDFPOST_REGEN_GOLDEN=1``): two planes on the controls that have them
+(Heidenhain ``PLANE SPATIAL ... STAY``, Siemens ``CYCLE800``, Fanuc ``G68.2`` + ``G53.1``), the
+moves in them in the plane's coordinates with no rotary word, the holes the control's cycle
+along the plane's Z; LinuxCNC's five-axis fallback. The read-back program, taken back out of
+its planes, is the five-axis program the post makes without them; a plane whose angles or
+coordinates are damaged is refused.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from jobs import drilling_job, indexed_job, rotary_sweep
+
+from urdfpost import load_machine
+from urdfpost.cli import main
+from urdfpost.dialects import DIALECTS
+from urdfpost.errors import ProgramParseError
+from urdfpost.machine.load import resolve_machine
+from urdfpost.posting.options import PostOptions
+from urdfpost.posting.planes import plane_count
+from urdfpost.posting.whole import post
+from urdfpost.program import (
+    PLANE_CONVENTIONS,
+    Cycle,
+    Move,
+    MoveTable,
+    Tcp,
+    TiltedPlane,
+    untilted,
+)
+from urdfpost.readers import read_cl_text
+from urdfpost.verification import program_joints, verify
+
+GOLDEN = Path(__file__).parent / "golden" / "planes"
+REGEN = os.environ.get("URDFPOST_REGEN_GOLDEN") == "1"
+CONTROLLERS = ("heidenhain", "siemens", "fanuc", "linuxcnc")
+WITH_PLANES = ("heidenhain", "siemens", "fanuc")
+#: a table-table, a head-table, a tilting head and a 45-degree nutating machine
+MACHINES = ("dmu50", "monoblock", "gantry-ca", "dmu50-nutating")
+
+
+def job():
+    return read_cl_text(indexed_job(), source="indexed.apt")
+
+
+def posted(controller: str, machine: str = "dmu50", **options):
+    return post(job(), load_machine(machine), PostOptions(controller=controller, **options))
+
+
+def planes_of(program) -> list[TiltedPlane]:
+    return [p for p in program.parts if isinstance(p, TiltedPlane) and p.angles is not None]
+
+
+def moves_in_planes(program) -> list[np.ndarray]:
+    """Per plane, the positions of the moves in it (rows, shape (k, m))."""
+    out: list[list[np.ndarray]] = []
+    inside = False
+    for part in program.parts:
+        if isinstance(part, TiltedPlane):
+            inside = part.angles is not None
+            if inside:
+                out.append([])
+        elif inside and isinstance(part, MoveTable | Move):
+            table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], 5)
+            out[-1].append(table.position)
+    return [np.concatenate(p) if p else np.zeros((0, 5)) for p in out]
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize("machine", ["dmu50", "gantry-ca"])
+def test_golden_indexed_program(controller: str, machine: str) -> None:
+    result = posted(controller, machine)
+    path = GOLDEN / f"{machine}_{controller}{DIALECTS[controller].extensions[0]}"
+    if REGEN:
+        path.parent.mkdir(exist_ok=True)
+        path.write_text(result.text, encoding="utf-8", newline="\n")
+    expected = path.read_text(encoding="utf-8")
+    if result.text != expected:
+        diff = difflib.unified_diff(expected.splitlines(True), result.text.splitlines(True))
+        pytest.fail("".join(list(diff)[:60]))
+    assert result.verification.ok
+    assert result.verification.reached == result.verification.cl_points
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize("machine", MACHINES)
+def test_two_operations_at_a_fixed_tilt_are_two_planes(controller: str, machine: str) -> None:
+    result = posted(controller, machine)
+    m = load_machine(machine)
+    assert result.verification.ok
+    dialect = DIALECTS[controller]
+    back = dialect.read(result.text)
+    expected = 2 if controller in WITH_PLANES else 0
+    assert plane_count(back) == plane_count(result.program) == expected
+    assert result.report.as_json()["tilted_planes"] == expected
+    if not expected:
+        assert not any(isinstance(p, TiltedPlane) for p in back.parts)
+        return
+    # each plane's Z is the CL tool axis of its operation, its convention the control's
+    axes = {"one": (0.5, 0.0, 0.8660254), "two": (0.0, -0.3420201, 0.9396926)}
+    for plane, want in zip(planes_of(back), axes.values(), strict=True):
+        assert plane.convention == dialect.spec.plane_convention in PLANE_CONVENTIONS
+        z = plane.frame()[:, 2]
+        unit = np.array(want) / np.linalg.norm(want)
+        assert np.degrees(np.arccos(np.clip(z @ unit, -1, 1))) < 2e-4
+    # the rotary axes stand in a plane and the control reads no rotary word there
+    inside = moves_in_planes(back)
+    rotary = [back.axes.index(a.name) for a in m.rotary]
+    for rows in inside:
+        assert len(rows) and np.ptp(rows[:, rotary], axis=0).max() == 0.0
+    words = re.compile(r"\b[ABC][+-]?\d")
+    text_in = re.findall(
+        r"(?:PLANE SPATIAL|CYCLE800\(0|G68\.2)(.*?)(?:PLANE RESET|CYCLE800\(\)|G69)",
+        result.text,
+        re.S,
+    )
+    assert len(text_in) == 2
+    for block in text_in:
+        body = [ln for ln in block.splitlines()[1:] if "SPA" not in ln and "CYCLE800" not in ln]
+        assert not any(words.search(re.sub(r"\(.*?\)|;.*", "", ln)) for ln in body), body
+    # TCP is off in a plane and on again after it
+    assert not any(isinstance(p, Tcp) and p.on for p in _between_planes(back))
+
+
+def _between_planes(program) -> list:
+    inside, out = False, []
+    for part in program.parts:
+        if isinstance(part, TiltedPlane):
+            inside = part.angles is not None
+        elif inside:
+            out.append(part)
+    return out
+
+
+@pytest.mark.parametrize("controller", WITH_PLANES)
+@pytest.mark.parametrize("machine", MACHINES)
+def test_read_back_out_of_its_planes_is_the_five_axis_program(
+    controller: str, machine: str
+) -> None:
+    """The control's motion: the read-back program taken out of its planes moves the machine's
+    joints along the rows of the five-axis program the post makes without planes (within the
+    text's rounding)."""
+    m = load_machine(machine)
+    plain = posted(controller, machine, tilted_planes=False)
+    planes = posted(controller, machine)
+    a, b = untilted(planes.program), plain.program
+    qa, _ = program_joints(m, a)
+    qb, _ = program_joints(m, b)
+    # the cycles are the plane program's own blocks there; compare the rows of the CL points
+    lines_a, lines_b = a.move_table().cl_line, b.move_table().cl_line
+    common = sorted(set(lines_a[lines_a > 0].tolist()) & set(lines_b[lines_b > 0].tolist()))
+    assert len(common) >= 12
+    for line in common:
+        ia = int(np.flatnonzero(lines_a == line)[0])
+        ib = int(np.flatnonzero(lines_b == line)[0])
+        np.testing.assert_allclose(qa[ia], qb[ib], atol=1e-9)
+    # read back from the text: the same rows, within its rounding
+    back = untilted(DIALECTS[controller].read(planes.text))
+    qc, _ = program_joints(m, back)
+    assert qc.shape == qa.shape
+    linear = list(m.linear_columns)
+    np.testing.assert_allclose(qc[:, linear], qa[:, linear], atol=1.5e-3)
+    np.testing.assert_allclose(
+        qc[:, list(m.rotary_columns)], qa[:, list(m.rotary_columns)], atol=1e-5
+    )
+
+
+@pytest.mark.parametrize("controller", WITH_PLANES)
+def test_a_plane_whose_angle_is_damaged_is_refused(controller: str) -> None:
+    text = posted(controller).text
+    damaged = {
+        "heidenhain": ("SPB+30.0000", "SPB+31.0000"),
+        "siemens": (",0.0000,30.0000,0.0000,", ",0.0000,31.0000,0.0000,"),
+        "fanuc": ("J30.0000", "J31.0000"),
+    }[controller]
+    assert damaged[0] in text
+    program = DIALECTS[controller].read(text.replace(*damaged, 1))
+    with pytest.raises(ProgramParseError, match=r"tilted plane 1 .*its Z is 1\.0000 deg from"):
+        verify(program, load_machine("dmu50"), job())
+
+
+@pytest.mark.parametrize("controller", WITH_PLANES)
+def test_a_move_in_a_plane_that_is_damaged_fails_verification(controller: str) -> None:
+    result = posted(controller)
+    lines = result.text.splitlines(True)
+    # the first feed move in the first plane, its Y moved by 0.5 mm
+    start = next(
+        i for i, ln in enumerate(lines) if re.search(r"PLANE SPATIAL|CYCLE800\(0|G68\.2", ln)
+    )
+    k = next(i for i in range(start, len(lines)) if re.search(r"Y[+=]?20\.000", lines[i]))
+    lines[k] = re.sub(r"Y([+=]?)20\.000", r"Y\g<1>20.500", lines[k])
+    check = verify(DIALECTS[controller].read("".join(lines)), load_machine("dmu50"), job())
+    assert not check.ok
+    assert check.max_tip_deviation == pytest.approx(0.5, abs=0.01)
+
+
+def test_a_machine_coordinate_post_has_no_plane() -> None:
+    """Without TCP the positions are the joints: the post did the kinematics a plane would ask
+    of the control."""
+    for controller in WITH_PLANES:
+        result = posted(controller, tcp=False)
+        assert result.verification.ok and plane_count(result.program) == 0
+
+
+def test_no_tilted_planes_option_and_machine_setting(tmp_path: Path) -> None:
+    cl = tmp_path / "indexed.apt"
+    cl.write_text(indexed_job())
+    out = tmp_path / "a.h"
+    assert main(["post", str(cl), "-m", "dmu50", "-c", "heidenhain", "-o", str(out)]) == 0
+    assert out.read_text().count("PLANE SPATIAL") == 2
+    assert (
+        main(
+            [
+                "post",
+                str(cl),
+                "-m",
+                "dmu50",
+                "-c",
+                "heidenhain",
+                "-o",
+                str(out),
+                "--no-tilted-planes",
+            ]
+        )
+        == 0
+    )
+    assert "PLANE SPATIAL" not in out.read_text()
+    # the machine file's tilted_planes="off"
+    source = resolve_machine("dmu50")
+    text = Path(source).read_text()
+    assert "<urdfpost" in text
+    urdf = tmp_path / "dmu50_off.urdf"
+    urdf.write_text(re.sub(r"<urdfpost\s", '<urdfpost tilted_planes="off" ', text, count=1))
+    for mesh in Path(source).parent.iterdir():  # (meshes beside it)
+        if mesh.is_dir():
+            (tmp_path / mesh.name).symlink_to(mesh)
+    assert main(["post", str(cl), "-m", str(urdf), "-c", "heidenhain", "-o", str(out)]) == 0
+    assert "PLANE SPATIAL" not in out.read_text()
+    assert (
+        main(
+            [
+                "post",
+                str(cl),
+                "-m",
+                str(urdf),
+                "-c",
+                "heidenhain",
+                "-o",
+                str(out),
+                "--tilted-planes",
+            ]
+        )
+        == 0
+    )
+    assert out.read_text().count("PLANE SPATIAL") == 2
+
+
+def test_a_five_axis_path_is_not_put_in_a_plane() -> None:
+    """The rotary sweep turns its axes at feed moves: no operation at a fixed tilt, even where
+    the tool axis stands still for a stretch."""
+    tp = read_cl_text(rotary_sweep(), source="sweep.apt")
+    for controller in WITH_PLANES:
+        result = post(tp, load_machine("dmu50"), PostOptions(controller=controller))
+        assert result.verification.ok and plane_count(result.program) == 0
+
+
+def test_drilling_job_flat_and_tilted_in_a_plane() -> None:
+    """The drilling job's three flat cycles stay in the program's frame, its tilted hole is a
+    cycle in a plane: drilled along the plane's Z, at the CL's depth."""
+    tp = read_cl_text(drilling_job(tilted=True), source="drill.apt")
+    m = load_machine("dmu50")
+    for controller in WITH_PLANES:
+        result = post(tp, m, PostOptions(controller=controller))
+        back = DIALECTS[controller].read(result.text)
+        (plane,) = planes_of(back)
+        inside = [p for p in _between_planes(back) if isinstance(p, Cycle)]
+        (event,) = [e for e in tp.events if e.kind == "cycle" and e.line == 22]
+        assert [c.kind for c in inside] == ["drill"]
+        # the hole's bottom in the plane's frame: the CL point, the CL's depth down its axis
+        hole = inside[0]
+        bottom = plane.frame() @ (np.array(hole.holes[0][:3]) - [0.0, 0.0, hole.depth])
+        axis = np.array([0.5, 0.0, 0.8660254])
+        want = np.array([40.0, -20.0, -2.0]) - float(event.data["depth"]) * axis / np.linalg.norm(
+            axis
+        )
+        np.testing.assert_allclose(bottom, want, atol=2e-3)
+        assert verify(back, m, tp).ok
+
+
+READ_ERRORS = [
+    ("heidenhain", "PLANE SPATIAL SPA+0 SPB+30 STAY", r"expected PLANE SPATIAL SPA\.\. SPB\.\."),
+    ("heidenhain", "PLANE SPATIAL SPA+0 SPB+30 SPC+0 TURN", r"expected PLANE SPATIAL"),
+    ("siemens", 'CYCLE800(0,"",0,27,0,0,0,0,30,0,0,0,0,0,0,1)', r"mode 27; expected"),
+    ("siemens", 'CYCLE800(0,"",0,57,5,0,0,0,30,0,0,0,0,0,0,1)', r"parameter 5 is 5"),
+    ("fanuc", "G68.2 X10. Y0. Z0. I0. J30. K0.", r"G68\.2 with X10\.; expected the plane's zero"),
+]
+
+
+@pytest.mark.parametrize(("controller", "line", "match"), READ_ERRORS)
+def test_a_plane_the_reader_does_not_take_is_an_error_at_its_line(
+    controller: str, line: str, match: str
+) -> None:
+    text = posted(controller).text
+    pattern = {
+        "heidenhain": r"PLANE SPATIAL[^\n]*",
+        "siemens": r'CYCLE800\(0,"[^\n]*',
+        "fanuc": r"G68\.2[^\n]*",
+    }[controller]
+    first = re.search(pattern, text)
+    assert first is not None
+    prefix = text[: first.start()]
+    bad = prefix + line + text[first.end() :]
+    number = prefix.count("\n") + 1
+    with pytest.raises(ProgramParseError, match=match) as err:
+        DIALECTS[controller].read(bad, path="bad")
+    assert err.value.line == number
+
+
+def test_tcp_on_in_a_plane_is_an_error() -> None:
+    text = posted("fanuc").text
+    text = text.replace("G43 H1\n", "G43 H1\nG43.4 H1\n", 1)
+    with pytest.raises(ProgramParseError, match="TCP on in a tilted working plane"):
+        DIALECTS["fanuc"].read(text)
+
+
+def test_untilted_refuses_a_rotary_move_in_a_plane() -> None:
+    text = posted("heidenhain").text
+    first = re.search(r"PLANE SPATIAL[^\n]*\n(\d+) L ([^\n]*)", text)
+    assert first is not None
+    line = first.group(0)
+    bad = text.replace(line, re.sub(r"(Z[+-][\d.]+)", r"\1 B+33.0000", line, count=1), 1)
+    assert bad != text
+    with pytest.raises(ValueError, match="B moves in a tilted working plane"):
+        untilted(DIALECTS["heidenhain"].read(bad))
