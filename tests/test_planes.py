@@ -25,13 +25,14 @@ from jobs import drilling_job, indexed_job, rotary_sweep
 from urdfpost import load_machine
 from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
-from urdfpost.errors import ProgramParseError
+from urdfpost.errors import DialectError, MachineDefinitionError, ProgramParseError
 from urdfpost.machine.load import resolve_machine
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.planes import plane_count
 from urdfpost.posting.whole import post
 from urdfpost.program import (
     PLANE_CONVENTIONS,
+    Clamp,
     Cycle,
     Move,
     MoveTable,
@@ -343,3 +344,87 @@ def test_untilted_refuses_a_rotary_move_in_a_plane() -> None:
     assert bad != text
     with pytest.raises(ValueError, match="B moves in a tilted working plane"):
         untilted(DIALECTS["heidenhain"].read(bad))
+
+
+# -- rotary clamps ---------------------------------------------------------------------------
+
+
+def _machine_with(tmp_path: Path, attributes: str) -> Path:
+    """The dmu50 machine file with ``attributes`` on its ``<urdfpost>`` element, beside its
+    meshes."""
+    source = resolve_machine("dmu50")
+    text = Path(source).read_text()
+    urdf = tmp_path / "dmu50_clamped.urdf"
+    urdf.write_text(re.sub(r"<urdfpost\s", f"<urdfpost {attributes} ", text, count=1))
+    for entry in Path(source).parent.iterdir():
+        if entry.is_dir() and not (tmp_path / entry.name).exists():
+            (tmp_path / entry.name).symlink_to(entry)
+    return urdf
+
+
+@pytest.mark.parametrize("controller", WITH_PLANES)
+def test_rotary_clamps_around_each_plane(controller: str, tmp_path: Path) -> None:
+    m = load_machine(_machine_with(tmp_path, 'clamp="B:M10/M11 C:M12/M13"'))
+    assert m.settings.clamps == (("B", 10, 11), ("C", 12, 13))
+    result = post(job(), m, PostOptions(controller=controller))
+    assert result.verification.ok
+    text = result.text
+    # clamped after the plane, released before it is switched off: twice
+    on, off = {
+        "heidenhain": (r"PLANE SPATIAL", r"PLANE RESET STAY"),
+        "siemens": (r'CYCLE800\(0,"', r"CYCLE800\(\)"),
+        "fanuc": (r"G68\.2", r"G69"),
+    }[controller]
+    number = r"(?:\d+ )?"
+    pattern = (
+        rf"{on}[^\n]*\n(?:[^\n]*(?:G53\.1|G43 H)[^\n]*\n)*{number}M10\n{number}M12\n"
+        rf"(?:(?!M1[0-3]\n)[^\n]*\n)*?{number}M13\n{number}M11\n(?:{number}G49\n)?{number}{off}"
+    )
+    assert len(re.findall(pattern, text)) == 2, text
+    dialect = DIALECTS[controller].with_clamps(m.settings.clamps)
+    back = dialect.read(text)
+    clamps = [(p.axis, p.on) for p in back.parts if isinstance(p, Clamp)]
+    assert clamps == [("B", True), ("C", True), ("C", False), ("B", False)] * 2
+    assert verify(back, m, job()).ok
+    # the plain control does not know the machine's codes: an error at the line
+    with pytest.raises(ProgramParseError, match="unknown M-code M10"):
+        DIALECTS[controller].read(text)
+    # B released no more before the second operation turns it: refused
+    lines = text.splitlines(True)
+    k = next(i for i, ln in enumerate(lines) if re.fullmatch(rf"{number}M11\n", ln))
+    damaged = "".join(lines[:k] + lines[k + 1 :])
+    with pytest.raises(ProgramParseError, match="B turns to 20 deg while clamped"):
+        verify(dialect.read(damaged), m, job())
+
+
+def test_clamps_through_the_command_line(tmp_path: Path) -> None:
+    urdf = _machine_with(tmp_path, 'clamp="B:M10/M11"')
+    cl = tmp_path / "indexed.apt"
+    cl.write_text(indexed_job())
+    out = tmp_path / "a.nc"
+    argv = ["post", str(cl), "-m", str(urdf), "-c", "fanuc", "-o", str(out)]
+    assert main(argv) == 0
+    assert out.read_text().count("\nM10\n") == 2
+    assert main(["verify", str(out), "-m", str(urdf), "--cl", str(cl), "-c", "fanuc"]) == 0
+
+
+@pytest.mark.parametrize(
+    ("attribute", "match"),
+    [
+        ('clamp="Q:M10/M11"', r"'Q:M10/M11'; expected AXIS:Mclamp/Mrelease for rotary joints"),
+        ('clamp="B:M10"', r"'B:M10'; expected AXIS:Mclamp/Mrelease"),
+        ('clamp="B:M10/M11 C:M11/M12"', r"expected each axis once and each M code once"),
+    ],
+)
+def test_a_bad_clamp_setting_is_an_error_at_its_line(
+    attribute: str, match: str, tmp_path: Path
+) -> None:
+    with pytest.raises(MachineDefinitionError, match=match) as err:
+        load_machine(_machine_with(tmp_path, attribute))
+    assert "dmu50_clamped.urdf:" in str(err.value)
+
+
+def test_a_clamp_code_the_control_has_is_refused(tmp_path: Path) -> None:
+    m = load_machine(_machine_with(tmp_path, 'clamp="B:M8/M11"'))
+    with pytest.raises(DialectError, match="clamp code M8 for B: fanuc has M8 for coolant flood"):
+        post(job(), m, PostOptions(controller="fanuc"))

@@ -686,7 +686,7 @@ def _cmd_post(args: argparse.Namespace) -> int:
     machine = _job_machine(args, machine, scale)
     dialect = dialect_for(
         args.controller or (None if args.output else machine.settings.controller), args.output
-    )
+    ).with_clamps(machine.settings.clamps)
     offsets = dialect.spec.work_offsets
     if not 1 <= args.work_offset <= offsets:
         raise UsageError(
@@ -843,6 +843,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
     machine = load_machine(args.machine)
     dialect = dialect_for(args.controller, None if args.controller else args.program)
+    dialect = dialect.with_clamps(machine.settings.clamps)
     pieces = args.piece_points
     if args.mcs_offsets:
         if pieces:
@@ -1259,6 +1260,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
         raise UsageError("--color deviation measures the trace against the CL data: give --cl")
     machine = load_machine(args.machine)
     dialect = dialect_for(args.controller, None if args.controller else args.program)
+    dialect = dialect.with_clamps(machine.settings.clamps)
     try:
         text = Path(args.program).read_text(encoding="utf-8", errors="replace")
     except OSError as e:

@@ -295,6 +295,17 @@ class Smoothing:
     angle: float | None = None
 
 
+@dataclass(frozen=True)
+class Clamp:
+    """A rotary axis clamped (``on``) or released: the machine's M code for it
+    (:attr:`~urdfpost.machine.model.Settings.clamps`, written by the dialect made for the
+    machine, :meth:`~urdfpost.dialects.dialect.Dialect.with_clamps`). A clamped axis does not
+    move."""
+
+    axis: str
+    on: bool
+
+
 PLANE_CONVENTIONS = ("xyz", "XYZ", "ZXZ")
 """How a :class:`TiltedPlane`'s three angles give its frame, as SciPy's
 ``Rotation.from_euler`` sequences: "xyz" about the fixed X, Y and Z axes in turn (Heidenhain
@@ -504,6 +515,7 @@ Block = (
     | Arc
     | CutterComp
     | TiltedPlane
+    | Clamp
 )
 
 

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from dataclasses import replace
+from types import MappingProxyType
 
 import numpy as np
 
 from urdfpost.dialects.reader import ProgramReader, read_program
 from urdfpost.dialects.spec import ROTARY_ADDRESSES, DialectSpec
 from urdfpost.dialects.writer import ProgramWriter, program_writer, write_program
+from urdfpost.errors import DialectError
 from urdfpost.program import Program
 from urdfpost.units import mm_per_unit
 
@@ -37,6 +40,29 @@ class Dialect:
 
     def __repr__(self) -> str:
         return f"Dialect({self.name!r})"
+
+    def with_clamps(self, clamps: Sequence[tuple[str, int, int]]) -> Dialect:
+        """This control with a machine's rotary clamp codes (``(axis, clamp M, release M)``,
+        :attr:`~urdfpost.machine.model.Settings.clamps`) among its M codes, written for and
+        read as :class:`~urdfpost.program.Clamp` blocks; itself when there are none.
+
+        Raises
+        ------
+        DialectError
+            A code that means something else on this control.
+        """
+        if not clamps:
+            return self
+        codes = dict(self.spec.m_codes)
+        for axis, on, off in clamps:
+            for code, action in ((on, f"clamp_on:{axis}"), (off, f"clamp_off:{axis}")):
+                if code in codes:
+                    raise DialectError(
+                        f"clamp code M{code} for {axis}: {self.name} has M{code} for "
+                        f"{codes[code].replace('_', ' ')}; expected a code of its own"
+                    )
+                codes[code] = action
+        return Dialect(replace(self.spec, m_codes=MappingProxyType(codes)))
 
     def write(
         self,

@@ -65,6 +65,7 @@ from urdfpost.program import (
     Arc,
     Block,
     Blocks,
+    Clamp,
     Comment,
     Coolant,
     CutterComp,
@@ -729,6 +730,10 @@ class ProgramBuilder:
         if all(a in self.position for a in "XYZ"):
             turned = rotation @ np.array([self.position[a] for a in "XYZ"])
             self.position = {**self.position, **dict(zip("XYZ", turned.tolist(), strict=True))}
+
+    def clamp(self, axis: str, on: bool) -> None:
+        """A rotary axis clamped or released (the machine's M code)."""
+        self._add(Clamp(axis, on))
 
     def insert(self, text: str) -> None:
         """A line inserted verbatim, taken on trust."""
@@ -1444,6 +1449,9 @@ def apply_m_action(builder: ProgramBuilder, action: str) -> None:
             builder.continuous = True
         case "noop":
             pass
+        case _ if action.startswith(("clamp_on:", "clamp_off:")):
+            kind, axis = action.split(":")
+            builder.clamp(axis, kind == "clamp_on")
         case _:
             raise builder.error(f"M-code action {action!r} is not allowed here")
 

@@ -39,6 +39,7 @@ from urdfpost.program import (
     FEED_INVERSE_TIME,
     Arc,
     Block,
+    Clamp,
     Comment,
     Coolant,
     CutterComp,
@@ -365,6 +366,8 @@ class ProgramWriter:
                 self.write_cutter_comp(block)
             case TiltedPlane():
                 self.write_plane(block)
+            case Clamp():
+                self.emit(self.spec.m_code_for(f"clamp_{'on' if block.on else 'off'}:{block.axis}"))
             case WorkOffset():
                 count = self.spec.work_offsets
                 if not 1 <= block.number <= count:

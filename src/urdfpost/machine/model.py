@@ -121,6 +121,11 @@ class Settings:
     feed_mode : str or None
         Default feed mode of a post (``feed_mode`` attribute,
         :data:`urdfpost.program.JOB_FEED_MODES`); None: ``auto``.
+    clamps : tuple of (str, int, int)
+        Rotary axes with clamps (``clamp`` attribute, ``"B:M10/M11 C:M12/M13"``): per axis its
+        name, the M code that clamps it and the one that releases it. The post clamps them for
+        an operation in a tilted plane (:mod:`urdfpost.posting.planes`), the verifier refuses
+        a move of a clamped axis.
     tilted_planes : bool
         Write operations at a fixed tilt in a tilted working plane by default
         (``tilted_planes`` attribute, "on" or "off"; default on;
@@ -139,6 +144,7 @@ class Settings:
     rollover: frozenset[str] = frozenset()
     feed_mode: str | None = None
     tilted_planes: bool = True
+    clamps: tuple[tuple[str, int, int], ...] = ()
 
 
 @dataclass(frozen=True, eq=False)

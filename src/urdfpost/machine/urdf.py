@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from dataclasses import dataclass
 
 from lxml import etree
@@ -610,6 +611,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
     strategy = el.get("strategy")
     smoothing = _switch(where, el, "smoothing", True)
     tilted_planes = _switch(where, el, "tilted_planes", True)
+    clamps = _clamps(where, el, joints)
     rollover = _rollover(where, el, joints)
     feed_mode = el.get("feed_mode")
     if feed_mode is not None and feed_mode not in JOB_FEED_MODES:
@@ -632,6 +634,7 @@ def parse_settings(doc: UrdfDoc, source: str, joints: tuple[JointSpec, ...]) -> 
         rollover=rollover,
         feed_mode=feed_mode,
         tilted_planes=tilted_planes,
+        clamps=clamps,
     )
 
 
@@ -647,6 +650,36 @@ def _switch(where: str, el: etree._Element, name: str, default: bool) -> bool:
     if value is None:
         raise MachineDefinitionError(f"{where}: <urdfpost {name}={raw!r}>: expected on or off")
     return value
+
+
+_CLAMP = re.compile(r"([A-Z]+):M(\d+)/M(\d+)\Z")
+
+
+def _clamps(
+    where: str, el: etree._Element, joints: tuple[JointSpec, ...]
+) -> tuple[tuple[str, int, int], ...]:
+    """The ``clamp`` attribute: rotary joints of the chain with their clamp and release M
+    codes, ``"B:M10/M11 C:M12/M13"``."""
+    raw = el.get("clamp")
+    if raw is None:
+        return ()
+    rotary = [j.name for j in joints if j.type in ("revolute", "continuous")]
+    out: list[tuple[str, int, int]] = []
+    for item in raw.replace(",", " ").split():
+        match = _CLAMP.match(item)
+        if match is None or match.group(1) not in rotary:
+            raise MachineDefinitionError(
+                f"{where}: <urdfpost clamp={raw!r}>: {item!r}; expected AXIS:Mclamp/Mrelease "
+                f"for rotary joints of the chain ({' '.join(rotary) or 'none'}), e.g. B:M10/M11"
+            )
+        out.append((match.group(1), int(match.group(2)), int(match.group(3))))
+    codes = [c for _, on, off in out for c in (on, off)]
+    names = [a for a, _, _ in out]
+    if len(set(codes)) != len(codes) or len(set(names)) != len(names):
+        raise MachineDefinitionError(
+            f"{where}: <urdfpost clamp={raw!r}>: expected each axis once and each M code once"
+        )
+    return tuple(out)
 
 
 def _rollover(where: str, el: etree._Element, joints: tuple[JointSpec, ...]) -> frozenset[str]:

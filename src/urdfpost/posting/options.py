@@ -414,7 +414,7 @@ def resolve(options: PostOptions | None, machine: Machine, cl_units: str) -> Job
         return None if value is None else value * scale
 
     settings = machine.settings
-    dialect = dialect_for(options.controller or settings.controller)
+    dialect = dialect_for(options.controller or settings.controller).with_clamps(settings.clamps)
     offsets = dialect.spec.work_offsets
     if not 1 <= options.work_offset <= offsets:
         raise UrdfpostError(

@@ -499,7 +499,9 @@ def post_piece(
     plane_figures = PlaneFigures()
     if planes:
         plane_notes: list[str] = []
-        program, plane_figures = tilted_planes(program, machine, spec, plane_notes)
+        program, plane_figures = tilted_planes(
+            program, machine, spec, plane_notes, machine.settings.clamps
+        )
         warnings += [f"{toolpath.source}: {note}" for note in plane_notes]
     figures = PieceFigures(
         branch_switches=branch_switches,

@@ -19,6 +19,8 @@ operations. :func:`tilted_planes` writes each such stretch in a tilted working p
 - the moves in it are the same moves: a rotation changes neither the path nor its length, so
   the joint path, its collision check and the feeds stay as they were; the rotary axes are
   not written again in it;
+- the machine's rotary clamps (the machine file's ``clamp`` setting, ``B:M10/M11``) are
+  clamped right after the plane is switched on and released before it is switched off;
 - the canned cycles' tilted holes in it (a :class:`~urdfpost.program.Cycle` with
   :attr:`~urdfpost.program.Cycle.up`) become the control's cycles in the plane, drilling along
   its Z; one whose stretch is not an operation at a fixed tilt is written as its motion, with
@@ -46,6 +48,7 @@ from urdfpost.program import (
     Arc,
     Block,
     Blocks,
+    Clamp,
     Comment,
     Coolant,
     CutterComp,
@@ -213,7 +216,11 @@ def _stretches(
 
 
 def tilted_planes(
-    program: Program, machine: Machine, spec: DialectSpec, notes: list[str] | None = None
+    program: Program,
+    machine: Machine,
+    spec: DialectSpec,
+    notes: list[str] | None = None,
+    clamps: Sequence[tuple[str, int, int]] = (),
 ) -> tuple[Program, PlaneFigures]:
     """``program`` with its operations at a fixed tilt in tilted working planes, and its
     other tilted holes written as their motion (module docstring).
@@ -228,6 +235,10 @@ def tilted_planes(
         The control: its plane convention and the rotary format its angles are rounded to.
     notes : list of str, optional
         Receives a warning per tilted hole written as its motion.
+    clamps : sequence of (str, int, int)
+        The machine's rotary clamps (:attr:`~urdfpost.machine.model.Settings.clamps`): the
+        program's rotary axes among them are clamped after a plane is switched on and
+        released before it is switched off.
 
     Returns
     -------
@@ -271,14 +282,18 @@ def tilted_planes(
     active = [-1]  # the plane on in the output
     spindle: list[Spindle | None] = [None]
 
+    clamped = [a for a, _, _ in clamps if a in program.rotary and a in program.axes]
+
     def plane_on(i: int) -> None:
         if out_tcp[0]:
             out.append(Tcp(False))
             out_tcp[0] = False
         out.append(stretches[i].plane)
+        out.extend(Clamp(a, True) for a in clamped)
         active[0] = i
 
     def plane_off() -> None:
+        out.extend(Clamp(a, False) for a in reversed(clamped))
         out.append(TiltedPlane(None, stretches[active[0]].plane.convention))
         active[0] = -1
 

@@ -282,7 +282,8 @@ def verify_stream(
     if piece_points < 2:
         raise ValueError(f"piece_points must be at least 2, got {piece_points}")
     rollover = machine.settings.rollover
-    reader = dialect_for(controller).reader(path=str(program_path), rollover=rollover)
+    dialect = dialect_for(controller).with_clamps(machine.settings.clamps)
+    reader = dialect.reader(path=str(program_path), rollover=rollover)
     text_source = iter(program_texts(program_path) if texts is None else texts)
     cl_source = iter(cl_pieces)
     program: Program | None = None

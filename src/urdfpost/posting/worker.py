@@ -111,7 +111,8 @@ class PieceVerifier:
 
         self.machine, self.tol, self.units = machine, tol, units
         rollover = machine.settings.rollover
-        self.reader = dialect_for(controller).reader(path=path, rollover=rollover)
+        dialect = dialect_for(controller).with_clamps(machine.settings.clamps)
+        self.reader = dialect.reader(path=path, rollover=rollover)
         self.previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
 
     def check(

@@ -50,7 +50,7 @@ from urdfpost.toolpath import Toolpath
 from urdfpost.verification.feeds import FeedCheck, FeedRules, measure_feeds, tip_lengths
 from urdfpost.verification.holes import HOLES_NOTE, check_holes, without_holes
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
-from urdfpost.verification.planes import in_own_frame
+from urdfpost.verification.planes import clamp_faults, in_own_frame
 
 log = logging.getLogger(__name__)
 
@@ -685,6 +685,9 @@ def verify_checks(
             "verified with --mcs-offsets)",
         )
     tool_length = program.tool_length if tool_length is None else tool_length
+    clamped = clamp_faults(program)
+    if clamped:
+        raise ProgramParseError(program.name, 0, "; ".join(clamped))
     program = in_own_frame(program, machine)  # tilted planes: the moves in the program's frame
     if checks and any(isinstance(p, Arc) for p in program.parts):
         # an arc is measured as the control runs it: moves along it, at most half the tip

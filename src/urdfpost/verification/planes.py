@@ -11,7 +11,7 @@ import numpy as np
 from urdfpost.errors import ProgramParseError
 from urdfpost.kinematics import tip_and_axis
 from urdfpost.machine import Machine
-from urdfpost.program import Move, MoveTable, Program, TiltedPlane, untilted
+from urdfpost.program import Clamp, Move, MoveTable, Program, TiltedPlane, untilted
 
 PLANE_AXIS_DEG = 0.01
 """Degrees. How far a tilted plane's Z may be from the tool axis of the rotary values it is
@@ -62,6 +62,44 @@ def plane_faults(program: Program, machine: Machine) -> list[str]:
                     f"expected within {PLANE_AXIS_DEG} deg"
                 )
     return faults
+
+
+def clamp_faults(program: Program) -> list[str]:
+    """The moves of ``program`` that turn a clamped rotary axis (between a
+    :class:`~urdfpost.program.Clamp` on and off of it): one message per axis, at its first."""
+    axes = program.axes
+    clamped: dict[str, int] = {}  # axis -> the clamp's place among the program's clamps
+    last = np.full(len(axes), np.nan)
+    faults: dict[str, str] = {}
+    count = 0
+    moves = 0
+    for part in program.parts:
+        if isinstance(part, Clamp):
+            count += 1
+            if part.on:
+                clamped[part.axis] = count
+            else:
+                clamped.pop(part.axis, None)
+        elif isinstance(part, MoveTable | Move):
+            table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))
+            for axis, at in clamped.items():
+                if axis not in axes or axis in faults:
+                    continue
+                j = axes.index(axis)
+                column = np.concatenate([[last[j]], table.position[:, j]])
+                known = column[~np.isnan(column)]
+                if known.size and not np.allclose(known, known[0], rtol=0.0, atol=1e-9):
+                    where = np.flatnonzero(~np.isclose(known, known[0], rtol=0.0, atol=1e-9))
+                    faults[axis] = (
+                        f"{axis} turns to {known[where[0]]:g} deg while clamped (clamp {at} of "
+                        f"the program), near move {moves + 1}; expected it released first"
+                    )
+            for j in range(len(axes)):
+                known_rows = np.flatnonzero(~np.isnan(table.position[:, j]))
+                if known_rows.size:
+                    last[j] = table.position[known_rows[-1], j]
+            moves += len(table)
+    return list(faults.values())
 
 
 def in_own_frame(program: Program, machine: Machine) -> Program:
