@@ -97,7 +97,7 @@ def strategy_cone(problem: Problem) -> Plan:
         q[:, list(machine.rotary_columns)] = bent
         param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
         curve = _curve(machine, tp, param, rot)
-        over = _beyond(problem, tp, curve)
+        over = _beyond(problem, tp, curve, param, rot)
         if not over.size or round_ == ROUNDS:
             break
         log.debug("cone: %d points inserted where the curve leaves the cone", over.size)
@@ -260,14 +260,23 @@ def _curve(
 
 
 def _beyond(
-    problem: Problem, tp: Toolpath, curve: Callable[[np.ndarray], np.ndarray]
+    problem: Problem,
+    tp: Toolpath,
+    curve: Callable[[np.ndarray], np.ndarray],
+    param: np.ndarray,
+    rot: np.ndarray,
 ) -> np.ndarray:
     """Positions where the curve leaves the angle tolerance most, one per CL segment that it
-    leaves between its rows (sampled at :data:`CURVE_SAMPLES` per segment), shape (k,)."""
+    leaves between its rows (sampled at :data:`CURVE_SAMPLES` per segment), shape (k,).
+
+    Only the segments :func:`_may_leave` cannot clear are sampled: the others (all but those
+    near the bent and fast-turning stretches) keep within the tolerance by a bound.
+    """
     n = len(tp)
     if n < 2:
         return np.zeros(0)
     feed = np.flatnonzero((tp.motion[1:] == Motion.FEED) & ~entry_mask(tp)[1:])
+    feed = feed[_may_leave(problem, tp, param, rot, feed)]
     if not feed.size:
         return np.zeros(0)
     frac = np.arange(1, CURVE_SAMPLES) / CURVE_SAMPLES
@@ -281,6 +290,35 @@ def _beyond(
     worst = np.argmax(per_segment, axis=1)
     bad = per_segment[np.arange(len(feed)), worst] > problem.angle_tolerance * (1 + 1e-9)
     return feed[bad] + frac[worst[bad]]
+
+
+def _may_leave(
+    problem: Problem, tp: Toolpath, param: np.ndarray, rot: np.ndarray, seg: np.ndarray
+) -> np.ndarray:
+    """Which CL segments ``seg`` (from point i to i + 1) the cone's curve may leave the angle
+    tolerance on, shape (k,) bool; the others provably keep within it.
+
+    On segment i the curve (:func:`_curve`) runs the first rotary angle linearly between the
+    rows at i and i + 1 and takes the tilt closest to the programmed axis (clipped to travel).
+    Its deviation is at most that of the curve with the tilt linear between the rows too
+    (the deviation is unimodal in the tilt, and the clipped closest tilt lies between the
+    linear one and the closest). That curve's tool axis moves by at most ``t * turn`` from
+    the first row's (``turn``: the rows' summed rotary steps; each rotation moves a unit vector
+    by at most its angle), the programmed one by ``t * alpha`` (slerp over the angle
+    ``alpha``), so at ``t`` the deviation is at most ``d0 + t (turn + alpha)``, and from the
+    other end ``d1 + (1 - t) (turn + alpha)``, with ``d0``, ``d1`` the rows' own deviations:
+    never more than ``(d0 + d1 + turn + alpha) / 2``. A segment whose bound is within the
+    tolerance (the rounding of the sampled deviations is far inside the ``1e-9`` relative
+    margin of :func:`_beyond`) need not be sampled.
+    """
+    # every row stands on a CL point (rows of one point: turns in place, rewind arrivals)
+    dev = angle_between(tool_axis_of(problem.machine, rot), tp.axis[param.astype(int)])
+    first = np.searchsorted(param, seg, side="right") - 1  # the last row at point i
+    last = np.searchsorted(param, seg + 1, side="left")  # the first row at point i + 1
+    turn = np.abs(rot[last] - rot[first]).sum(axis=1)
+    alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
+    bound = 0.5 * (dev[first] + dev[last] + turn + alpha)
+    return ~(bound <= problem.angle_tolerance)  # NaN: sampled
 
 
 def _rounding(a: np.ndarray, b: np.ndarray, step: np.ndarray) -> float:
