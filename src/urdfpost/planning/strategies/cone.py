@@ -269,56 +269,69 @@ def _beyond(
     """Positions where the curve leaves the angle tolerance most, one per CL segment that it
     leaves between its rows (sampled at :data:`CURVE_SAMPLES` per segment), shape (k,).
 
-    Only the segments :func:`_may_leave` cannot clear are sampled: the others (all but those
-    near the bent and fast-turning stretches) keep within the tolerance by a bound.
+    Only the segments whose bound (:func:`_deviation_bound`) exceeds the tolerance are
+    sampled: the others (on a dense path all but those of the bent and fast-turning stretches
+    near the singular spans) keep within it. The rounding of the sampled deviations is far
+    inside the ``1e-9`` relative margin of the test.
     """
     n = len(tp)
     if n < 2:
         return np.zeros(0)
     feed = np.flatnonzero((tp.motion[1:] == Motion.FEED) & ~entry_mask(tp)[1:])
-    feed = feed[_may_leave(problem, tp, param, rot, feed)]
+    bound = _deviation_bound(problem.machine, tp, param, rot, feed)
+    feed = feed[~(bound <= problem.angle_tolerance)]  # NaN: sampled
     if not feed.size:
         return np.zeros(0)
     frac = np.arange(1, CURVE_SAMPLES) / CURVE_SAMPLES
     x = (feed[:, None] + frac[None, :]).ravel()
-    rot = curve(x)
+    on_curve = curve(x)
     _, prog = at_param(tp, x, 0.0)
     dev = np.zeros(len(x))
-    ok = np.isfinite(rot).all(axis=1)
-    dev[ok] = angle_between(tool_axis_of(problem.machine, rot[ok]), prog[ok])
+    ok = np.isfinite(on_curve).all(axis=1)
+    dev[ok] = angle_between(tool_axis_of(problem.machine, on_curve[ok]), prog[ok])
     per_segment = dev.reshape(len(feed), len(frac))
     worst = np.argmax(per_segment, axis=1)
     bad = per_segment[np.arange(len(feed)), worst] > problem.angle_tolerance * (1 + 1e-9)
     return feed[bad] + frac[worst[bad]]
 
 
-def _may_leave(
-    problem: Problem, tp: Toolpath, param: np.ndarray, rot: np.ndarray, seg: np.ndarray
+def _deviation_bound(
+    machine: Machine, tp: Toolpath, param: np.ndarray, rot: np.ndarray, seg: np.ndarray
 ) -> np.ndarray:
-    """Which CL segments ``seg`` (from point i to i + 1) the cone's curve may leave the angle
-    tolerance on, shape (k,) bool; the others provably keep within it.
+    """Bounds of the deviation of the cone's curve from the programmed tool axis on the CL
+    segments ``seg`` (from point i to i + 1), shape (k,) rad.
 
     On segment i the curve (:func:`_curve`) runs the first rotary angle linearly between the
-    rows at i and i + 1 and takes the tilt closest to the programmed axis (clipped to travel).
-    Its deviation is at most that of the curve with the tilt linear between the rows too
-    (the deviation is unimodal in the tilt, and the clipped closest tilt lies between the
-    linear one and the closest). That curve's tool axis moves by at most ``t * turn`` from
-    the first row's (``turn``: the rows' summed rotary steps; each rotation moves a unit vector
-    by at most its angle), the programmed one by ``t * alpha`` (slerp over the angle
-    ``alpha``), so at ``t`` the deviation is at most ``d0 + t (turn + alpha)``, and from the
-    other end ``d1 + (1 - t) (turn + alpha)``, with ``d0``, ``d1`` the rows' own deviations:
-    never more than ``(d0 + d1 + turn + alpha) / 2``. A segment whose bound is within the
-    tolerance (the rounding of the sampled deviations is far inside the ``1e-9`` relative
-    margin of :func:`_beyond`) need not be sampled.
+    rows at i and i + 1 and takes the tilt closest to the programmed axis, clipped to travel.
+    Its deviation is at most that of the curve with the tilt linear between the rows too (for
+    a given first angle the deviation is unimodal in the tilt, and the clipped closest tilt
+    lies between the linear one and the closest). That curve's tool axis moves by at most
+    ``t * turn`` from the first row's (``turn``: the rows' summed rotary steps; a rotation
+    moves a unit vector by at most its angle), the programmed axis by ``t * alpha`` (slerp
+    over the angle ``alpha``); so at ``t`` the deviation is at most ``d0 + t (turn + alpha)``,
+    and from the other end ``d1 + (1 - t) (turn + alpha)``, with ``d0``, ``d1`` the rows' own
+    deviations: never more than ``(d0 + d1 + turn + alpha) / 2``.
+
+    Parameters
+    ----------
+    machine : Machine
+    tp : Toolpath
+    param, rot : ndarray, shapes (N,) and (N, r)
+        The cone's rows, each on a CL point (several on one point: turns in place on the pole
+        and rewind arrivals).
+    seg : ndarray, shape (k,), int
+
+    Returns
+    -------
+    ndarray, shape (k,), rad
+        NaN where a row's angles are NaN.
     """
-    # every row stands on a CL point (rows of one point: turns in place, rewind arrivals)
-    dev = angle_between(tool_axis_of(problem.machine, rot), tp.axis[param.astype(int)])
+    dev = angle_between(tool_axis_of(machine, rot), tp.axis[param.astype(int)])
     first = np.searchsorted(param, seg, side="right") - 1  # the last row at point i
     last = np.searchsorted(param, seg + 1, side="left")  # the first row at point i + 1
     turn = np.abs(rot[last] - rot[first]).sum(axis=1)
     alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
-    bound = 0.5 * (dev[first] + dev[last] + turn + alpha)
-    return ~(bound <= problem.angle_tolerance)  # NaN: sampled
+    return 0.5 * (dev[first] + dev[last] + turn + alpha)
 
 
 def _rounding(a: np.ndarray, b: np.ndarray, step: np.ndarray) -> float:
