@@ -138,7 +138,7 @@ def _bend(
     with np.errstate(divide="ignore", invalid="ignore"):
         dt = np.where(feed > 0, length / feed, 0.0)
     step_max = 0.95 * vmax * dt
-    measure = np.diff(arc_length(tp))
+    measure: np.ndarray | None = None  # path measure of each step, for a run with no feed
     inside = np.zeros(len(tp), dtype=bool)  # strictly inside a span (its ends stay exact)
     for sp in spans:
         inside[sp.first + 1 : sp.last] = True
@@ -157,6 +157,8 @@ def _bend(
         if not (feed[a:b] > 0).all():  # no time to rate the axis by: the geometric cone
             unfed = a if unfed is None else min(unfed, a)
             allowed = inside[a : b + 1]
+            if measure is None:
+                measure = np.diff(arc_length(tp))
             ds = np.maximum(measure[a:b], 1e-12)
             rate = np.abs(np.diff(exact)) / ds
             if not allowed.any() or not rate.max(initial=0.0) > 0:
