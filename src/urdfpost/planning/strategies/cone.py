@@ -312,7 +312,10 @@ def _deviation_bound(
     moves a unit vector by at most its angle), the programmed axis by ``t * alpha`` (slerp
     over the angle ``alpha``); so at ``t`` the deviation is at most ``d0 + t (turn + alpha)``,
     and from the other end ``d1 + (1 - t) (turn + alpha)``, with ``d0``, ``d1`` the rows' own
-    deviations: never more than ``(d0 + d1 + turn + alpha) / 2``.
+    deviations: never more than ``(d0 + d1 + turn + alpha) / 2``. A row's tilt may lie beyond
+    its travel by the slack the branch choice allows; the clipped tilt then lies that much
+    beyond the linear one at most, which adds as much to the deviation (a turn of the tilt
+    moves the tool axis by at most its angle), and to the bound.
 
     Parameters
     ----------
@@ -329,11 +332,14 @@ def _deviation_bound(
         NaN where a row's angles are NaN.
     """
     dev = angle_between(tool_axis_of(machine, rot), tp.axis[param.astype(int)])
+    tilt, lo2, hi2 = rot[:, 1], machine.rotary[1].lower, machine.rotary[1].upper
+    beyond = np.maximum(np.maximum(tilt - hi2, lo2 - tilt), 0.0)  # beyond the tilt's travel
     first = np.searchsorted(param, seg, side="right") - 1  # the last row at point i
     last = np.searchsorted(param, seg + 1, side="left")  # the first row at point i + 1
     turn = np.abs(rot[last] - rot[first]).sum(axis=1)
     alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
-    return 0.5 * (dev[first] + dev[last] + turn + alpha)
+    clipped = np.maximum(beyond[first], beyond[last])
+    return 0.5 * (dev[first] + dev[last] + turn + alpha) + clipped
 
 
 def _rounding(a: np.ndarray, b: np.ndarray, step: np.ndarray) -> float:
