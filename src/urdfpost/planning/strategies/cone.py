@@ -97,7 +97,7 @@ def strategy_cone(problem: Problem) -> Plan:
         q[:, list(machine.rotary_columns)] = bent
         param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
         curve = _curve(machine, tp, param, rot)
-        over = _beyond(problem, tp, curve)
+        over = _beyond(problem, tp, curve, param, rot)
         if not over.size or round_ == ROUNDS:
             break
         log.debug("cone: %d points inserted where the curve leaves the cone", over.size)
@@ -138,7 +138,7 @@ def _bend(
     with np.errstate(divide="ignore", invalid="ignore"):
         dt = np.where(feed > 0, length / feed, 0.0)
     step_max = 0.95 * vmax * dt
-    measure = np.diff(arc_length(tp))
+    measure: np.ndarray | None = None  # path measure of each step, for a run with no feed
     inside = np.zeros(len(tp), dtype=bool)  # strictly inside a span (its ends stay exact)
     for sp in spans:
         inside[sp.first + 1 : sp.last] = True
@@ -157,6 +157,8 @@ def _bend(
         if not (feed[a:b] > 0).all():  # no time to rate the axis by: the geometric cone
             unfed = a if unfed is None else min(unfed, a)
             allowed = inside[a : b + 1]
+            if measure is None:
+                measure = np.diff(arc_length(tp))
             ds = np.maximum(measure[a:b], 1e-12)
             rate = np.abs(np.diff(exact)) / ds
             if not allowed.any() or not rate.max(initial=0.0) > 0:
@@ -260,27 +262,84 @@ def _curve(
 
 
 def _beyond(
-    problem: Problem, tp: Toolpath, curve: Callable[[np.ndarray], np.ndarray]
+    problem: Problem,
+    tp: Toolpath,
+    curve: Callable[[np.ndarray], np.ndarray],
+    param: np.ndarray,
+    rot: np.ndarray,
 ) -> np.ndarray:
     """Positions where the curve leaves the angle tolerance most, one per CL segment that it
-    leaves between its rows (sampled at :data:`CURVE_SAMPLES` per segment), shape (k,)."""
+    leaves between its rows (sampled at :data:`CURVE_SAMPLES` per segment), shape (k,).
+
+    Only the segments whose bound (:func:`_deviation_bound`) exceeds the tolerance are
+    sampled: the others (on a dense path all but those of the bent and fast-turning stretches
+    near the singular spans) keep within it. The rounding of the sampled deviations is far
+    inside the ``1e-9`` relative margin of the test.
+    """
     n = len(tp)
     if n < 2:
         return np.zeros(0)
     feed = np.flatnonzero((tp.motion[1:] == Motion.FEED) & ~entry_mask(tp)[1:])
+    bound = _deviation_bound(problem.machine, tp, param, rot, feed)
+    feed = feed[~(bound <= problem.angle_tolerance)]  # NaN: sampled
     if not feed.size:
         return np.zeros(0)
     frac = np.arange(1, CURVE_SAMPLES) / CURVE_SAMPLES
     x = (feed[:, None] + frac[None, :]).ravel()
-    rot = curve(x)
+    on_curve = curve(x)
     _, prog = at_param(tp, x, 0.0)
     dev = np.zeros(len(x))
-    ok = np.isfinite(rot).all(axis=1)
-    dev[ok] = angle_between(tool_axis_of(problem.machine, rot[ok]), prog[ok])
+    ok = np.isfinite(on_curve).all(axis=1)
+    dev[ok] = angle_between(tool_axis_of(problem.machine, on_curve[ok]), prog[ok])
     per_segment = dev.reshape(len(feed), len(frac))
     worst = np.argmax(per_segment, axis=1)
     bad = per_segment[np.arange(len(feed)), worst] > problem.angle_tolerance * (1 + 1e-9)
     return feed[bad] + frac[worst[bad]]
+
+
+def _deviation_bound(
+    machine: Machine, tp: Toolpath, param: np.ndarray, rot: np.ndarray, seg: np.ndarray
+) -> np.ndarray:
+    """Bounds of the deviation of the cone's curve from the programmed tool axis on the CL
+    segments ``seg`` (from point i to i + 1), shape (k,) rad.
+
+    On segment i the curve (:func:`_curve`) runs the first rotary angle linearly between the
+    rows at i and i + 1 and takes the tilt closest to the programmed axis, clipped to travel.
+    Its deviation is at most that of the curve with the tilt linear between the rows too (for
+    a given first angle the deviation is unimodal in the tilt, and the clipped closest tilt
+    lies between the linear one and the closest). That curve's tool axis moves by at most
+    ``t * turn`` from the first row's (``turn``: the rows' summed rotary steps; a rotation
+    moves a unit vector by at most its angle), the programmed axis by ``t * alpha`` (slerp
+    over the angle ``alpha``); so at ``t`` the deviation is at most ``d0 + t (turn + alpha)``,
+    and from the other end ``d1 + (1 - t) (turn + alpha)``, with ``d0``, ``d1`` the rows' own
+    deviations: never more than ``(d0 + d1 + turn + alpha) / 2``. A row's tilt may lie beyond
+    its travel by the slack the branch choice allows; the clipped tilt then lies that much
+    beyond the linear one at most, which adds as much to the deviation (a turn of the tilt
+    moves the tool axis by at most its angle), and to the bound.
+
+    Parameters
+    ----------
+    machine : Machine
+    tp : Toolpath
+    param, rot : ndarray, shapes (N,) and (N, r)
+        The cone's rows, each on a CL point (several on one point: turns in place on the pole
+        and rewind arrivals).
+    seg : ndarray, shape (k,), int
+
+    Returns
+    -------
+    ndarray, shape (k,), rad
+        NaN where a row's angles are NaN.
+    """
+    dev = angle_between(tool_axis_of(machine, rot), tp.axis[param.astype(int)])
+    tilt, lo2, hi2 = rot[:, 1], machine.rotary[1].lower, machine.rotary[1].upper
+    beyond = np.maximum(np.maximum(tilt - hi2, lo2 - tilt), 0.0)  # beyond the tilt's travel
+    first = np.searchsorted(param, seg, side="right") - 1  # the last row at point i
+    last = np.searchsorted(param, seg + 1, side="left")  # the first row at point i + 1
+    turn = np.abs(rot[last] - rot[first]).sum(axis=1)
+    alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
+    clipped = np.maximum(beyond[first], beyond[last])
+    return 0.5 * (dev[first] + dev[last] + turn + alpha) + clipped
 
 
 def _rounding(a: np.ndarray, b: np.ndarray, step: np.ndarray) -> float:

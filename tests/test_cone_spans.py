@@ -1,0 +1,156 @@
+"""The cone's repair on the singular spans only (issue 21): the same plan as over whole layers.
+
+The cone checks its curve between rows against the angle tolerance (``cone._beyond``). It used
+to sample every feed segment of the path, each round; it now samples only the segments whose
+deviation a bound cannot clear (``cone._may_leave``). Kept here as the oracle: the sampling of
+every segment. On generated jobs, machines of every family (a nutating one too), the positions
+it flags are the same at every round, the plans are the same to the bit, and the bound holds
+on the segments it clears (sampled four times finer than the cone samples them).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from urdfpost.analysis.testpaths import great_circle_sweep, hemisphere_raster
+from urdfpost.geometry import angle_between
+from urdfpost.machine import load_machine
+from urdfpost.planning.problem import Problem, at_param, entry_mask, tool_axis_of
+from urdfpost.planning.strategies import STRATEGIES, cone
+from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Motion, Toolpath
+
+MACHINES = ["dmu50", "gantry-ca", "monoblock", "dmu50-nutating"]
+
+
+def jobs() -> dict[str, Toolpath]:
+    """Jobs on which the cone bends and inserts points: coarse rasters over a hemisphere
+    (passes over, beside and away from the pole), and short sweeps past the pole."""
+    return {
+        "raster 0.5 mm": hemisphere_raster(),  # as dense as a finishing job
+        "raster 1 mm": hemisphere_raster(step=1.0, offsets=(0.2, 1.0, 3.0, 8.0)),
+        "raster 2 mm": hemisphere_raster(step=2.0, offsets=(0.0, 0.5, 2.0, 5.0, 12.0)),
+        "raster 5 mm": hemisphere_raster(step=5.0, offsets=(0.3, 1.0, 3.0)),
+        "sweep 0.3 deg": great_circle_sweep(0.3, half_angle_deg=30.0, points=7),
+        "sweep 1 deg": great_circle_sweep(1.0, half_angle_deg=20.0, points=11),
+    }
+
+
+def beyond_everywhere(
+    problem: Problem,
+    tp: Toolpath,
+    curve: Callable[[np.ndarray], np.ndarray],
+    param: np.ndarray,
+    rot: np.ndarray,
+) -> np.ndarray:
+    """``cone._beyond`` as it was: the curve sampled on every feed segment of the path."""
+    n = len(tp)
+    if n < 2:
+        return np.zeros(0)
+    feed = np.flatnonzero((tp.motion[1:] == Motion.FEED) & ~entry_mask(tp)[1:])
+    if not feed.size:
+        return np.zeros(0)
+    frac = np.arange(1, cone.CURVE_SAMPLES) / cone.CURVE_SAMPLES
+    x = (feed[:, None] + frac[None, :]).ravel()
+    rows = curve(x)
+    _, prog = at_param(tp, x, 0.0)
+    dev = np.zeros(len(x))
+    ok = np.isfinite(rows).all(axis=1)
+    dev[ok] = angle_between(tool_axis_of(problem.machine, rows[ok]), prog[ok])
+    per_segment = dev.reshape(len(feed), len(frac))
+    worst = np.argmax(per_segment, axis=1)
+    bad = per_segment[np.arange(len(feed)), worst] > problem.angle_tolerance * (1 + 1e-9)
+    return feed[bad] + frac[worst[bad]]
+
+
+def bound_and_deviation(
+    problem: Problem,
+    tp: Toolpath,
+    curve: Callable[[np.ndarray], np.ndarray],
+    param: np.ndarray,
+    rot: np.ndarray,
+    samples: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``cone._deviation_bound`` of every feed segment, and the curve's largest deviation on
+    it (``samples`` positions per segment)."""
+    feed = np.flatnonzero((tp.motion[1:] == Motion.FEED) & ~entry_mask(tp)[1:])
+    bound = cone._deviation_bound(problem.machine, tp, param, rot, feed)
+    frac = np.arange(1, samples) / samples
+    x = (feed[:, None] + frac[None, :]).ravel()
+    rows = curve(x)
+    ok = np.isfinite(rows).all(axis=1)
+    _, prog = at_param(tp, x, 0.0)
+    dev = np.zeros(len(x))
+    dev[ok] = angle_between(tool_axis_of(problem.machine, rows[ok]), prog[ok])
+    return bound, dev.reshape(len(feed), len(frac)).max(axis=1, initial=0.0)
+
+
+def compared_rounds(
+    label: str, restricted: Callable[..., np.ndarray]
+) -> tuple[Callable[..., np.ndarray], list[tuple[np.ndarray, np.ndarray]]]:
+    """A ``_beyond`` that runs ``restricted`` and the oracle and asserts they agree; and the
+    list it fills with each round's bounds and sampled deviations
+    (:func:`bound_and_deviation`)."""
+    rounds: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def both(problem, tp, curve, param, rot):  # type: ignore[no-untyped-def]
+        got = restricted(problem, tp, curve, param, rot)
+        want = beyond_everywhere(problem, tp, curve, param, rot)
+        assert np.array_equal(got, want), f"{label}: round {len(rounds)}"
+        rounds.append(bound_and_deviation(problem, tp, curve, param, rot, 32))
+        return got
+
+    return both, rounds
+
+
+@pytest.mark.parametrize("machine_name", MACHINES)
+def test_the_cone_flags_the_same_points_as_sampling_every_segment(
+    machine_name: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    m = load_machine(machine_name)
+    restricted = cone._beyond
+    for name, tp in jobs().items():
+        problem = Problem(m, tp, tool_length=m.settings.tool_length, tol=Tolerances())
+        both, rounds = compared_rounds(f"{machine_name}, {name}", restricted)
+        monkeypatch.setattr(cone, "_beyond", both)
+        plan = STRATEGIES["cone"](problem)
+        monkeypatch.setattr(cone, "_beyond", beyond_everywhere)
+        oracle = STRATEGIES["cone"](problem)
+        monkeypatch.setattr(cone, "_beyond", restricted)
+        assert rounds, name
+        # the same plan, to the bit
+        assert np.array_equal(plan.toolpath.tip, oracle.toolpath.tip)
+        assert np.array_equal(plan.toolpath.axis, oracle.toolpath.axis)
+        assert np.array_equal(plan.param, oracle.param)
+        assert np.array_equal(plan.rotary, oracle.rotary, equal_nan=True)
+        if plan.curve is not None:
+            assert oracle.curve is not None
+            x = np.linspace(0.0, len(plan.toolpath) - 1.0, 5 * len(plan.toolpath))
+            assert np.array_equal(plan.curve(x), oracle.curve(x), equal_nan=True)
+        # the bound holds on every segment, sampled four times finer than the cone samples
+        # (where it is tight, the exact rows' deviations and the samples' differ by rounding)
+        for bound, worst in rounds:
+            assert np.all(worst <= bound + 1e-12), (name, np.max(worst - bound))
+
+
+def test_the_jobs_make_the_cone_insert_points_and_the_bound_skip_most_segments() -> None:
+    """The comparison above is not empty: on dmu50 the cone inserts points on these jobs; and
+    on a raster as dense as a finishing job's (0.5 mm) the bound leaves most segments
+    unsampled (on the coarse rasters the tool axis turns by about the tolerance from one CL
+    point to the next, and the bound clears few)."""
+    m = load_machine("dmu50")
+    for name, tp in jobs().items():
+        problem = Problem(m, tp, tool_length=m.settings.tool_length, tol=Tolerances())
+        plan = STRATEGIES["cone"](problem)
+        assert plan.bent and len(plan.toolpath) > len(tp), name
+    plan = STRATEGIES["cone"](
+        Problem(m, hemisphere_raster(), tool_length=m.settings.tool_length, tol=Tolerances())
+    )
+    tp = plan.toolpath
+    feed = np.flatnonzero((tp.motion[1:] == Motion.FEED) & ~entry_mask(tp)[1:])
+    bound = cone._deviation_bound(m, tp, plan.param, plan.rotary, feed)
+    sampled = ~(bound <= np.radians(2.0))
+    assert 0 < sampled.sum() < 0.2 * feed.size
