@@ -178,6 +178,19 @@ def test_golden(control: str, expand: bool) -> None:
     assert text == path.read_text()
 
 
+@pytest.mark.parametrize("control", CONTROLS)
+def test_golden_tilted(control: str) -> None:
+    """The three flat cycles and the tilted hole: in a tilted plane (CYCL DEF 200 after PLANE
+    SPATIAL, CYCLE81 after CYCLE800, G81 after G68.2), on LinuxCNC as its motion."""
+    result = post(job(tilted=True), machine(), PostOptions(controller=control))
+    path = golden_path(control, "tilted")
+    if REGEN:
+        path.write_text(result.text)
+    assert path.exists(), f"missing golden file {path}; run with URDFPOST_REGEN_GOLDEN=1"
+    assert result.text == path.read_text()
+    assert result.verification.ok
+
+
 #: The lines of a control's cycles (block numbers stripped).
 CYCLE_LINES = {
     "heidenhain": (r"^CYCL DEF 200 DRILLING", r"^CYCL DEF 203 ", r"^CYCL DEF 207 ", r"M99$"),

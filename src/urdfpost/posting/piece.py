@@ -442,12 +442,11 @@ def post_piece(
             "is the control's (G41/G42, RL/RR): the program is the CL path, which "
             "verification checks; the control offsets it by the radius in its tool table"
         )
-    # 3+2 operations in tilted planes: whole TCP posts on a control that has them
+    # 3+2 operations in tilted planes: TCP posts on a control that has them, of whole tool
+    # sections (a streamed piece that begins or ends within one may cut an operation in two)
+    whole = piece is None or (piece.start is None and (piece.last or piece.leave))
     planes = (
-        job.tilted_planes
-        and job.tcp
-        and piece is None
-        and job.dialect.spec.plane_convention is not None
+        job.tilted_planes and job.tcp and whole and job.dialect.spec.plane_convention is not None
     )
     body = program_body(
         toolpath,
