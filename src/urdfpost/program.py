@@ -1243,6 +1243,23 @@ def arcs_as_moves(program: Program, max_step: float) -> Program:
     return replace(program, blocks=Blocks(out))
 
 
+def with_positions(
+    parts: Iterable[Block | MoveTable], width: int
+) -> Iterator[tuple[Block | MoveTable, np.ndarray]]:
+    """Each part with where the axes stand before it: per axis the last value the moves before
+    it give (NaN: none yet), shape (width,). The array is the walk's own: read it before the
+    next step."""
+    last = np.full(width, np.nan)
+    for part in parts:
+        yield part, last
+        if isinstance(part, MoveTable | Move):
+            table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], width)
+            known = ~np.isnan(table.position)
+            rows = np.where(known, np.arange(len(table))[:, None], -1).max(axis=0, initial=-1)
+            seen = rows >= 0
+            last[seen] = table.position[rows[seen], np.flatnonzero(seen)]
+
+
 def _in_frame(frame: np.ndarray, xyz: list[int], position: np.ndarray) -> np.ndarray:
     """``position`` (rows of program values, shape (k, m)) with its X, Y, Z taken from
     plane coordinates to the program's frame (``frame`` columns the plane's axes); NaN stays
@@ -1289,8 +1306,6 @@ def untilted(program: Program) -> Program:
     def switch(on: bool, offset: int | None = None) -> Tcp:
         return Tcp(on, offset)
 
-    where = np.full(len(rotary), np.nan)  # the rotary values last programmed
-
     def rotaries_stand(position: np.ndarray) -> None:
         values = position[:, rotary]
         assert stand is not None
@@ -1301,7 +1316,7 @@ def untilted(program: Program) -> Program:
                 "plane; expected the rotary axes to stand"
             )
 
-    for part in parts:
+    for part, where in with_positions(parts, len(axes)):
         if isinstance(part, TiltedPlane):
             if part.angles is None:
                 if frame is not None:
@@ -1309,17 +1324,9 @@ def untilted(program: Program) -> Program:
                 frame, stand = None, None
             else:
                 frame = part.frame()
-                stand = where.copy()
+                stand = where[rotary].copy()
                 out.append(switch(True, part.offset))
         elif frame is None:
-            if isinstance(part, Move | MoveTable):
-                table = (
-                    part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))
-                )
-                for i, j in enumerate(rotary):
-                    known = np.flatnonzero(~np.isnan(table.position[:, j]))
-                    if known.size:
-                        where[i] = table.position[known[-1], j]
             out.append(part)
         elif isinstance(part, Move | MoveTable):
             table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))

@@ -11,7 +11,15 @@ import numpy as np
 from urdfpost.errors import ProgramParseError
 from urdfpost.kinematics import tip_and_axis
 from urdfpost.machine import Machine
-from urdfpost.program import Clamp, Move, MoveTable, Program, TiltedPlane, untilted
+from urdfpost.program import (
+    Clamp,
+    Move,
+    MoveTable,
+    Program,
+    TiltedPlane,
+    untilted,
+    with_positions,
+)
 
 PLANE_AXIS_DEG = 0.01
 """Degrees. How far a tilted plane's Z may be from the tool axis of the rotary values it is
@@ -24,17 +32,10 @@ def plane_faults(program: Program, machine: Machine) -> list[str]:
     against the tool axis at the rotary values that stand when it is (more than
     :data:`PLANE_AXIS_DEG` apart, or the rotary values not known)."""
     axes = program.axes
-    last = np.full(len(axes), np.nan)
     faults: list[str] = []
     count = 0
-    for part in program.parts:
-        if isinstance(part, MoveTable | Move):
-            table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))
-            for j in range(len(axes)):
-                known = np.flatnonzero(~np.isnan(table.position[:, j]))
-                if known.size:
-                    last[j] = table.position[known[-1], j]
-        elif isinstance(part, TiltedPlane) and part.angles is not None:
+    for part, last in with_positions(program.parts, len(axes)):
+        if isinstance(part, TiltedPlane) and part.angles is not None:
             count += 1
             q = machine.home.copy()
             missing = []
@@ -69,11 +70,10 @@ def clamp_faults(program: Program) -> list[str]:
     :class:`~urdfpost.program.Clamp` on and off of it): one message per axis, at its first."""
     axes = program.axes
     clamped: dict[str, int] = {}  # axis -> the clamp's place among the program's clamps
-    last = np.full(len(axes), np.nan)
     faults: dict[str, str] = {}
     count = 0
     moves = 0
-    for part in program.parts:
+    for part, last in with_positions(program.parts, len(axes)):
         if isinstance(part, Clamp):
             count += 1
             if part.on:
@@ -94,10 +94,6 @@ def clamp_faults(program: Program) -> list[str]:
                         f"{axis} turns to {known[where[0]]:g} deg while clamped (clamp {at} of "
                         f"the program), near move {moves + 1}; expected it released first"
                     )
-            for j in range(len(axes)):
-                known_rows = np.flatnonzero(~np.isnan(table.position[:, j]))
-                if known_rows.size:
-                    last[j] = table.position[known_rows[-1], j]
             moves += len(table)
     return list(faults.values())
 
