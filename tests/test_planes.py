@@ -16,6 +16,7 @@ from __future__ import annotations
 import difflib
 import os
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -428,3 +429,16 @@ def test_a_clamp_code_the_control_has_is_refused(tmp_path: Path) -> None:
     m = load_machine(_machine_with(tmp_path, 'clamp="B:M8/M11"'))
     with pytest.raises(DialectError, match="clamp code M8 for B: fanuc has M8 for coolant flood"):
         post(job(), m, PostOptions(controller="fanuc"))
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_numbered_blocks_and_inch_read_back(controller: str) -> None:
+    """Block numbers (a Siemens MCALL after its N word was refused) and inch programs: the
+    planes, cycles and clamps read back and verify."""
+    tp = read_cl_text(drilling_job(tilted=True), source="drill.apt")
+    for options in (PostOptions(block_numbers=True), PostOptions(units="inch")):
+        result = post(tp, load_machine("dmu50"), replace(options, controller=controller))
+        back = DIALECTS[controller].read(result.text)
+        assert plane_count(back) == (controller in WITH_PLANES)
+        assert len([c for c in back.parts if isinstance(c, Cycle)]) >= 3
+        assert verify(back, load_machine("dmu50"), tp).ok

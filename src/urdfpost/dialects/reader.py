@@ -867,6 +867,8 @@ class _Call:
 
 
 _Token = _Word | _Keyword | _Assign | _Call
+_BLOCK_NUMBER = re.compile(r"N\d+\s+")
+
 _CALL_ARGS = re.compile(r"\(([^()]*)\)")
 
 _IDENT = re.compile(r"[A-Z_][A-Z0-9_]*")
@@ -1043,6 +1045,9 @@ def parse_gcode_line(spec: DialectSpec, builder: ProgramBuilder, raw: str) -> No
         text = ""
     if text.startswith("/"):  # block delete: the block runs unless the operator skips it
         text = text[1:]
+    number = _BLOCK_NUMBER.match(text)  # (N.. before a modal call: read past, as below)
+    if spec.cycle_lines is not None and number and text[number.end() :].startswith("MCALL"):
+        text = text[number.end() :]
     if spec.cycle_lines is not None and text.startswith("MCALL"):
         builder.code()
         _mcall(builder, text)
