@@ -42,6 +42,7 @@ from urdfpost.program import (
     untilted,
 )
 from urdfpost.readers import read_cl_text
+from urdfpost.toolpath import cycle_holes
 from urdfpost.verification import program_joints, verify
 
 GOLDEN = Path(__file__).parent / "golden" / "planes"
@@ -442,3 +443,26 @@ def test_numbered_blocks_and_inch_read_back(controller: str) -> None:
         assert plane_count(back) == (controller in WITH_PLANES)
         assert len([c for c in back.parts if isinstance(c, Cycle)]) >= 3
         assert verify(back, load_machine("dmu50"), tp).ok
+
+
+def test_the_view_draws_a_plane_program_in_the_workpiece_frame() -> None:
+    """The 3-D view reads the moves of a plane in the plane's frame: the trace's move ends are
+    at the CL points (in the plane's own coordinates they would be metres off)."""
+    import base64
+
+    from urdfpost.analysis.view import view_data
+
+    m = load_machine("dmu50")
+    result = posted("heidenhain")
+    dialect = DIALECTS["heidenhain"]
+    program = dialect.read(result.text)
+    data = view_data(m, program, result.text, dialect, cl=job())
+    n = data["samples"]
+    tip = np.frombuffer(base64.b64decode(data["tip"]), dtype="<f4").reshape(n, 3).astype(float)
+    move = np.frombuffer(base64.b64decode(data["move"]), dtype="<i4")
+    ends = np.flatnonzero(np.diff(np.append(move, -1)) != 0)
+    tp = job()
+    holes = {k for k, _ in cycle_holes(tp)}  # (drilled by the cycle, not drawn as moves)
+    cl = tp.tip[[k for k in range(len(tp)) if k not in holes]]
+    gap = np.linalg.norm(cl[:, None, :] - tip[ends][None, :, :], axis=2).min(axis=1)
+    assert gap.max() < 1e-2, gap.max()

@@ -71,6 +71,7 @@ from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.verification import program_joints
 from urdfpost.verification.feeds import tip_feeds
+from urdfpost.verification.planes import in_own_frame
 
 log = logging.getLogger(__name__)
 
@@ -587,6 +588,7 @@ def view_data(
             if not program.tcp and program.tool_length > 0
             else machine.settings.tool_length
         )
+    program = in_own_frame(program, machine)  # (tilted planes: the moves in the program's frame)
     written = program
     program = arcs_as_moves(program, ARC_STEP)  # the moves the control makes along its arcs
     q, rapid, feed = program_rows(machine, program, tool_length, dialect.spec.axis_feed_rule)
