@@ -243,3 +243,17 @@ RAPID
 GOTO/10,-20,30,{two}
 FINI
 """
+
+
+def long_indexed_job(points: int = 120) -> str:
+    """Two operations at a fixed tilt of ``points`` feed moves each (a zigzag in the plane's
+    frame), long enough for a verification in pieces to cut them."""
+    out = ["PARTNO LONG INDEXED", "UNITS/MM", "MULTAX/ON", "LOADTL/1", "SPINDL/RPM,8000,CLW"]
+    for axis in ((0.5, 0.0, 0.8660254), (0.0, -0.3420201, 0.9396926)):
+        i, j, k = axis
+        out += ["RAPID", f"GOTO/0,0,40,{i},{j},{k}", "FEDRAT/MMPM,500"]
+        for n in range(points):
+            x, y = (n % 2) * 20.0 - 10.0, n * 0.25 - 15.0
+            out.append(f"GOTO/{x:.4f},{y:.4f},{0.1 * (n % 3):.4f},{i},{j},{k}")
+        out += ["RAPID", f"GOTO/0,0,40,{i},{j},{k}"]
+    return "\n".join([*out, "FINI", ""])

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from jobs import drilling_job, indexed_job, rotary_sweep
+from jobs import drilling_job, indexed_job, long_indexed_job, rotary_sweep
 
 from urdfpost import load_machine
 from urdfpost.cli import main
@@ -466,3 +466,33 @@ def test_the_view_draws_a_plane_program_in_the_workpiece_frame() -> None:
     cl = tp.tip[[k for k in range(len(tp)) if k not in holes]]
     gap = np.linalg.norm(cl[:, None, :] - tip[ends][None, :, :], axis=2).min(axis=1)
     assert gap.max() < 1e-2, gap.max()
+
+
+@pytest.mark.parametrize("controller", WITH_PLANES)
+def test_verify_in_pieces_carries_a_plane_across_them(
+    controller: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``urdfpost verify --piece-points`` cuts the program inside its planes (read in the
+    plane's frame, the CL points are found there: without it no piece could be cut before the
+    plane's end), a piece that begins in a plane is read in it, and a damaged move there is
+    still found."""
+    cl = tmp_path / "long.apt"
+    cl.write_text(long_indexed_job())
+    out = tmp_path / f"long{DIALECTS[controller].extensions[0]}"
+    assert main(["post", str(cl), "-m", "dmu50", "-c", controller, "-o", str(out), "-q"]) == 0
+    text = out.read_text()
+    assert plane_count(DIALECTS[controller].read(text)) == 2
+    argv = ["verify", "-m", "dmu50", "--cl", str(cl), "-c", controller, "--piece-points", "25"]
+    capsys.readouterr()
+    assert main(["-v", *argv, str(out)]) == 0
+    assert capsys.readouterr().err.count("verified a piece") >= 6
+    # a feed move in the middle of the second plane moved by 0.3 mm in Y
+    lines = text.splitlines(True)
+    second = [i for i, ln in enumerate(lines) if re.search(r"PLANE SPATIAL|CYCLE800\(0|G68\.2", ln)]
+    k = next(i for i in range(second[1] + 60, len(lines)) if re.search(r"Y[+=]?-?\d", lines[i]))
+    lines[k] = re.sub(
+        r"Y([+=]?)(-?[\d.]+)", lambda m: f"Y{m[1]}{float(m[2]) + 0.3:.3f}", lines[k], count=1
+    )
+    bad = tmp_path / f"bad{out.suffix}"
+    bad.write_text("".join(lines))
+    assert main([*argv, str(bad)]) == 1

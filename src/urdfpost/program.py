@@ -1244,12 +1244,12 @@ def arcs_as_moves(program: Program, max_step: float) -> Program:
 
 
 def with_positions(
-    parts: Iterable[Block | MoveTable], width: int
+    parts: Iterable[Block | MoveTable], width: int, start: np.ndarray | None = None
 ) -> Iterator[tuple[Block | MoveTable, np.ndarray]]:
     """Each part with where the axes stand before it: per axis the last value the moves before
-    it give (NaN: none yet), shape (width,). The array is the walk's own: read it before the
-    next step."""
-    last = np.full(width, np.nan)
+    it give (``start``, default NaN: none yet), shape (width,). The array is the walk's own:
+    read it before the next step."""
+    last = np.full(width, np.nan) if start is None else np.array(start, dtype=float)
     for part in parts:
         yield part, last
         if isinstance(part, MoveTable | Move):
@@ -1286,67 +1286,91 @@ def untilted(program: Program) -> Program:
         point, which machine-coordinate programs do not have), a rotary axis that moves or an
         arc in a plane, a motion block in a plane whose X, Y and Z are not all known.
     """
-    parts = program.parts
-    if not any(isinstance(p, TiltedPlane) for p in parts):
-        return program
-    if not program.tcp:
-        raise ValueError(
-            "a tilted working plane in a machine-coordinate program; expected one only in a TCP "
-            "program"
-        )
-    axes = program.axes
-    if not all(a in axes for a in "XYZ"):
-        raise ValueError(f"a tilted working plane in a program without X, Y and Z ({axes})")
-    xyz = [axes.index(a) for a in "XYZ"]
-    rotary = [j for j, a in enumerate(axes) if a in program.rotary]
-    frame: np.ndarray | None = None
-    stand: np.ndarray | None = None  # the rotary values in the plane
-    out: list[Block | MoveTable] = []
+    return Untilter().feed(program)
 
-    def switch(on: bool, offset: int | None = None) -> Tcp:
-        return Tcp(on, offset)
 
-    def rotaries_stand(position: np.ndarray) -> None:
-        values = position[:, rotary]
-        assert stand is not None
-        moved = ~np.isnan(values) & ~np.isclose(values, stand, rtol=0.0, atol=1e-9)
-        if moved.any():
+class Untilter:
+    """:func:`untilted` of a program given in pieces, in order: a plane switched on in one
+    piece holds in the next (where the axes stand, the plane on and its rotary values are
+    carried over)."""
+
+    def __init__(self) -> None:
+        self.frame: np.ndarray | None = None  # the plane on (its axes, columns)
+        self.stand: dict[str, float] = {}  # the rotary values in it
+        self.last: dict[str, float] = {}  # where the axes stand, as programmed
+
+    def feed(self, program: Program) -> Program:
+        """The next piece of the program, untilted (raises as :func:`untilted`)."""
+        parts = program.parts
+        axes = program.axes
+        if self.frame is None and not any(isinstance(p, TiltedPlane) for p in parts):
+            self._remember(program)
+            return program
+        if not program.tcp:
             raise ValueError(
-                f"{axes[rotary[int(np.argmax(moved.any(axis=0)))]]} moves in a tilted working "
-                "plane; expected the rotary axes to stand"
+                "a tilted working plane in a machine-coordinate program; expected one only in a "
+                "TCP program"
             )
+        if not all(a in axes for a in "XYZ"):
+            raise ValueError(f"a tilted working plane in a program without X, Y and Z ({axes})")
+        xyz = [axes.index(a) for a in "XYZ"]
+        rotary = [j for j, a in enumerate(axes) if a in program.rotary]
+        out: list[Block | MoveTable] = []
 
-    for part, where in with_positions(parts, len(axes)):
-        if isinstance(part, TiltedPlane):
-            if part.angles is None:
-                if frame is not None:
-                    out.append(switch(False))
-                frame, stand = None, None
+        def rotaries_stand(position: np.ndarray) -> None:
+            for j in rotary:
+                stand = self.stand.get(axes[j], math.nan)
+                values = position[:, j]
+                moved = ~np.isnan(values) & ~np.isclose(values, stand, rtol=0.0, atol=1e-9)
+                if moved.any():
+                    raise ValueError(
+                        f"{axes[j]} moves in a tilted working plane; expected the rotary axes to "
+                        "stand"
+                    )
+
+        start = np.array([self.last.get(a, math.nan) for a in axes])
+        for part, where in with_positions(parts, len(axes), start):
+            frame = self.frame
+            if isinstance(part, TiltedPlane):
+                if part.angles is None:
+                    if frame is not None:
+                        out.append(Tcp(False))
+                    self.frame, self.stand = None, {}
+                else:
+                    self.frame = part.frame()
+                    self.stand = {axes[j]: float(where[j]) for j in rotary}
+                    out.append(Tcp(True, part.offset))
+            elif frame is None:
+                out.append(part)
+            elif isinstance(part, Move | MoveTable):
+                width = len(axes)
+                table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], width)
+                if np.isnan(table.position[:, xyz]).any():
+                    raise ValueError(
+                        "a move in a tilted working plane without all of X, Y and Z known; "
+                        "expected every axis written after the plane is switched on"
+                    )
+                rotaries_stand(table.position)
+                moved = _in_frame(frame, xyz, table.position)
+                out.append(MoveTable(moved, table.rapid, table.feed, table.cl_line))
+            elif isinstance(part, Cycle):
+                holes = np.array(part.holes, dtype=float)
+                rotaries_stand(holes)
+                up = np.zeros(len(axes))
+                up[xyz] = frame[:, 2]
+                turned = _in_frame(frame, xyz, holes)
+                out.append(replace(part, holes=tuple(map(tuple, turned.tolist())), up=tuple(up)))
+            elif isinstance(part, Arc):
+                raise ValueError("an arc in a tilted working plane; expected lines there")
             else:
-                frame = part.frame()
-                stand = where[rotary].copy()
-                out.append(switch(True, part.offset))
-        elif frame is None:
-            out.append(part)
-        elif isinstance(part, Move | MoveTable):
-            table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], len(axes))
-            if np.isnan(table.position[:, xyz]).any():
-                raise ValueError(
-                    "a move in a tilted working plane without all of X, Y and Z known; expected "
-                    "every axis written after the plane is switched on"
-                )
-            rotaries_stand(table.position)
-            moved = _in_frame(frame, xyz, table.position)
-            out.append(MoveTable(moved, table.rapid, table.feed, table.cl_line))
-        elif isinstance(part, Cycle):
-            holes = np.array(part.holes, dtype=float)
-            rotaries_stand(holes)
-            up = np.zeros(len(axes))
-            up[xyz] = frame[:, 2]
-            turned = _in_frame(frame, xyz, holes)
-            out.append(replace(part, holes=tuple(map(tuple, turned.tolist())), up=tuple(up)))
-        elif isinstance(part, Arc):
-            raise ValueError("an arc in a tilted working plane; expected lines there")
-        else:
-            out.append(part)
-    return replace(program, blocks=Blocks(out))
+                out.append(part)
+        self._remember(program)
+        return replace(program, blocks=Blocks(out))
+
+    def _remember(self, program: Program) -> None:
+        """Where the axes stand after ``program`` (as programmed: plane coordinates in one)."""
+        table = program.move_table()
+        for j, a in enumerate(program.axes):
+            known = np.flatnonzero(~np.isnan(table.position[:, j]))
+            if known.size:
+                self.last[a] = float(table.position[known[-1], j])

@@ -33,6 +33,7 @@ from urdfpost.verification import (
     verify,
 )
 from urdfpost.verification.feeds import FeedCheck, FeedRules
+from urdfpost.verification.planes import PlaneFrames
 from urdfpost.verification.process import ProcessChecker
 
 log = logging.getLogger(__name__)
@@ -284,6 +285,7 @@ def verify_stream(
     rollover = machine.settings.rollover
     dialect = dialect_for(controller).with_clamps(machine.settings.clamps)
     reader = dialect.reader(path=str(program_path), rollover=rollover)
+    frames = PlaneFrames(machine)
     text_source = iter(program_texts(program_path) if texts is None else texts)
     cl_source = iter(cl_pieces)
     program: Program | None = None
@@ -318,7 +320,7 @@ def verify_stream(
                 program_ends = True
                 continue
             reader.feed(text)
-            taken = reader.take()
+            taken = frames.feed(reader.take())  # (the planes' moves in the program's frame)
             smoothing += [b for b in taken.parts if isinstance(b, Smoothing)]
             program = _joined_programs(program, taken)
         if program is None:

@@ -40,6 +40,7 @@ from urdfpost.posting.check import CheckTarget, check_piece, tolerance_error
 from urdfpost.program import Blocks, Insert, MoveTable, Program, arcs_as_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.verification import Verification
+from urdfpost.verification.planes import PlaneFrames
 
 if TYPE_CHECKING:
     from urdfpost.posting.piece import PostedPiece
@@ -113,6 +114,7 @@ class PieceVerifier:
         rollover = machine.settings.rollover
         dialect = dialect_for(controller).with_clamps(machine.settings.clamps)
         self.reader = dialect.reader(path=path, rollover=rollover)
+        self.frames = PlaneFrames(machine)
         self.previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
 
     def check(
@@ -128,7 +130,7 @@ class PieceVerifier:
             Either misses its tolerance.
         """
         self.reader.feed(job.text, job.inserts)
-        readback = self.reader.take()
+        readback = self.frames.feed(self.reader.take())  # (the planes' moves in the program's)
         if self.previous is not None and not job.fresh:
             readback = _prepended(readback, *self.previous)
         checks = check_piece(readback, machine or self.machine, job.target, self.tol)

@@ -17,7 +17,7 @@ from urdfpost.program import (
     MoveTable,
     Program,
     TiltedPlane,
-    untilted,
+    Untilter,
     with_positions,
 )
 
@@ -27,14 +27,20 @@ switched on at: the angles are written to 0.0001 degree, and a tool axis off the
 by this much moves the tip by 0.02 mm over a 100 mm deep move along it."""
 
 
-def plane_faults(program: Program, machine: Machine) -> list[str]:
+def plane_faults(
+    program: Program,
+    machine: Machine,
+    start: np.ndarray | None = None,
+    count: int = 0,
+) -> list[str]:
     """What is wrong with the tilted planes of ``program``: per plane switched on, its Z
     against the tool axis at the rotary values that stand when it is (more than
-    :data:`PLANE_AXIS_DEG` apart, or the rotary values not known)."""
+    :data:`PLANE_AXIS_DEG` apart, or the rotary values not known). ``start``: where the axes
+    stand before it (a piece of a program; default not known), ``count``: the planes before
+    it (for the messages)."""
     axes = program.axes
     faults: list[str] = []
-    count = 0
-    for part, last in with_positions(program.parts, len(axes)):
+    for part, last in with_positions(program.parts, len(axes), start):
         if isinstance(part, TiltedPlane) and part.angles is not None:
             count += 1
             q = machine.home.copy()
@@ -109,10 +115,35 @@ def in_own_frame(program: Program, machine: Machine) -> Program:
     """
     if not any(isinstance(p, TiltedPlane) for p in program.parts):
         return program
-    faults = plane_faults(program, machine)
-    if faults:
-        raise ProgramParseError(program.name, 0, "; ".join(faults))
-    try:
-        return untilted(program)
-    except ValueError as e:
-        raise ProgramParseError(program.name, 0, str(e)) from None
+    return PlaneFrames(machine).feed(program)
+
+
+class PlaneFrames:
+    """:func:`in_own_frame` of a program read in pieces, in order (a plane switched on in one
+    piece holds in the next: :class:`urdfpost.program.Untilter`)."""
+
+    def __init__(self, machine: Machine) -> None:
+        self.machine = machine
+        self.untilter = Untilter()
+        self.planes = 0  # switched on so far
+
+    def feed(self, program: Program) -> Program:
+        """The next piece, its planes checked and taken out.
+
+        Raises
+        ------
+        ProgramParseError
+            As :func:`in_own_frame`.
+        """
+        ons = sum(1 for p in program.parts if isinstance(p, TiltedPlane) and p.angles is not None)
+        if ons:
+            last = self.untilter.last
+            start = np.array([last.get(a, math.nan) for a in program.axes])
+            faults = plane_faults(program, self.machine, start, self.planes)
+            if faults:
+                raise ProgramParseError(program.name, 0, "; ".join(faults))
+        self.planes += ons
+        try:
+            return self.untilter.feed(program)
+        except ValueError as e:
+            raise ProgramParseError(program.name, 0, str(e)) from None

@@ -77,7 +77,7 @@ from urdfpost.program import (
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
-from urdfpost.verification.planes import in_own_frame
+from urdfpost.verification.planes import PlaneFrames, in_own_frame
 
 if TYPE_CHECKING:
     from urdfpost.dialects.dialect import Dialect
@@ -783,6 +783,7 @@ class PieceProcess:
             machine, tol=tol, tool_length=tool_length, rounding=rounding, end=end_words(dialect)
         )
         self.reader = dialect.reader(path, rollover=machine.settings.rollover)
+        self.frames = PlaneFrames(machine)
         self._last: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
 
     def add(
@@ -806,7 +807,7 @@ class PieceProcess:
             A line that cannot be read.
         """
         self.reader.feed(text, inserts)
-        program = self.reader.take()
+        program = self.frames.feed(self.reader.take())  # (the planes' moves in the program's)
         if self._last is not None and not fresh:
             axes, row = self._last
             position = np.array([row[axes.index(a)] if a in axes else np.nan for a in program.axes])
