@@ -194,10 +194,13 @@ def _stretches(
     starts = np.union1d(starts, cut[stands[cut]]) if cut.size else starts
     out: list[_Stretch] = []
     columns = [machine.axis_names.index(axes[j]) for j in rotary]
-    for a in starts.tolist():
-        b = a
-        while b + 1 < n and stands[b + 1] and (b + 1) not in breaks:
-            b += 1
+    # a stretch from row a goes on while the rows stand with nothing that ends it before them
+    goes_on = stands.copy()
+    goes_on[cut] = False
+    stops = np.flatnonzero(~goes_on)
+    ends = np.searchsorted(stops, starts + 1)
+    lasts = np.where(ends < len(stops), stops[np.minimum(ends, len(stops) - 1)] - 1, n - 1)
+    for a, b in zip(starts.tolist(), lasts.tolist(), strict=True):
         entered = a == 0 or (a in breaks and a not in dirty) or bool(rapid[a - 1])
         left = b == n - 1 or ((b + 1) in breaks and (b + 1) not in dirty) or bool(rapid[b + 1])
         if not (entered and left) or bool(rapid[a : b + 1].all()):
@@ -271,10 +274,9 @@ def tilted_planes(
         for i, s in enumerate(stretches)
         if s.first > 0 and s.first not in breaks and s.first not in entries
     }
-    row_of_part: dict[int, tuple[int, int]] = {}
-    for k in np.unique(owner).tolist():
-        rows = np.flatnonzero(owner == k)
-        row_of_part[k] = (int(rows[0]), int(rows[-1]) + 1)
+    # the first row of each part with motion (the rows are in part order)
+    first_rows = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]]) if len(owner) else owner
+    row_of_part = dict(zip(owner[first_rows].tolist(), first_rows.tolist(), strict=True))
     out: list[Block | MoveTable] = []
     tcp = [False]  # TCP on as the program has it
     out_tcp = [False]  # TCP on as written here
@@ -346,9 +348,12 @@ def tilted_planes(
             # already, after a plane, is not written)
         elif isinstance(part, MoveTable | Move):
             table = part if isinstance(part, MoveTable) else MoveTable.from_moves([part], width)
-            moves(table, row_of_part[k][0])
+            if len(table):
+                moves(table, row_of_part[k])
+            else:
+                out.append(part)
         elif isinstance(part, Cycle):
-            row = row_of_part[k][0]
+            row = row_of_part[k]
             plane = int(in_plane[row])
             if plane >= 0:
                 if active[0] != plane:
