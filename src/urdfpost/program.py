@@ -1269,6 +1269,11 @@ def _in_frame(frame: np.ndarray, xyz: list[int], position: np.ndarray) -> np.nda
     return out
 
 
+def plane_count(program: Program) -> int:
+    """Tilted working planes switched on in ``program``."""
+    return sum(1 for p in program.parts if isinstance(p, TiltedPlane) and p.angles is not None)
+
+
 def untilted(program: Program) -> Program:
     """``program`` with its tilted working planes (:class:`TiltedPlane`) taken out: the moves
     and the canned cycles' holes in a plane in the program's own frame, as the control runs

@@ -62,7 +62,10 @@ from urdfpost.program import (
     Tcp,
     TiltedPlane,
     expand_cycle,
+    plane_count,
 )
+
+__all__ = ["PlaneFigures", "plane_count", "tilted_planes"]
 
 log = logging.getLogger(__name__)
 
@@ -438,8 +441,3 @@ def _cycles_in_plane(
             )
         )
     return out
-
-
-def plane_count(program: Program) -> int:
-    """Tilted working planes switched on in ``program``."""
-    return sum(1 for p in program.parts if isinstance(p, TiltedPlane) and p.angles is not None)

@@ -18,6 +18,7 @@ from urdfpost.program import (
     Program,
     TiltedPlane,
     Untilter,
+    plane_count,
     with_positions,
 )
 
@@ -135,7 +136,7 @@ class PlaneFrames:
         ProgramParseError
             As :func:`in_own_frame`.
         """
-        ons = sum(1 for p in program.parts if isinstance(p, TiltedPlane) and p.angles is not None)
+        ons = plane_count(program)
         if ons:
             last = self.untilter.last
             start = np.array([last.get(a, math.nan) for a in program.axes])

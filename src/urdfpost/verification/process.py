@@ -69,9 +69,9 @@ from urdfpost.program import (
     Program,
     Spindle,
     Tcp,
-    TiltedPlane,
     ToolChange,
     arcs_as_moves,
+    plane_count,
     rewind_moves,
 )
 from urdfpost.tolerances import Tolerances
@@ -890,11 +890,7 @@ def _counts(program: Program) -> tuple[int, int, int]:
     """Motion blocks (moves and arcs), tool changes and TCP switches on of ``program`` (a tilted
     plane switched on counts as one: :func:`urdfpost.program.untilted`)."""
     tools = sum(1 for p in program.parts if isinstance(p, ToolChange))
-    tcps = sum(
-        1
-        for p in program.parts
-        if (isinstance(p, Tcp) and p.on) or (isinstance(p, TiltedPlane) and p.angles is not None)
-    )
+    tcps = sum(1 for p in program.parts if isinstance(p, Tcp) and p.on) + plane_count(program)
     arcs = sum(1 for p in program.parts if isinstance(p, Arc))
     return len(program.move_table()) + arcs, tools, tcps
 
