@@ -293,3 +293,40 @@ def test_orientation_path_chord2_is_the_dense_minimum(
     at_u = omega * np.clip(u, 0.0, 1.0)[:, None]
     exact = np.sqrt(((v - np.cos(at_u) * v0 - np.sin(at_u) * across) ** 2).sum(axis=-1))
     np.testing.assert_allclose(np.sqrt(at), exact, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(("seed", "window"), [(0, 0.036), (1, 2.0), (2, 0.036)])
+def test_long_spans_are_searched_with_bounds_to_the_same_result(
+    seed: int, window: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Blocks compared with long CL spans (a program that left its path: a run of CL points
+    missed) have their far segments ruled out by bounds; the nearest segment (the first of
+    equals), its chord and the best chord within the window are those of taking every segment
+    in turn, to the bit: on a helix with a run of repeated points (zero-length segments),
+    samples on CL points (ties), near the path and tens of millimetres away."""
+    from urdfpost.verification import measure
+
+    rng = np.random.default_rng(seed)
+    n, k, s = 1500, 300, 5
+    t = np.linspace(0.0, 30.0, n)
+    tip = np.stack([20 * np.cos(t), 20 * np.sin(t), 0.05 * t], axis=1)
+    tip[:, 0] += 0.01 * rng.standard_normal(n)
+    tip[500:520] = tip[500]
+    axis = rng.standard_normal((n, 3)) * 0.1 + [0.0, 0.0, 1.0]
+    axis /= np.linalg.norm(axis, axis=1)[:, None]
+    polyline = measure._Polyline.of(tip, axis)
+    ja = rng.integers(0, n - 1, k)
+    jb = np.minimum(ja + rng.integers(0, 1000, k), n - 1)
+    jb[:40] = np.minimum(ja[:40] + rng.integers(0, 40, 40), n - 1)
+    at = tip[ja][None] + rng.standard_normal((s, k, 3)) * rng.choice([0.01, 1.0, 30.0], (s, k, 1))
+    at[0, :20] = tip[np.minimum(ja[:20] + 1, n - 1)]  # on a CL point: equal distances
+    ax = rng.standard_normal((s, k, 3)) * 0.1 + [0.0, 0.0, 1.0]
+    ax /= np.linalg.norm(ax, axis=2)[..., None]
+    points = (at[..., 0], at[..., 1], at[..., 2])
+    axes = (ax[..., 0], ax[..., 1], ax[..., 2])
+    assert (jb - ja > measure._LONG).sum() > 100
+    got = measure._span_deviation(points, axes, polyline, ja, jb, window)
+    monkeypatch.setattr(measure, "_LONG", n)  # every segment in turn
+    want = measure._span_deviation(points, axes, polyline, ja, jb, window)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import asdict, dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -57,6 +58,15 @@ log = logging.getLogger(__name__)
 _SAMPLES = 8
 """Samples inside every block, besides its ends (the bounds of :meth:`_Blocks.bounds` are of
 second order in their spacing, so few blocks need refining after 8)."""
+
+_LONG = 32
+"""Blocks compared with more CL segments than this (a program that left the CL path, where a
+run of CL points is missed) have their other segments searched with bounds
+(:func:`_far_segments`) rather than one by one: the work per sample grows with the segments
+near it, not with the span."""
+
+_GROUP = 16
+"""Consecutive CL segments bounded together by one sphere (:attr:`_Polyline.groups`)."""
 
 _ITERATIONS = 14
 """Golden-section iterations of the refinement: the bracket of two sample spacings shrinks to
@@ -194,6 +204,19 @@ class _Polyline:
     def __len__(self) -> int:
         return len(self.tip[0])
 
+    @cached_property
+    def groups(self) -> tuple[VecArrays, np.ndarray]:
+        """Bounding spheres of the CL points ``_GROUP g .. _GROUP (g + 1)``, and so of the
+        segments ``_GROUP g .. _GROUP (g + 1) - 1``: centres (coordinate arrays, mm) and radii
+        (mm), shape (ceil(n / _GROUP),)."""
+        n = len(self)
+        starts = np.arange(0, max(n, 1), _GROUP)
+        index = np.minimum(starts[:, None] + np.arange(_GROUP + 1), max(n - 1, 0))
+        pts = [c[index] for c in self.tip]
+        centre = tuple(p.mean(axis=1) for p in pts)
+        r2 = sum((p - c[:, None]) ** 2 for p, c in zip(pts, centre, strict=True))
+        return (centre[0], centre[1], centre[2]), np.sqrt(r2.max(axis=1))
+
     def take(self, index: np.ndarray) -> tuple[Segments, Arcs]:
         """The segments of the tips (mm) and the arcs of the axes (slerp) from CL points
         ``index`` to the next ones, shape (k,)."""
@@ -238,7 +261,8 @@ def _span_deviation(
     (:func:`urdfpost.linearize.orientation_path_chord2`; the whole arc for a segment shorter
     than the window, such as a reorientation in place), the smallest over the segments whose
     tip is within ``window`` of the sample, or that of the nearest segment when none is
-    (``docs/verification.md``).
+    (``docs/verification.md``). Spans of more than :data:`_LONG` segments are searched with
+    bounds (:func:`_far_segments`), to the same result.
 
     Parameters
     ----------
@@ -267,8 +291,10 @@ def _span_deviation(
     last = len(polyline) - 1
     window2 = window * window
     dist2 = chord2 = within = np.zeros(0)
-    for off in range(int(span.max(initial=1))):
-        cols = np.flatnonzero(span > off) if off else slice(None)
+    long = span > _LONG
+    short_max = int(span[~long].max(initial=1))
+    for off in range(short_max):
+        cols = np.flatnonzero((span > off) & ~long) if off else slice(None)
         a = np.minimum(ja[cols] + off, last)
         pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
         axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
@@ -288,9 +314,112 @@ def _span_deviation(
         dist2[:, cols] = np.where(better, d2, dist2[:, cols])
         chord2[:, cols] = np.where(better, c2, chord2[:, cols])
         within[:, cols] = np.minimum(within[:, cols], np.where(d2 <= window2, c2, np.inf))
+    if long.any():
+        _far_segments(
+            points, axes, polyline, ja, jb, window, np.flatnonzero(long), dist2, chord2, within
+        )
     if int(span.max(initial=1)) > 1:
         chord2 = np.where(np.isfinite(within), within, chord2)
     return dist2, chord2
+
+
+def _far_segments(
+    points: VecArrays,
+    axes: VecArrays,
+    polyline: _Polyline,
+    ja: np.ndarray,
+    jb: np.ndarray,
+    window: float,
+    cols: np.ndarray,
+    dist2: np.ndarray,
+    chord2: np.ndarray,
+    within: np.ndarray,
+) -> None:
+    """The segments after the first of long spans, for :func:`_span_deviation`: the same
+    nearest segment (the first of equals), chord and best chord within the window as taking
+    them one by one, from the segments that can be nearest or within the window only.
+
+    A sample's distance from the span is at most its distance ``ub`` from any CL point of the
+    span (one per group of :data:`_GROUP` segments, and the first segment's, already known).
+    A segment farther than ``max(ub, window)`` from the sample (by the bounding sphere of its
+    group, then by its own: distance to its midpoint less half its length) is neither the
+    nearest nor within the window, and is not evaluated. The bounds get a relative and
+    absolute slack of 1e-9 (mm) against rounding; more segments evaluated change nothing.
+
+    Parameters
+    ----------
+    points, axes, polyline, ja, jb, window
+        As :func:`_span_deviation`.
+    cols : ndarray, shape (m,), int
+        The long blocks (their first segment, ``ja``, already in ``dist2``, ``chord2`` and
+        ``within``).
+    dist2, chord2, within : ndarray, shape (s, n)
+        Updated in place at ``cols``.
+    """
+    s = points[0].shape[0]
+    px, py, pz = polyline.tip
+    (cx, cy, cz), radius = polyline.groups
+    first, stop = ja[cols] + 1, jb[cols]  # the segments first .. stop - 1 of each block
+    g0, g1 = first // _GROUP, (stop - 1) // _GROUP
+    ng = g1 - g0 + 1
+    # triples (sample, block, group), the block running slowest
+    col = np.repeat(np.arange(len(cols)), ng)
+    grp = np.arange(len(col)) - np.repeat(np.cumsum(ng) - ng, ng) + np.repeat(g0, ng)
+    col = np.tile(col, s)
+    grp = np.tile(grp, s)
+    sample = np.repeat(np.arange(s), len(col) // s)
+    block = cols[col]
+    qx, qy, qz = (c[sample, block] for c in points)
+    rep = np.clip(grp * _GROUP + _GROUP // 2, first[col], stop[col])  # a CL point of the span
+    near = np.sqrt((qx - px[rep]) ** 2 + (qy - py[rep]) ** 2 + (qz - pz[rep]) ** 2)
+    key = sample * len(cols) + col  # (sample, block), one per key
+    ub = np.sqrt(dist2[:, cols]).ravel()  # from the first segment
+    np.minimum.at(ub, key, near)
+    threshold = np.maximum(ub, window) * (1.0 + 1e-9) + 1e-9
+    gap = np.sqrt((qx - cx[grp]) ** 2 + (qy - cy[grp]) ** 2 + (qz - cz[grp]) ** 2) - radius[grp]
+    keep = gap <= threshold[key]
+    key, grp, col = key[keep], grp[keep], col[keep]
+    # the segments of the groups kept, within each block's span
+    lo = np.maximum(grp * _GROUP, first[col])
+    hi = np.minimum(grp * _GROUP + _GROUP, stop[col])
+    count = hi - lo
+    key, col = np.repeat(key, count), np.repeat(col, count)
+    seg_index = (
+        np.arange(len(key)) - np.repeat(np.cumsum(count) - count, count) + np.repeat(lo, count)
+    )
+    sample, block = key // len(cols), cols[col]
+    qx, qy, qz = (c[sample, block] for c in points)
+    nxt = np.minimum(seg_index + 1, len(polyline) - 1)
+    mx, my, mz = ((c[seg_index] + c[nxt]) * 0.5 for c in polyline.tip)
+    half_length = 0.5 * np.sqrt(
+        (px[nxt] - px[seg_index]) ** 2
+        + (py[nxt] - py[seg_index]) ** 2
+        + (pz[nxt] - pz[seg_index]) ** 2
+    )
+    gap = np.sqrt((qx - mx) ** 2 + (qy - my) ** 2 + (qz - mz) ** 2) - half_length
+    keep = gap <= threshold[key]
+    key, seg_index, sample, block = key[keep], seg_index[keep], sample[keep], block[keep]
+    if not key.size:
+        return
+    seg, arc = polyline.take(seg_index)
+    pts = (points[0][sample, block], points[1][sample, block], points[2][sample, block])
+    axs = (axes[0][sample, block], axes[1][sample, block], axes[2][sample, block])
+    outside: list[np.ndarray] = []
+    d2, t = seg.distance2(pts, outside)
+    u = np.where(t >= 1.0, 1.0 + outside[0], t - outside[0])  # not clipped
+    half = np.where(seg.inv_dd > 0, window * np.sqrt(seg.inv_dd), np.inf)
+    _, c2 = orientation_path_chord2(arc, axs, u, half)
+    # per key: the nearest segment, the first of equals (the smallest index)
+    order = np.lexsort((seg_index, d2, key))
+    head = order[np.r_[True, key[order][1:] != key[order][:-1]]]
+    at = (sample[head], block[head])
+    better = d2[head] < dist2[at]
+    dist2[at] = np.where(better, d2[head], dist2[at])
+    chord2[at] = np.where(better, c2[head], chord2[at])
+    best = np.full(len(cols) * s, np.inf)
+    np.minimum.at(best, key, np.where(d2 <= window * window, c2, np.inf))
+    best = best.reshape(s, len(cols))
+    within[:, cols] = np.minimum(within[:, cols], best)
 
 
 @dataclass(frozen=True)
