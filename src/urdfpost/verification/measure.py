@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import logging
 from dataclasses import asdict, dataclass, field, replace
-from functools import cached_property
 
 import numpy as np
 
@@ -65,8 +64,9 @@ run of CL points is missed) have their other segments searched with bounds
 (:func:`_far_segments`) rather than one by one: the work per sample grows with the segments
 near it, not with the span."""
 
-_GROUP = 16
-"""Consecutive CL segments bounded together by one sphere (:attr:`_Polyline.groups`)."""
+_GROUPS = (64, 8)
+"""Sizes of the groups of consecutive CL segments bounded by one sphere
+(:meth:`_Polyline.spheres`), coarse to fine, each a multiple of the next."""
 
 _ITERATIONS = 14
 """Golden-section iterations of the refinement: the bracket of two sample spacings shrinks to
@@ -195,6 +195,9 @@ class _Polyline:
 
     tip: VecArrays
     axis: VecArrays
+    _spheres: dict[int, tuple[VecArrays, np.ndarray]] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     @classmethod
     def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
@@ -204,18 +207,20 @@ class _Polyline:
     def __len__(self) -> int:
         return len(self.tip[0])
 
-    @cached_property
-    def groups(self) -> tuple[VecArrays, np.ndarray]:
-        """Bounding spheres of the CL points ``_GROUP g .. _GROUP (g + 1)``, and so of the
-        segments ``_GROUP g .. _GROUP (g + 1) - 1``: centres (coordinate arrays, mm) and radii
-        (mm), shape (ceil(n / _GROUP),)."""
-        n = len(self)
-        starts = np.arange(0, max(n, 1), _GROUP)
-        index = np.minimum(starts[:, None] + np.arange(_GROUP + 1), max(n - 1, 0))
-        pts = [c[index] for c in self.tip]
-        centre = tuple(p.mean(axis=1) for p in pts)
-        r2 = sum((p - c[:, None]) ** 2 for p, c in zip(pts, centre, strict=True))
-        return (centre[0], centre[1], centre[2]), np.sqrt(r2.max(axis=1))
+    def spheres(self, size: int) -> tuple[VecArrays, np.ndarray]:
+        """Bounding spheres of the CL points ``size g .. size (g + 1)``, and so of the segments
+        ``size g .. size (g + 1) - 1``: centres (coordinate arrays, mm) and radii (mm), shape
+        (ceil(n / size),). Made once per size."""
+        if size not in self._spheres:
+            n = len(self)
+            index = np.minimum(
+                np.arange(0, max(n, 1), size)[:, None] + np.arange(size + 1), max(n - 1, 0)
+            )
+            pts = [c[index] for c in self.tip]
+            centre = [p.mean(axis=1) for p in pts]
+            r2 = sum((p - c[:, None]) ** 2 for p, c in zip(pts, centre, strict=True))
+            self._spheres[size] = ((centre[0], centre[1], centre[2]), np.sqrt(np.max(r2, axis=1)))
+        return self._spheres[size]
 
     def take(self, index: np.ndarray) -> tuple[Segments, Arcs]:
         """The segments of the tips (mm) and the arcs of the axes (slerp) from CL points
@@ -340,11 +345,13 @@ def _far_segments(
     them one by one, from the segments that can be nearest or within the window only.
 
     A sample's distance from the span is at most its distance ``ub`` from any CL point of the
-    span (one per group of :data:`_GROUP` segments, and the first segment's, already known).
-    A segment farther than ``max(ub, window)`` from the sample (by the bounding sphere of its
-    group, then by its own: distance to its midpoint less half its length) is neither the
-    nearest nor within the window, and is not evaluated. The bounds get a relative and
-    absolute slack of 1e-9 (mm) against rounding; more segments evaluated change nothing.
+    span (one per group of segments looked at, and the first segment's distance, already
+    known). A group of segments farther than ``max(ub, window)`` from the sample (by its
+    bounding sphere, :meth:`_Polyline.spheres`; groups of :data:`_GROUPS` segments, coarse to
+    fine) holds neither the nearest segment nor one within the window, and is not looked into;
+    nor is a segment farther than that by its own bound (distance to its midpoint less half its
+    length). The bounds get a relative and absolute slack of 1e-9 (mm) against rounding; more
+    segments evaluated change nothing.
 
     Parameters
     ----------
@@ -356,52 +363,63 @@ def _far_segments(
     dist2, chord2, within : ndarray, shape (s, n)
         Updated in place at ``cols``.
     """
-    s = points[0].shape[0]
+    s, m = points[0].shape[0], len(cols)
     px, py, pz = polyline.tip
-    (cx, cy, cz), radius = polyline.groups
     first, stop = ja[cols] + 1, jb[cols]  # the segments first .. stop - 1 of each block
-    g0, g1 = first // _GROUP, (stop - 1) // _GROUP
-    ng = g1 - g0 + 1
-    # triples (sample, block, group), the block running slowest
-    col = np.repeat(np.arange(len(cols)), ng)
-    grp = np.arange(len(col)) - np.repeat(np.cumsum(ng) - ng, ng) + np.repeat(g0, ng)
-    col = np.tile(col, s)
-    grp = np.tile(grp, s)
-    sample = np.repeat(np.arange(s), len(col) // s)
-    block = cols[col]
-    qx, qy, qz = (c[sample, block] for c in points)
-    rep = np.clip(grp * _GROUP + _GROUP // 2, first[col], stop[col])  # a CL point of the span
-    near = np.sqrt((qx - px[rep]) ** 2 + (qy - py[rep]) ** 2 + (qz - pz[rep]) ** 2)
-    key = sample * len(cols) + col  # (sample, block), one per key
-    ub = np.sqrt(dist2[:, cols]).ravel()  # from the first segment
-    np.minimum.at(ub, key, near)
-    threshold = np.maximum(ub, window) * (1.0 + 1e-9) + 1e-9
-    gap = np.sqrt((qx - cx[grp]) ** 2 + (qy - cy[grp]) ** 2 + (qz - cz[grp]) ** 2) - radius[grp]
-    keep = gap <= threshold[key]
-    key, grp, col = key[keep], grp[keep], col[keep]
-    # the segments of the groups kept, within each block's span
-    lo = np.maximum(grp * _GROUP, first[col])
-    hi = np.minimum(grp * _GROUP + _GROUP, stop[col])
-    count = hi - lo
-    key, col = np.repeat(key, count), np.repeat(col, count)
-    seg_index = (
-        np.arange(len(key)) - np.repeat(np.cumsum(count) - count, count) + np.repeat(lo, count)
-    )
-    sample, block = key // len(cols), cols[col]
-    qx, qy, qz = (c[sample, block] for c in points)
-    nxt = np.minimum(seg_index + 1, len(polyline) - 1)
-    mx, my, mz = ((c[seg_index] + c[nxt]) * 0.5 for c in polyline.tip)
-    half_length = 0.5 * np.sqrt(
-        (px[nxt] - px[seg_index]) ** 2
-        + (py[nxt] - py[seg_index]) ** 2
-        + (pz[nxt] - pz[seg_index]) ** 2
-    )
-    gap = np.sqrt((qx - mx) ** 2 + (qy - my) ** 2 + (qz - mz) ** 2) - half_length
-    keep = gap <= threshold[key]
-    key, seg_index, sample, block = key[keep], seg_index[keep], sample[keep], block[keep]
+    ub = np.sqrt(dist2[:, cols]).ravel()  # per key = sample * m + block, from the first segment
+    # (key, group) pairs of the coarsest groups, each key's groups over its span
+    size = _GROUPS[0]
+    g0, g1 = first // size, (stop - 1) // size
+    count = np.tile(g1 - g0 + 1, s)
+    key = np.repeat(np.arange(s * m), count)
+    grp = _ranges(np.tile(g0, s), count)
+
+    def near(key: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """Distance of each key's sample from the CL point ``index``."""
+        sample, block = key // m, cols[key % m]
+        return np.sqrt(
+            (points[0][sample, block] - px[index]) ** 2
+            + (points[1][sample, block] - py[index]) ** 2
+            + (points[2][sample, block] - pz[index]) ** 2
+        )
+
+    for level, size in enumerate((*_GROUPS, 1)):
+        col = key % m
+        if size > 1:  # groups: their spheres
+            rep = np.clip(grp * size + size // 2, first[col], stop[col])  # a CL point of the span
+            np.minimum.at(ub, key, near(key, rep))
+            (cx, cy, cz), radius = polyline.spheres(size)
+            centre = (cx[grp], cy[grp], cz[grp])
+            half_size = radius[grp]
+        else:  # segments: their midpoints and half lengths
+            np.minimum.at(ub, key, near(key, grp))
+            nxt = np.minimum(grp + 1, len(polyline) - 1)
+            centre = tuple((c[grp] + c[nxt]) * 0.5 for c in polyline.tip)
+            half_size = 0.5 * np.sqrt(
+                (px[nxt] - px[grp]) ** 2 + (py[nxt] - py[grp]) ** 2 + (pz[nxt] - pz[grp]) ** 2
+            )
+        threshold = np.maximum(ub, window) * (1.0 + 1e-9) + 1e-9
+        sample, block = key // m, cols[col]
+        gap = (
+            np.sqrt(
+                (points[0][sample, block] - centre[0]) ** 2
+                + (points[1][sample, block] - centre[1]) ** 2
+                + (points[2][sample, block] - centre[2]) ** 2
+            )
+            - half_size
+        )
+        keep = gap <= threshold[key]
+        key, grp, col = key[keep], grp[keep], col[keep]
+        if size == 1:
+            break
+        finer = _GROUPS[level + 1] if level + 1 < len(_GROUPS) else 1
+        lo = np.maximum(grp * size, first[col]) // finer
+        hi = (np.minimum(grp * size + size, stop[col]) - 1) // finer
+        key, grp = np.repeat(key, hi - lo + 1), _ranges(lo, hi - lo + 1)
     if not key.size:
         return
-    seg, arc = polyline.take(seg_index)
+    sample, block, index = key // m, cols[key % m], grp
+    seg, arc = polyline.take(index)
     pts = (points[0][sample, block], points[1][sample, block], points[2][sample, block])
     axs = (axes[0][sample, block], axes[1][sample, block], axes[2][sample, block])
     outside: list[np.ndarray] = []
@@ -410,16 +428,20 @@ def _far_segments(
     half = np.where(seg.inv_dd > 0, window * np.sqrt(seg.inv_dd), np.inf)
     _, c2 = orientation_path_chord2(arc, axs, u, half)
     # per key: the nearest segment, the first of equals (the smallest index)
-    order = np.lexsort((seg_index, d2, key))
+    order = np.lexsort((index, d2, key))
     head = order[np.r_[True, key[order][1:] != key[order][:-1]]]
     at = (sample[head], block[head])
     better = d2[head] < dist2[at]
     dist2[at] = np.where(better, d2[head], dist2[at])
     chord2[at] = np.where(better, c2[head], chord2[at])
-    best = np.full(len(cols) * s, np.inf)
+    best = np.full(s * m, np.inf)
     np.minimum.at(best, key, np.where(d2 <= window * window, c2, np.inf))
-    best = best.reshape(s, len(cols))
-    within[:, cols] = np.minimum(within[:, cols], best)
+    within[:, cols] = np.minimum(within[:, cols], best.reshape(s, m))
+
+
+def _ranges(start: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """``start[i], start[i] + 1, .., start[i] + count[i] - 1`` for every i, one after another."""
+    return np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count - start, count)
 
 
 @dataclass(frozen=True)
