@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from jobs import write_hemisphere
 
 import urdfpost.linearize as linearize_module
 import urdfpost.verification.measure as verify_module
@@ -479,11 +480,50 @@ def test_matching_is_the_sequential_search(
     off: float,
     turn: float,
 ) -> None:
+    """The numpy rounds and the compiled loop (numba, what ``match_points`` runs from
+    ``COMPILED_FROM`` points on) both find the rows of the sequential definition."""
+    from urdfpost.verification._match_kernel import match_rows
+    from urdfpost.verification.match import REACH, match_points_numpy
+
     p = {"repeat": repeat, "dense": dense, "insert": insert, "drop": drop, "off": off, "turn": turn}
     cl_tip, cl_axis, tip, axis = _cl_and_program(np.random.default_rng(seed), n_cl, p)
     tol = Tolerances()
-    got = match_points(cl_tip, cl_axis, tip, axis, tol)
-    np.testing.assert_array_equal(got, _match_sequential(cl_tip, cl_axis, tip, axis, tol))
+    want = _match_sequential(cl_tip, cl_axis, tip, axis, tol)
+    np.testing.assert_array_equal(match_points_numpy(cl_tip, cl_axis, tip, axis, tol), want)
+    compiled = match_rows(cl_tip, cl_axis, tip, axis, tol.tip, tol.orientation, REACH)
+    np.testing.assert_array_equal(compiled, want)
+
+
+@pytest.mark.parametrize("damage", [False, True])
+def test_compiled_matching_of_posted_programs(
+    damage: bool, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A posted program read back from its text (and the same with a stretch of its X words
+    0.5 mm off, its CL points missed): ``match_points`` on the compiled loop finds the rows
+    the numpy rounds find."""
+    from urdfpost.dialects import dialect_for
+    from urdfpost.verification import match
+    from urdfpost.verification.match import match_points_numpy, program_joints, row_poses_at_tip
+
+    job = read_cl(write_hemisphere(20_000, tmp_path / "hemisphere.apt"))
+    m = machine("dmu50")
+    result = post(job, m, PostOptions(controller="fanuc", tcp=False))
+    text = result.text
+    if damage:
+        lines = text.splitlines(keepends=True)
+        a, b = len(lines) // 3, len(lines) // 2
+        lines[a:b] = [re.sub(r"X(-?[0-9.]+)", lambda w: f"X{float(w[1]) + 0.5:.3f}", x)
+                      for x in lines[a:b]]  # fmt: skip
+        text = "".join(lines)
+    program = dialect_for("fanuc").read(text, path="prog.nc")
+    values, _ = program_joints(m, program)
+    rows = row_poses_at_tip(m, values, program.tcp, result.program.tool_length)
+    tol = Tolerances.for_units("mm")
+    want = match_points_numpy(job.tip, job.axis, rows.tip, rows.axis, tol)
+    assert bool((want < 0).sum() > 1000) == damage  # the stretch's points missed
+    monkeypatch.setattr(match, "COMPILED_FROM", 1)
+    got = match.match_points(job.tip, job.axis, rows.tip, rows.axis, tol)
+    np.testing.assert_array_equal(got, want)
 
 
 def test_matching_a_program_that_reaches_nothing() -> None:

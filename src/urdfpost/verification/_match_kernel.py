@@ -1,0 +1,105 @@
+"""The sequential matching of :func:`urdfpost.verification.match.match_points`, compiled.
+
+The definition is a loop (each CL point searched from the row the point before reached), which
+numpy can only run as rounds of guesses over runs of points; compiled with numba it is that loop
+itself, about one row looked at per CL point. Imported by :func:`match_points` when it is first
+called (numba's import takes a third of a second); the machine code is cached on disk beside
+this module (``__pycache__``), so only the first call after an install compiles it.
+
+Every comparison is made as the numpy path makes it, in the same order of operations
+(``tests/test_verify.py`` holds the two to the same rows on real and generated programs):
+the tip distance ``sqrt((dx^2 + dy^2) + dz^2)`` against the tip tolerance, the axis angle
+``2 atan2(|u - v|, |u + v|)`` against the orientation tolerance, and the nearness of
+:func:`urdfpost.verification.match._nearness`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def _norm(x: float, y: float, z: float) -> float:
+    return float(np.sqrt(x * x + y * y + z * z))
+
+
+@njit(cache=True, nogil=True)
+def _nearness(
+    tip: np.ndarray,
+    axis: np.ndarray,
+    r: int,
+    cl_tip: np.ndarray,
+    cl_axis: np.ndarray,
+    j: int,
+    tol_tip: float,
+    scale: float,
+) -> float:
+    """:func:`urdfpost.verification.match._nearness` of row r to CL point j (``scale`` is
+    ``2 / orientation tolerance``)."""
+    dist = _norm(tip[r, 0] - cl_tip[j, 0], tip[r, 1] - cl_tip[j, 1], tip[r, 2] - cl_tip[j, 2])
+    dist /= tol_tip
+    chord = _norm(
+        axis[r, 0] - cl_axis[j, 0], axis[r, 1] - cl_axis[j, 1], axis[r, 2] - cl_axis[j, 2]
+    )
+    chord *= 0.5
+    angle = np.arcsin(min(chord, 1.0)) * scale
+    return max(dist, angle)
+
+
+@njit(cache=True, nogil=True)
+def match_rows(
+    cl_tip: np.ndarray,
+    cl_axis: np.ndarray,
+    tip: np.ndarray,
+    axis: np.ndarray,
+    tol_tip: float,
+    tol_orientation: float,
+    reach: int,
+) -> np.ndarray:
+    """For each CL point, the first row in ``[ptr, ptr + reach)`` that reaches it, walked on
+    while the next row is strictly nearer, or -1 (``ptr``: the last row matched).
+
+    Parameters
+    ----------
+    cl_tip, cl_axis : ndarray, shape (n_cl, 3), C order
+        The CL points (mm) and their unit tool axes.
+    tip, axis : ndarray, shape (N, 3), C order
+        The program rows'.
+    tol_tip : float, mm
+    tol_orientation : float, rad
+    reach : int
+        :data:`urdfpost.verification.match.REACH`.
+
+    Returns
+    -------
+    ndarray, shape (n_cl,), int64
+    """
+    n_cl, n = cl_tip.shape[0], tip.shape[0]
+    out = np.full(n_cl, -1, dtype=np.int64)
+    scale = 2.0 / tol_orientation
+    ptr = 0
+    for j in range(n_cl):
+        cx, cy, cz = cl_tip[j, 0], cl_tip[j, 1], cl_tip[j, 2]
+        ax, ay, az = cl_axis[j, 0], cl_axis[j, 1], cl_axis[j, 2]
+        found = -1
+        for r in range(ptr, min(ptr + reach, n)):
+            if _norm(tip[r, 0] - cx, tip[r, 1] - cy, tip[r, 2] - cz) > tol_tip:
+                continue
+            across = _norm(axis[r, 0] - ax, axis[r, 1] - ay, axis[r, 2] - az)
+            along = _norm(axis[r, 0] + ax, axis[r, 1] + ay, axis[r, 2] + az)
+            if 2.0 * np.arctan2(across, along) <= tol_orientation:
+                found = r
+                break
+        if found < 0:
+            continue
+        near = _nearness(tip, axis, found, cl_tip, cl_axis, j, tol_tip, scale)
+        while found + 1 < n:
+            after = _nearness(tip, axis, found + 1, cl_tip, cl_axis, j, tol_tip, scale)
+            if not after < near:
+                break
+            found += 1
+            near = after
+        out[j] = found
+        ptr = found
+    return out
