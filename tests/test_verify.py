@@ -687,3 +687,27 @@ def test_cos_sin_of_small_angles(largest: float) -> None:
     cos, sin = cos_sin(angle)
     np.testing.assert_allclose(cos, np.cos(angle), rtol=0, atol=2.3e-16)
     np.testing.assert_allclose(sin, np.sin(angle), rtol=0, atol=2.3e-16)
+
+
+def test_matching_falls_back_to_numpy_when_the_compiled_loop_fails(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """numba that cannot compile or cache the loop on this machine: a warning, and the numpy
+    rounds give the rows (for the rest of the process too)."""
+    from urdfpost.verification import match
+
+    def broken(*args: object) -> np.ndarray:
+        raise RuntimeError("cannot cache function 'match_rows': no locator available")
+
+    monkeypatch.setattr(match, "COMPILED_FROM", 1)
+    monkeypatch.setattr(match, "_compiled", lambda: None if match._KERNEL_FAILED else broken)
+    monkeypatch.setattr(match, "_KERNEL_FAILED", [])
+    p = {"repeat": 0.0, "dense": 0.1, "insert": 0.1, "drop": 0.02, "off": 0.02, "turn": 0.05}
+    cl_tip, cl_axis, tip, axis = _cl_and_program(np.random.default_rng(3), 300, p)
+    tol = Tolerances()
+    want = match.match_points_numpy(cl_tip, cl_axis, tip, axis, tol)
+    with caplog.at_level("WARNING", logger="urdfpost.verification.match"):
+        np.testing.assert_array_equal(match.match_points(cl_tip, cl_axis, tip, axis, tol), want)
+    assert "compiled matching unavailable (cannot cache function" in caplog.text
+    assert match._KERNEL_FAILED
+    np.testing.assert_array_equal(match.match_points(cl_tip, cl_axis, tip, axis, tol), want)

@@ -14,6 +14,7 @@ be cut.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -25,6 +26,8 @@ from urdfpost.linearize import RowPoses
 from urdfpost.machine import Machine
 from urdfpost.program import Program
 from urdfpost.tolerances import Tolerances
+
+log = logging.getLogger(__name__)
 
 
 def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.ndarray]:
@@ -329,8 +332,14 @@ process (numba's import and the cached machine code's loading), which a run of t
 makes up for."""
 
 
+_KERNEL_FAILED: list[str] = []
+"""Why the compiled loop could not run in this process (then the numpy rounds run)."""
+
+
 def _compiled() -> Callable[..., np.ndarray] | None:
-    """The compiled matching loop, or None without numba."""
+    """The compiled matching loop, or None without numba (or after it failed here)."""
+    if _KERNEL_FAILED:
+        return None
     try:
         from urdfpost.verification._match_kernel import match_rows
     except ImportError:
@@ -368,7 +377,12 @@ def match_points(
     if kernel is None:
         return match_points_numpy(cl_tip, cl_axis, tip, axis, tol)
     arrays = [np.ascontiguousarray(a, dtype=float) for a in (cl_tip, cl_axis, tip, axis)]
-    return kernel(*arrays, float(tol.tip), float(tol.orientation), REACH)
+    try:
+        return kernel(*arrays, float(tol.tip), float(tol.orientation), REACH)
+    except Exception as e:  # numba could not compile or cache it here: the numpy rounds
+        _KERNEL_FAILED.append(str(e))
+        log.warning("compiled matching unavailable (%s); the numpy path runs", e)
+        return match_points_numpy(cl_tip, cl_axis, tip, axis, tol)
 
 
 def match_points_numpy(
