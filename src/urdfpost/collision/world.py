@@ -846,24 +846,59 @@ class CollisionWorld:
         """
         rot, center = self._boxes(transforms) if boxes is None else boxes
         ia, ib = pairs[:, 0], pairs[:, 1]
-        extent = np.abs(rot) @ self._box_half[None, :, :, None]  # (n, b, 3, 1)
-        extent = extent[..., 0]
+        extent = self._extents(rot)
         between = center[:, ib] - center[:, ia]  # (n, p, 3)
         out = (np.abs(between) - extent[:, ia] - extent[:, ib]).max(axis=2)
         np.maximum(out, 0.0, out=out)
         s_k, p_k = np.nonzero(out <= np.reshape(need, (-1, 1)))
-        if not len(s_k):
-            return out
-        a, b = ia[p_k], ib[p_k]
+        if len(s_k):
+            gaps = self._box_gaps(rot, between[s_k, p_k], s_k, ia[p_k], ib[p_k])
+            out[s_k, p_k] = np.maximum(gaps, out[s_k, p_k])
+        return out
+
+    def _extents(self, rot: np.ndarray) -> np.ndarray:
+        """Half sizes (n, b, 3, mm) of the axis-aligned boxes of every body's oriented box
+        (axes ``rot``, (n, b, 3, 3))."""
+        extent: np.ndarray = (np.abs(rot) @ self._box_half[None, :, :, None])[..., 0]
+        return extent
+
+    def _box_gaps(
+        self, rot: np.ndarray, between: np.ndarray, s_k: np.ndarray, a: np.ndarray, b: np.ndarray
+    ) -> np.ndarray:
+        """The largest gap between the oriented boxes of bodies ``a`` and ``b`` along any of
+        their six axes, in configurations ``s_k`` (shape (k,) each; ``between``: centre of b
+        less centre of a, (k, 3), mm); negative where they overlap along every axis."""
         r_a, r_b = rot[s_k, a], rot[s_k, b]  # (k, 3, 3), columns = box axes
         axes = np.concatenate([r_a, r_b], axis=2)  # (k, 3, 6)
-        d = np.abs(between[s_k, p_k][:, None, :] @ axes)[:, 0]
+        d = np.abs(between[:, None, :] @ axes)[:, 0]
         half_a = np.abs(np.swapaxes(r_a, 1, 2) @ axes)  # |a_i . u_l|, (k, 3, 6)
         half_b = np.abs(np.swapaxes(r_b, 1, 2) @ axes)
         box_half = self._box_half
         reach = (box_half[a][:, None, :] @ half_a)[:, 0] + (box_half[b][:, None, :] @ half_b)[:, 0]
-        out[s_k, p_k] = np.maximum((d - reach).max(axis=1), out[s_k, p_k])
-        return out
+        gaps: np.ndarray = (d - reach).max(axis=1)
+        return gaps
+
+    def _asked_bounds(
+        self, boxes: tuple[np.ndarray, np.ndarray], allowed: np.ndarray, need: float
+    ) -> np.ndarray:
+        """Where the pairs ``allowed`` (n, p) may come within ``need`` (mm): the test of
+        :meth:`_lower_bounds` ``<= need``, made for those pairs only (False elsewhere)."""
+        rot, center = boxes
+        s_k, p_k = np.nonzero(allowed)
+        ask = np.zeros(allowed.shape, dtype=bool)
+        if not len(s_k):
+            return ask
+        ia, ib = self._pairs[p_k, 0], self._pairs[p_k, 1]
+        extent = self._extents(rot)
+        between = center[s_k, ib] - center[s_k, ia]  # (k, 3)
+        gap = (np.abs(between) - extent[s_k, ia] - extent[s_k, ib]).max(axis=1)
+        np.maximum(gap, 0.0, out=gap)
+        near = np.flatnonzero(gap <= need)
+        if len(near):
+            obb = self._box_gaps(rot, between[near], s_k[near], ia[near], ib[near])
+            gap[near] = np.maximum(obb, gap[near])
+        ask[s_k, p_k] = gap <= need
+        return ask
 
     def _distance(self, i: int, j: int, transforms: np.ndarray) -> float:
         """Distance between bodies i and j placed by ``transforms`` (moving bodies), mm."""
@@ -950,9 +985,10 @@ class CollisionWorld:
                 ask = np.ones((transforms.shape[0], len(pairs)), dtype=bool)
             else:
                 boxes = self._boxes(transforms)
-                ask = self._lower_bounds(transforms, pairs, GAP_MM, boxes) <= GAP_MM
-                if allowed is not None:
-                    ask &= allowed[rows]
+                if allowed is None:
+                    ask = self._lower_bounds(transforms, pairs, GAP_MM, boxes) <= GAP_MM
+                else:  # the bounds of the pairs that can touch at all only
+                    ask = self._asked_bounds(boxes, allowed[rows], GAP_MM)
                 self._cull_stock_pairs(transforms, ask, boxes=boxes)
             first[:] = self._first_asked(transforms, ask)
         return out
