@@ -116,3 +116,44 @@ def test_array_placements_match_pinocchio(name: str) -> None:
     np.testing.assert_allclose(
         world._moving_transforms(q), world._moving_transforms(q, pinocchio=True), atol=1e-9
     )
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_one_descent_of_the_stock_tree_answers_every_gap(seed: int) -> None:
+    """The separation of an oriented box from the stock's leaf boxes (one descent of the
+    tree) is the smallest separating-axis gap over all leaves (every leaf taken in turn), +inf
+    beyond the gap asked, -inf only where the descent met too many nodes; and where
+    :meth:`near` at g clears a box (every leaf farther than g), the separation is above g:
+    boxes inside the stock, touching it, beside and far above it, gaps from 0 to 20 mm."""
+    from scipy.spatial.transform import Rotation
+
+    from urdfpost.collision.world import _BoxTree
+
+    rng = np.random.default_rng(seed)
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=30.0)
+    tree = _BoxTree.of(sphere.vertices[sphere.faces])
+    k = 300
+    center = rng.uniform(-60.0, 60.0, (k, 3))
+    center[:40] = rng.uniform(-5.0, 5.0, (40, 3))  # inside: many leaves near, or crowded
+    rot = Rotation.random(k, random_state=seed).as_matrix()
+    half = rng.uniform(0.5, 20.0, (k, 3))
+    most = 20.0
+    sep = tree.separation(center, rot, half, np.full(k, most))
+    # every leaf box in turn, the same gap
+    lo, hi = tree.lo[-1], tree.hi[-1]
+    leaf = np.all(lo <= hi, axis=1)
+    mid, ext = (lo[leaf] + hi[leaf]) / 2, (hi[leaf] - lo[leaf]) / 2
+    d = mid[None] - center[:, None]  # (k, leaves, 3)
+    base = np.einsum("kij,kj->ki", np.abs(rot), half)[:, None]
+    spread = np.abs(rot).sum(axis=2)[:, None]
+    world = ((np.abs(d) - base - ext[None]) / spread).max(axis=2)
+    d_box = np.abs(np.einsum("kij,kli->klj", rot, d))
+    ext_box = np.einsum("kij,li->klj", np.abs(rot), ext)
+    brute = np.maximum(world, (d_box - half[:, None] - ext_box).max(axis=2)).min(axis=1)
+    exact = np.isfinite(sep)
+    assert exact.sum() > 100 and (sep == np.inf).sum() > 10 and (sep == -np.inf).any()
+    np.testing.assert_allclose(sep[exact], brute[exact], rtol=0, atol=1e-9)
+    assert (brute[sep == np.inf] > most).all()
+    for g in (0.0, 0.5, 3.0, 10.0, 20.0):
+        cleared = ~tree.near(center, rot, half, g)
+        assert (sep[cleared] > g - 1e-9).all()

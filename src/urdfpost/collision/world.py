@@ -489,6 +489,66 @@ class _BoxTree:
             qi, ni = np.repeat(qi, 2), np.stack([2 * ni, 2 * ni + 1], axis=1).ravel()
         return out
 
+    def separation(
+        self, center: np.ndarray, rot: np.ndarray, half: np.ndarray, most: np.ndarray
+    ) -> np.ndarray:
+        """The smallest gap for which :meth:`near` holds, per oriented box, up to ``most``.
+
+        Each node's gap is the largest, over the six face normals of the two boxes, of their
+        separation along it, in the measure :meth:`near` inflates the oriented box by (along a
+        world axis, divided by the oriented box's extent per unit of inflation); a node inside
+        another is never nearer, so ``near(g)`` holds where the smallest leaf's is at most g.
+        One descent answers every gap up to ``most``.
+
+        Parameters
+        ----------
+        center, rot, half
+            As :meth:`near`.
+        most : ndarray, shape (k,), mm
+            The largest gap asked about per box.
+
+        Returns
+        -------
+        ndarray, shape (k,), mm
+            The gap; +inf where every leaf box is more than ``most`` away, -inf where the
+            descent stopped (more than ``_TREE_FRONTIER`` nodes within reach: near for any gap).
+        """
+        k = len(center)
+        out = np.full(k, np.inf)
+        spread = np.abs(rot).sum(axis=2)  # (k, 3): world extent per unit of inflation
+        base = np.einsum("kij,kj->ki", np.abs(rot), half)
+        qi, ni = np.arange(k), np.zeros(k, dtype=int)
+        for level, (lo, hi) in enumerate(zip(self.lo, self.hi, strict=True)):
+            blo, bhi = lo[ni], hi[ni]
+            valid = np.all(blo <= bhi, axis=1)
+            blo[~valid], bhi[~valid] = 0.0, 0.0
+            mid, ext = (blo + bhi) / 2, (bhi - blo) / 2
+            d = mid - center[qi]
+            world = ((np.abs(d) - base[qi] - ext) / spread[qi]).max(axis=1)
+            r = rot[qi]
+            d_box = np.abs(np.einsum("kij,ki->kj", r, d))
+            ext_box = np.einsum("kij,ki->kj", np.abs(r), ext)
+            gap = np.maximum(world, (d_box - half[qi] - ext_box).max(axis=1))
+            keep = valid & (gap <= most[qi])
+            qi, ni, gap = qi[keep], ni[keep], gap[keep]
+            if level == len(self.lo) - 1:
+                np.minimum.at(out, qi, gap)
+                break
+            crowded = np.bincount(qi, minlength=k) > _TREE_FRONTIER
+            if crowded.any():
+                out[crowded] = -np.inf
+                stay = ~crowded[qi]
+                qi, ni = qi[stay], ni[stay]
+            qi, ni = np.repeat(qi, 2), np.stack([2 * ni, 2 * ni + 1], axis=1).ravel()
+        return out
+
+
+def _within(separation: np.ndarray, gap: np.ndarray | float) -> np.ndarray:
+    """Where a :meth:`_BoxTree.separation` lets :meth:`_BoxTree.near` hold at ``gap`` (mm),
+    with 1e-9 mm to spare for the rounding between the two forms of the test (a pair kept
+    for FCL that the other form would have cleared changes no result)."""
+    return separation <= np.asarray(gap) + 1e-9
+
 
 # -- the world ----------------------------------------------------------------------------
 
@@ -1044,6 +1104,30 @@ class CollisionWorld:
             half = np.broadcast_to(self._box_half[other], (len(rows), 3))
             ask[rows, p] = tree.near(c, r, half, gaps[rows])
 
+    def _stock_separations(
+        self,
+        transforms: np.ndarray,
+        most: np.ndarray,
+        boxes: tuple[np.ndarray, np.ndarray],
+    ) -> np.ndarray:
+        """:meth:`_BoxTree.separation` of the partner of every stock pair from the stock's
+        leaf boxes, up to ``most`` (n,) mm, shape (n, s) in the order of ``_stock_pairs``
+        (``_cull_stock_pairs`` at gap g clears where it is more than g)."""
+        tree = self._stock_tree
+        assert tree is not None  # asked with a stock only
+        rot, center = boxes
+        s = self._stock
+        stock_t = self._fixed_transform[s]
+        r_inv, t_s = stock_t[:3, :3].T, stock_t[:3, 3]
+        out = np.empty((len(transforms), len(self._stock_pairs)))
+        for col, p in enumerate(self._stock_pairs):
+            other = int(self._pairs[p, 0] if self._pairs[p, 1] == s else self._pairs[p, 1])
+            c = (center[:, other] - t_s) @ r_inv.T
+            r = r_inv @ rot[:, other]
+            half = np.broadcast_to(self._box_half[other], (len(c), 3))
+            out[:, col] = tree.separation(c, r, half, most)
+        return out
+
     def _names(self, pair: tuple[int, int] | None) -> tuple[str, str] | None:
         if pair is None:
             return None
@@ -1187,26 +1271,21 @@ class CollisionWorld:
             bound[start:stop] = here
             ask = here <= GAP_MM
             stock = self._stock_tree is not None and len(self._stock_pairs) > 0
-            wide = np.zeros_like(ask)  # the stock pairs within reach of either move
-            if stock:
-                wide[:, self._stock_pairs] = True
-                self._cull_stock_pairs(transforms, wide, GAP_MM + adjacent, boxes)
-                ask[:, self._stock_pairs] &= wide[:, self._stock_pairs]
-            self._cull_stock_pairs(transforms, ask, boxes=boxes)
-            ends[start:stop] = self._first_asked(transforms, ask)
             if not stock:
+                ends[start:stop] = self._first_asked(transforms, ask)
                 continue
+            # the stock pairs: one descent of the stock's tree per configuration and pair
+            # answers the gaps asked (the configuration's own, and either move's)
+            sep = self._stock_separations(transforms, GAP_MM + adjacent, boxes)
+            wide = _within(sep, GAP_MM + adjacent[:, None])  # within reach of either move
+            ask[:, self._stock_pairs] &= wide & _within(sep, GAP_MM)
+            ends[start:stop] = self._first_asked(transforms, ask)
             # each configuration as the start of its own move and the end of the one before
             sides = ((near_start, starts, starts), (near_end, finishes, finishes - 1))
             for mask, at, moves in sides:
-                if not len(at):
-                    continue
-                ask = wide[at - start]
-                chunk = (boxes[0][at - start], boxes[1][at - start])
-                self._cull_stock_pairs(
-                    transforms[at - start], ask, GAP_MM + swept[moves], boxes=chunk
-                )
-                mask[moves[:, None], self._stock_pairs[None, :]] = ask[:, self._stock_pairs]
+                if len(at):
+                    reach = _within(sep[at - start], GAP_MM + swept[moves][:, None])
+                    mask[moves[:, None], self._stock_pairs[None, :]] = wide[at - start] & reach
         may = (bound[:-1] + bound[1:] - swept[:, None]) / 2 <= GAP_MM
         return ends, may & near_start & near_end
 
