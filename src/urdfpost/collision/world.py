@@ -402,6 +402,22 @@ class _Chain:
         return np.swapaxes(joint[self.frame_joints], 0, 1) @ self.frame_placements
 
 
+def _node_boxes(
+    lo: np.ndarray, hi: np.ndarray, center: np.ndarray, rot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What a separating-axis test of tree nodes (corners ``lo``, ``hi``, (k, 3), mm) against
+    oriented boxes (``center`` (k, 3), axes ``rot`` (k, 3, 3)) needs: which nodes hold
+    triangles, the centre offsets and the nodes' half sizes along the world axes, and the same
+    along the oriented boxes' axes (absolute offsets; projected half sizes), each (k, 3)."""
+    valid = np.all(lo <= hi, axis=1)
+    lo, hi = np.where(valid[:, None], lo, 0.0), np.where(valid[:, None], hi, 0.0)
+    mid, ext = (lo + hi) / 2, (hi - lo) / 2
+    d = mid - center
+    d_box = np.abs(np.einsum("kij,ki->kj", rot, d))
+    ext_box = np.einsum("kij,ki->kj", np.abs(rot), ext)
+    return valid, d, ext, d_box, ext_box
+
+
 @dataclass(frozen=True, eq=False)
 class _BoxTree:
     """A complete binary tree of axis-aligned boxes over a mesh's triangles (Morton order).
@@ -467,15 +483,8 @@ class _BoxTree:
         reach = np.einsum("kij,kj->ki", np.abs(rot), half)  # world-axis half sizes
         qi, ni = np.arange(k), np.zeros(k, dtype=int)
         for level, (lo, hi) in enumerate(zip(self.lo, self.hi, strict=True)):
-            blo, bhi = lo[ni], hi[ni]
-            valid = np.all(blo <= bhi, axis=1)
-            blo[~valid], bhi[~valid] = 0.0, 0.0
-            mid, ext = (blo + bhi) / 2, (bhi - blo) / 2
-            d = mid - center[qi]
+            valid, d, ext, d_box, ext_box = _node_boxes(lo[ni], hi[ni], center[qi], rot[qi])
             keep = valid & np.all(np.abs(d) <= reach[qi] + ext, axis=1)
-            r = rot[qi]
-            d_box = np.abs(np.einsum("kij,ki->kj", r, d))
-            ext_box = np.einsum("kij,ki->kj", np.abs(r), ext)
             keep &= np.all(d_box <= half[qi] + ext_box, axis=1)
             qi, ni = qi[keep], ni[keep]
             if level == len(self.lo) - 1:
@@ -519,15 +528,8 @@ class _BoxTree:
         base = np.einsum("kij,kj->ki", np.abs(rot), half)
         qi, ni = np.arange(k), np.zeros(k, dtype=int)
         for level, (lo, hi) in enumerate(zip(self.lo, self.hi, strict=True)):
-            blo, bhi = lo[ni], hi[ni]
-            valid = np.all(blo <= bhi, axis=1)
-            blo[~valid], bhi[~valid] = 0.0, 0.0
-            mid, ext = (blo + bhi) / 2, (bhi - blo) / 2
-            d = mid - center[qi]
+            valid, d, ext, d_box, ext_box = _node_boxes(lo[ni], hi[ni], center[qi], rot[qi])
             world = ((np.abs(d) - base[qi] - ext) / spread[qi]).max(axis=1)
-            r = rot[qi]
-            d_box = np.abs(np.einsum("kij,ki->kj", r, d))
-            ext_box = np.einsum("kij,ki->kj", np.abs(r), ext)
             gap = np.maximum(world, (d_box - half[qi] - ext_box).max(axis=1))
             keep = valid & (gap <= most[qi])
             qi, ni, gap = qi[keep], ni[keep], gap[keep]

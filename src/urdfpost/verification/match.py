@@ -354,11 +354,9 @@ def match_points(
     axis: np.ndarray,
     tol: Tolerances,
 ) -> np.ndarray:
-    """For each CL point, the program point at or after the previous match that reaches it (tip
-    within tolerance, axis within orientation tolerance; the nearest of a run of such points in
-    shares of the tolerances, :func:`_nearness`), or -1.
+    """The row reaching each CL point, or -1, as :func:`match_points_numpy` defines it.
 
-    The definition is sequential (:func:`match_points_numpy`). From :data:`COMPILED_FROM` CL
+    The definition is sequential. From :data:`COMPILED_FROM` CL
     points on, with numba installed, it runs as that loop compiled
     (:func:`urdfpost.verification._match_kernel.match_rows`, the same comparisons in the same
     order); else as the numpy rounds of :func:`match_points_numpy`. The tests hold the two to
