@@ -1092,19 +1092,26 @@ class CollisionWorld:
         tree = self._stock_tree
         if tree is None or not ask[:, self._stock_pairs].any():
             return
-        rot, center = self._boxes(transforms) if boxes is None else boxes
+        boxes = self._boxes(transforms) if boxes is None else boxes
+        for p in self._stock_pairs:
+            rows = np.flatnonzero(ask[:, p])
+            if len(rows):
+                ask[rows, p] = tree.near(*self._partner_box(boxes, rows, p), gaps[rows])
+
+    def _partner_box(
+        self, boxes: tuple[np.ndarray, np.ndarray], rows: np.ndarray | slice, p: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The oriented box of stock pair p's other body in configurations ``rows``, in the
+        stock's frame (where its tree is): centres (k, 3) mm, axes (k, 3, 3), half sizes
+        (k, 3) mm (``boxes``: :meth:`_boxes`)."""
+        rot, center = boxes
         s = self._stock
         stock_t = self._fixed_transform[s]
         r_inv, t_s = stock_t[:3, :3].T, stock_t[:3, 3]
-        for p in self._stock_pairs:
-            rows = np.flatnonzero(ask[:, p])
-            if not len(rows):
-                continue
-            other = int(self._pairs[p, 0] if self._pairs[p, 1] == s else self._pairs[p, 1])
-            c = (center[rows, other] - t_s) @ r_inv.T
-            r = r_inv @ rot[rows, other]
-            half = np.broadcast_to(self._box_half[other], (len(rows), 3))
-            ask[rows, p] = tree.near(c, r, half, gaps[rows])
+        other = int(self._pairs[p, 0] if self._pairs[p, 1] == s else self._pairs[p, 1])
+        c = (center[rows, other] - t_s) @ r_inv.T
+        r = r_inv @ rot[rows, other]
+        return c, r, np.broadcast_to(self._box_half[other], (len(c), 3))
 
     def _stock_separations(
         self,
@@ -1117,17 +1124,9 @@ class CollisionWorld:
         (``_cull_stock_pairs`` at gap g clears where it is more than g)."""
         tree = self._stock_tree
         assert tree is not None  # asked with a stock only
-        rot, center = boxes
-        s = self._stock
-        stock_t = self._fixed_transform[s]
-        r_inv, t_s = stock_t[:3, :3].T, stock_t[:3, 3]
         out = np.empty((len(transforms), len(self._stock_pairs)))
         for col, p in enumerate(self._stock_pairs):
-            other = int(self._pairs[p, 0] if self._pairs[p, 1] == s else self._pairs[p, 1])
-            c = (center[:, other] - t_s) @ r_inv.T
-            r = r_inv @ rot[:, other]
-            half = np.broadcast_to(self._box_half[other], (len(c), 3))
-            out[:, col] = tree.separation(c, r, half, most)
+            out[:, col] = tree.separation(*self._partner_box(boxes, slice(None), int(p)), most)
         return out
 
     def _names(self, pair: tuple[int, int] | None) -> tuple[str, str] | None:

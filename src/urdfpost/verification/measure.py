@@ -247,6 +247,21 @@ class _FirstSpan:
     at: np.ndarray
 
 
+def _segment_errors(
+    seg: Segments, arc: Arcs, points: VecArrays, axes: VecArrays, window: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Squared tip distance and axis chord of samples from one CL segment and arc each
+    (:func:`_span_deviation`'s measure), how far the projection parameter falls outside [0, 1],
+    and the chord at the clipped parameter (:func:`orientation_path_chord2`), all of the
+    samples' shape."""
+    outside: list[np.ndarray] = []
+    d2, s = seg.distance2(points, outside)
+    u = np.where(s >= 1.0, 1.0 + outside[0], s - outside[0])  # not clipped
+    half = np.where(seg.inv_dd > 0, window * np.sqrt(seg.inv_dd), np.inf)  # window / |d|
+    at, c2 = orientation_path_chord2(arc, axes, u, half)
+    return d2, c2, outside[0], at
+
+
 def _span_deviation(
     points: VecArrays,
     axes: VecArrays,
@@ -304,14 +319,10 @@ def _span_deviation(
         pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
         axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
         seg, arc = polyline.take(a)
-        outside: list[np.ndarray] = []
-        d2, s = seg.distance2(pts, outside)
-        u = np.where(s >= 1.0, 1.0 + outside[0], s - outside[0])  # not clipped
-        half = np.where(seg.inv_dd > 0, window * np.sqrt(seg.inv_dd), np.inf)  # window / |d|
-        at, c2 = orientation_path_chord2(arc, axs, u, half)
+        d2, c2, outside, at = _segment_errors(seg, arc, pts, axs, window)
         if off == 0:
             if first is not None:
-                first.append(_FirstSpan(seg, arc, outside[0], at))
+                first.append(_FirstSpan(seg, arc, outside, at))
             dist2, chord2 = d2, c2
             within = np.where(d2 <= window2, c2, np.inf)  # best chord of the segments near
             continue
@@ -374,41 +385,32 @@ def _far_segments(
     key = np.repeat(np.arange(s * m), count)
     grp = _ranges(np.tile(g0, s), count)
 
-    def near(key: np.ndarray, index: np.ndarray) -> np.ndarray:
-        """Distance of each key's sample from the CL point ``index``."""
+    def distance(key: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Distance of each key's sample from the point (x, y, z), mm."""
         sample, block = key // m, cols[key % m]
         return np.sqrt(
-            (points[0][sample, block] - px[index]) ** 2
-            + (points[1][sample, block] - py[index]) ** 2
-            + (points[2][sample, block] - pz[index]) ** 2
+            (points[0][sample, block] - x) ** 2
+            + (points[1][sample, block] - y) ** 2
+            + (points[2][sample, block] - z) ** 2
         )
 
     for level, size in enumerate((*_GROUPS, 1)):
         col = key % m
         if size > 1:  # groups: their spheres
             rep = np.clip(grp * size + size // 2, first[col], stop[col])  # a CL point of the span
-            np.minimum.at(ub, key, near(key, rep))
+            np.minimum.at(ub, key, distance(key, px[rep], py[rep], pz[rep]))
             (cx, cy, cz), radius = polyline.spheres(size)
             centre = (cx[grp], cy[grp], cz[grp])
             half_size = radius[grp]
         else:  # segments: their midpoints and half lengths
-            np.minimum.at(ub, key, near(key, grp))
+            np.minimum.at(ub, key, distance(key, px[grp], py[grp], pz[grp]))
             nxt = np.minimum(grp + 1, len(polyline) - 1)
             centre = tuple((c[grp] + c[nxt]) * 0.5 for c in polyline.tip)
             half_size = 0.5 * np.sqrt(
                 (px[nxt] - px[grp]) ** 2 + (py[nxt] - py[grp]) ** 2 + (pz[nxt] - pz[grp]) ** 2
             )
         threshold = np.maximum(ub, window) * (1.0 + 1e-9) + 1e-9
-        sample, block = key // m, cols[col]
-        gap = (
-            np.sqrt(
-                (points[0][sample, block] - centre[0]) ** 2
-                + (points[1][sample, block] - centre[1]) ** 2
-                + (points[2][sample, block] - centre[2]) ** 2
-            )
-            - half_size
-        )
-        keep = gap <= threshold[key]
+        keep = distance(key, *centre) - half_size <= threshold[key]
         key, grp, col = key[keep], grp[keep], col[keep]
         if size == 1:
             break
@@ -422,11 +424,7 @@ def _far_segments(
     seg, arc = polyline.take(index)
     pts = (points[0][sample, block], points[1][sample, block], points[2][sample, block])
     axs = (axes[0][sample, block], axes[1][sample, block], axes[2][sample, block])
-    outside: list[np.ndarray] = []
-    d2, t = seg.distance2(pts, outside)
-    u = np.where(t >= 1.0, 1.0 + outside[0], t - outside[0])  # not clipped
-    half = np.where(seg.inv_dd > 0, window * np.sqrt(seg.inv_dd), np.inf)
-    _, c2 = orientation_path_chord2(arc, axs, u, half)
+    d2, c2, _, _ = _segment_errors(seg, arc, pts, axs, window)
     # per key: the nearest segment, the first of equals (the smallest index)
     order = np.lexsort((index, d2, key))
     head = order[np.r_[True, key[order][1:] != key[order][:-1]]]
