@@ -14,6 +14,7 @@ be cut.
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Callable
 from dataclasses import replace
@@ -336,15 +337,19 @@ _KERNEL_FAILED: list[str] = []
 """Why the compiled loop could not run in this process (then the numpy rounds run)."""
 
 
-def _compiled() -> Callable[..., np.ndarray] | None:
-    """The compiled matching loop, or None without numba (or after it failed here)."""
-    if _KERNEL_FAILED:
-        return None
+@functools.cache
+def _kernel() -> Callable[..., np.ndarray] | None:
+    """The compiled matching loop, or None without numba (looked for once per process)."""
     try:
         from urdfpost.verification._match_kernel import match_rows
     except ImportError:
         return None
     return match_rows
+
+
+def _compiled() -> Callable[..., np.ndarray] | None:
+    """The compiled matching loop, or None without numba (or after it failed here)."""
+    return None if _KERNEL_FAILED else _kernel()
 
 
 def match_points(
