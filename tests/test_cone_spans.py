@@ -154,3 +154,63 @@ def test_the_jobs_make_the_cone_insert_points_and_the_bound_skip_most_segments()
     bound = cone._deviation_bound(m, tp, plan.param, plan.rotary, feed)
     sampled = ~(bound <= np.radians(2.0))
     assert 0 < sampled.sum() < 0.2 * feed.size
+
+
+def whole_rounds(monkeypatch: pytest.MonkeyPatch, problem: Problem) -> tuple[object, int]:
+    """The cone with every round planned on the whole path (no windows: the oracle), and how
+    many rounds it planned."""
+    planned = cone._planned
+    count = [0]
+
+    def counted(p: Problem, tp: Toolpath) -> object:
+        count[0] += 1
+        return planned(p, tp)
+
+    with monkeypatch.context() as mp:
+        mp.setattr(cone, "_windows", lambda machine, r: [])
+        mp.setattr(cone, "_planned", counted)
+        plan = STRATEGIES["cone"](problem)
+    return plan, count[0]
+
+
+@pytest.mark.parametrize("margin", [cone.WINDOW_MARGIN, 8])
+@pytest.mark.parametrize("machine_name", MACHINES)
+def test_rounds_on_windows_give_the_plan_of_rounds_on_the_whole_path(
+    machine_name: str, margin: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The rounds after the first are planned on windows around the bent points (``_inserted``),
+    and the plan made on the whole path afterwards: on these jobs (a raster ten times denser
+    too, where the default windows cover less than half the path; with narrow windows, on all)
+    it is the plan of planning every round on the whole path, to the bit; and the whole path
+    is planned no more often, on the dense rasters of dmu50 twice."""
+    m = load_machine(machine_name)
+    monkeypatch.setattr(cone, "WINDOW_MARGIN", margin)
+    planned = cone._planned
+    for name, tp in {**jobs(), "raster 0.05 mm": hemisphere_raster(step=0.05)}.items():
+        problem = Problem(m, tp, tool_length=m.settings.tool_length, tol=Tolerances())
+        full: list[int] = []
+        windows: list[int] = []
+
+        def counted(
+            p: Problem, path: Toolpath, full: list[int] = full, windows: list[int] = windows
+        ) -> object:
+            (full if p.start is None else windows).append(len(path))
+            return planned(p, path)
+
+        monkeypatch.setattr(cone, "_planned", counted)
+        plan = STRATEGIES["cone"](problem)
+        monkeypatch.setattr(cone, "_planned", planned)
+        oracle, oracle_rounds = whole_rounds(monkeypatch, problem)
+        assert np.array_equal(plan.toolpath.tip, oracle.toolpath.tip), name
+        assert np.array_equal(plan.toolpath.axis, oracle.toolpath.axis), name
+        assert np.array_equal(plan.param, oracle.param), name
+        assert np.array_equal(plan.rotary, oracle.rotary, equal_nan=True), name
+        assert plan.notes == oracle.notes
+        if plan.curve is not None:
+            assert oracle.curve is not None
+            x = np.linspace(0.0, len(plan.toolpath) - 1.0, 5 * len(plan.toolpath))
+            assert np.array_equal(plan.curve(x), oracle.curve(x), equal_nan=True)
+        assert len(full) <= oracle_rounds, name
+        dense = name in ("raster 0.05 mm", "raster 0.5 mm" if margin == 8 else "")
+        if machine_name == "dmu50" and dense:
+            assert oracle_rounds > 2 and len(full) == 2 and windows, (name, full, oracle_rounds)

@@ -8,8 +8,10 @@
     non-orthogonal machine deviates more than the small-angle formula predicts, the band is
     halved there (up to four times, then the point is exact), and where the curve between two
     rows leaves it, a point is inserted on that CL segment and the cone planned again
-    (:data:`ROUNDS`). Without a programmed feed there is no time to rate the axis by: it is
-    bent only inside the singular spans, to the least turn per unit path the cone allows.
+    (:data:`ROUNDS`): the rounds after the first on windows around what it bent, then the
+    whole path once more (:func:`_inserted`). Without a programmed feed there is no time to
+    rate the axis by: it is bent only inside the singular spans, to the least turn per unit
+    path the cone allows.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from __future__ import annotations
 import itertools
 import logging
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -43,7 +45,7 @@ from urdfpost.planning.strategies._common import (
     split_at_pole_crossings,
 )
 from urdfpost.planning.strategies._registry import strategy
-from urdfpost.toolpath import Motion, Toolpath
+from urdfpost.toolpath import Motion, Toolpath, toolpath_slice
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +62,10 @@ is checked against the angle tolerance."""
 ROUNDS = 4
 """Rounds of points inserted where the curve between two rows leaves the angle tolerance."""
 
+WINDOW_MARGIN = 256
+"""CL points a window of the rounds after the first reaches beyond what the cone bent, its
+spans and its inserted points (:func:`_inserted`)."""
+
 GEOMETRIC_SHARE = 1e-3
 """Without a feed, the step limits the tube starts from, as a share of the exact path's peak
 turn per unit path measure (the tube raises them to the least that fits the cone)."""
@@ -74,7 +80,8 @@ def strategy_cone(problem: Problem) -> Plan:
     the angle tolerance between two rows (long CL segments near a pole, where the programmed
     orientation turns faster in the first rotary angle mid-segment than at the ends), a point
     is inserted on the segment where it leaves it most, and the cone is planned again, up to
-    :data:`ROUNDS` times.
+    :data:`ROUNDS` times. The rounds after the first are planned on windows around what the
+    cone bent (:func:`_inserted`); the plan is always made on the whole path.
 
     A cutting move with no feed has no time to rate the first rotary axis by: in a feed run
     with such a move, the axis is bent only inside the singular spans, to the least peak turn
@@ -83,37 +90,169 @@ def strategy_cone(problem: Problem) -> Plan:
     """
     machine = problem.machine
     tp = split_at_pole_crossings(problem.toolpath, machine, problem.tol.pole_crossing)
-    for round_ in range(ROUNDS + 1):
+    if len(machine.rotary) < 2 or not np.isfinite(machine.rotary[0].velocity):
         tp, sel = exact_split(problem, tp)
-        spans = _spans(problem, tp, sel)
-        if len(machine.rotary) < 2 or not np.isfinite(machine.rotary[0].velocity):
-            return _plain(problem, tp, sel, spans)
-        bent, notes = _bend(problem, tp, sel, spans)
-        if bent is None:
-            _say(notes)
-            return replace(_plain(problem, tp, sel, spans), notes=[*sel.notes, *notes])
-        # rows are the CL points, with a turn in place where a row stands on the pole
-        q = sel.q.copy()
-        q[:, list(machine.rotary_columns)] = bent
-        param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
-        curve = _curve(machine, tp, param, rot)
-        over = _beyond(problem, tp, curve, param, rot)
-        if not over.size or round_ == ROUNDS:
+        return _plain(problem, tp, sel, _spans(problem, tp, sel))
+    done = 0  # rounds of points inserted
+    while True:
+        r = _planned(problem, tp)
+        if r.bent is None:
+            _say(r.notes)
+            plain = _plain(problem, r.tp, r.sel, r.spans)
+            return replace(plain, notes=[*r.sel.notes, *r.notes])
+        if not r.over.size or done == ROUNDS:
             break
-        log.debug("cone: %d points inserted where the curve leaves the cone", over.size)
-        tp = insert_points(tp, over, problem.pivot)[0]
-    _say(notes)
+        tp, rounds = _inserted(problem, r, ROUNDS - done)
+        log.debug("cone: %d rounds of points inserted where the curve leaves the cone", rounds)
+        done += rounds
+    assert r.curve is not None
+    _say(r.notes)
     return Plan(
-        toolpath=tp,
-        param=param,
-        rotary=rot,
-        lift=np.zeros(len(param)),
-        curve=curve,
-        spans=spans,
+        toolpath=r.tp,
+        param=r.param,
+        rotary=r.rot,
+        lift=np.zeros(len(r.param)),
+        curve=r.curve,
+        spans=r.spans,
         bent=True,
-        notes=[*sel.notes, *notes],
-        settled=sel.settled,
+        notes=[*r.sel.notes, *r.notes],
+        settled=r.sel.settled,
     )
+
+
+@dataclass(frozen=True)
+class _Round:
+    """The cone planned once on a toolpath (:func:`_planned`).
+
+    Attributes
+    ----------
+    tp : Toolpath
+        The toolpath the rows refer to (branch switches made turns at a point).
+    sel : Selection
+        The exact branch choice on it.
+    spans : list of Span
+    notes : list of str
+    bent : ndarray or None, shape (n, r), rad
+        The cone's rotary angles at the points; None where nothing is bent.
+    param, rot : ndarray, shapes (N,) and (N, r)
+        The rows (empty when nothing is bent).
+    curve : callable or None
+        The joint curve through the rows.
+    over : ndarray, shape (k,)
+        Positions where the curve leaves the angle tolerance (:func:`_beyond`).
+    """
+
+    tp: Toolpath
+    sel: Selection
+    spans: list[Span]
+    notes: list[str]
+    bent: np.ndarray | None
+    param: np.ndarray
+    rot: np.ndarray
+    curve: Callable[[np.ndarray], np.ndarray] | None
+    over: np.ndarray
+
+
+def _planned(problem: Problem, tp: Toolpath) -> _Round:
+    """One round of the cone on ``tp``: branch choice, spans, the bent angles, the rows and
+    their curve, and where the curve leaves the angle tolerance."""
+    machine = problem.machine
+    tp, sel = exact_split(problem, tp)
+    spans = _spans(problem, tp, sel)
+    bent, notes = _bend(problem, tp, sel, spans)
+    if bent is None:
+        none = np.zeros(0)
+        return _Round(tp, sel, spans, notes, None, none, none.reshape(0, 2), None, none)
+    q = sel.q.copy()
+    q[:, list(machine.rotary_columns)] = bent
+    # rows are the CL points, with a turn in place where a row stands on the pole
+    param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
+    curve = _curve(machine, tp, param, rot)
+    over = _beyond(problem, tp, curve, param, rot)
+    return _Round(tp, sel, spans, notes, bent, param, rot, curve, over)
+
+
+def _inserted(problem: Problem, r: _Round, left: int) -> tuple[Toolpath, int]:
+    """The toolpath of round ``r`` with the points it asks for inserted, and with those the
+    next rounds would insert, found on windows of the path; and how many rounds of points
+    that is (1 to ``left``).
+
+    A round changes the plan only where the cone bends, on the spans and where points are
+    inserted: each stretch of ``r`` that has any of these gets a window reaching
+    :data:`WINDOW_MARGIN` points beyond them (within the stretch, whose ends the cone keeps
+    exact). The next round is planned on each window alone (starting from the angles ``r``
+    chose at its first point), and its points inserted; and so on while the windows' branch
+    choice is that of ``r`` and they ask for points. The caller plans the whole path again
+    afterwards: where the windows' rounds are those of the whole path, the toolpath, and so
+    the plan, are the same as after as many rounds on the whole path; where they are not, the
+    whole path's next round inserts what is still missing.
+    """
+    tp, old, _ = insert_points(r.tp, r.over, problem.pivot)
+    windows = _windows(problem.machine, r)
+    pos = old  # index in ``tp`` of each point of ``r.tp``
+    rounds = 1
+    while rounds < left and windows:
+        over = _window_round(problem, r, tp, pos, windows)
+        if over is None or not over.size:
+            break
+        tp, old, _ = insert_points(tp, over, problem.pivot)
+        pos = old[pos]
+        rounds += 1
+    return tp, rounds
+
+
+def _windows(machine: Machine, r: _Round) -> list[tuple[int, int]]:
+    """Windows [a, b] (indices of ``r.tp``) around what round ``r`` bent, its spans and the
+    points it inserts, one per stretch that has any of them (:func:`_inserted`); none where
+    they would cover half the path or more (planning the whole path costs no more then)."""
+    assert r.bent is not None
+    exact = r.sel.q[:, machine.rotary_columns[0]]
+    active = r.bent[:, 0] != exact
+    for sp in r.spans:
+        active[sp.first : sp.last + 1] = True
+    seg = np.floor(r.over).astype(int)
+    active[seg] = active[seg + 1] = True
+    out = []
+    for a, b in _stretches(r.tp, r.sel):
+        at = np.flatnonzero(active[a : b + 1])
+        if at.size:
+            out.append(
+                (max(a, a + int(at[0]) - WINDOW_MARGIN), min(b, a + int(at[-1]) + WINDOW_MARGIN))
+            )
+    if 2 * sum(b - a + 1 for a, b in out) >= len(r.tp):
+        return []
+    return out
+
+
+def _window_round(
+    problem: Problem,
+    r: _Round,
+    tp: Toolpath,
+    pos: np.ndarray,
+    windows: list[tuple[int, int]],
+) -> np.ndarray | None:
+    """The positions on ``tp`` where the next round, planned on each window alone, inserts
+    points, shape (k,); None where a window's branch choice is not that of ``r`` (at the
+    points of ``r.tp``, ``pos`` their indices in ``tp``) or it bends nothing."""
+    cols = list(problem.machine.rotary_columns)
+    found = []
+    for ra, rb in windows:
+        a, b = int(pos[ra]), int(pos[rb])
+        sub = toolpath_slice(tp, a, b + 1)
+        local = _planned(replace(problem, toolpath=sub, start=r.sel.q[ra]), sub)
+        if local.bent is None or len(local.tp) != len(sub):
+            return None
+        at = pos[ra : rb + 1] - a
+        # leaving angles but at the window's end, arriving ones but at its start (rewinds)
+        same = np.allclose(local.sel.q[at[:-1]][:, cols], r.sel.q[ra:rb][:, cols], atol=1e-9)
+        same &= np.allclose(
+            local.sel.arrive[at[1:]][:, cols], r.sel.arrive[ra + 1 : rb + 1][:, cols], atol=1e-9
+        )
+        if not same:
+            log.debug("cone: the branch choice of window %d-%d is not the whole path's", a, b)
+            return None
+        found.append(local.over + a)
+    return np.concatenate(found) if found else np.zeros(0)
 
 
 def _say(notes: list[str]) -> None:
