@@ -13,7 +13,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from jobs import two_tools
 
 import urdfpost.posting.whole as whole
@@ -27,6 +30,7 @@ from urdfpost.posting.stream import post_stream
 from urdfpost.program import Spindle
 from urdfpost.readers import read_cl, read_cl_text
 from urdfpost.toolpath import Motion, toolpath_pieces
+from urdfpost.verification.process import distinct
 
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"
@@ -491,3 +495,12 @@ def test_angle_tolerance_is_refused_alike(
     value = option[-1].removeprefix("--angle-tolerance=")
     err = capsys.readouterr().err
     assert f"argument --angle-tolerance: expected a non-negative number, got '{value}'" in err
+
+
+@given(st.lists(st.integers(0, 6), max_size=40), st.booleans())
+def test_distinct_counts_the_blocks_of_rows_in_order_and_not(
+    values: list[int], order: bool
+) -> None:
+    """The count of blocks among a piece's rows: by its changes where in order, else sorted."""
+    array = np.array(sorted(values) if order else values, dtype=np.int64)
+    assert distinct(array) == np.unique(array).size
