@@ -38,7 +38,7 @@ from dataclasses import replace
 from typing import Final
 
 import numpy as np
-from scipy import optimize, sparse
+from scipy import sparse
 
 from urdfpost.geometry import angle_between
 from urdfpost.kinematics.inverse import IKStatus
@@ -253,6 +253,8 @@ def smooth_angles(
     ndarray, shape (k + 1,), rad, or None
         None when a solver fails.
     """
+    from scipy import optimize  # its import (0.5 s) only for the strategy that solves
+
     k = len(exact) - 1
     m = k - 1  # inner points
     if m < 1:
@@ -331,6 +333,8 @@ def _least_acceleration(
     ``trust-constr`` with its constant Hessian, from the least-time solution ``start``, which
     is kept when the solver fails or breaks a constraint.
     """
+    from scipy import optimize  # its import (0.5 s) only for the strategy that solves
+
     m = len(x_lo)
     acc, acc0 = _acceleration_operator(h, d, c)
     base = float(np.sum((acc @ start[:m] + acc0) ** 2))
