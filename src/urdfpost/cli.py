@@ -22,6 +22,7 @@ import numpy as np
 
 from urdfpost import __version__
 from urdfpost._files import check_distinct, output_target, temp_file, write_texts
+from urdfpost._memory import keep_freed_memory
 from urdfpost.errors import UrdfpostError
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.posting.tools import read_tool_table
@@ -1323,6 +1324,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(argv: Sequence[str] | None) -> int:
+    keep_freed_memory()
     parser = build_parser()
     args = parser.parse_args(argv)
     restore = _setup_logging(args.verbose)
