@@ -36,9 +36,9 @@ How the pieces join:
   with more than one core this runs in a worker process, one piece behind the planning, so
   the two share the work (a piece is handed over when the one before is checked: one piece
   waits at most). A piece that misses its tolerance stops the post all the same. The process
-  (feeds, spindle, tools, length offsets) is checked here as each piece is written, read back
-  with a reader of its own (:class:`urdfpost.verification.process.PieceProcess`), and refused
-  at the end with the message of a whole post.
+  (feeds, spindle, tools, length offsets) is checked there too, from the same read
+  (:class:`urdfpost.verification.process.PieceProcess`: the one read serves both checks, and
+  the planning keeps its core), and refused at the end with the message of a whole post.
 
 The singular spans of the report are numbered along the pieces' plan paths joined (each join
 once), as :func:`post` numbers them along its plan's path. Figures that depend on the whole job
@@ -77,7 +77,7 @@ from urdfpost.program import Program
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath, joined, toolpath_slice
 from urdfpost.verification import Verification
-from urdfpost.verification.process import PieceProcess, located, rounding_of
+from urdfpost.verification.process import located
 
 log = logging.getLogger(__name__)
 
@@ -292,7 +292,6 @@ def post_stream(
     entry: np.ndarray | None = None  # a new tool section: where the one before left the path
     fresh: list[bool] = []  # per piece: it begins a tool section
     checks: Checks | None = None
-    process: PieceProcess | None = None  # the process check of ``urdfpost verify``, by piece
     inserts: list[str] = []  # the texts of the program's inserted blocks
     unsettled: list[int] = []  # CL lines of the joins whose branch choice rests on the lookahead
     count = 0
@@ -348,7 +347,9 @@ def post_stream(
                 if checks is None:
                     if parallel is None:
                         parallel = FORK and not last and (os.cpu_count() or 1) > 1
-                    checks = Checks(machine, dialect.name, str(out), tol, units, parallel)
+                    checks = Checks(
+                        machine, dialect.name, str(out), tol, units, parallel, process=True
+                    )
                 problem = replace(base, toolpath=window, start=start)
                 plan = STRATEGIES[job.strategy](problem)
                 if last or boundary is not None:
@@ -399,22 +400,6 @@ def post_stream(
                 handle.write(text)
                 piece_job = PieceJob.of(text, posted, fresh=fresh[-1])
                 checks.submit(piece_job)
-                if process is None:  # feeds, spindle, tools as a whole post checks them
-                    process = PieceProcess(
-                        dialect,
-                        machine,
-                        f"<{dialect.name} program>",
-                        tol=tol,
-                        tool_length=posted.target.tool_length,
-                        rounding=rounding_of(dialect, units),
-                    )
-                process.add(
-                    text,
-                    piece_job.inserts,
-                    posted.target.intended or posted.target.cl,
-                    fresh=fresh[-1],
-                    tool_length=posted.target.tool_length,
-                )
                 inserts += piece_job.inserts
                 found = posted.figures
                 figures = found if figures is None else figures.joined(found, offset)
@@ -439,8 +424,9 @@ def post_stream(
                 )
         assert checks is not None
         results = checks.finish()
-        assert process is not None and last_piece is not None
-        process_check = process.result()
+        # feeds, spindle, tools as a whole post checks them, from the same read
+        process_check = checks.process_check()
+        assert process_check is not None and last_piece is not None
         if not process_check.ok:  # as :func:`urdfpost.posting.whole.post` says it
             path = f"<{dialect.name} program>"
             faults = located(process_check, dialect, lambda: program_texts(tmp), path, inserts)

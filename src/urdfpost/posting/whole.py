@@ -34,7 +34,7 @@ from urdfpost.program import Blocks, Insert, Program
 from urdfpost.toolpath import Toolpath, toolpath_slice
 from urdfpost.units import mm_per_unit
 from urdfpost.verification import Verification
-from urdfpost.verification.process import PieceProcess, check_process, located, rounding_of
+from urdfpost.verification.process import check_process, located, rounding_of
 
 
 @dataclass(frozen=True)
@@ -253,15 +253,8 @@ def _post_sections(
     header = job_header(job, figures, sections[0].length, lengths if not job.tcp else None, offsets)
     writer.open(header, stock_box(job))
     path = f"<{dialect.name} program>"
-    verifier = PieceVerifier(machine, dialect.name, path, job.tol, job.units)
-    process = PieceProcess(
-        dialect,
-        machine,
-        path,
-        tol=job.tol,
-        tool_length=sections[0].length,
-        rounding=rounding_of(dialect, job.units),
-    )
+    # (the process of each section checked from the verification's read of it)
+    verifier = PieceVerifier(machine, dialect.name, path, job.tol, job.units, process=True)
     texts: list[str] = []
     results: list[tuple[Verification, Verification | None]] = []
     for k, posted in enumerate(pieces):
@@ -272,15 +265,6 @@ def _post_sections(
         piece = PieceJob.of(texts[-1], posted, fresh=k > 0)
         section_machine = machines.get(sections[k].mcs, machine)
         results.append(verifier.check(piece, section_machine))
-        target = posted.target
-        process.add(
-            texts[-1],
-            piece.inserts,
-            target.intended or target.cl,
-            fresh=k > 0,
-            tool_length=target.tool_length,
-            machine=section_machine,
-        )
     text = "".join(texts)
     fresh = [k > 0 for k in range(len(pieces))]
     check = merge_verifications([c for c, _ in results], fresh)
@@ -304,7 +288,8 @@ def _post_sections(
         collisions=Collisions.merged([p.collisions for p in pieces]),
         tool_lengths_mm={} if job.tcp else lengths,
     )
-    result = process.result()
+    result = verifier.process_check()
+    assert result is not None
     if not result.ok:
         inserts = [b.text for b in program.parts if isinstance(b, Insert)]
         faults = located(result, dialect, lambda: [text], path, inserts)

@@ -41,6 +41,7 @@ from urdfpost.program import Blocks, Insert, MoveTable, Program, arcs_as_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.verification import Verification
 from urdfpost.verification.planes import PlaneFrames
+from urdfpost.verification.process import PieceProcess, ProcessCheck, rounding_of
 
 if TYPE_CHECKING:
     from urdfpost.posting.piece import PostedPiece
@@ -57,6 +58,7 @@ kernel does not stop the worker with it, and a fork of the post keeps the end of
 connection open that would tell)."""
 
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+_PROCESS = "process check"  # what the post sends for the process check of the pieces checked
 _STOPS = {signal.SIGINT, signal.SIGTERM}  # what stops a post (Ctrl-C, kill)
 
 
@@ -103,19 +105,33 @@ class PieceJob:
 
 class PieceVerifier:
     """Reads back the pieces' texts in order with one reader and checks each against its CL
-    points, from the last row of the piece before (module docstring)."""
+    points, from the last row of the piece before (module docstring).
+
+    With ``process``, each piece read back is also checked for its process (feeds, spindle,
+    tools, length offsets: :class:`urdfpost.verification.process.PieceProcess`) from the same
+    read, against the path its strategy intended (:meth:`process_check`).
+    """
 
     def __init__(
-        self, machine: Machine, controller: str, path: str, tol: Tolerances, units: str
+        self,
+        machine: Machine,
+        controller: str,
+        path: str,
+        tol: Tolerances,
+        units: str,
+        process: bool = False,
     ) -> None:
         from urdfpost.dialects import dialect_for
 
         self.machine, self.tol, self.units = machine, tol, units
         rollover = machine.settings.rollover
-        dialect = dialect_for(controller).with_clamps(machine.settings.clamps)
-        self.reader = dialect.reader(path=path, rollover=rollover)
+        self.dialect = dialect_for(controller).with_clamps(machine.settings.clamps)
+        self.reader = self.dialect.reader(path=path, rollover=rollover)
         self.frames = PlaneFrames(machine)
         self.previous: tuple[tuple[str, ...], np.ndarray] | None = None  # axes, last row
+        self.path = path
+        self.with_process = process
+        self.process: PieceProcess | None = None  # made with the first piece's tool length
 
     def check(
         self, job: PieceJob, machine: Machine | None = None
@@ -130,18 +146,46 @@ class PieceVerifier:
             Either misses its tolerance.
         """
         self.reader.feed(job.text, job.inserts)
-        readback = self.frames.feed(self.reader.take())  # (the planes' moves in the program's)
+        read = self.frames.feed(self.reader.take())  # (the planes' moves in the program's)
+        readback = read
         if self.previous is not None and not job.fresh:
             readback = _prepended(readback, *self.previous)
         checks = check_piece(readback, machine or self.machine, job.target, self.tol)
         error = tolerance_error(job.target.cl, checks, self.units, piece=True)
         if error is not None:
             raise error
+        if self.with_process:
+            self._process(job, read, machine)
         check, intent = checks
         table = arcs_as_moves(readback, math.inf).move_table()  # (an arc's end: its last row)
         if len(table):
             self.previous = (readback.axes, np.asarray(table.position[-1]))
         return check, intent
+
+    def _process(self, job: PieceJob, read: Program, machine: Machine | None) -> None:
+        """The process check of a piece read back (``read``: before the row of the piece
+        before is put in front, which the process check puts there itself)."""
+        target = job.target
+        if self.process is None:
+            self.process = PieceProcess(
+                self.dialect,
+                self.machine,
+                self.path,
+                tol=self.tol,
+                tool_length=target.tool_length,
+                rounding=rounding_of(self.dialect, self.units),
+            )
+        self.process.add_program(
+            read,
+            target.intended or target.cl,
+            fresh=job.fresh,
+            tool_length=target.tool_length,
+            machine=machine,
+        )
+
+    def process_check(self) -> ProcessCheck | None:
+        """The process check of the pieces so far (None: not asked for, or no piece yet)."""
+        return None if self.process is None else self.process.result()
 
 
 @contextlib.contextmanager
@@ -191,8 +235,9 @@ def _detach(post_end: Connection | None) -> bool:
     return parent is not None and parent.pid is not None and _die_with_parent(parent.pid)
 
 
-def _next_job(conn: Connection) -> PieceJob | None:
-    """The next job, or None when the post says so or its process is gone."""
+def _next_job(conn: Connection) -> PieceJob | str | None:
+    """The next job (or :data:`_PROCESS`), or None when the post says so or its process is
+    gone."""
     parent = multiprocessing.parent_process()
     assert parent is not None
     while True:
@@ -202,7 +247,7 @@ def _next_job(conn: Connection) -> PieceJob | None:
             return None
         if ready:
             try:
-                job: PieceJob | None = conn.recv()
+                job: PieceJob | str | None = conn.recv()
             except (EOFError, OSError):  # the post's end closed
                 return None
             return job
@@ -211,7 +256,7 @@ def _next_job(conn: Connection) -> PieceJob | None:
 def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
     """A verification worker: checks the jobs it receives with one :class:`PieceVerifier` and
     sends back ``(True, result)`` or ``(False, exception)``, until it receives None or the post
-    is gone (module docstring).
+    is gone (module docstring); for :data:`_PROCESS`, ``(True, the process check)``.
 
     Parameters
     ----------
@@ -227,7 +272,10 @@ def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
     verifier = PieceVerifier(*args)
     while (job := _next_job(conn)) is not None:
         try:
-            answer: tuple[bool, Any] = (True, verifier.check(job))
+            if isinstance(job, str):
+                answer: tuple[bool, Any] = (True, verifier.process_check())
+            else:
+                answer = (True, verifier.check(job))
         except Exception as exc:  # sent back to be raised where the post runs
             answer = (False, exc)
             try:
@@ -245,7 +293,8 @@ class Checks:
     two cores of a small machine share the work), or here one after the other.
 
     One piece is checked at a time; the next is handed over when the one before has been
-    checked, so at most one piece waits (memory stays bounded).
+    checked, so at most one piece waits (memory stays bounded). With ``process``, the pieces'
+    process is checked there too, from the same read (:meth:`process_check`).
     """
 
     def __init__(
@@ -256,6 +305,7 @@ class Checks:
         tol: Tolerances,
         units: str,
         parallel: bool,
+        process: bool = False,
     ) -> None:
         self.results: list[tuple[Verification, Verification | None]] = []
         self.local: PieceVerifier | None = None
@@ -264,7 +314,7 @@ class Checks:
         self.busy = False  # a job was handed over and its result not taken yet
         self.sender: threading.Thread | None = None
         self.sent = True  # whether the last job reached the worker
-        args = (machine, controller, path, tol, units)
+        args = (machine, controller, path, tol, units, process)
         if not parallel:
             self.local = PieceVerifier(*args)
             return
@@ -312,6 +362,23 @@ class Checks:
         """Every piece's verifications, in order, once all are checked."""
         self._collect()
         return self.results
+
+    def process_check(self) -> ProcessCheck | None:
+        """The process check of every piece checked (once all are), None when not asked for
+        or no piece was."""
+        if self.local is not None:
+            return self.local.process_check()
+        self._collect()
+        assert self.conn is not None
+        try:
+            self.conn.send(_PROCESS)
+            ok, value = self.conn.recv()
+        except (EOFError, OSError):
+            raise self._gone() from None
+        if not ok:
+            raise value
+        assert value is None or isinstance(value, ProcessCheck)
+        return value
 
     def _collect(self) -> None:
         if not self.busy:

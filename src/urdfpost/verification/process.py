@@ -808,6 +808,21 @@ class PieceProcess:
         """
         self.reader.feed(text, inserts)
         program = self.frames.feed(self.reader.take())  # (the planes' moves in the program's)
+        self.add_program(program, expected, fresh=fresh, tool_length=tool_length, machine=machine)
+
+    def add_program(
+        self,
+        program: Program,
+        expected: Toolpath,
+        *,
+        fresh: bool = False,
+        tool_length: float | None = None,
+        machine: Machine | None = None,
+    ) -> None:
+        """:meth:`add` of a piece read already: ``program`` is what a reader that has read the
+        pieces before gives for its text, its planes' moves in the program's coordinates
+        (:class:`~urdfpost.verification.planes.PlaneFrames`), as the verification of the same
+        piece reads it (one read for both checks)."""
         if self._last is not None and not fresh:
             axes, row = self._last
             position = np.array([row[axes.index(a)] if a in axes else np.nan for a in program.axes])
