@@ -406,6 +406,52 @@ def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
     assert_same_figures(got, whole, worst=False)
 
 
+@pytest.mark.parametrize("controller", ["fanuc", "heidenhain"])
+def test_verify_in_pieces_in_a_worker_is_the_same_verify(
+    tmp_path: Path, controller: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``urdfpost verify`` in pieces hands each piece read to a worker process to verify while
+    the next is read: the figures are exactly those of verifying the pieces here, whole
+    program and damaged (a missed stretch), and an error in the worker comes back."""
+    from urdfpost.dialects import dialect_for
+    from urdfpost.posting.readback import verify_stream
+    from urdfpost.tolerances import Tolerances
+
+    m = load_machine("gantry-ca")
+    n = 3000
+    az = np.radians(np.linspace(0.0, 360.0 * 4.2, n))
+    t = np.radians(30.0)
+    axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
+    tip = np.stack([40 * np.cos(az), 40 * np.sin(az), np.linspace(0, -6, n)], axis=1)
+    job = Toolpath.from_points(tip, axis, feed=800.0, source="spiral", spindle=10000.0)
+    result = post(job, m, PostOptions(controller=controller, tcp=False, strategy="recursive"))
+    tol = Tolerances.for_units("mm")
+    length = result.program.tool_length
+    for text in (result.text, _damaged(result.text)):
+        path = tmp_path / f"spiral{dialect_for(controller).extensions[0]}"
+        path.write_text(text, encoding="utf-8")
+        got = {
+            parallel: verify_stream(
+                path, toolpath_pieces(job, 500), m, controller, tol=tol, tool_length=length,
+                piece_points=300, parallel=parallel,
+            )[0]
+            for parallel in (False, True)
+        }  # fmt: skip
+        assert got[True] == got[False]
+        assert got[True].ok is (text == result.text)
+    # an error in the worker (forked: it has the patch) comes back as the error
+    from urdfpost.errors import UrdfpostError
+    from urdfpost.posting import worker
+
+    def broken(*args: object, **kwargs: object) -> Verification:
+        raise UrdfpostError("verification broke")
+
+    monkeypatch.setattr(worker, "verify", broken)
+    with pytest.raises(UrdfpostError, match="verification broke"):
+        verify_stream(path, toolpath_pieces(job, 500), m, controller, tol=tol,
+                      tool_length=length, piece_points=300, parallel=True)  # fmt: skip
+
+
 def test_cli_verifies_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``urdfpost verify --piece-points N`` prints what the whole check prints."""
     from urdfpost.cli import main

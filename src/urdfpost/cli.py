@@ -523,8 +523,15 @@ def build_parser() -> argparse.ArgumentParser:
         type=_piece_points,
         metavar="N",
         help="read and check in pieces of about N CL points (bounded memory for long jobs; "
-        "the same figures, but for the mean deviation); 0: never. Default: pieces of "
+        "the same figures, but for the mean deviation; each piece verified in a second process "
+        "while the next is read); 0: never. Default: pieces of "
         f"{PIECE_POINTS} points when the CL file or the program is over {_STREAM_BYTES >> 20} MB",
+    )
+    ve.add_argument(
+        "--single-process",
+        action="store_true",
+        help="with --piece-points: verify each piece in this process after it is read (by "
+        "default a second process verifies it while the next is read)",
     )
 
     vw = sub.add_parser(
@@ -931,6 +938,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             process=process,
             table=table,
             feed_rules=feed_rules,
+            parallel=False if args.single_process else None,
         )
         toolpath = replace(toolpath, warnings=tuple(warnings))
         process_check = process.result()

@@ -17,6 +17,7 @@ from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.posting.tools import Section, gauge_lengths, program_sections, tool_sections
+from urdfpost.posting.worker import FORK, Checks, ReadPiece
 from urdfpost.program import Blocks, Move, MoveTable, Program, Smoothing, rewind_moves
 from urdfpost.readers._stream import text_pieces
 from urdfpost.tolerances import Tolerances
@@ -30,7 +31,6 @@ from urdfpost.verification import (
     program_joints,
     rewind_note,
     row_poses_at_tip,
-    verify,
 )
 from urdfpost.verification.feeds import FeedCheck, FeedRules
 from urdfpost.verification.planes import PlaneFrames
@@ -231,6 +231,7 @@ def verify_stream(
     process: ProcessChecker | None = None,
     table: Mapping[int, float] | None = None,
     feed_rules: FeedRules | None = None,
+    parallel: bool | None = None,
 ) -> tuple[Verification, Program]:
     """:func:`urdfpost.verification.verify` of a program file against CL data given in pieces, in
     bounded memory: the program is read and checked a piece at a time.
@@ -267,6 +268,10 @@ def verify_stream(
     feed_rules : FeedRules, optional
         How the control times the blocks: the tip feed of every piece is measured
         (:func:`urdfpost.verification.verify`); None: not measured.
+    parallel : bool, optional
+        Verify each piece in a worker process while the next one is read and cut (and its
+        process checked); default on Linux when the machine has more than one core and the
+        program more than one piece (as :func:`urdfpost.posting.stream.post_stream`).
 
     Returns
     -------
@@ -291,100 +296,106 @@ def verify_stream(
     program: Program | None = None
     cl: Toolpath | None = None
     program_ends = cl_ends = False
-    parts: list[Verification] = []
     header: Program | None = None
     smoothing: list[Smoothing] = []  # the program's path smoothing blocks, in order
     want = piece_points
     rows_per_point = 1.5  # a first guess, then as the pieces so far had
     rows_done = points_done = 0
     lengths: dict[int, float] = {}  # each tool's gauge length, mm
+    checks: Checks | None = None  # where the pieces are verified, in order
+
+    def check(head: Program, part: Toolpath, length: float, rules: FeedRules | None) -> None:
+        """Verify a piece (in the worker, when there is one), its result taken in order at
+        the end."""
+        nonlocal checks
+        if checks is None:
+            if parallel is None:  # a worker for a program of more than one piece
+                use = FORK and not (cl_ends and program_ends) and (os.cpu_count() or 1) > 1
+            else:
+                use = parallel
+            checks = Checks(machine, controller, str(program_path), tol, head.units, use)
+        checks.submit(ReadPiece(head, part, length, pivot, rules))
+
     length = tool_length  # of the tool section being checked
     fresh: list[bool] = []  # per piece: it begins a tool section
     starts = False  # the next piece begins one
     more_text = False  # the program's next tool section is not read yet
-    while True:
-        while not cl_ends and (cl is None or len(cl) < want + 2):
-            more = next(cl_source, None)
-            if more is None:
-                cl_ends = True
-            else:
-                lengths |= gauge_lengths(more, tool_length, table)
-                cl = more if cl is None else joined(cl, [more])
-        need = int(rows_per_point * want) + REACH + 2
-        while not program_ends and (
-            program is None or len(program.move_table()) < need or more_text
-        ):
-            more_text = False
-            text = next(text_source, None)
-            if text is None:
-                program_ends = True
-                continue
-            reader.feed(text)
-            taken = frames.feed(reader.take())  # (the planes' moves in the program's frame)
-            smoothing += [b for b in taken.parts if isinstance(b, Smoothing)]
-            program = _joined_programs(program, taken)
-        if program is None:
-            program = reader.take()
-        if header is None:
-            header = replace(program, blocks=Blocks(()))
-        assert cl is not None
-        sections = [Section(0, len(cl), length, None)]
-        if not program.tcp:
-            sections = tool_sections(cl, tool_length, table, length=length)
-            length = sections[0].length  # (a tool change at the piece's start)
-        if len(sections) > 1:  # the section ends in this piece: checked on its own
-            cut_program = program_sections(program, lengths, tool_length)
-            if len(cut_program) == 1 and not program_ends:
-                more_text = True  # its end is further on in the program text
-                continue
-            if len(cut_program) > 1:
-                head = cut_program[0][0]
-                program = replace(program, blocks=Blocks(program.parts[len(head.parts) :]))
-                end = sections[0].stop
-                part_cl = toolpath_slice(cl, 0, end)
-                parts.append(
-                    verify(head, machine, part_cl, tool_length=length, tol=tol, pivot=pivot)
-                )
+    try:
+        while True:
+            while not cl_ends and (cl is None or len(cl) < want + 2):
+                more = next(cl_source, None)
+                if more is None:
+                    cl_ends = True
+                else:
+                    lengths |= gauge_lengths(more, tool_length, table)
+                    cl = more if cl is None else joined(cl, [more])
+            need = int(rows_per_point * want) + REACH + 2
+            while not program_ends and (
+                program is None or len(program.move_table()) < need or more_text
+            ):
+                more_text = False
+                text = next(text_source, None)
+                if text is None:
+                    program_ends = True
+                    continue
+                reader.feed(text)
+                taken = frames.feed(reader.take())  # (the planes' moves in the program's frame)
+                smoothing += [b for b in taken.parts if isinstance(b, Smoothing)]
+                program = _joined_programs(program, taken)
+            if program is None:
+                program = reader.take()
+            if header is None:
+                header = replace(program, blocks=Blocks(()))
+            assert cl is not None
+            sections = [Section(0, len(cl), length, None)]
+            if not program.tcp:
+                sections = tool_sections(cl, tool_length, table, length=length)
+                length = sections[0].length  # (a tool change at the piece's start)
+            if len(sections) > 1:  # the section ends in this piece: checked on its own
+                cut_program = program_sections(program, lengths, tool_length)
+                if len(cut_program) == 1 and not program_ends:
+                    more_text = True  # its end is further on in the program text
+                    continue
+                if len(cut_program) > 1:
+                    head = cut_program[0][0]
+                    program = replace(program, blocks=Blocks(program.parts[len(head.parts) :]))
+                    end = sections[0].stop
+                    part_cl = toolpath_slice(cl, 0, end)
+                    check(head, part_cl, length, None)
+                    fresh.append(starts)
+                    if process is not None:
+                        process.add(head, part_cl, fresh=starts, tool_length=length)
+                    cl = toolpath_slice(cl, end, len(cl))
+                    length, starts = sections[1].length, True
+                    continue
+            if cl_ends and program_ends:
+                check(program, cl, length, feed_rules)
                 fresh.append(starts)
                 if process is not None:
-                    process.add(head, part_cl, fresh=starts, tool_length=length)
-                cl = toolpath_slice(cl, end, len(cl))
-                length, starts = sections[1].length, True
+                    process.add(
+                        program, cl, ended=reader.builder.ended, fresh=starts, tool_length=length
+                    )
+                break
+            cut = _verify_cut(program, machine, cl, tol, length, pivot, want, program_ends)
+            if cut is None:  # nowhere to cut yet: a longer piece, and more rows
+                want *= 2
                 continue
-        if cl_ends and program_ends:
-            parts.append(
-                verify(
-                    program, machine, cl, tool_length=length, tol=tol, pivot=pivot,
-                    feed_rules=feed_rules,
-                )
-            )  # fmt: skip
+            c, r = cut
+            head, program = _split_rows(program, r)
+            check(head, toolpath_slice(cl, 0, c + 1), length, feed_rules)
             fresh.append(starts)
             if process is not None:
-                process.add(
-                    program, cl, ended=reader.builder.ended, fresh=starts, tool_length=length
-                )
-            break
-        cut = _verify_cut(program, machine, cl, tol, length, pivot, want, program_ends)
-        if cut is None:  # nowhere to cut yet: a longer piece, and more rows
-            want *= 2
-            continue
-        c, r = cut
-        head, program = _split_rows(program, r)
-        parts.append(
-            verify(
-                head, machine, toolpath_slice(cl, 0, c + 1), tool_length=length, tol=tol,
-                pivot=pivot, feed_rules=feed_rules,
-            )
-        )  # fmt: skip
-        fresh.append(starts)
-        if process is not None:
-            process.add(head, toolpath_slice(cl, 0, c + 1), fresh=starts, tool_length=length)
-        starts = False
-        cl = toolpath_slice(cl, c, len(cl), first_events=False)
-        rows_done += r
-        points_done += c
-        rows_per_point = max(1.0, 1.25 * rows_done / max(points_done, 1))
-        want = piece_points
-        log.info("verified a piece: CL lines to %d, program rows to %d", cl.line[0], rows_done)
-    assert header is not None
+                process.add(head, toolpath_slice(cl, 0, c + 1), fresh=starts, tool_length=length)
+            starts = False
+            cl = toolpath_slice(cl, c, len(cl), first_events=False)
+            rows_done += r
+            points_done += c
+            rows_per_point = max(1.0, 1.25 * rows_done / max(points_done, 1))
+            want = piece_points
+            log.info("verified a piece: CL lines to %d, program rows to %d", cl.line[0], rows_done)
+        assert header is not None and checks is not None
+        parts = [c for c, _ in checks.finish()]
+    finally:
+        if checks is not None:
+            checks.close()
     return merge_verifications(parts, fresh), replace(header, blocks=Blocks(tuple(smoothing)))

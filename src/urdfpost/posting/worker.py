@@ -39,7 +39,9 @@ from urdfpost.machine import Machine
 from urdfpost.posting.check import CheckTarget, check_piece, tolerance_error
 from urdfpost.program import Blocks, Insert, MoveTable, Program, arcs_as_moves
 from urdfpost.tolerances import Tolerances
-from urdfpost.verification import Verification
+from urdfpost.toolpath import Toolpath
+from urdfpost.verification import Verification, verify
+from urdfpost.verification.feeds import FeedRules
 from urdfpost.verification.planes import PlaneFrames
 from urdfpost.verification.process import PieceProcess, ProcessCheck, rounding_of
 
@@ -103,6 +105,29 @@ class PieceJob:
         )
 
 
+@dataclass(frozen=True)
+class ReadPiece:
+    """A piece of a program read already (``urdfpost verify`` in pieces), to be verified
+    against its CL points with :func:`urdfpost.verification.verify`.
+
+    Attributes
+    ----------
+    program : Program
+        The piece's rows, read back (its first row the last of the piece before).
+    cl : Toolpath
+        Its CL points.
+    tool_length, pivot : float, mm
+    feed_rules : FeedRules or None
+        As :func:`urdfpost.verification.verify` takes them.
+    """
+
+    program: Program
+    cl: Toolpath
+    tool_length: float
+    pivot: float
+    feed_rules: FeedRules | None = None
+
+
 class PieceVerifier:
     """Reads back the pieces' texts in order with one reader and checks each against its CL
     points, from the last row of the piece before (module docstring).
@@ -134,17 +159,29 @@ class PieceVerifier:
         self.process: PieceProcess | None = None  # made with the first piece's tool length
 
     def check(
-        self, job: PieceJob, machine: Machine | None = None
+        self, job: PieceJob | ReadPiece, machine: Machine | None = None
     ) -> tuple[Verification, Verification | None]:
         """The piece's verifications against the CL data and against its strategy's path
         (on ``machine``: a section in another MCS, its program zero elsewhere; default the
-        verifier's).
+        verifier's). A :class:`ReadPiece` is verified as it is (the second is None), whatever
+        its figures.
 
         Raises
         ------
         ToleranceError
-            Either misses its tolerance.
+            Either misses its tolerance (a posted piece).
         """
+        if isinstance(job, ReadPiece):
+            check = verify(
+                job.program,
+                machine or self.machine,
+                job.cl,
+                tool_length=job.tool_length,
+                tol=self.tol,
+                pivot=job.pivot,
+                feed_rules=job.feed_rules,
+            )
+            return check, None
         self.reader.feed(job.text, job.inserts)
         read = self.frames.feed(self.reader.take())  # (the planes' moves in the program's)
         readback = read
@@ -235,7 +272,7 @@ def _detach(post_end: Connection | None) -> bool:
     return parent is not None and parent.pid is not None and _die_with_parent(parent.pid)
 
 
-def _next_job(conn: Connection) -> PieceJob | str | None:
+def _next_job(conn: Connection) -> PieceJob | ReadPiece | str | None:
     """The next job (or :data:`_PROCESS`), or None when the post says so or its process is
     gone."""
     parent = multiprocessing.parent_process()
@@ -247,7 +284,7 @@ def _next_job(conn: Connection) -> PieceJob | str | None:
             return None
         if ready:
             try:
-                job: PieceJob | str | None = conn.recv()
+                job: PieceJob | ReadPiece | str | None = conn.recv()
             except (EOFError, OSError):  # the post's end closed
                 return None
             return job
@@ -337,7 +374,7 @@ class Checks:
             child.close()
         log.info("streamed pieces are verified in worker process %d", self.process.pid)
 
-    def submit(self, job: PieceJob) -> None:
+    def submit(self, job: PieceJob | ReadPiece) -> None:
         """Check ``job`` (after the one before, which it waits for in the worker).
 
         The job is pickled and sent from a thread, so that planning the next piece goes on
@@ -351,7 +388,7 @@ class Checks:
         self.sender = threading.Thread(target=self._send, args=(job,), daemon=True)
         self.sender.start()
 
-    def _send(self, job: PieceJob) -> None:
+    def _send(self, job: PieceJob | ReadPiece) -> None:
         assert self.conn is not None
         try:
             self.conn.send(job)
