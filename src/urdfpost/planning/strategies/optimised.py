@@ -35,10 +35,9 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 import numpy as np
-from scipy import sparse
 
 from urdfpost.geometry import angle_between
 from urdfpost.kinematics.inverse import IKStatus
@@ -54,6 +53,9 @@ from urdfpost.planning.strategies._common import (
 )
 from urdfpost.planning.strategies._registry import strategy
 from urdfpost.toolpath import Toolpath
+
+if TYPE_CHECKING:
+    from scipy import sparse
 
 log = logging.getLogger(__name__)
 
@@ -253,7 +255,8 @@ def smooth_angles(
     ndarray, shape (k + 1,), rad, or None
         None when a solver fails.
     """
-    from scipy import optimize  # its import (0.5 s) only for the strategy that solves
+    # scipy's imports (0.7 s) only for the strategy that solves
+    from scipy import optimize, sparse
 
     k = len(exact) - 1
     m = k - 1  # inner points
@@ -307,6 +310,8 @@ def _acceleration_operator(
     a0 : ndarray, shape (k - 1,)
     """
     k = len(h)
+    from scipy import sparse
+
     vel = sparse.diags(1.0 / h) @ d  # step velocities, (k, m)
     vel0 = c / h
     diff = sparse.diags([-np.ones(k - 1), np.ones(k - 1)], [0, 1], shape=(k - 1, k))
@@ -333,7 +338,7 @@ def _least_acceleration(
     ``trust-constr`` with its constant Hessian, from the least-time solution ``start``, which
     is kept when the solver fails or breaks a constraint.
     """
-    from scipy import optimize  # its import (0.5 s) only for the strategy that solves
+    from scipy import optimize, sparse  # (imported only for the strategy that solves)
 
     m = len(x_lo)
     acc, acc0 = _acceleration_operator(h, d, c)
