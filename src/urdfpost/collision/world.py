@@ -960,7 +960,7 @@ class CollisionWorld:
         ``need``).
         """
         rot, center = self._boxes(transforms) if boxes is None else boxes
-        if kernels is not None:
+        if kernels is not None and not _KERNEL_FAILED:
             n = len(rot)
             try:
                 out: np.ndarray = kernels.pair_bounds(
@@ -1020,7 +1020,7 @@ class CollisionWorld:
         """Where the pairs ``allowed`` (n, p) may come within ``need`` (mm): the test of
         :meth:`_lower_bounds` ``<= need``, made for those pairs only (False elsewhere)."""
         rot, center = boxes
-        if kernels is not None:
+        if kernels is not None and not _KERNEL_FAILED:
             pairs = self._pairs
             try:
                 bounds = kernels.pair_bounds(
@@ -1193,7 +1193,7 @@ class CollisionWorld:
         if tree is None or not ask[:, self._stock_pairs].any():
             return
         boxes = self._boxes(transforms) if boxes is None else boxes
-        if kernels is not None:
+        if kernels is not None and not _KERNEL_FAILED:
             rot, center = boxes
             lo, hi = tree.flat
             r_inv, t_s = self._stock_frame()
@@ -1263,7 +1263,7 @@ class CollisionWorld:
         ``KERNEL_SLACK_MM`` (at most the numpy figure; -inf wherever that is)."""
         tree = self._stock_tree
         assert tree is not None  # asked with a stock only
-        if kernels is not None:
+        if kernels is not None and not _KERNEL_FAILED:
             rot, center = boxes
             lo, hi = tree.flat
             r_inv, t_s = self._stock_frame()
