@@ -969,7 +969,7 @@ class CollisionWorld:
                     self._box_half,
                     np.ascontiguousarray(pairs[:, 0], dtype=np.int64),
                     np.ascontiguousarray(pairs[:, 1], dtype=np.int64),
-                    np.ascontiguousarray(np.broadcast_to(need, (n,)), dtype=float),
+                    np.array(np.broadcast_to(need, (n,)), dtype=float),
                     np.zeros((0, 0), dtype=bool),
                     False,
                     KERNEL_SLACK_MM,
@@ -1211,7 +1211,7 @@ class CollisionWorld:
                     lo,
                     hi,
                     len(tree.lo),
-                    np.ascontiguousarray(gaps),
+                    np.array(gaps, dtype=float),
                     _TREE_FRONTIER,
                     KERNEL_SLACK_MM,
                 )
@@ -1278,7 +1278,7 @@ class CollisionWorld:
                     lo,
                     hi,
                     len(tree.lo),
-                    np.ascontiguousarray(most, dtype=float),
+                    np.array(most, dtype=float),
                     _TREE_FRONTIER,
                     KERNEL_SLACK_MM,
                 )
