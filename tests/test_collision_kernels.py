@@ -304,3 +304,21 @@ def test_a_kernel_that_fails_leaves_the_numpy_path_with_a_warning(
     monkeypatch.undo()
     monkeypatch.setattr(world_module, "_KERNEL_FAILED", ["cannot compile here"])
     assert world_module._compiled(10**9) is None
+
+
+def test_compiled_from_a_query_size_then_for_every_query(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Before the kernels are loaded, small queries run numpy (no numba import for them);
+    from ``COMPILED_FROM`` configurations on, and after ``warm_kernels``, every query runs
+    compiled."""
+    kernels = _kernels()
+    monkeypatch.setattr(world_module, "_KERNEL_FAILED", [])
+    world_module._kernel_module.cache_clear()
+    try:
+        assert world_module._compiled(world_module.COMPILED_FROM - 1) is None
+        assert world_module._compiled(world_module.COMPILED_FROM) is kernels
+        assert world_module._compiled(1) is kernels
+        world_module._kernel_module.cache_clear()
+        assert world_module.warm_kernels()
+        assert world_module._compiled(1) is kernels
+    finally:
+        world_module._kernel_module.cache_clear()

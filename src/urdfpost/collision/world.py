@@ -294,12 +294,15 @@ FCL: 1 um, far above the rounding of the box arithmetic and of FCL's own contact
 _TREE_LEAF = 8  # triangles per leaf box of the stock's box tree
 _TREE_FRONTIER = 64  # nodes per query beyond which a query goes to FCL without further culling
 
-COMPILED_FROM = 2_000
+COMPILED_FROM = 20_000
 """Configurations of one query (``check``, or ``check_moves``' ends and samples) from which the
 box culling runs compiled (:mod:`urdfpost.collision._kernels`, with numba installed: the
-``fast`` extra), about 0.5 s of numba's import and cache loading the first time; once loaded,
-queries of any size use it. Below, and without numba, the numpy path runs (the same pairs
-culled, within ``KERNEL_SLACK_MM``)."""
+``fast`` extra); once loaded, queries of any size use it. Below, and without numba, the numpy
+path runs (the same pairs culled, within ``KERNEL_SLACK_MM``). Loading costs about 0.6 s of
+CPU once per process (numba's import, LLVM's start, the cached machine code) and saves about
+6 us per configuration: a post calls ``check_moves`` about six times on samples of the same
+path, so from about 20,000 samples per call it gains (a 10k-point five-axis path has about
+40,000; the README's 300-point dome 10,000 per call, even either way)."""
 
 KERNEL_SLACK_MM = 1e-10
 """The compiled culling's gaps are lowered by this (mm), so that it keeps every pair the numpy
@@ -330,10 +333,41 @@ def _compiled(n: int) -> ModuleType | None:
     return _kernel_module()
 
 
+def warm_kernels() -> bool:
+    """Load the compiled culling now (about 0.6 s of CPU once per process; else the first
+    query of ``COMPILED_FROM`` configurations pays it), so that every later query uses it.
+
+    Returns
+    -------
+    bool
+        Whether it is available (numba installed, compiled or loaded from its cache here).
+    """
+    kernels = _kernel_module()
+    if kernels is None or _KERNEL_FAILED:
+        return False
+    n, b = 1, 2
+    rot, center = np.tile(np.eye(3), (n, b, 1, 1)), np.zeros((n, b, 3))
+    half, one = np.ones((b, 3)), np.zeros(1, dtype=np.int64)
+    tree = np.zeros((1, 3))
+    try:
+        kernels.pair_bounds(
+            rot, center, half, one, one + 1, np.zeros(n), np.zeros((n, 1), bool), True, 0.0
+        )
+        stock = (np.eye(3), np.zeros(3), tree, tree, 1, np.zeros(n), _TREE_FRONTIER, 0.0)
+        kernels.stock_separations(rot, center, half, one, *stock)
+        kernels.cull_stock_pairs(np.ones((n, 1), bool), one, one, rot, center, half, *stock)
+    except Exception as e:  # numba could not compile or load them here: numpy
+        _kernel_failed(e)
+        return False
+    return True
+
+
 def _kernel_failed(error: Exception) -> None:
     """Note that the compiled culling failed (numba could not compile or load it here)."""
     _KERNEL_FAILED.append(str(error))
-    log.warning("compiled collision culling unavailable (%s); the numpy path runs", error)
+    first = (str(error).strip().splitlines() or [type(error).__name__])[0]
+    log.warning("compiled collision culling unavailable (%s); the numpy path runs", first)
+    log.debug("compiled collision culling failed", exc_info=error)
 
 
 def _rotation(axis: np.ndarray, theta: np.ndarray) -> np.ndarray:
