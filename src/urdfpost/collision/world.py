@@ -35,11 +35,13 @@ False
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import os
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
+from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -292,6 +294,81 @@ FCL: 1 um, far above the rounding of the box arithmetic and of FCL's own contact
 _TREE_LEAF = 8  # triangles per leaf box of the stock's box tree
 _TREE_FRONTIER = 64  # nodes per query beyond which a query goes to FCL without further culling
 
+COMPILED_FROM = 20_000
+"""Configurations of one query (``check``, or ``check_moves``' ends and samples) from which the
+box culling runs compiled (:mod:`urdfpost.collision._kernels`, with numba installed: the
+``fast`` extra); once loaded, queries of any size use it. Below, and without numba, the numpy
+path runs (the same pairs culled, within ``KERNEL_SLACK_MM``). Loading costs about 0.6 s of
+CPU once per process (numba's import, LLVM's start, the cached machine code) and saves about
+6 us per configuration: a post calls ``check_moves`` about six times on samples of the same
+path, so from about 20,000 samples per call it gains (a 10k-point five-axis path has about
+40,000; the README's 300-point dome 10,000 per call, even either way)."""
+
+KERNEL_SLACK_MM = 1e-10
+"""The compiled culling's gaps are lowered by this (mm), so that it keeps every pair the numpy
+path keeps whatever the two round (sums of a few products of coordinates of at most metres:
+about 1e-12 mm); far below ``GAP_MM``."""
+
+_KERNEL_FAILED: list[str] = []
+"""Why the compiled culling could not run in this process (then the numpy path runs)."""
+
+
+@functools.cache
+def _kernel_module() -> ModuleType | None:
+    """:mod:`urdfpost.collision._kernels`, or None without numba (looked for once)."""
+    try:
+        from urdfpost.collision import _kernels
+    except ImportError:
+        return None
+    return _kernels
+
+
+def _compiled(n: int) -> ModuleType | None:
+    """The compiled culling for a query of ``n`` configurations, or None: the numpy path
+    (without numba, after it failed here, or below ``COMPILED_FROM`` before it was loaded)."""
+    if _KERNEL_FAILED:
+        return None
+    if n < COMPILED_FROM and _kernel_module.cache_info().currsize == 0:
+        return None
+    return _kernel_module()
+
+
+def warm_kernels() -> bool:
+    """Load the compiled culling now (about 0.6 s of CPU once per process; else the first
+    query of ``COMPILED_FROM`` configurations pays it), so that every later query uses it.
+
+    Returns
+    -------
+    bool
+        Whether it is available (numba installed, compiled or loaded from its cache here).
+    """
+    kernels = _kernel_module()
+    if kernels is None or _KERNEL_FAILED:
+        return False
+    n, b = 1, 2
+    rot, center = np.tile(np.eye(3), (n, b, 1, 1)), np.zeros((n, b, 3))
+    half, one = np.ones((b, 3)), np.zeros(1, dtype=np.int64)
+    tree = np.zeros((1, 3))
+    try:
+        kernels.pair_bounds(
+            rot, center, half, one, one + 1, np.zeros(n), np.zeros((n, 1), bool), True, 0.0
+        )
+        stock = (np.eye(3), np.zeros(3), tree, tree, 1, np.zeros(n), _TREE_FRONTIER, 0.0)
+        kernels.stock_separations(rot, center, half, one, *stock)
+        kernels.cull_stock_pairs(np.ones((n, 1), bool), one, one, rot, center, half, *stock)
+    except Exception as e:  # numba could not compile or load them here: numpy
+        _kernel_failed(e)
+        return False
+    return True
+
+
+def _kernel_failed(error: Exception) -> None:
+    """Note that the compiled culling failed (numba could not compile or load it here)."""
+    _KERNEL_FAILED.append(str(error))
+    first = (str(error).strip().splitlines() or [type(error).__name__])[0]
+    log.warning("compiled collision culling unavailable (%s); the numpy path runs", first)
+    log.debug("compiled collision culling failed", exc_info=error)
+
 
 def _rotation(axis: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """Rotations about unit ``axis`` (3,) by angles ``theta`` (n,) rad, shape (n, 3, 3)."""
@@ -430,6 +507,12 @@ class _BoxTree:
 
     lo: list[np.ndarray]
     hi: list[np.ndarray]
+
+    @functools.cached_property
+    def flat(self) -> tuple[np.ndarray, np.ndarray]:
+        """The levels one after the other from the root (level l from row ``2**l - 1``):
+        corners (2**levels - 1, 3), mm, for the compiled descents."""
+        return np.ascontiguousarray(np.vstack(self.lo)), np.ascontiguousarray(np.vstack(self.hi))
 
     @classmethod
     def of(cls, triangles: np.ndarray) -> _BoxTree:
@@ -895,6 +978,7 @@ class CollisionWorld:
         pairs: np.ndarray,
         need: float | np.ndarray = np.inf,
         boxes: tuple[np.ndarray, np.ndarray] | None = None,
+        kernels: ModuleType | None = None,
     ) -> np.ndarray:
         """Lower bounds of the distance of each pair, shape (n, p), mm.
 
@@ -905,8 +989,28 @@ class CollisionWorld:
         the two oriented boxes along any of their six axes (a separating-axis test that
         measures the gap). Callers that ask whether a pair is within ``need`` get the answer
         of the oriented boxes everywhere. ``boxes``: :meth:`_boxes` of ``transforms``, if known.
+        ``kernels`` (:func:`_compiled`): computed by :func:`._kernels.pair_bounds`, every bound
+        lowered by ``KERNEL_SLACK_MM`` (so at most the numpy bound wherever that is within
+        ``need``).
         """
         rot, center = self._boxes(transforms) if boxes is None else boxes
+        if kernels is not None and not _KERNEL_FAILED:
+            n = len(rot)
+            try:
+                out: np.ndarray = kernels.pair_bounds(
+                    rot,
+                    center,
+                    self._box_half,
+                    np.ascontiguousarray(pairs[:, 0], dtype=np.int64),
+                    np.ascontiguousarray(pairs[:, 1], dtype=np.int64),
+                    np.array(np.broadcast_to(need, (n,)), dtype=float),
+                    np.zeros((0, 0), dtype=bool),
+                    False,
+                    KERNEL_SLACK_MM,
+                )
+                return out
+            except Exception as e:  # numba could not compile or load it here: numpy
+                _kernel_failed(e)
         ia, ib = pairs[:, 0], pairs[:, 1]
         extent = self._extents(rot)
         between = center[:, ib] - center[:, ia]  # (n, p, 3)
@@ -941,11 +1045,32 @@ class CollisionWorld:
         return gaps
 
     def _asked_bounds(
-        self, boxes: tuple[np.ndarray, np.ndarray], allowed: np.ndarray, need: float
+        self,
+        boxes: tuple[np.ndarray, np.ndarray],
+        allowed: np.ndarray,
+        need: float,
+        kernels: ModuleType | None = None,
     ) -> np.ndarray:
         """Where the pairs ``allowed`` (n, p) may come within ``need`` (mm): the test of
         :meth:`_lower_bounds` ``<= need``, made for those pairs only (False elsewhere)."""
         rot, center = boxes
+        if kernels is not None and not _KERNEL_FAILED:
+            pairs = self._pairs
+            try:
+                bounds = kernels.pair_bounds(
+                    rot,
+                    center,
+                    self._box_half,
+                    np.ascontiguousarray(pairs[:, 0], dtype=np.int64),
+                    np.ascontiguousarray(pairs[:, 1], dtype=np.int64),
+                    np.full(len(rot), float(need)),
+                    np.ascontiguousarray(allowed, dtype=bool),
+                    True,
+                    KERNEL_SLACK_MM,
+                )
+                return np.asarray(bounds <= need)
+            except Exception as e:  # numba could not compile or load it here: numpy
+                _kernel_failed(e)
         s_k, p_k = np.nonzero(allowed)
         ask = np.zeros(allowed.shape, dtype=bool)
         if not len(s_k):
@@ -1025,7 +1150,11 @@ class CollisionWorld:
         return out
 
     def _first_pairs(
-        self, q: np.ndarray, plain: bool = False, allowed: np.ndarray | None = None
+        self,
+        q: np.ndarray,
+        plain: bool = False,
+        allowed: np.ndarray | None = None,
+        kernels: ModuleType | None = None,
     ) -> np.ndarray:
         """The first colliding pair of each configuration, shape (n, 2), body indices, -1 clear.
 
@@ -1036,6 +1165,8 @@ class CollisionWorld:
         partner's box is more than that from every leaf box of the stock's tree, are clear.
         ``plain``: FCL on every pair, placements by Pinocchio (the reference of the tests).
         ``allowed`` (n, p): the pairs that can touch at all (the others are known clear).
+        ``kernels`` (:func:`_compiled`): the culling compiled (a few more pairs within
+        ``KERNEL_SLACK_MM`` of a limit may be handed to FCL, none fewer).
         """
         pairs = self._pairs
         out = np.full((q.shape[0], 2), -1)
@@ -1048,10 +1179,11 @@ class CollisionWorld:
             else:
                 boxes = self._boxes(transforms)
                 if allowed is None:
-                    ask = self._lower_bounds(transforms, pairs, GAP_MM, boxes) <= GAP_MM
+                    bounds = self._lower_bounds(transforms, pairs, GAP_MM, boxes, kernels)
+                    ask = bounds <= GAP_MM
                 else:  # the bounds of the pairs that can touch at all only
-                    ask = self._asked_bounds(boxes, allowed[rows], GAP_MM)
-                self._cull_stock_pairs(transforms, ask, boxes=boxes)
+                    ask = self._asked_bounds(boxes, allowed[rows], GAP_MM, kernels)
+                self._cull_stock_pairs(transforms, ask, boxes=boxes, kernels=kernels)
             first[:] = self._first_asked(transforms, ask)
         return out
 
@@ -1084,19 +1216,57 @@ class CollisionWorld:
         ask: np.ndarray,
         gap: float | np.ndarray = GAP_MM,
         boxes: tuple[np.ndarray, np.ndarray] | None = None,
+        kernels: ModuleType | None = None,
     ) -> None:
         """Clear, in ``ask`` (n, p), the stock pairs whose partner's box keeps ``gap`` (mm; or
         one per configuration, shape (n,)) from every leaf box of the stock's tree (``boxes``:
-        :meth:`_boxes` of ``transforms``, if known)."""
+        :meth:`_boxes` of ``transforms``, if known; ``kernels``: :func:`_compiled`, the
+        descents compiled, within ``KERNEL_SLACK_MM``)."""
         gaps = np.broadcast_to(np.asarray(gap, dtype=float), (len(ask),))
         tree = self._stock_tree
         if tree is None or not ask[:, self._stock_pairs].any():
             return
         boxes = self._boxes(transforms) if boxes is None else boxes
+        if kernels is not None and not _KERNEL_FAILED:
+            rot, center = boxes
+            lo, hi = tree.flat
+            r_inv, t_s = self._stock_frame()
+            work = np.ascontiguousarray(ask, dtype=bool)
+            try:
+                kernels.cull_stock_pairs(
+                    work,
+                    np.ascontiguousarray(self._stock_pairs, dtype=np.int64),
+                    self._stock_partners(),
+                    rot,
+                    center,
+                    self._box_half,
+                    r_inv,
+                    t_s,
+                    lo,
+                    hi,
+                    len(tree.lo),
+                    np.array(gaps, dtype=float),
+                    _TREE_FRONTIER,
+                    KERNEL_SLACK_MM,
+                )
+                ask[:] = work
+                return
+            except Exception as e:  # numba could not compile or load it here: numpy
+                _kernel_failed(e)
         for p in self._stock_pairs:
             rows = np.flatnonzero(ask[:, p])
             if len(rows):
                 ask[rows, p] = tree.near(*self._partner_box(boxes, rows, p), gaps[rows])
+
+    def _stock_partners(self) -> np.ndarray:
+        """Per stock pair (``_stock_pairs``), the stock's partner body, shape (s,), int64."""
+        pairs, s = self._pairs[self._stock_pairs], self._stock
+        return np.ascontiguousarray(np.where(pairs[:, 1] == s, pairs[:, 0], pairs[:, 1]), np.int64)
+
+    def _stock_frame(self) -> tuple[np.ndarray, np.ndarray]:
+        """The stock's rotation transposed (3, 3) and origin (3,), mm, in the workpiece frame."""
+        stock_t = self._fixed_transform[self._stock]
+        return np.ascontiguousarray(stock_t[:3, :3].T), np.ascontiguousarray(stock_t[:3, 3])
 
     def _partner_box(
         self, boxes: tuple[np.ndarray, np.ndarray], rows: np.ndarray | slice, p: int
@@ -1118,12 +1288,37 @@ class CollisionWorld:
         transforms: np.ndarray,
         most: np.ndarray,
         boxes: tuple[np.ndarray, np.ndarray],
+        kernels: ModuleType | None = None,
     ) -> np.ndarray:
         """:meth:`_BoxTree.separation` of the partner of every stock pair from the stock's
         leaf boxes, up to ``most`` (n,) mm, shape (n, s) in the order of ``_stock_pairs``
-        (``_cull_stock_pairs`` at gap g clears where it is more than g)."""
+        (``_cull_stock_pairs`` at gap g clears where it is more than g). ``kernels``
+        (:func:`_compiled`): by :func:`._kernels.stock_separations`, lowered by
+        ``KERNEL_SLACK_MM`` (at most the numpy figure; -inf wherever that is)."""
         tree = self._stock_tree
         assert tree is not None  # asked with a stock only
+        if kernels is not None and not _KERNEL_FAILED:
+            rot, center = boxes
+            lo, hi = tree.flat
+            r_inv, t_s = self._stock_frame()
+            try:
+                sep: np.ndarray = kernels.stock_separations(
+                    rot,
+                    center,
+                    self._box_half,
+                    self._stock_partners(),
+                    r_inv,
+                    t_s,
+                    lo,
+                    hi,
+                    len(tree.lo),
+                    np.array(most, dtype=float),
+                    _TREE_FRONTIER,
+                    KERNEL_SLACK_MM,
+                )
+                return sep
+            except Exception as e:  # numba could not compile or load it here: numpy
+                _kernel_failed(e)
         out = np.empty((len(transforms), len(self._stock_pairs)))
         for col, p in enumerate(self._stock_pairs):
             out[:, col] = tree.separation(*self._partner_box(boxes, slice(None), int(p)), most)
@@ -1179,7 +1374,7 @@ class CollisionWorld:
         dist = np.full(n, np.nan)
         nearest: list[tuple[int, int] | None] = [None] * n
         near_pairs = self._clearance_pairs(clearance_of) if clearance else self._pairs[:0]
-        first = self._first_pairs(q)
+        first = self._first_pairs(q, kernels=_compiled(n))
         hit = first[:, 0] >= 0
         for k in np.flatnonzero(hit).tolist():
             pairs[k] = (int(first[k, 0]), int(first[k, 1]))
@@ -1238,7 +1433,9 @@ class CollisionWorld:
         n = np.maximum(np.ceil(swept / step_mm), np.ceil(turn / math.radians(step_deg)))
         return np.maximum(n, 1).astype(int)
 
-    def _ends_and_moves(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _ends_and_moves(
+        self, q: np.ndarray, kernels: ModuleType | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_first_pairs` of the configurations ``q`` (n, m), and the pairs that may come
         within ``GAP_MM`` somewhere on each straight joint-space move between consecutive ones,
         shape (n - 1, p), bool, from the same placements.
@@ -1249,7 +1446,9 @@ class CollisionWorld:
         ``(b0 + b1 - s) / 2`` all along; a stock pair whose partner's box keeps ``GAP_MM + s``
         from every leaf box of the stock's tree at both ends cannot reach the stock's surface
         either (nor enter or leave it: whether a body is inside the stock is the same all
-        along, and is checked at the ends).
+        along, and is checked at the ends). ``kernels`` (:func:`_compiled`): the box gaps and
+        the tree's descents compiled, each lowered by ``KERNEL_SLACK_MM`` (a move or pair more
+        may be kept, none fewer).
         """
         pairs = self._pairs
         n = q.shape[0]
@@ -1268,7 +1467,7 @@ class CollisionWorld:
             adjacent = np.zeros(stop - start)
             adjacent[starts - start] = swept[starts]
             adjacent[finishes - start] = np.maximum(adjacent[finishes - start], swept[finishes - 1])
-            here = self._lower_bounds(transforms, pairs, 2 * GAP_MM + adjacent, boxes)
+            here = self._lower_bounds(transforms, pairs, 2 * GAP_MM + adjacent, boxes, kernels)
             bound[start:stop] = here
             ask = here <= GAP_MM
             stock = self._stock_tree is not None and len(self._stock_pairs) > 0
@@ -1277,7 +1476,7 @@ class CollisionWorld:
                 continue
             # the stock pairs: one descent of the stock's tree per configuration and pair
             # answers the gaps asked (the configuration's own, and either move's)
-            sep = self._stock_separations(transforms, GAP_MM + adjacent, boxes)
+            sep = self._stock_separations(transforms, GAP_MM + adjacent, boxes, kernels)
             wide = _within(sep, GAP_MM + adjacent[:, None])  # within reach of either move
             ask[:, self._stock_pairs] &= wide & _within(sep, GAP_MM)
             ends[start:stop] = self._first_asked(transforms, ask)
@@ -1324,7 +1523,8 @@ class CollisionWorld:
         first = np.full((len(move) + 1, 2), -1)
         # the move ends (the configurations themselves), then the interior samples of the moves
         # on which a pair can touch at all, only for those pairs (:meth:`_ends_and_moves`)
-        ends, may = self._ends_and_moves(q)
+        kernels = _compiled(len(move) + 1)
+        ends, may = self._ends_and_moves(q, kernels)
         first[offsets] = ends[:-1]
         first[-1] = ends[-1]
         touching = np.asarray(may.any(axis=1), dtype=bool)  # moves on which a pair may touch
@@ -1334,7 +1534,7 @@ class CollisionWorld:
             mv = move[at]
             t = k[at] / counts[mv]
             qs = q[mv] + t[:, None] * (q[mv + 1] - q[mv])
-            first[at] = self._first_pairs(qs, allowed=may[mv])
+            first[at] = self._first_pairs(qs, allowed=may[mv], kernels=kernels)
         # per sample, the next colliding sample at or after it
         hits = np.flatnonzero(first[:, 0] >= 0)
         nxt = np.searchsorted(hits, offsets)
