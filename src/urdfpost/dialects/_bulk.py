@@ -483,6 +483,7 @@ def _compiled_lines(raw: bytes, grammar: MotionGrammar) -> MotionLines | None:
     try:
         *fields, status = kernel(
             np.frombuffer(raw, dtype=np.uint8),
+            raw.count(b"\n"),
             ord(grammar.number_letter) if grammar.number_letter else -1,
             grammar.number_required,
             _word_bytes(grammar.lead),

@@ -71,6 +71,7 @@ def _is(b: np.ndarray, start: int, length: int, word: np.ndarray) -> bool:
 @njit(cache=True, nogil=True)
 def read_lines(
     b: np.ndarray,
+    breaks: int,
     number_letter: int,
     number_required: bool,
     lead: np.ndarray,
@@ -85,6 +86,8 @@ def read_lines(
     ----------
     b : ndarray, shape (n,), uint8
         The text (ASCII; lines separated by ``\\n`` only), not empty.
+    breaks : int
+        Line breaks in the text (``bytes.count`` counts them faster than a loop).
     number_letter : int
         Byte of the block number's letter, -1 for block numbers of digits alone.
     number_required : bool
@@ -114,7 +117,7 @@ def read_lines(
     feed : ndarray, shape (L,), float64
         Feed word's value as written (NaN without).
     status : int
-        :data:`READ`, or :data:`TOO_MANY_DIGITS` (the arrays are then not all filled).
+        :data:`READ`, or :data:`TOO_MANY_DIGITS` (the arrays are then not all written).
 
     Notes
     -----
@@ -123,19 +126,15 @@ def read_lines(
     is not a known one, which is not plain: as the numpy path leaves them.
     """
     n = b.shape[0]
-    count = 0
-    for i in range(n):
-        if b[i] == _BREAK:
-            count += 1
-    if b[n - 1] != _BREAK:
-        count += 1
+    count = breaks + (b[n - 1] != _BREAK)
+    # (every field of every line is written once below: no filling first)
     starts = np.empty(count, dtype=np.int64)
     ends = np.empty(count, dtype=np.int64)
-    plain = np.zeros(count, dtype=np.bool_)
-    axes = np.full((count, 6), np.nan)
-    code = np.full(count, -1, dtype=np.int8)
-    rapid = np.zeros(count, dtype=np.bool_)
-    feed = np.full(count, np.nan)
+    plain = np.empty(count, dtype=np.bool_)
+    axes = np.empty((count, 6))
+    code = np.empty(count, dtype=np.int8)
+    rapid = np.empty(count, dtype=np.bool_)
+    feed = np.empty(count)
     words = np.empty(_FEED + 1)
     has_codes = code_keys.shape[0] > 0
     has_lead = lead.shape[0] > 0
@@ -157,6 +156,35 @@ def read_lines(
             sign_ok = True
             negative = False
             integer = 0
+            # the common word first, byte after byte without asking what else a byte may be:
+            # a letter, a sign, digits, a point, digits (up to 15: more go to the loop below)
+            if head_letter:
+                letters = 1
+                i += 1
+            if i < n and (b[i] == _PLUS or b[i] == _MINUS):
+                signs = 1
+                negative = b[i] == _MINUS
+                i += 1
+            while i < n and digits < _MAX_DIGITS:
+                d = int(b[i]) - 48
+                if d < 0 or d > 9:
+                    break
+                integer = integer * 10 + d
+                digits += 1
+                i += 1
+            if i < n and b[i] == _POINT:
+                dots = 1
+                i += 1
+                while i < n and digits < _MAX_DIGITS:
+                    d = int(b[i]) - 48
+                    if d < 0 or d > 9:
+                        break
+                    integer = integer * 10 + d
+                    digits += 1
+                    decimals += 1
+                    i += 1
+            # the rest of the word (nothing, in a plain block but for numbers of more than 15
+            # digits), character by character
             while i < n:
                 c = b[i]
                 if 48 <= c <= 57:
@@ -235,11 +263,16 @@ def read_lines(
             i += 1
         ends[row] = i
         i += 1
-        if not ok or seen & 0b11111100 == 0:
-            continue
-        if number_required and not seen & (1 << _NUMBER):
-            continue
-        if has_lead and not seen & (1 << _CODE):
+        plain[row] = False
+        code[row] = -1
+        rapid[row] = False
+        ok = ok and seen & 0b11111100 != 0  # an axis word
+        ok = ok and (not number_required or seen & (1 << _NUMBER) != 0)
+        ok = ok and (not has_lead or seen & (1 << _CODE) != 0)
+        if not ok:
+            for k in range(6):
+                axes[row, k] = np.nan
+            feed[row] = np.nan
             continue
         if long_number:
             return starts, ends, plain, axes, code, rapid, feed, TOO_MANY_DIGITS
