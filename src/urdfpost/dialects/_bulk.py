@@ -460,12 +460,6 @@ def _compiled() -> Callable[..., tuple] | None:
     return None if _KERNEL_FAILED else _kernel()
 
 
-def compiled_available() -> bool:
-    """Whether :func:`motion_lines` can run compiled in this process (numba is importable
-    and has not failed here)."""
-    return _compiled() is not None
-
-
 def _word_bytes(word: str | None) -> np.ndarray:
     """A keyword's bytes, shape (k,), uint8 (empty for none)."""
     return np.frombuffer((word or "").encode("ascii"), dtype=np.uint8)
