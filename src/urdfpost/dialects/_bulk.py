@@ -12,18 +12,24 @@ The reader's side (:func:`motion_lines`) splits the lines of a text into words w
 operations, in pieces that keep the arrays in the processor's cache, checks which lines are
 plain motion blocks, and reads all their numbers with one call of ``np.fromstring`` a piece:
 as integers without their points, then divided by a power of ten, which is the ``float`` of
-the text (bit for bit) for up to 15 digits; as ``float`` reads them otherwise.
+the text (bit for bit) for up to 15 digits; as ``float`` reads them otherwise. Asked to run
+compiled (large texts, with numba installed), it is one loop over the bytes
+(:mod:`urdfpost.dialects._line_kernel`) with the same result.
 """
 
 from __future__ import annotations
 
+import functools
+import logging
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from urdfpost.dialects.spec import NumberFormat
+
+log = logging.getLogger(__name__)
 
 #: Largest scaled value formatted here (beyond, the caller writes the values one by one).
 MAX_SCALED = 2.0**52
@@ -366,11 +372,17 @@ def _no_motion(starts: np.ndarray, ends: np.ndarray) -> MotionLines:
     )
 
 
-def motion_lines(text: str, grammar: MotionGrammar, piece: int = MOTION_PIECE) -> MotionLines:
+def motion_lines(
+    text: str, grammar: MotionGrammar, piece: int = MOTION_PIECE, compiled: bool = False
+) -> MotionLines:
     """Find and read the plain motion blocks among the lines of ``text``, all at once.
 
     The text is split into words in pieces of about ``piece`` characters cut at line breaks;
-    the result does not depend on ``piece``.
+    the result does not depend on ``piece``. With ``compiled`` (and numba installed), the
+    text is read by the compiled loop of :mod:`urdfpost.dialects._line_kernel` instead, with
+    the same result; it falls back to the numpy path where it cannot (a grammar whose keywords
+    are not letters only, a plain block with a number of more than 15 digits, numba missing
+    or failing here).
 
     Parameters
     ----------
@@ -379,6 +391,9 @@ def motion_lines(text: str, grammar: MotionGrammar, piece: int = MOTION_PIECE) -
     grammar : MotionGrammar
     piece : int
         Characters split at once (at least; a piece ends at a line break).
+    compiled : bool
+        Read by the compiled loop when it can (worth it for large texts only: numba's import
+        and the loading of its machine code take some 0.4 to 0.9 s once per process).
 
     Returns
     -------
@@ -389,12 +404,16 @@ def motion_lines(text: str, grammar: MotionGrammar, piece: int = MOTION_PIECE) -
     n = len(raw)
     if not n:
         return _general_lines(raw, grammar)
+    fast = _letters_only(grammar.lead) and _letters_only(grammar.rapid_word)
+    if compiled and fast:
+        read = _compiled_lines(raw, grammar)
+        if read is not None:
+            return read
     ends = np.flatnonzero(np.frombuffer(raw, dtype=np.uint8) == _LINE_BREAK)
     if raw[-1] != _LINE_BREAK:
         ends = np.append(ends, n)
     starts = np.concatenate([[0], ends[:-1] + 1]).astype(np.int64)
     out = _no_motion(starts, ends)
-    fast = _letters_only(grammar.lead) and _letters_only(grammar.rapid_word)
     count = ends.shape[0]
     unread = False
     row = 0
@@ -420,6 +439,60 @@ def motion_lines(text: str, grammar: MotionGrammar, piece: int = MOTION_PIECE) -
         out.feed[lines] = part.feed
         row = stop
     return _no_motion(starts, ends) if unread else out
+
+
+_KERNEL_FAILED: list[str] = []
+"""Why the compiled loop could not run in this process (then the numpy path runs)."""
+
+
+@functools.cache
+def _kernel() -> Callable[..., tuple] | None:
+    """The compiled loop, or None without numba (looked for once per process)."""
+    try:
+        from urdfpost.dialects._line_kernel import read_lines
+    except ImportError:
+        return None
+    return read_lines
+
+
+def _compiled() -> Callable[..., tuple] | None:
+    """The compiled loop, or None without numba (or after it failed here)."""
+    return None if _KERNEL_FAILED else _kernel()
+
+
+def _word_bytes(word: str | None) -> np.ndarray:
+    """A keyword's bytes, shape (k,), uint8 (empty for none)."""
+    return np.frombuffer((word or "").encode("ascii"), dtype=np.uint8)
+
+
+def _compiled_lines(raw: bytes, grammar: MotionGrammar) -> MotionLines | None:
+    """:func:`motion_lines` of a text (ASCII bytes, not empty) by the compiled loop, or None
+    where it does not read it (numba missing or failing here, a number of more than 15
+    digits in a plain block)."""
+    kernel = _compiled()
+    if kernel is None:
+        return None
+    keys = np.array(list(grammar.codes), dtype=float)
+    rapid = np.array(list(grammar.codes.values()), dtype=bool)
+    try:
+        *fields, status = kernel(
+            np.frombuffer(raw, dtype=np.uint8),
+            raw.count(b"\n"),
+            ord(grammar.number_letter) if grammar.number_letter else -1,
+            grammar.number_required,
+            _word_bytes(grammar.lead),
+            keys,
+            rapid,
+            _word_bytes(grammar.rapid_word),
+            grammar.require_point,
+        )
+    except Exception as e:  # numba could not compile or cache it here: the numpy path
+        _KERNEL_FAILED.append(str(e))
+        log.warning("compiled program reading unavailable (%s); the numpy path runs", e)
+        return None
+    if status:
+        return None
+    return MotionLines(*fields)
 
 
 def _letters_only(word: str | None) -> bool:
