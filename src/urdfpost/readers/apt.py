@@ -115,10 +115,12 @@ evidence of neighbouring moves, which are not always tangent).
 
 from __future__ import annotations
 
+import functools
 import io
 import itertools
 import logging
 import math
+import os
 import re
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -525,12 +527,24 @@ def _goto_values(lines: str, count: int) -> np.ndarray | None:
 
 
 def _bulk_runs(
-    text: str, bulk_piece: int | None = None
+    text: str, bulk_piece: int | None = None, compiled: bool = False
 ) -> Iterator[tuple[int, int, np.ndarray, int]]:
     """Runs of one-line GOTO records in ``text`` with their numbers read in bulk.
 
-    Long blocks are read in pieces of about ``bulk_piece`` characters (default
-    :data:`_BULK_PIECE`), which bounds the memory of the intermediate copies.
+    With ``compiled`` and numba installed, found and read by the compiled byte loop
+    (:func:`_compiled_runs`), else by :func:`_bulk_runs_numpy`: the same records, the same
+    numbers to the bit.
+
+    Parameters
+    ----------
+    text : str
+        Lines with ``\\n`` line breaks.
+    bulk_piece : int, optional
+        Characters after which a run is cut (default :data:`_BULK_PIECE`): bounds the memory
+        of the temporary arrays made of a run.
+    compiled : bool
+        Whether to read with the compiled loop (when numba is there): for large texts, which
+        make up for its import.
 
     Yields
     ------
@@ -541,6 +555,93 @@ def _bulk_runs(
         Lines of the run with a trailing ``$$`` comment.
     """
     size = _BULK_PIECE if bulk_piece is None else bulk_piece
+    runs = _compiled_runs(text, size) if compiled else None
+    return iter(runs) if runs is not None else _bulk_runs_numpy(text, size)
+
+
+COMPILED_FROM = 1 << 24
+"""Characters of text (a whole file's, or a streamed file's bytes) from which the runs of GOTO
+lines are found and read by the compiled byte loop (:mod:`urdfpost.readers._goto_kernel`, with
+numba installed: the ``fast`` extra) rather than the numpy path: the loop saves more than the
+fixed cost of numba's import and the loading of the cached machine code."""
+
+_KERNEL_FAILED: list[str] = []
+"""Why the compiled loop could not run in this process (then the numpy path runs)."""
+
+
+@functools.cache
+def _kernel() -> Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]] | None:
+    """The compiled GOTO scan, or None without numba (looked for once per process)."""
+    try:
+        from ._goto_kernel import goto_runs
+    except ImportError:
+        return None
+    return goto_runs
+
+
+def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int]] | None:
+    """:func:`_bulk_runs` of ``text`` by the compiled loop, or None without it (or when it
+    failed here, or when the numbers of an odd GOTO line are not for ``np.loadtxt``: then the
+    numpy path reads the text).
+
+    The loop reads the text's bytes, one per character (a character that is not ASCII as
+    ``?``, which no number has), so its offsets are the text's. The odd lines of its runs
+    (numbers with exponents, many digits, ``nan``...) are read here with :func:`_goto_values`,
+    as the numpy path reads every line.
+    """
+    kernel = None if _KERNEL_FAILED else _kernel()
+    if kernel is None:
+        return None
+    data = np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
+    try:
+        runs, values, odd = kernel(data, BULK_MIN_RECORDS, size)
+    except Exception as e:  # numba could not compile or load it here: the numpy path
+        _KERNEL_FAILED.append(str(e))
+        logger.warning("compiled GOTO scan unavailable (%s); the numpy path runs", e)
+        return None
+    del data
+    if len(odd) and not _read_odd(text, odd, values):
+        return None
+    return [
+        (start, end, values[first : first + count * width].reshape(count, width), comments)
+        for start, end, count, width, comments, first in runs.tolist()
+    ]
+
+
+def _read_odd(text: str, odd: np.ndarray, values: np.ndarray) -> bool:
+    """Fill in ``values`` the numbers of the odd GOTO lines of :func:`_compiled_runs`.
+
+    Parameters
+    ----------
+    text : str
+    odd : ndarray, shape (o, 3), int
+        Per line: its offset in ``text``, the offset after its code, the offset in ``values``
+        of its first number.
+    values : ndarray, shape (v,)
+
+    Returns
+    -------
+    bool
+        False when :func:`_goto_values` does not read them (then nothing is to be trusted).
+    """
+    codes = [text[start:end].strip() for start, end, _ in odd.tolist()]
+    widths = np.array([code.count(",") + 1 for code in codes])
+    for width in (3, 6):
+        chosen = np.flatnonzero(widths == width)
+        if not chosen.size:
+            continue
+        got = _goto_values("\n".join(codes[k] for k in chosen.tolist()), chosen.size)
+        if got is None or got.shape[1] != width:
+            return False
+        values[odd[chosen, 2][:, None] + np.arange(width)] = got
+    return True
+
+
+def _bulk_runs_numpy(text: str, size: int) -> Iterator[tuple[int, int, np.ndarray, int]]:
+    """:func:`_bulk_runs` with numpy: blocks of lines that start with ``GOTO/`` found with a
+    regular expression and their numbers read by ``np.loadtxt``, in pieces of about ``size``
+    characters (long blocks are cut after ``size`` characters when longer than ``2 * size``).
+    """
     for start, end in _goto_blocks(text):
         while start < end:
             cut = end
@@ -587,7 +688,8 @@ def scan_text(text: str, source: str) -> _Scan:
 
     The records are those of ``scan_records(split_lines(text), source)``, except that runs of
     at least :data:`BULK_MIN_RECORDS` consecutive one-line ``GOTO`` records with plain numbers
-    come as one :class:`GotoRun` each.
+    come as one :class:`GotoRun` each (found and read by the compiled loop from
+    :data:`COMPILED_FROM` characters on, see :func:`_bulk_runs`).
 
     Raises
     ------
@@ -595,7 +697,7 @@ def scan_text(text: str, source: str) -> _Scan:
         When the file ends inside a continued record.
     """
     scanner = _Scanner(source)
-    after = scan_piece(scanner, normalise_breaks(text), 1)
+    after = scan_piece(scanner, normalise_breaks(text), 1, compiled=len(text) >= COMPILED_FROM)
     if after is not None:
         scanner.after_fini(after)
     return scanner.finish()
@@ -613,14 +715,19 @@ def normalise_breaks(text: str) -> str:
 
 
 def scan_piece(
-    scanner: _Scanner, text: str, line: int, bulk_piece: int | None = None
+    scanner: _Scanner,
+    text: str,
+    line: int,
+    bulk_piece: int | None = None,
+    *,
+    compiled: bool = False,
 ) -> Iterator[str] | None:
     """Scan the lines of ``text`` into ``scanner``'s records, GOTO runs read in bulk.
 
     ``text`` has ``\\n`` line breaks only and starts at the start of line number ``line``; the
     scanner may hold a continued record from the lines before. Called on consecutive pieces
     of a file cut at line breaks, it makes the records of the whole file (GOTO runs may be
-    cut where the pieces are). ``bulk_piece`` is as for :func:`_bulk_runs`.
+    cut where the pieces are). ``bulk_piece`` and ``compiled`` are as for :func:`_bulk_runs`.
 
     Returns
     -------
@@ -628,7 +735,7 @@ def scan_piece(
         None, or when the scanner reads FINI, the lines of ``text`` after it.
     """
     pos = 0  # start of the next line to scan; its number is ``line``
-    for start, end, values, comments in _bulk_runs(text, bulk_piece):
+    for start, end, values, comments in _bulk_runs(text, bulk_piece, compiled):
         if start > pos:
             lines = text[pos : start - 1].split("\n")
             scanned = scanner.feed(lines, line)
@@ -2092,6 +2199,14 @@ def _first_point_of(record: Record | GotoRun, before: int, after: int) -> int:
     return max(before, after - 1)
 
 
+def _file_size(source: str) -> int:
+    """Bytes of the file ``source`` (0 when it cannot be told: the reading will say why)."""
+    try:
+        return os.path.getsize(source)
+    except OSError:
+        return 0
+
+
 def read_apt_stream(
     source: str,
     *,
@@ -2118,12 +2233,13 @@ def read_apt_stream(
     )
     builder = interpreter.builder
     scanner = _Scanner(source)
+    compiled = _file_size(source) >= COMPILED_FROM
     multiaxis_from: int | None = None
     after, count_after = 0, 0  # first line after FINI to warn about, and how many
     line = 1
     parts = _apt_parts(source, text_piece)
     for part in parts:
-        rest = scan_piece(scanner, part, line, _STREAM_PART)
+        rest = scan_piece(scanner, part, line, _STREAM_PART, compiled=compiled)
         records, scanner.scan.records = scanner.scan.records, []
         line += part.count("\n")
         del part  # the records hold what they need of it

@@ -1,0 +1,316 @@
+"""The runs of plain GOTO lines of an APT text and their numbers, found and read by one compiled
+byte loop (:func:`goto_runs`): the bulk reader of :func:`urdfpost.readers.apt.scan_piece` for
+large files.
+
+The numpy path (:func:`urdfpost.readers.apt._bulk_runs_numpy`) finds the blocks of lines that
+start with ``GOTO/`` with a regular expression and reads their numbers with ``np.loadtxt``,
+several passes over the text and its copies; compiled with numba, it is one pass over the
+text's bytes. Imported by :mod:`urdfpost.readers.apt` when a large file is first read (numba's
+import takes a quarter of a second); the machine code is cached on disk beside this module
+(``__pycache__``), so only the first call after an install compiles it.
+
+The numbers are those ``float()`` (and ``np.loadtxt``) give, bit for bit: a number is read here
+only when it is ``[+-]digits[.digits]`` (or ``[+-].digits``) with at most 18 digits whose
+integer ``m`` (the digits without the point) is at most 2**53 and with ``k <= 22`` digits after
+the point. Then ``m`` and ``10**k`` are exact doubles and ``m / 10**k`` is one IEEE division,
+correctly rounded, which is the correctly rounded value of the decimal as written: what
+``float()`` returns. A line with any other number (an exponent, more digits, ``nan``) is an
+*odd* line: its place and value count are returned and its numbers are read by the caller with
+``np.loadtxt``, as the numpy path reads them. Any other line is no GOTO line of a run: the
+scanner reads it record by record.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: Exact doubles 10**0 ... 10**22.
+_POWERS = np.array([10.0**k for k in range(23)])
+
+_NL = 10
+_TAB = 9
+_SPACE = 32
+_COMMA = 44
+_DOLLAR = 36
+_DOT = 46
+_PLUS = 43
+_MINUS = 45
+_ZERO = 48
+_NINE = 57
+_MOST_DIGITS = 18
+_LARGEST_EXACT = 1 << 53
+
+
+@njit(cache=True, nogil=True)
+def _line_end(data: np.ndarray, i: int) -> int:
+    """Offset of the ``\\n`` that ends the line at ``i``, or ``len(data)``."""
+    n = data.shape[0]
+    while i < n and data[i] != _NL:
+        i += 1
+    return i
+
+
+@njit(cache=True, nogil=True)
+def _is_goto(data: np.ndarray, i: int) -> bool:
+    """Whether ``GOTO/`` is at offset ``i``."""
+    return (
+        i + 5 <= data.shape[0]
+        and data[i] == 71  # G
+        and data[i + 1] == 79  # O
+        and data[i + 2] == 84  # T
+        and data[i + 3] == 79  # O
+        and data[i + 4] == 47  # /
+    )
+
+
+@njit(cache=True, nogil=True)
+def _blank(c: int) -> bool:
+    return c == _SPACE or c == _TAB
+
+
+@njit(cache=True, nogil=True)
+def _plain_line(data: np.ndarray, i: int, end: int, out: np.ndarray) -> tuple[int, int, int]:
+    """Read the values of the line ``data[i:end]`` (``end`` at its ``\\n`` or the text's end)
+    into ``out`` when it is ``GOTO/`` and 3 or 6 numbers this loop reads exactly.
+
+    Returns
+    -------
+    values : int
+        3 or 6, or 0 when the line is not such a line.
+    code_end : int
+        Offset after the line's code (where its ``$$`` comment starts, else ``end``).
+    comment : int
+        1 when the line has a trailing ``$$`` comment, else 0.
+    """
+    j = i + 5
+    count = 0
+    while True:
+        while j < end and _blank(data[j]):
+            j += 1
+        negative = False
+        if j < end and (data[j] == _MINUS or data[j] == _PLUS):
+            negative = data[j] == _MINUS
+            j += 1
+        m = 0
+        digits = 0  # digits from the first non-zero one
+        seen = 0  # digits at all
+        after = 0  # digits after the point
+        while j < end and _ZERO <= data[j] <= _NINE:
+            d = data[j] - _ZERO
+            if digits or d:
+                digits += 1
+                m = m * 10 + d
+            seen += 1
+            j += 1
+            if digits > _MOST_DIGITS:
+                return 0, end, 0
+        if j < end and data[j] == _DOT:
+            j += 1
+            while j < end and _ZERO <= data[j] <= _NINE:
+                d = data[j] - _ZERO
+                if digits or d:
+                    digits += 1
+                    m = m * 10 + d
+                seen += 1
+                after += 1
+                j += 1
+                if digits > _MOST_DIGITS:
+                    return 0, end, 0
+        if not seen or digits > _MOST_DIGITS or m > _LARGEST_EXACT or after > 22:
+            return 0, end, 0
+        value = float(m)
+        if after:
+            value = value / _POWERS[after]
+        if count == 6:
+            return 0, end, 0
+        out[count] = -value if negative else value
+        count += 1
+        while j < end and _blank(data[j]):
+            j += 1
+        if j < end and data[j] == _COMMA:
+            j += 1
+            continue
+        if j == end:
+            code_end, comment = end, 0
+        elif j + 1 < end and data[j] == _DOLLAR and data[j + 1] == _DOLLAR:
+            code_end, comment = j, 1
+        else:
+            return 0, end, 0
+        if count == 3 or count == 6:
+            return count, code_end, comment
+        return 0, end, 0
+
+
+@njit(cache=True, nogil=True)
+def _odd_line(data: np.ndarray, i: int, end: int) -> tuple[int, int, int]:
+    """The shape of a ``GOTO/`` line that :func:`_plain_line` could not read: the values
+    ``np.loadtxt`` may read (3 or 6: the line's code, before any ``$$``, holds 2 or 5 commas
+    and only digits, letters, signs, points and blanks besides), else 0; and, as
+    :func:`_plain_line`, where the code ends and whether there is a comment."""
+    commas = 0
+    j = i + 5
+    while j < end:
+        c = data[j]
+        if c == _COMMA:
+            commas += 1
+        elif c == _DOLLAR:
+            if j + 1 < end and data[j + 1] == _DOLLAR:
+                break
+            return 0, end, 0
+        elif not (
+            _blank(c)
+            or _ZERO <= c <= _NINE
+            or c == _DOT
+            or c == _PLUS
+            or c == _MINUS
+            or 65 <= c <= 90  # A-Z
+            or 97 <= c <= 122  # a-z
+        ):
+            return 0, end, 0
+        j += 1
+    if commas != 2 and commas != 5:
+        return 0, end, 0
+    return commas + 1, j, int(j < end)
+
+
+@njit(cache=True, nogil=True)
+def goto_runs(
+    data: np.ndarray, least: int, piece: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The runs of at least ``least`` consecutive GOTO lines of the same value count.
+
+    A line of a run starts with ``GOTO/`` and holds 3 or 6 comma-separated numbers, blanks
+    (space, tab) around them, and may end with a ``$$`` comment. A run longer than ``piece``
+    characters is cut after the first line that makes it that long (when it has ``least``
+    lines by then); a last piece of fewer lines is added to the piece before.
+
+    Parameters
+    ----------
+    data : ndarray, shape (n,), uint8
+        The text, one byte per character (``\\n`` line breaks; a character that is not ASCII
+        as any byte that is not, e.g. ``?``).
+    least : int
+        Fewest lines in a run (:data:`urdfpost.readers.apt.BULK_MIN_RECORDS`).
+    piece : int
+        Characters after which a run is cut.
+
+    Returns
+    -------
+    runs : ndarray, shape (r, 6), int64
+        Per run: offset of its first line, offset after its last line's ``\\n`` (or ``n``),
+        lines, values per line (3 or 6), lines with a ``$$`` comment, and the offset in
+        ``values`` of its first value (the run's values are the next ``lines * values per
+        line`` ones, row after row).
+    values : ndarray, shape (v,), float64
+        The numbers, as written (those of odd lines left to be filled).
+    odd : ndarray, shape (o, 3), int64
+        The lines of the runs whose numbers were not read: offset of the line, offset after
+        its code (before its ``$$`` comment, if any) and the offset in ``values`` of its first
+        value.
+    """
+    n = data.shape[0]
+    lines = 1
+    for c in data:
+        if c == _NL:
+            lines += 1
+    most = min(lines, n // 10 + 1)  # a line of a run has at least 10 characters: GOTO/0,0,0
+    runs = np.empty((most // max(least, 1) + 1, 6), dtype=np.int64)
+    values = np.empty(most * 6, dtype=np.float64)
+    odd = np.empty((16, 3), dtype=np.int64)
+    row = np.empty(6, dtype=np.float64)
+    n_runs = 0
+    n_values = 0
+    n_odd = 0
+    # the open group of lines: its first line's offset, lines, value count, comments, the
+    # offset of its values and of its odd lines, and whether it goes on from a run cut off
+    start = -1
+    count = 0
+    width = 0
+    comments = 0
+    first_value = 0
+    first_odd = 0
+    goes_on = False
+    i = 0
+    while True:
+        kind = 0
+        comment = 0
+        is_odd = False
+        end = _line_end(data, i)
+        code_end = end
+        if i < n and _is_goto(data, i):
+            kind, code_end, comment = _plain_line(data, i, end, row)
+            if not kind:
+                kind, code_end, comment = _odd_line(data, i, end)
+                is_odd = kind != 0
+        if start >= 0 and (kind == 0 or kind != width):  # the group ends before this line
+            if count >= least and count:
+                runs[n_runs, 0] = start
+                runs[n_runs, 1] = i
+                runs[n_runs, 2] = count
+                runs[n_runs, 3] = width
+                runs[n_runs, 4] = comments
+                runs[n_runs, 5] = first_value
+                n_runs += 1
+            elif goes_on:  # the last lines of a run cut off: added to its piece before
+                runs[n_runs - 1, 1] = i
+                runs[n_runs - 1, 2] += count
+                runs[n_runs - 1, 4] += comments
+            else:  # too few: read record by record
+                n_values = first_value
+                n_odd = first_odd
+            start = -1
+            goes_on = False
+        if kind:
+            if start < 0:
+                start, count, width, comments = i, 0, kind, 0
+                first_value, first_odd = n_values, n_odd
+            if is_odd:
+                if n_odd == odd.shape[0]:
+                    bigger = np.empty((2 * n_odd, 3), dtype=np.int64)
+                    bigger[:n_odd] = odd
+                    odd = bigger
+                odd[n_odd, 0] = i
+                odd[n_odd, 1] = code_end
+                odd[n_odd, 2] = n_values
+                n_odd += 1
+                for k in range(kind):
+                    values[n_values + k] = np.nan
+            else:
+                for k in range(kind):
+                    values[n_values + k] = row[k]
+            n_values += kind
+            count += 1
+            comments += comment
+            after = end + 1 if end < n else n
+            if after - start >= piece and count >= least:  # cut the run here
+                runs[n_runs, 0] = start
+                runs[n_runs, 1] = after
+                runs[n_runs, 2] = count
+                runs[n_runs, 3] = width
+                runs[n_runs, 4] = comments
+                runs[n_runs, 5] = first_value
+                n_runs += 1
+                start, count, comments = after, 0, 0
+                first_value, first_odd = n_values, n_odd
+                goes_on = True
+        if end >= n:
+            break
+        i = end + 1
+    if start >= 0:  # the group of the last lines
+        if count >= least and count:
+            runs[n_runs, 0] = start
+            runs[n_runs, 1] = n
+            runs[n_runs, 2] = count
+            runs[n_runs, 3] = width
+            runs[n_runs, 4] = comments
+            runs[n_runs, 5] = first_value
+            n_runs += 1
+        elif goes_on and count:
+            runs[n_runs - 1, 1] = n
+            runs[n_runs - 1, 2] += count
+            runs[n_runs - 1, 4] += comments
+        else:
+            n_values = first_value
+            n_odd = first_odd
+    return runs[:n_runs].copy(), values[:n_values], odd[:n_odd].copy()
