@@ -70,76 +70,68 @@ def _blank(c: int) -> bool:
 
 
 @njit(cache=True, nogil=True)
-def _plain_line(data: np.ndarray, i: int, end: int, out: np.ndarray) -> tuple[int, int, int]:
-    """Read the values of the line ``data[i:end]`` (``end`` at its ``\\n`` or the text's end)
-    into ``out`` when it is ``GOTO/`` and 3 or 6 numbers this loop reads exactly.
+def _plain_line(data: np.ndarray, i: int, out: np.ndarray) -> tuple[int, int, int, int]:
+    """Read the values of the line at ``i`` into ``out`` when it is ``GOTO/`` and 3 or 6
+    numbers this loop reads exactly.
 
     Returns
     -------
     values : int
         3 or 6, or 0 when the line is not such a line.
     code_end : int
-        Offset after the line's code (where its ``$$`` comment starts, else ``end``).
+        Offset after the line's code (where its ``$$`` comment starts, else its end).
     comment : int
         1 when the line has a trailing ``$$`` comment, else 0.
+    end : int
+        Offset of the ``\\n`` that ends the line, or ``len(data)`` (when ``values`` is 0:
+        where the reading stopped, before the line's end).
     """
+    n = data.shape[0]
     j = i + 5
     count = 0
     while True:
-        while j < end and _blank(data[j]):
+        while j < n and _blank(data[j]):
             j += 1
         negative = False
-        if j < end and (data[j] == _MINUS or data[j] == _PLUS):
+        if j < n and (data[j] == _MINUS or data[j] == _PLUS):
             negative = data[j] == _MINUS
             j += 1
         m = 0
-        digits = 0  # digits from the first non-zero one
-        seen = 0  # digits at all
+        digits = j  # the offset of the first digit, then the number of digits
+        while j < n and _ZERO <= data[j] <= _NINE:
+            m = m * 10 + (data[j] - _ZERO)
+            j += 1
         after = 0  # digits after the point
-        while j < end and _ZERO <= data[j] <= _NINE:
-            d = data[j] - _ZERO
-            if digits or d:
-                digits += 1
-                m = m * 10 + d
-            seen += 1
+        if j < n and data[j] == _DOT:
             j += 1
-            if digits > _MOST_DIGITS:
-                return 0, end, 0
-        if j < end and data[j] == _DOT:
-            j += 1
-            while j < end and _ZERO <= data[j] <= _NINE:
-                d = data[j] - _ZERO
-                if digits or d:
-                    digits += 1
-                    m = m * 10 + d
-                seen += 1
-                after += 1
+            point = j
+            while j < n and _ZERO <= data[j] <= _NINE:
+                m = m * 10 + (data[j] - _ZERO)
                 j += 1
-                if digits > _MOST_DIGITS:
-                    return 0, end, 0
-        if not seen or digits > _MOST_DIGITS or m > _LARGEST_EXACT or after > 22:
-            return 0, end, 0
+            after = j - point
+            digits = j - digits - 1
+        else:
+            digits = j - digits
+        # (m may have wrapped round when there are too many digits: it is not used then)
+        if not digits or digits > _MOST_DIGITS or m > _LARGEST_EXACT or after > 22 or count == 6:
+            return 0, j, 0, j
         value = float(m)
         if after:
             value = value / _POWERS[after]
-        if count == 6:
-            return 0, end, 0
         out[count] = -value if negative else value
         count += 1
-        while j < end and _blank(data[j]):
+        while j < n and _blank(data[j]):
             j += 1
-        if j < end and data[j] == _COMMA:
+        if j < n and data[j] == _COMMA:
             j += 1
             continue
-        if j == end:
-            code_end, comment = end, 0
-        elif j + 1 < end and data[j] == _DOLLAR and data[j + 1] == _DOLLAR:
-            code_end, comment = j, 1
-        else:
-            return 0, end, 0
-        if count == 3 or count == 6:
-            return count, code_end, comment
-        return 0, end, 0
+        if count != 3 and count != 6:
+            return 0, j, 0, j
+        if j == n or data[j] == _NL:
+            return count, j, 0, j
+        if j + 1 < n and data[j] == _DOLLAR and data[j + 1] == _DOLLAR:
+            return count, j, 1, _line_end(data, j + 2)
+        return 0, j, 0, j
 
 
 @njit(cache=True, nogil=True)
@@ -172,6 +164,38 @@ def _odd_line(data: np.ndarray, i: int, end: int) -> tuple[int, int, int]:
     if commas != 2 and commas != 5:
         return 0, end, 0
     return commas + 1, j, int(j < end)
+
+
+@njit(cache=True, nogil=True)
+def _grown(rows: np.ndarray) -> np.ndarray:
+    """``rows`` (int64, 2-D) copied into an array of twice as many rows."""
+    bigger = np.empty((2 * rows.shape[0], rows.shape[1]), dtype=np.int64)
+    bigger[: rows.shape[0]] = rows
+    return bigger
+
+
+@njit(cache=True, nogil=True)
+def _add_run(
+    runs: np.ndarray,
+    k: int,
+    start: int,
+    end: int,
+    count: int,
+    width: int,
+    comments: int,
+    first: int,
+) -> np.ndarray:
+    """``runs`` (grown when full) with row ``k`` set to a run's figures (see
+    :func:`goto_runs`)."""
+    if k == runs.shape[0]:
+        runs = _grown(runs)
+    runs[k, 0] = start
+    runs[k, 1] = end
+    runs[k, 2] = count
+    runs[k, 3] = width
+    runs[k, 4] = comments
+    runs[k, 5] = first
+    return runs
 
 
 @njit(cache=True, nogil=True)
@@ -212,11 +236,10 @@ def goto_runs(
     n = data.shape[0]
     lines = 1
     for c in data:
-        if c == _NL:
-            lines += 1
+        lines += c == _NL
     most = min(lines, n // 10 + 1)  # a line of a run has at least 10 characters: GOTO/0,0,0
-    runs = np.empty((most // max(least, 1) + 1, 6), dtype=np.int64)
-    values = np.empty(most * 6, dtype=np.float64)
+    runs = np.empty((min(most // max(least, 1) + 1, 1024), 6), dtype=np.int64)
+    values = np.empty(6 * most, dtype=np.float64)
     odd = np.empty((16, 3), dtype=np.int64)
     row = np.empty(6, dtype=np.float64)
     n_runs = 0
@@ -236,21 +259,18 @@ def goto_runs(
         kind = 0
         comment = 0
         is_odd = False
-        end = _line_end(data, i)
-        code_end = end
-        if i < n and _is_goto(data, i):
-            kind, code_end, comment = _plain_line(data, i, end, row)
+        code_end = 0
+        if _is_goto(data, i):
+            kind, code_end, comment, end = _plain_line(data, i, row)
             if not kind:
+                end = _line_end(data, end)
                 kind, code_end, comment = _odd_line(data, i, end)
                 is_odd = kind != 0
-        if start >= 0 and (kind == 0 or kind != width):  # the group ends before this line
+        else:
+            end = _line_end(data, i)
+        if start >= 0 and kind != width:  # the group ends before this line
             if count >= least and count:
-                runs[n_runs, 0] = start
-                runs[n_runs, 1] = i
-                runs[n_runs, 2] = count
-                runs[n_runs, 3] = width
-                runs[n_runs, 4] = comments
-                runs[n_runs, 5] = first_value
+                runs = _add_run(runs, n_runs, start, i, count, width, comments, first_value)
                 n_runs += 1
             elif goes_on:  # the last lines of a run cut off: added to its piece before
                 runs[n_runs - 1, 1] = i
@@ -267,9 +287,7 @@ def goto_runs(
                 first_value, first_odd = n_values, n_odd
             if is_odd:
                 if n_odd == odd.shape[0]:
-                    bigger = np.empty((2 * n_odd, 3), dtype=np.int64)
-                    bigger[:n_odd] = odd
-                    odd = bigger
+                    odd = _grown(odd)
                 odd[n_odd, 0] = i
                 odd[n_odd, 1] = code_end
                 odd[n_odd, 2] = n_values
@@ -284,12 +302,7 @@ def goto_runs(
             comments += comment
             after = end + 1 if end < n else n
             if after - start >= piece and count >= least:  # cut the run here
-                runs[n_runs, 0] = start
-                runs[n_runs, 1] = after
-                runs[n_runs, 2] = count
-                runs[n_runs, 3] = width
-                runs[n_runs, 4] = comments
-                runs[n_runs, 5] = first_value
+                runs = _add_run(runs, n_runs, start, after, count, width, comments, first_value)
                 n_runs += 1
                 start, count, comments = after, 0, 0
                 first_value, first_odd = n_values, n_odd
@@ -299,14 +312,9 @@ def goto_runs(
         i = end + 1
     if start >= 0:  # the group of the last lines
         if count >= least and count:
-            runs[n_runs, 0] = start
-            runs[n_runs, 1] = n
-            runs[n_runs, 2] = count
-            runs[n_runs, 3] = width
-            runs[n_runs, 4] = comments
-            runs[n_runs, 5] = first_value
+            runs = _add_run(runs, n_runs, start, n, count, width, comments, first_value)
             n_runs += 1
-        elif goes_on and count:
+        elif goes_on:
             runs[n_runs - 1, 1] = n
             runs[n_runs - 1, 2] += count
             runs[n_runs - 1, 4] += comments
