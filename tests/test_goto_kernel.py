@@ -13,6 +13,7 @@ import math
 import re
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -23,11 +24,12 @@ from hypothesis import strategies as st
 import urdfpost.readers.apt as apt_module
 from urdfpost.errors import CLDataError
 from urdfpost.readers import read_cl, read_cl_chunks, read_cl_text
+from urdfpost.readers._stream import line_count
 from urdfpost.toolpath import Toolpath
 
 pytest.importorskip("numba")
 
-from urdfpost.readers._goto_kernel import goto_runs
+from urdfpost.readers._goto_kernel import goto_runs, plain_goto_lines
 
 FIELDS = ("tip", "axis", "feed", "motion", "line")
 NEVER = 1 << 62  # COMPILED_FROM for the numpy path
@@ -383,6 +385,21 @@ def test_the_kernel_reads_the_runs_of_a_real_file():
         assert bits(values) == bits([float(v) for v in code[5:].split(",")]), line
 
 
+@PROPERTY
+@given(
+    st.lists(
+        st.sampled_from(["GOTO/1,2,3", "GOTO/P", "GOTO/$", "GOTO/p", "GOTO", " GOTO/1", "", "X"]),
+        max_size=6,
+    ),
+    st.booleans(),
+)
+def test_plain_goto_lines_is_the_str_test(lines, end):
+    text = "\n".join(lines) + ("\n" if end else "")
+    count, plain = plain_goto_lines(np.frombuffer(text.encode(), dtype=np.uint8))
+    assert count == line_count(text)
+    assert plain == apt_module._only_plain_gotos(text, count)
+
+
 # -- errors, fallbacks -------------------------------------------------------------------------
 
 
@@ -442,7 +459,9 @@ def test_a_failing_kernel_falls_back_with_a_warning(monkeypatch, caplog):
 
     text = hemisphere(400)
     expected = outcome(lambda: read_cl_text(text))
-    monkeypatch.setattr(apt_module, "_kernel", lambda: broken)
+    monkeypatch.setattr(
+        apt_module, "_kernel", lambda: SimpleNamespace(goto_runs=broken, plain_goto_lines=broken)
+    )
     monkeypatch.setattr(apt_module, "_KERNEL_FAILED", [])
     monkeypatch.setattr(apt_module, "COMPILED_FROM", 0)
     with caplog.at_level(logging.WARNING, logger="urdfpost.readers.apt"):

@@ -322,3 +322,36 @@ def goto_runs(
             n_values = first_value
             n_odd = first_odd
     return runs[:n_runs].copy(), values[:n_values], odd[:n_odd].copy()
+
+
+@njit(cache=True, nogil=True)
+def plain_goto_lines(data: np.ndarray) -> tuple[int, bool]:
+    """The lines of a text and whether each starts with ``GOTO/`` and none holds ``$``, ``P``
+    or ``p`` (:func:`urdfpost.readers.apt._only_plain_gotos`, for the streaming pre-scan).
+
+    Parameters
+    ----------
+    data : ndarray, shape (n,), uint8
+        The text, one byte per character (``\\n`` line breaks), starting at a line's start.
+
+    Returns
+    -------
+    lines : int
+        :func:`urdfpost.readers._stream.line_count` of the text: its ``\\n`` and one more
+        unless it ends with one.
+    plain : bool
+    """
+    n = data.shape[0]
+    lines = 0
+    plain = _is_goto(data, 0)
+    for i in range(n):
+        c = data[i]
+        if c == _NL:
+            lines += 1
+            if i + 1 < n and not _is_goto(data, i + 1):
+                plain = False
+        elif c == _DOLLAR or c == 80 or c == 112:  # $, P, p
+            plain = False
+    if n == 0 or data[n - 1] != _NL:
+        lines += 1
+    return lines, plain

@@ -122,8 +122,10 @@ import logging
 import math
 import os
 import re
+import types
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -365,6 +367,7 @@ class _Scanner:
         self.pending: str | None = None
         self.start = 0
         self.fini = 0  # line of FINI once read
+        self.line = 1  # number of the line after those scan_piece has scanned (until FINI)
 
     def feed(self, lines: Iterable[str], first: int) -> int:
         """Scan ``lines``, numbered from ``first``.
@@ -570,13 +573,32 @@ _KERNEL_FAILED: list[str] = []
 
 
 @functools.cache
-def _kernel() -> Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]] | None:
-    """The compiled GOTO scan, or None without numba (looked for once per process)."""
+def _kernel() -> types.ModuleType | None:
+    """The compiled loops (:mod:`urdfpost.readers._goto_kernel`), or None without numba
+    (looked for once per process)."""
     try:
-        from ._goto_kernel import goto_runs
+        from . import _goto_kernel
     except ImportError:
         return None
-    return goto_runs
+    return _goto_kernel
+
+
+def _compiled(loop: str, text: str, *args: int) -> Any:
+    """The compiled ``loop`` of :mod:`urdfpost.readers._goto_kernel` run on the bytes of
+    ``text`` (one per character: a character that is not ASCII as ``?``, so the offsets are
+    the text's) and ``args``: what the loop returns; None without numba, or when it fails
+    here (once: the warning "compiled GOTO scan unavailable (why); the numpy path runs", and
+    no more tries)."""
+    kernel = None if _KERNEL_FAILED else _kernel()
+    if kernel is None:
+        return None
+    data = np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
+    try:
+        return getattr(kernel, loop)(data, *args)
+    except Exception as e:  # numba could not compile or load it here: the numpy path
+        _KERNEL_FAILED.append(str(e))
+        logger.warning("compiled GOTO scan unavailable (%s); the numpy path runs", e)
+        return None
 
 
 def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int]] | None:
@@ -584,22 +606,13 @@ def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int
     failed here, or when the numbers of an odd GOTO line are not for ``np.loadtxt``: then the
     numpy path reads the text).
 
-    The loop reads the text's bytes, one per character (a character that is not ASCII as
-    ``?``, which no number has), so its offsets are the text's. The odd lines of its runs
-    (numbers with exponents, many digits, ``nan``...) are read here with :func:`_goto_values`,
-    as the numpy path reads every line.
+    The odd lines of its runs (numbers with exponents, many digits, ``nan``...) are read here
+    with :func:`_goto_values`, as the numpy path reads every line.
     """
-    kernel = None if _KERNEL_FAILED else _kernel()
-    if kernel is None:
+    got = _compiled("goto_runs", text, BULK_MIN_RECORDS, size)
+    if got is None:
         return None
-    data = np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
-    try:
-        runs, values, odd = kernel(data, BULK_MIN_RECORDS, size)
-    except Exception as e:  # numba could not compile or load it here: the numpy path
-        _KERNEL_FAILED.append(str(e))
-        logger.warning("compiled GOTO scan unavailable (%s); the numpy path runs", e)
-        return None
-    del data
+    runs, values, odd = got
     if len(odd) and not _read_odd(text, odd, values):
         return None
     return [
@@ -732,7 +745,8 @@ def scan_piece(
     Returns
     -------
     iterator of str or None
-        None, or when the scanner reads FINI, the lines of ``text`` after it.
+        None (and the number of the line after ``text`` in ``scanner.line``), or when the
+        scanner reads FINI, the lines of ``text`` after it.
     """
     pos = 0  # start of the next line to scan; its number is ``line``
     for start, end, values, comments in _bulk_runs(text, bulk_piece, compiled):
@@ -759,6 +773,7 @@ def scan_piece(
     scanned = scanner.feed(lines, line)
     if scanner.fini:
         return iter(lines[scanned:])
+    scanner.line = line + len(lines) - 1  # the text's line breaks after ``line``
     return None
 
 
@@ -2123,9 +2138,10 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     in_feeds: tuple[str, int] | None = None
     nx: tuple[int, str] | None = None
     line = 1
+    compiled = _file_size(source) >= COMPILED_FROM
     for text in _apt_parts(source, size):
-        count = line_count(text)
-        if not (scanner.pending is None and _only_plain_gotos(text, count)):
+        count, plain = _plain_facts(text, compiled)
+        if not (scanner.pending is None and plain):
             _prescan_piece(scanner, text, line)
         for record in scanner.scan.records:
             if declared is None and (units := declared_units(record)):
@@ -2142,6 +2158,17 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     if scan.first_listing and (nx is None or scan.first_listing < nx[0]):
         nx = (scan.first_listing, "an NX listing line")
     return declared or in_feeds, nx
+
+
+def _plain_facts(text: str, compiled: bool) -> tuple[int, bool]:
+    """The lines of ``text`` (:func:`~urdfpost.readers._stream.line_count`) and
+    :func:`_only_plain_gotos` of them; by a compiled loop when ``compiled`` and numba is
+    there (:func:`urdfpost.readers._goto_kernel.plain_goto_lines`)."""
+    got = _compiled("plain_goto_lines", text) if compiled else None
+    if got is not None:
+        return int(got[0]), bool(got[1])
+    count = line_count(text)
+    return count, _only_plain_gotos(text, count)
 
 
 def _only_plain_gotos(text: str, count: int) -> bool:
@@ -2241,7 +2268,7 @@ def read_apt_stream(
     for part in parts:
         rest = scan_piece(scanner, part, line, _STREAM_PART, compiled=compiled)
         records, scanner.scan.records = scanner.scan.records, []
-        line += part.count("\n")
+        line = scanner.line if rest is None else line + part.count("\n")
         del part  # the records hold what they need of it
         for record in records:
             before = len(builder)
