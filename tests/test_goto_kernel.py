@@ -83,7 +83,8 @@ def assert_same_reading(text: str, least: int = 3, piece: int | None = None) -> 
 def kernel(text: str, least: int = 1, piece: int = 1 << 30) -> Iterator[tuple[str, np.ndarray]]:
     """The lines of the kernel's runs with their values (odd lines' as NaN)."""
     data = np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
-    runs, values, _ = goto_runs(data, least, piece)
+    runs, values, _, needed, _ = goto_runs(data, least, piece, 10**4, 10**4)
+    assert needed == len(runs)
     for start, end, count, width, _comments, first in runs.tolist():
         lines = text[start:end].split("\n")[:count]
         rows = values[first : first + count * width].reshape(count, width)
@@ -226,7 +227,7 @@ def test_comments_and_runs_of_mixed_widths():
         + "FEDRAT/100\n"
         + "GOTO/4,5,6\n" * 5
     )
-    runs = goto_runs(np.frombuffer(text.encode(), dtype=np.uint8), 3, 1 << 30)[0]
+    runs = goto_runs(np.frombuffer(text.encode(), dtype=np.uint8), 3, 1 << 30, 8, 8)[0]
     assert runs[:, 2].tolist() == [3, 4, 5]  # lines
     assert runs[:, 3].tolist() == [3, 6, 3]  # values per line
     assert runs[:, 4].tolist() == [3, 4, 0]  # comments
@@ -236,7 +237,7 @@ def test_comments_and_runs_of_mixed_widths():
 def test_kernel_cuts_long_runs():
     text = "".join(f"GOTO/{k}.5,{k},0\n" for k in range(1000))
     data = np.frombuffer(text.encode(), dtype=np.uint8)
-    runs = goto_runs(data, 4, 200)[0]
+    runs = goto_runs(data, 4, 200, 200, 0)[0]
     # cut after the line that makes a piece 200 characters long
     assert (runs[:-1, 1] - runs[:-1, 0] >= 200).all()
     assert (runs[:-1, 1] - runs[:-1, 0] < 200 + 18).all()
@@ -244,6 +245,25 @@ def test_kernel_cuts_long_runs():
     assert runs[0, 0] == 0 and runs[-1, 1] == len(text)
     assert (runs[1:, 0] == runs[:-1, 1]).all()
     assert_same_reading(text, least=4, piece=200)
+
+
+def test_kernel_says_when_it_needs_more_room(monkeypatch):
+    """Runs and odd lines beyond the room given: the kernel says how many, and the reader
+    calls it again with that room."""
+    text = "".join(f"GOTO/{k},0,0\nGOTO/{k}e1,1,1\nRAPID\n" for k in range(300))
+    data = np.frombuffer(text.encode(), dtype=np.uint8)
+    runs, _, odd, runs_needed, odd_needed = goto_runs(data, 1, 1 << 30, 10, 20)
+    assert (len(runs), len(odd), runs_needed, odd_needed) == (10, 20, 300, 300)
+    full = goto_runs(data, 1, 1 << 30, 300, 300)
+    assert (full[0][:10] == runs).all() and (full[2][:20] == odd).all()
+    monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 1)
+    got = apt_module._compiled_runs(text, 1 << 30)
+    assert got is not None and len(got) == 300
+    assert [[start, end] for start, end, _, _ in got] == full[0][:, :2].tolist()
+    assert bits(np.concatenate([v for _, _, v, _ in got])) == bits(
+        [[k, 0, 0, 10 * k, 1, 1] for k in range(300)]
+    )
+    assert_same_reading(text, least=1)
 
 
 # -- whole readings: the same toolpath or the same error --------------------------------------

@@ -167,14 +167,6 @@ def _odd_line(data: np.ndarray, i: int, end: int) -> tuple[int, int, int]:
 
 
 @njit(cache=True, nogil=True)
-def _grown(rows: np.ndarray) -> np.ndarray:
-    """``rows`` (int64, 2-D) copied into an array of twice as many rows."""
-    bigger = np.empty((2 * rows.shape[0], rows.shape[1]), dtype=np.int64)
-    bigger[: rows.shape[0]] = rows
-    return bigger
-
-
-@njit(cache=True, nogil=True)
 def _add_run(
     runs: np.ndarray,
     k: int,
@@ -184,30 +176,32 @@ def _add_run(
     width: int,
     comments: int,
     first: int,
-) -> np.ndarray:
-    """``runs`` (grown when full) with row ``k`` set to a run's figures (see
-    :func:`goto_runs`)."""
-    if k == runs.shape[0]:
-        runs = _grown(runs)
-    runs[k, 0] = start
-    runs[k, 1] = end
-    runs[k, 2] = count
-    runs[k, 3] = width
-    runs[k, 4] = comments
-    runs[k, 5] = first
-    return runs
+) -> None:
+    """Set row ``k`` of ``runs`` to a run's figures (see :func:`goto_runs`), when there is
+    room for it."""
+    if k < runs.shape[0]:
+        runs[k, 0] = start
+        runs[k, 1] = end
+        runs[k, 2] = count
+        runs[k, 3] = width
+        runs[k, 4] = comments
+        runs[k, 5] = first
 
 
 @njit(cache=True, nogil=True)
 def goto_runs(
-    data: np.ndarray, least: int, piece: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    data: np.ndarray, least: int, piece: int, run_room: int, odd_room: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
     """The runs of at least ``least`` consecutive GOTO lines of the same value count.
 
     A line of a run starts with ``GOTO/`` and holds 3 or 6 comma-separated numbers, blanks
     (space, tab) around them, and may end with a ``$$`` comment. A run longer than ``piece``
     characters is cut after the first line that makes it that long (when it has ``least``
     lines by then); a last piece of fewer lines is added to the piece before.
+
+    The arrays of runs and odd lines have the room they are given (no array is grown in the
+    loop: numba would count references to it at every line); when they need more, the
+    figures returned say how much, and the call is to be made again with that room.
 
     Parameters
     ----------
@@ -218,6 +212,8 @@ def goto_runs(
         Fewest lines in a run (:data:`urdfpost.readers.apt.BULK_MIN_RECORDS`).
     piece : int
         Characters after which a run is cut.
+    run_room, odd_room : int
+        Rows of the arrays of runs and odd lines.
 
     Returns
     -------
@@ -227,24 +223,28 @@ def goto_runs(
         ``values`` of its first value (the run's values are the next ``lines * values per
         line`` ones, row after row).
     values : ndarray, shape (v,), float64
-        The numbers, as written (those of odd lines left to be filled).
+        The numbers, as written (those of odd lines NaN, left to be filled).
     odd : ndarray, shape (o, 3), int64
         The lines of the runs whose numbers were not read: offset of the line, offset after
         its code (before its ``$$`` comment, if any) and the offset in ``values`` of its first
         value.
+    runs_needed, odd_needed : int
+        Rows the arrays of runs and odd lines needed: when more than ``run_room`` or
+        ``odd_room``, the arrays are incomplete.
     """
     n = data.shape[0]
     lines = 1
     for c in data:
         lines += c == _NL
     most = min(lines, n // 10 + 1)  # a line of a run has at least 10 characters: GOTO/0,0,0
-    runs = np.empty((min(most // max(least, 1) + 1, 1024), 6), dtype=np.int64)
+    runs = np.empty((run_room, 6), dtype=np.int64)
     values = np.empty(6 * most, dtype=np.float64)
-    odd = np.empty((16, 3), dtype=np.int64)
+    odd = np.empty((odd_room, 3), dtype=np.int64)
     row = np.empty(6, dtype=np.float64)
     n_runs = 0
     n_values = 0
     n_odd = 0
+    odd_needed = 0
     # the open group of lines: its first line's offset, lines, value count, comments, the
     # offset of its values and of its odd lines, and whether it goes on from a run cut off
     start = -1
@@ -270,12 +270,13 @@ def goto_runs(
             end = _line_end(data, i)
         if start >= 0 and kind != width:  # the group ends before this line
             if count >= least and count:
-                runs = _add_run(runs, n_runs, start, i, count, width, comments, first_value)
+                _add_run(runs, n_runs, start, i, count, width, comments, first_value)
                 n_runs += 1
             elif goes_on:  # the last lines of a run cut off: added to its piece before
-                runs[n_runs - 1, 1] = i
-                runs[n_runs - 1, 2] += count
-                runs[n_runs - 1, 4] += comments
+                if n_runs <= run_room:
+                    runs[n_runs - 1, 1] = i
+                    runs[n_runs - 1, 2] += count
+                    runs[n_runs - 1, 4] += comments
             else:  # too few: read record by record
                 n_values = first_value
                 n_odd = first_odd
@@ -286,12 +287,12 @@ def goto_runs(
                 start, count, width, comments = i, 0, kind, 0
                 first_value, first_odd = n_values, n_odd
             if is_odd:
-                if n_odd == odd.shape[0]:
-                    odd = _grown(odd)
-                odd[n_odd, 0] = i
-                odd[n_odd, 1] = code_end
-                odd[n_odd, 2] = n_values
+                if n_odd < odd_room:
+                    odd[n_odd, 0] = i
+                    odd[n_odd, 1] = code_end
+                    odd[n_odd, 2] = n_values
                 n_odd += 1
+                odd_needed = max(odd_needed, n_odd)
                 for k in range(kind):
                     values[n_values + k] = np.nan
             else:
@@ -302,7 +303,7 @@ def goto_runs(
             comments += comment
             after = end + 1 if end < n else n
             if after - start >= piece and count >= least:  # cut the run here
-                runs = _add_run(runs, n_runs, start, after, count, width, comments, first_value)
+                _add_run(runs, n_runs, start, after, count, width, comments, first_value)
                 n_runs += 1
                 start, count, comments = after, 0, 0
                 first_value, first_odd = n_values, n_odd
@@ -312,16 +313,23 @@ def goto_runs(
         i = end + 1
     if start >= 0:  # the group of the last lines
         if count >= least and count:
-            runs = _add_run(runs, n_runs, start, n, count, width, comments, first_value)
+            _add_run(runs, n_runs, start, n, count, width, comments, first_value)
             n_runs += 1
         elif goes_on:
-            runs[n_runs - 1, 1] = n
-            runs[n_runs - 1, 2] += count
-            runs[n_runs - 1, 4] += comments
+            if n_runs <= run_room:
+                runs[n_runs - 1, 1] = n
+                runs[n_runs - 1, 2] += count
+                runs[n_runs - 1, 4] += comments
         else:
             n_values = first_value
             n_odd = first_odd
-    return runs[:n_runs].copy(), values[:n_values], odd[:n_odd].copy()
+    return (
+        runs[: min(n_runs, run_room)].copy(),
+        values[:n_values],
+        odd[: min(n_odd, odd_room)].copy(),
+        n_runs,
+        odd_needed,
+    )
 
 
 @njit(cache=True, nogil=True)

@@ -609,10 +609,15 @@ def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int
     The odd lines of its runs (numbers with exponents, many digits, ``nan``...) are read here
     with :func:`_goto_values`, as the numpy path reads every line.
     """
-    got = _compiled("goto_runs", text, BULK_MIN_RECORDS, size)
-    if got is None:
-        return None
-    runs, values, odd = got
+    rooms = (64, 64)  # rows for runs and odd lines; more when the loop says so
+    while True:
+        got = _compiled("goto_runs", text, BULK_MIN_RECORDS, size, *rooms)
+        if got is None:
+            return None
+        runs, values, odd, *needed = got
+        if needed[0] <= rooms[0] and needed[1] <= rooms[1]:
+            break
+        rooms = (max(needed[0], rooms[0]), max(needed[1], rooms[1]))
     if len(odd) and not _read_odd(text, odd, values):
         return None
     return [
