@@ -45,7 +45,7 @@ t0 = time.perf_counter(); c0 = time.process_time()
 import urdfpost.readers.apt as apt
 from urdfpost.readers import read_cl
 if sys.argv[2] == "numpy":
-    apt.COMPILED_FROM = float("inf")
+    apt.COMPILED_FROM = apt.COMPILED_WARM_FROM = 1 << 62
 tp = read_cl(sys.argv[1])
 print(time.perf_counter() - t0, time.process_time() - c0, len(tp))
 """
@@ -72,7 +72,7 @@ def main() -> None:
     from urdfpost.readers import read_cl, read_cl_chunks
 
     if args.numpy:
-        apt.COMPILED_FROM = float("inf")  # type: ignore[assignment]
+        apt.COMPILED_FROM = apt.COMPILED_WARM_FROM = 1 << 62
 
     def chunks() -> None:
         for piece in read_cl_chunks(args.path, max_points=PIECE_POINTS):
@@ -90,17 +90,19 @@ def main() -> None:
         for name, fn in jobs.items():
             got[name].append(timed(fn))
     floor = statistics.median(w for w, _ in got["floor"])
+    floor_cpu = statistics.median(c for _, c in got["floor"])
     for name, runs in got.items():
-        walls = ", ".join(f"{w:.3f}" for w, _ in runs)
-        cpus = ", ".join(f"{c:.3f}" for _, c in runs)
         wall = statistics.median(w for w, _ in runs)
+        cpu = statistics.median(c for _, c in runs)
         log.info(
-            "%-15s wall %s (median %.3f, %.2fx floor); CPU %s",
+            "%-15s wall %s (median %.3f, %.2fx floor); CPU %s (median %.3f, %.2fx floor)",
             name,
-            walls,
+            ", ".join(f"{w:.3f}" for w, _ in runs),
             wall,
             wall / floor,
-            cpus,
+            ", ".join(f"{c:.3f}" for _, c in runs),
+            cpu,
+            cpu / floor_cpu,
         )
     if args.cold:
         for how in ("numpy", "default"):

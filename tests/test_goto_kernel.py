@@ -11,8 +11,8 @@ from __future__ import annotations
 import logging
 import math
 import re
+import sys
 from collections.abc import Callable, Iterator
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -59,12 +59,18 @@ def outcome(read: Callable[[], Toolpath | list[Toolpath]]) -> object:
     ]
 
 
+def compiled_from(monkeypatch: pytest.MonkeyPatch, size: int) -> None:
+    """Read with the compiled loop from ``size`` characters on, numba imported or not."""
+    monkeypatch.setattr(apt_module, "COMPILED_FROM", size)
+    monkeypatch.setattr(apt_module, "COMPILED_WARM_FROM", size)
+
+
 def both_ways(read: Callable[[], Toolpath | list[Toolpath]]) -> tuple[object, object]:
     """``read`` by the numpy path and by the compiled loop."""
     out = []
-    for compiled_from in (NEVER, 0):
+    for size in (NEVER, 0):
         with pytest.MonkeyPatch.context() as monkeypatch:
-            monkeypatch.setattr(apt_module, "COMPILED_FROM", compiled_from)
+            compiled_from(monkeypatch, size)
             out.append(outcome(read))
     return out[0], out[1]
 
@@ -466,10 +472,10 @@ def test_odd_lines_are_read_by_loadtxt(monkeypatch):
 def test_without_numba_the_numpy_path_runs(monkeypatch):
     text = hemisphere(400)
     monkeypatch.setattr(apt_module, "_kernel", lambda: None)
-    monkeypatch.setattr(apt_module, "COMPILED_FROM", 0)
+    compiled_from(monkeypatch, 0)
     assert apt_module._compiled_runs(text, 1 << 20) is None
     got = outcome(lambda: read_cl_text(text))
-    monkeypatch.setattr(apt_module, "COMPILED_FROM", NEVER)
+    compiled_from(monkeypatch, NEVER)
     assert got == outcome(lambda: read_cl_text(text))
 
 
@@ -483,7 +489,7 @@ def test_a_failing_kernel_falls_back_with_a_warning(monkeypatch, caplog):
         apt_module, "_kernel", lambda: SimpleNamespace(goto_runs=broken, plain_goto_lines=broken)
     )
     monkeypatch.setattr(apt_module, "_KERNEL_FAILED", [])
-    monkeypatch.setattr(apt_module, "COMPILED_FROM", 0)
+    compiled_from(monkeypatch, 0)
     with caplog.at_level(logging.WARNING, logger="urdfpost.readers.apt"):
         assert outcome(lambda: read_cl_text(text)) == expected
         assert outcome(lambda: read_cl_text(text)) == expected
@@ -500,6 +506,16 @@ def test_small_texts_do_not_load_the_kernel(monkeypatch):
     read_cl_text(hemisphere(400))
 
 
+def test_the_threshold_is_lower_once_numba_is_imported(monkeypatch):
+    assert "numba" in sys.modules  # (imported above)
+    assert apt_module.COMPILED_WARM_FROM < apt_module.COMPILED_FROM
+    assert apt_module._use_compiled(apt_module.COMPILED_WARM_FROM)
+    assert not apt_module._use_compiled(apt_module.COMPILED_WARM_FROM - 1)
+    monkeypatch.delitem(sys.modules, "numba")
+    assert not apt_module._use_compiled(apt_module.COMPILED_WARM_FROM)
+    assert apt_module._use_compiled(apt_module.COMPILED_FROM)
+
+
 def test_the_size_threshold_applies_to_streamed_files(tmp_path, monkeypatch):
     path = tmp_path / "h.apt"
     path.write_text(hemisphere(400))
@@ -513,6 +529,6 @@ def test_the_size_threshold_applies_to_streamed_files(tmp_path, monkeypatch):
     monkeypatch.setattr(apt_module, "_compiled_runs", counted)
     list(read_cl_chunks(path, max_points=100))
     assert not calls
-    monkeypatch.setattr(apt_module, "COMPILED_FROM", Path(path).stat().st_size)
+    compiled_from(monkeypatch, path.stat().st_size)
     list(read_cl_chunks(path, max_points=100))
     assert calls

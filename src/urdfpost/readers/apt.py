@@ -32,13 +32,15 @@ first record, the file's units, NX dialect, a continued record cut off by the en
 from a pre-scan that passes over the runs of plain GOTO lines without parsing them).
 
 Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records. Step 1 finds such runs
-(:func:`scan_text`) and reads their numbers in bulk with numpy into a :class:`GotoRun`; step 3
-applies the modal state to the whole run at once, with the same arithmetic in the same order as
-for one record, so the points are bit-identical. A run whose values would need a message (a
-non-finite number, a length beyond :data:`~urdfpost.readers._common.MAX_LENGTH_MM` once in mm,
-a tool axis of zero or non-unit length) or that follows a ``RAPID`` or ``CIRCLE`` is read
-record by record for those records, exactly as any other line; so is everything that is not a
-plain GOTO line.
+(:func:`scan_text`) and reads their numbers in bulk into a :class:`GotoRun`, with numpy or, for
+large files with numba installed (:data:`COMPILED_FROM`), with one compiled loop
+over the text's bytes (:mod:`urdfpost.readers._goto_kernel`: the same runs' numbers, bit for
+bit, as ``float()`` reads them). Step 3 applies the modal state to the whole run at once,
+with the same arithmetic in the same order as for one record, so the points are bit-identical.
+A run whose values would need a message (a non-finite number, a length beyond
+:data:`~urdfpost.readers._common.MAX_LENGTH_MM` once in mm, a tool axis of zero or non-unit
+length) or that follows a ``RAPID`` or ``CIRCLE`` is read record by record for those records,
+exactly as any other line; so is everything that is not a plain GOTO line.
 
 Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
 
@@ -122,6 +124,7 @@ import logging
 import math
 import os
 import re
+import sys
 import types
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -562,11 +565,26 @@ def _bulk_runs(
     return iter(runs) if runs is not None else _bulk_runs_numpy(text, size)
 
 
-COMPILED_FROM = 1 << 24
+COMPILED_FROM = 1 << 25
 """Characters of text (a whole file's, or a streamed file's bytes) from which the runs of GOTO
 lines are found and read by the compiled byte loop (:mod:`urdfpost.readers._goto_kernel`, with
-numba installed: the ``fast`` extra) rather than the numpy path: the loop saves more than the
-fixed cost of numba's import and the loading of the cached machine code."""
+numba installed: the ``fast`` extra) rather than the numpy path, in a process that has not
+imported numba yet. Numba's import and the loading of its cached machine code take 0.5-0.9 s
+there; the loop saves about 7 ns a character (0.35 s for a million GOTO lines, 57 MB): a file
+read alone breaks even at about 60 MB, and a post of a file this large loads numba anyway (the
+verification's matching, from 50,000 points), so its read may as well."""
+
+COMPILED_WARM_FROM = 1 << 21
+"""Characters from which the compiled loop runs once numba is imported in this process (by this
+reader or another compiled loop): then only the loop's own cached code is loaded (about 0.06
+s the first time)."""
+
+
+def _use_compiled(size: int) -> bool:
+    """Whether a text of ``size`` characters is read with the compiled loop
+    (:data:`COMPILED_FROM`, :data:`COMPILED_WARM_FROM`)."""
+    return size >= (COMPILED_WARM_FROM if "numba" in sys.modules else COMPILED_FROM)
+
 
 _KERNEL_FAILED: list[str] = []
 """Why the compiled loop could not run in this process (then the numpy path runs)."""
@@ -707,7 +725,7 @@ def scan_text(text: str, source: str) -> _Scan:
     The records are those of ``scan_records(split_lines(text), source)``, except that runs of
     at least :data:`BULK_MIN_RECORDS` consecutive one-line ``GOTO`` records with plain numbers
     come as one :class:`GotoRun` each (found and read by the compiled loop from
-    :data:`COMPILED_FROM` characters on, see :func:`_bulk_runs`).
+    :data:`COMPILED_FROM` characters on, see :func:`_use_compiled`).
 
     Raises
     ------
@@ -715,7 +733,7 @@ def scan_text(text: str, source: str) -> _Scan:
         When the file ends inside a continued record.
     """
     scanner = _Scanner(source)
-    after = scan_piece(scanner, normalise_breaks(text), 1, compiled=len(text) >= COMPILED_FROM)
+    after = scan_piece(scanner, normalise_breaks(text), 1, compiled=_use_compiled(len(text)))
     if after is not None:
         scanner.after_fini(after)
     return scanner.finish()
@@ -2143,7 +2161,7 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     in_feeds: tuple[str, int] | None = None
     nx: tuple[int, str] | None = None
     line = 1
-    compiled = _file_size(source) >= COMPILED_FROM
+    compiled = _use_compiled(_file_size(source))
     for text in _apt_parts(source, size):
         count, plain = _plain_facts(text, compiled)
         if not (scanner.pending is None and plain):
@@ -2265,7 +2283,7 @@ def read_apt_stream(
     )
     builder = interpreter.builder
     scanner = _Scanner(source)
-    compiled = _file_size(source) >= COMPILED_FROM
+    compiled = _use_compiled(_file_size(source))
     multiaxis_from: int | None = None
     after, count_after = 0, 0  # first line after FINI to warn about, and how many
     line = 1
