@@ -17,7 +17,9 @@ each; then the median ratios to the floor. A warm-up read comes first, so numba'
 the loading of its cached machine code (the compiled GOTO scan,
 :mod:`urdfpost.readers._goto_kernel`) are not in the rounds; ``--cold`` times them: one read
 in a fresh interpreter, with and without the compiled scan. ``--numpy`` reads without the
-compiled scan (the numpy path). Nothing here is a test.
+compiled scan (the numpy path); ``--numba-imported`` imports numba first (then the compiled scan
+runs from :data:`urdfpost.readers.apt.COMPILED_WARM_FROM` characters, else from
+:data:`~urdfpost.readers.apt.COMPILED_FROM`). Nothing here is a test.
 """
 
 from __future__ import annotations
@@ -64,6 +66,12 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--numpy", action="store_true", help="without the compiled scan")
     parser.add_argument("--cold", action="store_true", help="also time a read in a new process")
+    parser.add_argument(
+        "--numba-imported",
+        action="store_true",
+        help="import numba first, as a post does (the compiled scan then runs from "
+        "COMPILED_WARM_FROM characters, not COMPILED_FROM)",
+    )
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
 
@@ -73,6 +81,8 @@ def main() -> None:
 
     if args.numpy:
         apt.COMPILED_FROM = apt.COMPILED_WARM_FROM = 1 << 62
+    if args.numba_imported:
+        import numba  # noqa: F401
 
     def chunks() -> None:
         for piece in read_cl_chunks(args.path, max_points=PIECE_POINTS):
