@@ -569,10 +569,11 @@ COMPILED_FROM = 1 << 25
 """Characters of text (a whole file's, or a streamed file's bytes) from which the runs of GOTO
 lines are found and read by the compiled byte loop (:mod:`urdfpost.readers._goto_kernel`, with
 numba installed: the ``fast`` extra) rather than the numpy path, in a process that has not
-imported numba yet. Numba's import and the loading of its cached machine code take 0.5-0.9 s
-there; the loop saves about 7 ns a character (0.35 s for a million GOTO lines, 57 MB): a file
-read alone breaks even at about 60 MB, and a post of a file this large loads numba anyway (the
-verification's matching, from 50,000 points), so its read may as well."""
+imported numba yet. Numba's import and the loading of its cached machine code take 0.4-0.9 s
+there; the loop saves about 6 ns a character (0.33 s for a million GOTO lines, 57 MB): a file
+read alone breaks even at about 70-100 MB, and a post of a file this large loads numba anyway
+(the verification's matching, from 50,000 points), so its read may as well (bench/RESULTS.md,
+December 7 2026)."""
 
 COMPILED_WARM_FROM = 1 << 21
 """Characters from which the compiled loop runs once numba is imported in this process (by this
