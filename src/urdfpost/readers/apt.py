@@ -602,22 +602,27 @@ def _kernel() -> types.ModuleType | None:
     return _goto_kernel
 
 
-def _compiled(loop: str, text: str, *args: int) -> Any:
-    """The compiled ``loop`` of :mod:`urdfpost.readers._goto_kernel` run on the bytes of
-    ``text`` (one per character: a character that is not ASCII as ``?``, so the offsets are
-    the text's) and ``args``: what the loop returns; None without numba, or when it fails
-    here (once: the warning "compiled GOTO scan unavailable (why); the numpy path runs", and
-    no more tries)."""
+def _compiled(loop: str, data: np.ndarray, *args: int) -> Any:
+    """The compiled ``loop`` of :mod:`urdfpost.readers._goto_kernel` run on ``data`` (the
+    bytes of a text, :func:`_bytes_of`) and ``args``: what the loop returns; None without
+    numba, or when it fails here (once: the warning "compiled GOTO scan unavailable (why); the
+    numpy path runs", and no more tries)."""
     kernel = None if _KERNEL_FAILED else _kernel()
     if kernel is None:
         return None
-    data = np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
     try:
         return getattr(kernel, loop)(data, *args)
     except Exception as e:  # numba could not compile or load it here: the numpy path
         _KERNEL_FAILED.append(str(e))
         logger.warning("compiled GOTO scan unavailable (%s); the numpy path runs", e)
         return None
+
+
+def _bytes_of(text: str) -> np.ndarray:
+    """The bytes the compiled loops read of ``text``, shape (len(text),), uint8: one per
+    character (a character that is not ASCII as ``?``, which no number or keyword has), so that
+    their offsets are the text's."""
+    return np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
 
 
 def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int]] | None:
@@ -628,15 +633,19 @@ def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int
     The odd lines of its runs (numbers with exponents, many digits, ``nan``...) are read here
     with :func:`_goto_values`, as the numpy path reads every line.
     """
+    if _KERNEL_FAILED or _kernel() is None:
+        return None
+    data = _bytes_of(text)
     rooms = (64, 64)  # rows for runs and odd lines; more when the loop says so
     while True:
-        got = _compiled("goto_runs", text, BULK_MIN_RECORDS, size, *rooms)
+        got = _compiled("goto_runs", data, BULK_MIN_RECORDS, size, *rooms)
         if got is None:
             return None
         runs, values, odd, *needed = got
         if needed[0] <= rooms[0] and needed[1] <= rooms[1]:
             break
         rooms = (max(needed[0], rooms[0]), max(needed[1], rooms[1]))
+    del data
     if len(odd) and not _read_odd(text, odd, values):
         return None
     return [
@@ -2188,7 +2197,9 @@ def _plain_facts(text: str, compiled: bool) -> tuple[int, bool]:
     """The lines of ``text`` (:func:`~urdfpost.readers._stream.line_count`) and
     :func:`_only_plain_gotos` of them; by a compiled loop when ``compiled`` and numba is
     there (:func:`urdfpost.readers._goto_kernel.plain_goto_lines`)."""
-    got = _compiled("plain_goto_lines", text) if compiled else None
+    got = None
+    if compiled and not _KERNEL_FAILED and _kernel() is not None:
+        got = _compiled("plain_goto_lines", _bytes_of(text))
     if got is not None:
         return int(got[0]), bool(got[1])
     count = line_count(text)
