@@ -32,13 +32,15 @@ first record, the file's units, NX dialect, a continued record cut off by the en
 from a pre-scan that passes over the runs of plain GOTO lines without parsing them).
 
 Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records. Step 1 finds such runs
-(:func:`scan_text`) and reads their numbers in bulk with numpy into a :class:`GotoRun`; step 3
-applies the modal state to the whole run at once, with the same arithmetic in the same order as
-for one record, so the points are bit-identical. A run whose values would need a message (a
-non-finite number, a length beyond :data:`~urdfpost.readers._common.MAX_LENGTH_MM` once in mm,
-a tool axis of zero or non-unit length) or that follows a ``RAPID`` or ``CIRCLE`` is read
-record by record for those records, exactly as any other line; so is everything that is not a
-plain GOTO line.
+(:func:`scan_text`) and reads their numbers in bulk into a :class:`GotoRun`, with numpy or, for
+large files with numba installed (:data:`COMPILED_FROM`), with one compiled loop
+over the text's bytes (:mod:`urdfpost.readers._goto_kernel`: the same runs' numbers, bit for
+bit, as ``float()`` reads them). Step 3 applies the modal state to the whole run at once,
+with the same arithmetic in the same order as for one record, so the points are bit-identical.
+A run whose values would need a message (a non-finite number, a length beyond
+:data:`~urdfpost.readers._common.MAX_LENGTH_MM` once in mm, a tool axis of zero or non-unit
+length) or that follows a ``RAPID`` or ``CIRCLE`` is read record by record for those records,
+exactly as any other line; so is everything that is not a plain GOTO line.
 
 Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
 
@@ -115,13 +117,18 @@ evidence of neighbouring moves, which are not always tangent).
 
 from __future__ import annotations
 
+import functools
 import io
 import itertools
 import logging
 import math
+import os
 import re
+import sys
+import types
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -363,6 +370,7 @@ class _Scanner:
         self.pending: str | None = None
         self.start = 0
         self.fini = 0  # line of FINI once read
+        self.line = 1  # number of the line after those scan_piece has scanned (until FINI)
 
     def feed(self, lines: Iterable[str], first: int) -> int:
         """Scan ``lines``, numbered from ``first``.
@@ -525,12 +533,24 @@ def _goto_values(lines: str, count: int) -> np.ndarray | None:
 
 
 def _bulk_runs(
-    text: str, bulk_piece: int | None = None
+    text: str, bulk_piece: int | None = None, compiled: bool = False
 ) -> Iterator[tuple[int, int, np.ndarray, int]]:
     """Runs of one-line GOTO records in ``text`` with their numbers read in bulk.
 
-    Long blocks are read in pieces of about ``bulk_piece`` characters (default
-    :data:`_BULK_PIECE`), which bounds the memory of the intermediate copies.
+    With ``compiled`` and numba installed, found and read by the compiled byte loop
+    (:func:`_compiled_runs`), else by :func:`_bulk_runs_numpy`: the same records, the same
+    numbers to the bit.
+
+    Parameters
+    ----------
+    text : str
+        Lines with ``\\n`` line breaks.
+    bulk_piece : int, optional
+        Characters after which a run is cut (default :data:`_BULK_PIECE`): bounds the memory
+        of the temporary arrays made of a run.
+    compiled : bool
+        Whether to read with the compiled loop (when numba is there): for large texts, which
+        make up for its import.
 
     Yields
     ------
@@ -541,6 +561,133 @@ def _bulk_runs(
         Lines of the run with a trailing ``$$`` comment.
     """
     size = _BULK_PIECE if bulk_piece is None else bulk_piece
+    runs = _compiled_runs(text, size) if compiled else None
+    return iter(runs) if runs is not None else _bulk_runs_numpy(text, size)
+
+
+COMPILED_FROM = 1 << 25
+"""Characters of text (a whole file's, or a streamed file's bytes) from which the runs of GOTO
+lines are found and read by the compiled byte loop (:mod:`urdfpost.readers._goto_kernel`, with
+numba installed: the ``fast`` extra) rather than the numpy path, in a process that has not
+imported numba yet. Numba's import and the loading of its cached machine code take 0.4-0.9 s
+there; the loop saves about 6 ns a character (0.33 s for a million GOTO lines, 57 MB): a file
+read alone breaks even at about 70-100 MB, and a post of a file this large loads numba anyway
+(the verification's matching, from 50,000 points), so its read may as well (bench/RESULTS.md,
+December 7 2026)."""
+
+COMPILED_WARM_FROM = 1 << 21
+"""Characters from which the compiled loop runs once numba is imported in this process (by this
+reader or another compiled loop): then only the loop's own cached code is loaded (about 0.06
+s the first time)."""
+
+
+def _use_compiled(size: int) -> bool:
+    """Whether a text of ``size`` characters is read with the compiled loop
+    (:data:`COMPILED_FROM`, :data:`COMPILED_WARM_FROM`)."""
+    return size >= (COMPILED_WARM_FROM if "numba" in sys.modules else COMPILED_FROM)
+
+
+_KERNEL_FAILED: list[str] = []
+"""Why the compiled loop could not run in this process (then the numpy path runs)."""
+
+
+@functools.cache
+def _kernel() -> types.ModuleType | None:
+    """The compiled loops (:mod:`urdfpost.readers._goto_kernel`), or None without numba
+    (looked for once per process)."""
+    try:
+        from . import _goto_kernel
+    except ImportError:
+        return None
+    return _goto_kernel
+
+
+def _compiled(loop: str, data: np.ndarray, *args: int) -> Any:
+    """The compiled ``loop`` of :mod:`urdfpost.readers._goto_kernel` run on ``data`` (the
+    bytes of a text, :func:`_bytes_of`) and ``args``: what the loop returns; None without
+    numba, or when it fails here (once: the warning "compiled GOTO scan unavailable (why); the
+    numpy path runs", and no more tries)."""
+    kernel = None if _KERNEL_FAILED else _kernel()
+    if kernel is None:
+        return None
+    try:
+        return getattr(kernel, loop)(data, *args)
+    except Exception as e:  # numba could not compile or load it here: the numpy path
+        _KERNEL_FAILED.append(str(e))
+        logger.warning("compiled GOTO scan unavailable (%s); the numpy path runs", e)
+        return None
+
+
+def _bytes_of(text: str) -> np.ndarray:
+    """The bytes the compiled loops read of ``text``, shape (len(text),), uint8: one per
+    character (a character that is not ASCII as ``?``, which no number or keyword has), so that
+    their offsets are the text's."""
+    return np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
+
+
+def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int]] | None:
+    """:func:`_bulk_runs` of ``text`` by the compiled loop, or None without it (or when it
+    failed here, or when the numbers of an odd GOTO line are not for ``np.loadtxt``: then the
+    numpy path reads the text).
+
+    The odd lines of its runs (numbers with exponents, many digits, ``nan``...) are read here
+    with :func:`_goto_values`, as the numpy path reads every line.
+    """
+    if _KERNEL_FAILED or _kernel() is None:
+        return None
+    data = _bytes_of(text)
+    rooms = (64, 64)  # rows for runs and odd lines; more when the loop says so
+    while True:
+        got = _compiled("goto_runs", data, BULK_MIN_RECORDS, size, *rooms)
+        if got is None:
+            return None
+        runs, values, odd, *needed = got
+        if needed[0] <= rooms[0] and needed[1] <= rooms[1]:
+            break
+        rooms = (max(needed[0], rooms[0]), max(needed[1], rooms[1]))
+    del data
+    if len(odd) and not _read_odd(text, odd, values):
+        return None
+    return [
+        (start, end, values[first : first + count * width].reshape(count, width), comments)
+        for start, end, count, width, comments, first in runs.tolist()
+    ]
+
+
+def _read_odd(text: str, odd: np.ndarray, values: np.ndarray) -> bool:
+    """Fill in ``values`` the numbers of the odd GOTO lines of :func:`_compiled_runs`.
+
+    Parameters
+    ----------
+    text : str
+    odd : ndarray, shape (o, 3), int
+        Per line: its offset in ``text``, the offset after its code, the offset in ``values``
+        of its first number.
+    values : ndarray, shape (v,)
+
+    Returns
+    -------
+    bool
+        False when :func:`_goto_values` does not read them (then nothing is to be trusted).
+    """
+    codes = [text[start:end].strip() for start, end, _ in odd.tolist()]
+    widths = np.array([code.count(",") + 1 for code in codes])
+    for width in (3, 6):
+        chosen = np.flatnonzero(widths == width)
+        if not chosen.size:
+            continue
+        got = _goto_values("\n".join(codes[k] for k in chosen.tolist()), chosen.size)
+        if got is None or got.shape[1] != width:
+            return False
+        values[odd[chosen, 2][:, None] + np.arange(width)] = got
+    return True
+
+
+def _bulk_runs_numpy(text: str, size: int) -> Iterator[tuple[int, int, np.ndarray, int]]:
+    """:func:`_bulk_runs` with numpy: blocks of lines that start with ``GOTO/`` found with a
+    regular expression and their numbers read by ``np.loadtxt``, in pieces of about ``size``
+    characters (long blocks are cut after ``size`` characters when longer than ``2 * size``).
+    """
     for start, end in _goto_blocks(text):
         while start < end:
             cut = end
@@ -587,7 +734,8 @@ def scan_text(text: str, source: str) -> _Scan:
 
     The records are those of ``scan_records(split_lines(text), source)``, except that runs of
     at least :data:`BULK_MIN_RECORDS` consecutive one-line ``GOTO`` records with plain numbers
-    come as one :class:`GotoRun` each.
+    come as one :class:`GotoRun` each (found and read by the compiled loop from
+    :data:`COMPILED_FROM` characters on, see :func:`_use_compiled`).
 
     Raises
     ------
@@ -595,7 +743,7 @@ def scan_text(text: str, source: str) -> _Scan:
         When the file ends inside a continued record.
     """
     scanner = _Scanner(source)
-    after = scan_piece(scanner, normalise_breaks(text), 1)
+    after = scan_piece(scanner, normalise_breaks(text), 1, compiled=_use_compiled(len(text)))
     if after is not None:
         scanner.after_fini(after)
     return scanner.finish()
@@ -613,22 +761,28 @@ def normalise_breaks(text: str) -> str:
 
 
 def scan_piece(
-    scanner: _Scanner, text: str, line: int, bulk_piece: int | None = None
+    scanner: _Scanner,
+    text: str,
+    line: int,
+    bulk_piece: int | None = None,
+    *,
+    compiled: bool = False,
 ) -> Iterator[str] | None:
     """Scan the lines of ``text`` into ``scanner``'s records, GOTO runs read in bulk.
 
     ``text`` has ``\\n`` line breaks only and starts at the start of line number ``line``; the
     scanner may hold a continued record from the lines before. Called on consecutive pieces
     of a file cut at line breaks, it makes the records of the whole file (GOTO runs may be
-    cut where the pieces are). ``bulk_piece`` is as for :func:`_bulk_runs`.
+    cut where the pieces are). ``bulk_piece`` and ``compiled`` are as for :func:`_bulk_runs`.
 
     Returns
     -------
     iterator of str or None
-        None, or when the scanner reads FINI, the lines of ``text`` after it.
+        None (and the number of the line after ``text`` in ``scanner.line``), or when the
+        scanner reads FINI, the lines of ``text`` after it.
     """
     pos = 0  # start of the next line to scan; its number is ``line``
-    for start, end, values, comments in _bulk_runs(text, bulk_piece):
+    for start, end, values, comments in _bulk_runs(text, bulk_piece, compiled):
         if start > pos:
             lines = text[pos : start - 1].split("\n")
             scanned = scanner.feed(lines, line)
@@ -652,6 +806,7 @@ def scan_piece(
     scanned = scanner.feed(lines, line)
     if scanner.fini:
         return iter(lines[scanned:])
+    scanner.line = line + len(lines) - 1  # the text's line breaks after ``line``
     return None
 
 
@@ -2016,9 +2171,10 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     in_feeds: tuple[str, int] | None = None
     nx: tuple[int, str] | None = None
     line = 1
+    compiled = _use_compiled(_file_size(source))
     for text in _apt_parts(source, size):
-        count = line_count(text)
-        if not (scanner.pending is None and _only_plain_gotos(text, count)):
+        count, plain = _plain_facts(text, compiled)
+        if not (scanner.pending is None and plain):
             _prescan_piece(scanner, text, line)
         for record in scanner.scan.records:
             if declared is None and (units := declared_units(record)):
@@ -2035,6 +2191,19 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     if scan.first_listing and (nx is None or scan.first_listing < nx[0]):
         nx = (scan.first_listing, "an NX listing line")
     return declared or in_feeds, nx
+
+
+def _plain_facts(text: str, compiled: bool) -> tuple[int, bool]:
+    """The lines of ``text`` (:func:`~urdfpost.readers._stream.line_count`) and
+    :func:`_only_plain_gotos` of them; by a compiled loop when ``compiled`` and numba is
+    there (:func:`urdfpost.readers._goto_kernel.plain_goto_lines`)."""
+    got = None
+    if compiled and not _KERNEL_FAILED and _kernel() is not None:
+        got = _compiled("plain_goto_lines", _bytes_of(text))
+    if got is not None:
+        return int(got[0]), bool(got[1])
+    count = line_count(text)
+    return count, _only_plain_gotos(text, count)
 
 
 def _only_plain_gotos(text: str, count: int) -> bool:
@@ -2092,6 +2261,14 @@ def _first_point_of(record: Record | GotoRun, before: int, after: int) -> int:
     return max(before, after - 1)
 
 
+def _file_size(source: str) -> int:
+    """Bytes of the file ``source`` (0 when it cannot be told: the reading will say why)."""
+    try:
+        return os.path.getsize(source)
+    except OSError:
+        return 0
+
+
 def read_apt_stream(
     source: str,
     *,
@@ -2118,14 +2295,15 @@ def read_apt_stream(
     )
     builder = interpreter.builder
     scanner = _Scanner(source)
+    compiled = _use_compiled(_file_size(source))
     multiaxis_from: int | None = None
     after, count_after = 0, 0  # first line after FINI to warn about, and how many
     line = 1
     parts = _apt_parts(source, text_piece)
     for part in parts:
-        rest = scan_piece(scanner, part, line, _STREAM_PART)
+        rest = scan_piece(scanner, part, line, _STREAM_PART, compiled=compiled)
         records, scanner.scan.records = scanner.scan.records, []
-        line += part.count("\n")
+        line = scanner.line if rest is None else line + part.count("\n")
         del part  # the records hold what they need of it
         for record in records:
             before = len(builder)

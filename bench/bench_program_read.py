@@ -2,9 +2,9 @@
 
 Run::
 
-    python bench/bench_read.py /tmp/pr/h1m.h /tmp/pr/h1m.nc --repeat 2
-    python bench/bench_read.py /tmp/pr/h1m.h --numpy      # the numpy path only
-    PYTHONPATH=<old checkout>/src python bench/bench_read.py /tmp/pr/h1m.h
+    python bench/bench_program_read.py /tmp/pr/h1m.h /tmp/pr/h1m.nc --repeat 2
+    python bench/bench_program_read.py /tmp/pr/h1m.h --numpy      # the numpy path only
+    PYTHONPATH=<old checkout>/src python bench/bench_program_read.py /tmp/pr/h1m.h
 
 Each file is read (its control from its extension, or ``-c``) ``--repeat`` times in this
 process, as :func:`urdfpost.dialects.reader.read_program` reads it (a :class:`ProgramReader`
