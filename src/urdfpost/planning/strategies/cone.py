@@ -20,11 +20,13 @@ import itertools
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from types import ModuleType
 
 import numpy as np
 
 from urdfpost.geometry import angle_between
 from urdfpost.machine import Machine
+from urdfpost.planning._compiled import Kernels
 from urdfpost.planning.branches import Selection
 from urdfpost.planning.problem import (
     Plan,
@@ -71,6 +73,17 @@ GEOMETRIC_SHARE = 1e-3
 turn per unit path measure (the tube raises them to the least that fits the cone)."""
 
 
+def _load_kernels() -> ModuleType:
+    from urdfpost.planning.strategies import _cone_kernel
+
+    return _cone_kernel
+
+
+KERNELS = Kernels(_load_kernels, "cone tube")
+"""The compiled tube (:mod:`urdfpost.planning.strategies._cone_kernel`), loaded by
+:func:`strategy_cone` for a large path (:data:`urdfpost.planning._compiled.COMPILED_FROM`)."""
+
+
 @strategy("cone", rank=60)
 def strategy_cone(problem: Problem) -> Plan:
     """Keep the first rotary axis within its velocity limit by moving the tool axis in a cone.
@@ -90,6 +103,7 @@ def strategy_cone(problem: Problem) -> Plan:
     """
     machine = problem.machine
     tp = split_at_pole_crossings(problem.toolpath, machine, problem.tol.pole_crossing)
+    KERNELS.get(len(tp))  # the compiled tube, for a large path
     if len(machine.rotary) < 2 or not np.isfinite(machine.rotary[0].velocity):
         tp, sel = exact_split(problem, tp)
         return _plain(problem, tp, sel, _spans(problem, tp, sel))
@@ -544,6 +558,30 @@ def _reachable(
 
 
 def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """:func:`_tube_numpy`, compiled where the kernels are loaded (:data:`KERNELS`, the same
+    numbers: :func:`urdfpost.planning.strategies._cone_kernel.tube`).
+
+    Parameters
+    ----------
+    exact, half : ndarray, shape (n,), rad
+    step : ndarray, shape (n - 1,), rad
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    kernel = KERNELS.loaded()
+    if kernel is not None and len(exact) > 1:
+        args = [np.ascontiguousarray(a, dtype=float) for a in (exact, half, step)]
+        if all(np.isfinite(a).all() for a in args) and (args[1] >= 0).all():
+            try:
+                return kernel.tube(*args)  # type: ignore[no-any-return]
+            except Exception as e:  # numba could not compile or cache it here
+                KERNELS.fail(e)
+    return _tube_numpy(exact, half, step)
+
+
+def _tube_numpy(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
     """A rate-limited sequence within ``exact +- half``, as close to ``exact`` as it can be.
 
     Forward pass: the interval of values reachable at each point from the start within the
