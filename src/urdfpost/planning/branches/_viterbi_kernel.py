@@ -25,7 +25,7 @@ from numba import njit
 _TWO_PI = 2.0 * np.pi
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _wrap(a: float) -> float:
     """``pi - mod(pi - a, 2 pi)`` (numpy's ``mod``: ``fmod`` plus a turn where negative);
     for ``pi - a`` within (-2 pi, 4 pi) a turn added or taken off, which is exact there (as
@@ -46,7 +46,7 @@ def _wrap(a: float) -> float:
     return np.pi - r
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _size(x: float, cont: bool) -> float:
     """How far an axis moves for the difference ``x``: wrapped for a continuous axis, 0 for
     an undetermined angle (NaN), absolute."""
@@ -57,10 +57,12 @@ def _size(x: float, cont: bool) -> float:
     return abs(x)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _move(
     here: np.ndarray,
+    k: int,
     state: np.ndarray,
+    s: int,
     weights: np.ndarray,
     cont: np.ndarray,
     switch: bool,
@@ -69,20 +71,20 @@ def _move(
     cutting: bool,
     jump: float,
 ) -> float:
-    """The cost of the move from actual angles ``state`` (r,) to the candidate ``here`` (r,)
+    """The cost of the move from the actual angles ``state[s]`` to the candidate ``here[k]``
     (:meth:`~urdfpost.planning.branches.state.BranchSearch._move_cost`)."""
-    r = here.shape[0]
-    s0 = _size(here[0] - state[0], cont[0])
+    r = here.shape[1]
+    s0 = _size(here[k, 0] - state[s, 0], cont[0])
     cost = s0 * weights[0]
     travel = s0
     far = (not cont[0]) and s0 > np.pi
     for a in range(1, r):
-        s = _size(here[a] - state[a], cont[a])
-        travel = travel + s
-        w = s * weights[a]
+        x = _size(here[k, a] - state[s, a], cont[a])
+        travel = travel + x
+        w = x * weights[a]
         if not cost >= w:  # np.maximum: the first where they tie
             cost = w
-        if (not cont[a]) and s > np.pi:
+        if (not cont[a]) and x > np.pi:
             far = True
     cost += travel
     if regular and switch_cost != 0.0:
@@ -92,84 +94,70 @@ def _move(
     return cost
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _rewind(here: np.ndarray, state: np.ndarray, cont: np.ndarray, rewind_cost: float) -> float:
-    """The cost of a rewind from actual angles ``state`` to the candidate ``here``."""
-    r = here.shape[0]
-    total = _size(here[0] - state[0], cont[0])
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _rewind(here: np.ndarray, k: int, state: np.ndarray, t: int, cont: np.ndarray) -> float:
+    """How far a rewind from the actual angles ``state[t]`` to the candidate ``here[k]``
+    turns the axes (summed in order; the caller adds the rewind cost)."""
+    r = here.shape[1]
+    total = _size(here[k, 0] - state[t, 0], cont[0])
     for a in range(1, r):
-        total = total + _size(here[a] - state[a], cont[a])
-    return rewind_cost + total
+        total = total + _size(here[k, a] - state[t, a], cont[a])
+    return total
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _bulk_move(
+def _fill(
     values: np.ndarray,
     usable: np.ndarray,
-    pref: np.ndarray,
     singular: np.ndarray,
     cutting: np.ndarray,
+    may_rewind: np.ndarray,
     switch: np.ndarray,
     weights: np.ndarray,
     cont: np.ndarray,
     switch_cost: float,
     jump: float,
-    i: int,
-    out: np.ndarray,
-) -> None:
-    """The move costs into point ``i`` from the candidates of ``i - 1`` (their own angles),
-    ``out[s, k]`` (without the preference cost)."""
-    n_cand = values.shape[1]
-    regular = not (singular[i] or singular[i - 1])
-    for s in range(n_cand):
-        for k in range(n_cand):
-            out[s, k] = _move(
-                values[i, k],
-                values[i - 1, s],
-                weights,
-                cont,
-                switch[s, k],
-                switch_cost,
-                regular,
-                cutting[i],
-                jump,
-            )
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _layer(
-    values: np.ndarray,
-    usable: np.ndarray,
-    cont: np.ndarray,
     rewind_cost: float,
-    i: int,
-    out: np.ndarray,
+    lo: int,
+    hi: int,
+    moves: np.ndarray,
+    layers: np.ndarray,
 ) -> None:
-    """The rewind layer at point ``i`` between its candidates' own angles: 0 on the diagonal
-    (no rewind), inf into unusable candidates."""
+    """The steps ``lo..hi-1`` of a block whose steps do not depend on the path: the move
+    costs into point ``i`` from the candidates of ``i - 1`` (their own angles; without the
+    preference cost) in ``moves[i - lo, s, k]``, and where a rewind may follow, the rewind
+    layer between the candidates of ``i`` in ``layers[i - lo, t, k]`` (0 on the diagonal: no
+    rewind; inf into unusable candidates); as :class:`~urdfpost.planning.branches.engine._Steps`
+    lays them out."""
     n_cand = values.shape[1]
-    for t in range(n_cand):
-        for k in range(n_cand):
-            if t == k:
-                out[t, k] = 0.0
-            elif not usable[i, k]:
-                out[t, k] = np.inf
-            else:
-                out[t, k] = _rewind(values[i, k], values[i, t], cont, rewind_cost)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _min_plus(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
-    """``out[s, k] = min over t of a[s, t] + b[t, k]``."""
-    n_cand = a.shape[0]
-    for s in range(n_cand):
-        for k in range(n_cand):
-            m = a[s, 0] + b[0, k]
-            for t in range(1, n_cand):
-                x = a[s, t] + b[t, k]
-                if not m <= x:  # np.minimum
-                    m = x
-            out[s, k] = m
+    for i in range(lo, hi):
+        j = i - lo
+        regular = not (singular[i] or singular[i - 1])
+        here, prev = values[i], values[i - 1]
+        for s in range(n_cand):
+            for k in range(n_cand):
+                moves[j, s, k] = _move(
+                    here,
+                    k,
+                    prev,
+                    s,
+                    weights,
+                    cont,
+                    switch[s, k],
+                    switch_cost,
+                    regular,
+                    cutting[i],
+                    jump,
+                )
+        if may_rewind[i]:
+            for t in range(n_cand):
+                for k in range(n_cand):
+                    if t == k:
+                        layers[j, t, k] = 0.0
+                    elif not usable[i, k]:
+                        layers[j, t, k] = np.inf
+                    else:
+                        layers[j, t, k] = rewind_cost + _rewind(here, k, here, t, cont)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -206,18 +194,21 @@ def _sequential(
     rdiff = np.empty((n_cand, n_cand, r))
     for i in range(lo, hi):
         regular = not (singular[i] or singular[i - 1])
+        here = values[i]
         for s in range(n_cand):
             for k in range(n_cand):
                 for a in range(r):
-                    d = values[i, k, a] - state[s, a]
+                    d = here[k, a] - state[s, a]
                     if cont[a]:
                         d = _wrap(d)
                     if np.isnan(d):
                         d = 0.0
                     diff[s, k, a] = d
                 step[s, k] = _move(
-                    values[i, k],
-                    state[s],
+                    here,
+                    k,
+                    state,
+                    s,
                     weights,
                     cont,
                     switch[s, k],
@@ -250,7 +241,7 @@ def _sequential(
             for t in range(n_cand):
                 for k in range(n_cand):
                     for a in range(r):
-                        d = values[i, k, a] - arrive_state[t, a]
+                        d = here[k, a] - arrive_state[t, a]
                         if cont[a]:
                             d = _wrap(d)
                         if np.isnan(d):
@@ -264,7 +255,7 @@ def _sequential(
                     if t == k:
                         x = arrive[t] + np.inf
                     else:
-                        x = arrive[t] + _rewind(values[i, k], arrive_state[t], cont, rewind_cost)
+                        x = arrive[t] + (rewind_cost + _rewind(here, k, arrive_state, t, cont))
                     if t == 0:
                         m = x
                     elif x < m:
@@ -294,18 +285,9 @@ def _sequential(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _block_pass(
-    values: np.ndarray,
     usable: np.ndarray,
     pref: np.ndarray,
-    singular: np.ndarray,
-    cutting: np.ndarray,
     may_rewind: np.ndarray,
-    switch: np.ndarray,
-    weights: np.ndarray,
-    cont: np.ndarray,
-    switch_cost: float,
-    jump: float,
-    rewind_cost: float,
     lo: int,
     hi: int,
     start: np.ndarray,
@@ -315,21 +297,19 @@ def _block_pass(
     layers: np.ndarray,
 ) -> np.ndarray:
     """:func:`~urdfpost.planning.branches.engine._block_steps` of one block (steps
-    ``lo..hi-1``) from its start cost, with the move costs and rewind layers
-    :func:`_block_product` kept (``moves[i - lo]``, ``layers[i - lo]``); the cost at its last
-    point, shape (K,)."""
-    n_cand = values.shape[1]
+    ``lo..hi-1``, filled in by :func:`_fill`) from its start cost: fills ``back`` and
+    ``rback`` there and returns the cost at its last point, shape (K,)."""
+    n_cand = start.shape[0]
     rewound = np.empty(n_cand)
     cost = start.copy()
     arrive = np.empty(n_cand)
     for i in range(lo, hi):
-        move = moves[i - lo]
-        layer = layers[i - lo]
-        for k in range(n_cand):
-            m = cost[0] + move[0, k]
+        j = i - lo
+        for k in range(n_cand):  # _min_arg: the first least, np.minimum
+            m = cost[0] + moves[j, 0, k]
             b = 0
             for s in range(1, n_cand):
-                x = cost[s] + move[s, k]
+                x = cost[s] + moves[j, s, k]
                 if x < m:
                     b = s
                 if not m <= x:
@@ -340,10 +320,10 @@ def _block_pass(
             rback[i, k] = -1
         if may_rewind[i]:
             for k in range(n_cand):
-                m = arrive[0] + layer[0, k]
+                m = arrive[0] + layers[j, 0, k]
                 b = 0
                 for t in range(1, n_cand):
-                    x = arrive[t] + layer[t, k]
+                    x = arrive[t] + layers[j, t, k]
                     if x < m:
                         b = t
                     if not m <= x:
@@ -361,28 +341,18 @@ def _block_pass(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _block_product(
-    values: np.ndarray,
     usable: np.ndarray,
     pref: np.ndarray,
-    singular: np.ndarray,
-    cutting: np.ndarray,
     may_rewind: np.ndarray,
-    switch: np.ndarray,
-    weights: np.ndarray,
-    cont: np.ndarray,
-    switch_cost: float,
-    jump: float,
-    rewind_cost: float,
     lo: int,
     hi: int,
     moves: np.ndarray,
     layers: np.ndarray,
 ) -> np.ndarray:
     """:func:`~urdfpost.planning.branches.engine._block_products` of one block (steps
-    ``lo..hi-1``): the min-plus product of its steps with the preference costs and rewinds,
-    shape (K, K); the move costs and rewind layers kept in ``moves[i - lo]`` and
-    ``layers[i - lo]`` for :func:`_block_pass`."""
-    n_cand = values.shape[1]
+    ``lo..hi-1``, filled in by :func:`_fill`): the min-plus product of its steps with the
+    preference costs and rewinds, shape (K, K)."""
+    n_cand = usable.shape[1]
     out = np.full((n_cand, n_cand), np.inf)
     for k in range(n_cand):
         out[k, k] = 0.0
@@ -390,31 +360,29 @@ def _block_product(
     turned = np.empty((n_cand, n_cand))
     product = np.empty((n_cand, n_cand))
     for i in range(lo, hi):
-        raw = moves[i - lo]
-        _bulk_move(
-            values,
-            usable,
-            pref,
-            singular,
-            cutting,
-            switch,
-            weights,
-            cont,
-            switch_cost,
-            jump,
-            i,
-            raw,
-        )
+        j = i - lo
         for s in range(n_cand):
             for k in range(n_cand):
-                move[s, k] = np.inf if not usable[i, k] else raw[s, k] + pref[i, k]
-        if may_rewind[i]:
-            layer = layers[i - lo]
-            _layer(values, usable, cont, rewind_cost, i, layer)
-            _min_plus(move, layer, turned)
-            _min_plus(out, turned, product)
-        else:
-            _min_plus(out, move, product)
+                move[s, k] = np.inf if not usable[i, k] else moves[j, s, k] + pref[i, k]
+        step = move
+        if may_rewind[i]:  # min-plus with the rewind layer
+            for s in range(n_cand):
+                for k in range(n_cand):
+                    m = move[s, 0] + layers[j, 0, k]
+                    for t in range(1, n_cand):
+                        x = move[s, t] + layers[j, t, k]
+                        if not m <= x:  # np.minimum
+                            m = x
+                    turned[s, k] = m
+            step = turned
+        for s in range(n_cand):  # out = out (min-plus) step
+            for k in range(n_cand):
+                m = out[s, 0] + step[0, k]
+                for t in range(1, n_cand):
+                    x = out[s, t] + step[t, k]
+                    if not m <= x:
+                        m = x
+                product[s, k] = m
         out, product = product, out
     return out
 
@@ -488,7 +456,24 @@ def viterbi(
                 break
         last_bulk = not seq
         if not seq:
-            product = _block_product(*args, switch_cost, jump, rewind_cost, a, e, moves, layers)
+            _fill(
+                values,
+                usable,
+                singular,
+                cutting,
+                may_rewind,
+                switch,
+                weights,
+                cont,
+                switch_cost,
+                jump,
+                rewind_cost,
+                a,
+                e,
+                moves,
+                layers,
+            )
+            product = _block_product(usable, pref, may_rewind, a, e, moves, layers)
             new = np.empty(n_cand)
             finite = False
             for k in range(n_cand):
@@ -501,9 +486,7 @@ def viterbi(
                 if np.isfinite(m):
                     finite = True
             if finite:
-                ends = _block_pass(
-                    *args, switch_cost, jump, rewind_cost, a, e, cost, back, rback, moves, layers
-                )
+                ends = _block_pass(usable, pref, may_rewind, a, e, cost, back, rback, moves, layers)
                 cost = new
                 state = values[e - 1].copy()
                 continue
@@ -512,9 +495,7 @@ def viterbi(
         if dead >= 0:
             return back, rback, cost, dead
         if not seq:  # (numpy records a bulk block's predecessors from its start afterwards)
-            ends = _block_pass(
-                *args, switch_cost, jump, rewind_cost, a, e, start, back, rback, moves, layers
-            )
+            ends = _block_pass(usable, pref, may_rewind, a, e, start, back, rback, moves, layers)
     if last_bulk:
         cost = ends  # the recorded arithmetic, which the predecessors follow
     return back, rback, cost, -1
