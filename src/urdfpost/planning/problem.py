@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.geometry import angle_between, slerp
+from urdfpost.geometry import angle_between, norms, slerp
 from urdfpost.kinematics.forward import rotate
 from urdfpost.machine import Machine
 from urdfpost.planning.branches import Preference, Selection, select
@@ -227,6 +227,6 @@ def arc_length(toolpath: Toolpath) -> np.ndarray:
     """
     if len(toolpath) == 0:
         return np.zeros(0)
-    d = np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1)
+    d = norms(np.diff(toolpath.tip, axis=0))
     a = angle_between(toolpath.axis[:-1], toolpath.axis[1:])
     return np.concatenate([[0.0], np.cumsum(d + a)])

@@ -24,7 +24,7 @@ from types import ModuleType
 
 import numpy as np
 
-from urdfpost.geometry import angle_between
+from urdfpost.geometry import angle_between, norms
 from urdfpost.machine import Machine
 from urdfpost.planning._compiled import Kernels
 from urdfpost.planning.branches import Selection
@@ -286,7 +286,7 @@ def _bend(
     rot = sel.q[:, list(machine.rotary_columns)].copy()
     k1 = machine.rotary[0].direction
     vmax = machine.rotary[0].velocity
-    length = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
+    length = norms(np.diff(tp.tip, axis=0))
     feed = tp.feed[1:] / 60.0  # mm/s
     with np.errstate(divide="ignore", invalid="ignore"):
         dt = np.where(feed > 0, length / feed, 0.0)
