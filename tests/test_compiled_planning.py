@@ -31,9 +31,10 @@ from urdfpost.machine import load_machine
 from urdfpost.planning._compiled import Kernels
 from urdfpost.planning.branches import engine, search, select
 from urdfpost.planning.branches.state import BranchSearch
-from urdfpost.planning.problem import Problem
+from urdfpost.planning.problem import Problem, entry_mask
 from urdfpost.planning.strategies import STRATEGIES, _cone_kernel, cone
 from urdfpost.tolerances import Tolerances
+from urdfpost.toolpath import Motion
 
 
 def bits(a: np.ndarray) -> np.ndarray:
@@ -253,6 +254,33 @@ def test_the_cone_plans_the_same_with_the_kernels(machine_name: str) -> None:
         if want.curve is not None:
             x = np.linspace(0.0, len(want.toolpath) - 1.0, 5 * len(want.toolpath))
             assert np.array_equal(bits(got.curve(x)), bits(want.curve(x))), name
+
+
+@pytest.mark.parametrize("machine_name", CONE_MACHINES)
+def test_the_compiled_deviation_bound_is_numpys(machine_name: str) -> None:
+    """The bound of the cone's curve on every feed segment of its plans, and with rows whose
+    tilt lies beyond travel or whose angles are NaN: the same numbers to the bit."""
+    m = load_machine(machine_name)
+    for name, tp in jobs().items():
+        problem = Problem(m, tp, tool_length=m.settings.tool_length, tol=Tolerances())
+        plan = cone_plan(problem, True)
+        path = plan.toolpath
+        seg = np.flatnonzero((path.motion[1:] == Motion.FEED) & ~entry_mask(path)[1:])
+        rows = (plan.param, plan.rotary)
+        use(cone.KERNELS, True)
+        got = cone._deviation_bound(m, path, *rows, seg)
+        use(cone.KERNELS, False)
+        want = cone._deviation_bound(m, path, *rows, seg)
+        assert np.array_equal(bits(got), bits(want)), name
+        lo2, hi2 = m.rotary[1].lower, m.rotary[1].upper
+        tilted = plan.rotary.copy()
+        tilted[::7, 1] = np.where(np.arange(len(tilted))[::7] % 2, hi2 + 0.01, lo2 - 0.02)
+        tilted[3::11, 0] = np.nan  # as on a turn in place
+        use(cone.KERNELS, True)
+        got = cone._deviation_bound(m, path, plan.param, tilted, seg)
+        use(cone.KERNELS, False)
+        want = cone._deviation_bound(m, path, plan.param, tilted, seg)
+        assert np.array_equal(bits(got), bits(want)), name
 
 
 # -- without numba, or where it fails -------------------------------------------------------

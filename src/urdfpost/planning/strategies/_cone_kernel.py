@@ -258,3 +258,64 @@ def tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
             v = r_lo[i] if r_lo[i] > e else e
             out[i] = r_hi[i] if r_hi[i] < v else v
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _maximum(a: float, b: float) -> float:
+    """``np.maximum``: NaN where either is."""
+    return a if (a >= b or np.isnan(a)) else b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def deviation_bound(
+    dev: np.ndarray,
+    rot: np.ndarray,
+    param: np.ndarray,
+    seg: np.ndarray,
+    alpha: np.ndarray,
+    lo2: float,
+    hi2: float,
+) -> np.ndarray:
+    """The arithmetic of :func:`~urdfpost.planning.strategies.cone._deviation_bound` from the
+    rows' deviations and the programmed axes' turns: on each segment, the last row at its
+    first point and the first row at its second (numpy's two ``searchsorted`` as one walk
+    along the sorted rows), their summed rotary steps, and the tilt beyond travel.
+
+    Parameters
+    ----------
+    dev : ndarray, shape (N,), rad
+        The rows' deviations from the programmed axis.
+    rot : ndarray, shape (N, r), rad
+    param : ndarray, shape (N,)
+        The rows' positions, in order.
+    seg : ndarray, shape (k,), int
+        The segments, in increasing order.
+    alpha : ndarray, shape (k,), rad
+        The angle between the programmed axes at either end of each.
+    lo2, hi2 : float, rad
+        The tilt's travel.
+
+    Returns
+    -------
+    ndarray, shape (k,), rad
+    """
+    n_rows, r = rot.shape
+    out = np.empty(seg.shape[0])
+    f = 0  # rows with param <= seg: searchsorted(param, seg, "right")
+    g = 0  # rows with param < seg + 1: searchsorted(param, seg + 1, "left")
+    for j in range(seg.shape[0]):
+        x = float(seg[j])
+        while f < n_rows and param[f] <= x:
+            f += 1
+        while g < n_rows and param[g] < x + 1.0:
+            g += 1
+        first = f - 1 if f > 0 else n_rows - 1  # (numpy's index -1: the last row)
+        last = g
+        turn = abs(rot[last, 0] - rot[first, 0])
+        for a in range(1, r):
+            turn = turn + abs(rot[last, a] - rot[first, a])
+        t0, t1 = rot[first, 1], rot[last, 1]
+        b0 = _maximum(_maximum(t0 - hi2, lo2 - t0), 0.0)
+        b1 = _maximum(_maximum(t1 - hi2, lo2 - t1), 0.0)
+        out[j] = 0.5 * (dev[first] + dev[last] + turn + alpha[j]) + _maximum(b0, b1)
+    return out

@@ -483,14 +483,38 @@ def _deviation_bound(
     -------
     ndarray, shape (k,), rad
         NaN where a row's angles are NaN.
+
+    Where the kernels are loaded (:data:`KERNELS`), the arithmetic after the deviations runs
+    compiled (:func:`urdfpost.planning.strategies._cone_kernel.deviation_bound`, the same
+    numbers).
     """
     dev = angle_between(tool_axis_of(machine, rot), tp.axis[param.astype(int)])
+    alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
     tilt, lo2, hi2 = rot[:, 1], machine.rotary[1].lower, machine.rotary[1].upper
+    kernel = KERNELS.loaded()
+    if (
+        kernel is not None
+        and len(seg)
+        and len(param)
+        and seg[-1] + 1 <= param[-1]  # (beyond the rows numpy raises)
+        and bool(np.all(np.diff(seg) > 0))
+    ):
+        args = [np.ascontiguousarray(a, dtype=float) for a in (dev, rot, param)]
+        try:
+            bound: np.ndarray = kernel.deviation_bound(
+                *args,
+                np.ascontiguousarray(seg, dtype=np.int64),
+                np.ascontiguousarray(alpha, dtype=float),
+                float(lo2),
+                float(hi2),
+            )
+            return bound
+        except Exception as e:  # numba could not compile or cache it here
+            KERNELS.fail(e)
     beyond = np.maximum(np.maximum(tilt - hi2, lo2 - tilt), 0.0)  # beyond the tilt's travel
     first = np.searchsorted(param, seg, side="right") - 1  # the last row at point i
     last = np.searchsorted(param, seg + 1, side="left")  # the first row at point i + 1
     turn = np.abs(rot[last] - rot[first]).sum(axis=1)
-    alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
     clipped = np.maximum(beyond[first], beyond[last])
     return 0.5 * (dev[first] + dev[last] + turn + alpha) + clipped
 
