@@ -40,3 +40,27 @@ def test_norms_and_angles_are_numpys_to_the_bit(
     cube = u[: (n // 4) * 4].reshape(-1, 2, 2, 3)
     assert np.array_equal(bits(norms(cube)), bits(np.linalg.norm(cube, axis=-1)))
     assert float(angle_between(u[0], u[0])) == 0.0
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 2000),
+    axis=st.sampled_from(["x", "y", "z", "any"]),
+    home=st.booleans(),
+)
+def test_rotating_one_vector_is_rotating_its_rows(seed: int, n: int, axis: str, home: bool) -> None:
+    """``rotate`` of one vector (the tool axis at home, as ``tool_axis_of`` starts from) works
+    its products with the joint axis out once: the same rows as rotating it repeated per row,
+    to the bit."""
+    from urdfpost.kinematics.forward import _rotate_about, rotate
+
+    rng = np.random.default_rng(seed)
+    k = {"x": np.eye(3)[0], "y": np.eye(3)[1], "z": np.eye(3)[2]}.get(axis)
+    if k is None:
+        k = rng.normal(size=3)
+        k /= np.linalg.norm(k)
+    v = np.eye(3)[2] if home else rng.normal(size=3)
+    theta = rng.uniform(-7.0, 7.0, n)
+    want = _rotate_about(k, theta, np.broadcast_to(v, (n, 3)).copy())
+    assert np.array_equal(bits(rotate(k, theta, v)), bits(want))

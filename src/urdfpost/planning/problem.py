@@ -213,8 +213,11 @@ def _cutting_point(
 def tool_axis_of(machine: Machine, rotary: np.ndarray) -> np.ndarray:
     """Tool axis in the workpiece frame for rotary angles (chain order), shape (k, 3)."""
     rot = machine.rotary
-    v = np.broadcast_to(machine.home_tool_axis, (len(rotary), 3)).copy()
-    for j in range(len(rot) - 1, -1, -1):
+    if not rot:
+        return np.broadcast_to(machine.home_tool_axis, (len(rotary), 3)).copy()
+    # the home axis is the same in every row: the last joint turns it as a constant
+    v = rotate(rot[-1].direction, rotary[:, -1], machine.home_tool_axis)
+    for j in range(len(rot) - 2, -1, -1):
         v = rotate(rot[j].direction, rotary[:, j], v)
     return v
 
