@@ -115,17 +115,21 @@ def _abs_max(a: np.ndarray, lo: int) -> float:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _rounding(a: np.ndarray, b: np.ndarray, step: np.ndarray, lo: int, k: float) -> float:
+def _rounding(
+    a: np.ndarray, b: np.ndarray, step: np.ndarray, lo: int, k: float, scale: float = -1.0
+) -> float:
     """:func:`~urdfpost.planning.strategies.cone._rounding` of ``a[lo:]``, ``b[lo:]`` and
-    ``step[lo:] * k``."""
-    scale = _abs_max(a, lo) + _abs_max(b, lo)
+    ``step[lo:] * k``; ``scale``, when not negative, is their largest magnitudes' sum
+    (``_abs_max(a, lo) + _abs_max(b, lo)``, the same for every factor ``k``)."""
+    if scale < 0.0:
+        scale = _abs_max(a, lo) + _abs_max(b, lo)
     x = scale + _pairwise_abs(step, lo, step.shape[0] - lo, k)
     return 16.0 * (np.nextafter(x, np.inf) - x)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def reachable(
-    lo: np.ndarray, hi: np.ndarray, step: np.ndarray, k: float, stop: bool
+    lo: np.ndarray, hi: np.ndarray, step: np.ndarray, k: float, stop: bool, scale: float = -1.0
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """:func:`~urdfpost.planning.strategies.cone._reachable` of ``lo``, ``hi`` and the steps
     ``step * k``.
@@ -138,6 +142,9 @@ def reachable(
         Factor of the steps (the numpy path's ``step * k``, entry by entry).
     stop : bool
         Return at the first closed interval (the entries after it are ``lo`` and ``hi``).
+    scale : float
+        ``max |lo| + max |hi|`` when known (negative: not known), for the rounding
+        allowance from the first point.
 
     Returns
     -------
@@ -149,7 +156,7 @@ def reachable(
     ok = True
     s = 0
     while s < n - 1:
-        eps = _rounding(lo, hi, step, s, k)
+        eps = _rounding(lo, hi, step, s, k, scale if s == 0 else -1.0)
         own_lo, own_hi = r_lo[s], r_hi[s]
         # point s itself: a = own + 0.0, which is its own running extreme
         run_lo, run_hi = own_lo + 0.0, own_hi - 0.0
@@ -206,7 +213,8 @@ def tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
     n = exact.shape[0]
     lo = exact - half
     hi = exact + half
-    r_lo, r_hi, ok = reachable(lo, hi, step, 1.0, True)
+    scale = _abs_max(lo, 0) + _abs_max(hi, 0)  # (for every factor the bisection tries)
+    r_lo, r_hi, ok = reachable(lo, hi, step, 1.0, True, scale)
     k_hi = 1.0
     if not ok:
         for i in range(n - 1):
@@ -217,14 +225,14 @@ def tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
         k_lo = 1.0
         for _ in range(40):
             k = np.sqrt(k_lo * k_hi)
-            fine = reachable(lo, hi, step, k, True)[2]
+            fine = reachable(lo, hi, step, k, True, scale)[2]
             if fine:
                 k_hi = k
             else:
                 k_lo = k
             if k_hi / k_lo < 1.001:
                 break
-        r_lo, r_hi, _ = reachable(lo, hi, step, k_hi, False)
+        r_lo, r_hi, _ = reachable(lo, hi, step, k_hi, False, scale)
     out = np.empty(n)
     x = exact[n - 1]
     x = x if x > r_lo[n - 1] else r_lo[n - 1]  # np.clip
