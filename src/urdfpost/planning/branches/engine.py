@@ -139,8 +139,8 @@ def _viterbi(
     if kernel is not None and not (p.exclude.moves or p.exclude.rewinds):
         try:
             found = _compiled(kernel, p, usable, irregular, cost0, state0, block)
-        except Exception as e:  # numba could not compile or cache it here: numpy runs
-            KERNELS.fail(e)
+        except Exception as err:  # numba could not compile or cache it here: numpy runs
+            KERNELS.fail(err)
         else:
             chosen, arrive, settled, dead = found
             if dead >= 0:

@@ -509,8 +509,8 @@ def _deviation_bound(
                 float(hi2),
             )
             return bound
-        except Exception as e:  # numba could not compile or cache it here
-            KERNELS.fail(e)
+        except Exception as err:  # numba could not compile or cache it here
+            KERNELS.fail(err)
     beyond = np.maximum(np.maximum(tilt - hi2, lo2 - tilt), 0.0)  # beyond the tilt's travel
     first = np.searchsorted(param, seg, side="right") - 1  # the last row at point i
     last = np.searchsorted(param, seg + 1, side="left")  # the first row at point i + 1
@@ -599,9 +599,10 @@ def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
         args = [np.ascontiguousarray(a, dtype=float) for a in (exact, half, step)]
         if all(np.isfinite(a).all() for a in args) and (args[1] >= 0).all():
             try:
-                return kernel.tube(*args)  # type: ignore[no-any-return]
-            except Exception as e:  # numba could not compile or cache it here
-                KERNELS.fail(e)
+                tube: np.ndarray = kernel.tube(*args)
+                return tube
+            except Exception as err:  # numba could not compile or cache it here
+                KERNELS.fail(err)
     return _tube_numpy(exact, half, step)
 
 
