@@ -30,7 +30,7 @@ from urdfpost.errors import UnreachableError
 from urdfpost.machine import load_machine
 from urdfpost.planning._compiled import Kernels
 from urdfpost.planning.branches import engine, search, select
-from urdfpost.planning.branches.state import BranchSearch
+from urdfpost.planning.branches.state import BranchSearch, _Exclusions
 from urdfpost.planning.problem import Problem, entry_mask
 from urdfpost.planning.strategies import STRATEGIES, _cone_kernel, cone
 from urdfpost.tolerances import Tolerances
@@ -107,6 +107,28 @@ def test_the_compiled_forward_pass_is_the_numpy_one(
     assert np.array_equal(bits(got[0]), bits(want[0]))
     assert np.array_equal(bits(got[1]), bits(want[1]))
     assert _cone_kernel.reachable(lo, hi, step, k, True)[2] == want[2]
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 2000), slack=st.sampled_from([0, 1, 4]))
+def test_intervals_closed_by_rounding_alone_are_one_value(seed: int, n: int, slack: int) -> None:
+    """Points pinned to one value each and steps exactly their differences (a few ulps more or
+    less): the running sums close intervals by their rounding alone, which the allowance
+    keeps open, in the kernel as in numpy (a kernel without it fails here)."""
+    rng = np.random.default_rng(seed)
+    centre = rng.normal(0.0, 0.3, n).cumsum()
+    step = np.abs(np.diff(centre))
+    for _ in range(slack):
+        step = np.nextafter(step, np.where(rng.random(n - 1) < 0.5, 0.0, np.inf))
+    want = cone._reachable(centre, centre, step)
+    got = _cone_kernel.reachable(centre, centre, step, 1.0, False)
+    assert got[2] == want[2]
+    assert np.array_equal(bits(got[0]), bits(want[0]))
+    assert np.array_equal(bits(got[1]), bits(want[1]))
+    half = np.zeros(n)
+    assert np.array_equal(
+        bits(_cone_kernel.tube(centre, half, step)), bits(cone._tube_numpy(centre, half, step))
+    )
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 127, 128, 129, 255, 256, 1000, 8193, 250_001])
@@ -225,6 +247,62 @@ def test_the_compiled_branch_choice_on_random_walks(
         pass
     finally:
         search._viterbi = original
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(2, 400),
+    n_cand=st.integers(1, 5),
+    held=st.sampled_from([0.0, 0.02, 0.3]),
+    block=st.sampled_from([None, 2, 5, 16]),
+)
+def test_the_compiled_recursion_breaks_ties_as_numpy(
+    seed: int, n: int, n_cand: int, held: float, block: int | None
+) -> None:
+    """Candidates on a coarse grid of angles (steps of pi/8, some candidates twins of
+    others, equal preference costs): equal costs everywhere, which the first candidate wins
+    in numpy's ``argmin`` and minimum; with undetermined angles (the point-by-point blocks),
+    unusable candidates, singular points, rapids and rewinds. The same choice, angles and
+    settled point to the bit, or the same dead end."""
+    rng = np.random.default_rng(seed)
+    m = load_machine("dmu50")
+    r = len(m.rotary)
+    values = rng.integers(-16, 17, (n, n_cand, r)) * (np.pi / 8)
+    if n_cand > 1:
+        values[:, -1] = values[:, 0]  # twins
+    values[rng.random((n, n_cand)) < held, 0] = np.nan
+    ok = rng.random((n, n_cand)) < 0.9
+    ok[:, 0] |= ~ok.any(axis=1)
+    p = BranchSearch(
+        machine=m,
+        values=values,
+        ok=ok,
+        branch=rng.integers(0, 2, n_cand),
+        pref_cost=np.where(rng.random((n, n_cand)) < 0.5, 0.0, 0.25),
+        start=np.zeros(r),
+        singular=rng.random(n) < 0.1,
+        cutting=rng.random(n) < 0.8,
+        weights=np.array([0.5, 0.25])[:r],
+        switch_cost=np.pi,
+        lines=np.arange(1, n + 1),
+        source="grid",
+        exclude=_Exclusions(state=np.zeros((n, n_cand), dtype=bool)),
+    )
+    use(engine.KERNELS, False)
+    try:
+        want = engine._viterbi(p, block)
+    except UnreachableError as err:
+        use(engine.KERNELS, True)
+        with pytest.raises(UnreachableError) as got_err:
+            engine._viterbi(p, block)
+        assert str(got_err.value) == str(err)
+        return
+    use(engine.KERNELS, True)
+    got = engine._viterbi(p, block)
+    for x, y in zip(got[:4], want[:4], strict=True):
+        assert np.array_equal(bits(np.asarray(x)), bits(np.asarray(y)))
+    assert got[4] == want[4]
 
 
 # -- the cone's plans -----------------------------------------------------------------------
