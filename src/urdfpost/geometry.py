@@ -84,7 +84,27 @@ def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     >>> float(angle_between(np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])))
     1.5707963267948966
     """
-    return 2.0 * np.arctan2(np.linalg.norm(u - v, axis=-1), np.linalg.norm(u + v, axis=-1))
+    u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
+    return 2.0 * np.arctan2(norms(u - v), norms(u + v))
+
+
+def norms(x: np.ndarray) -> np.ndarray:
+    """Lengths of 3-vectors along the last axis: ``np.linalg.norm(x, axis=-1)`` to the bit.
+
+    numpy adds the three squares in order, ``(x0^2 + x1^2) + x2^2``, as this does; but its
+    reduction over a last axis of three entries runs an inner loop per row, about three times
+    slower than these whole-column operations.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
+    return np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
 
 
 CHUNK = 32768

@@ -105,6 +105,13 @@ def rotate(k: np.ndarray, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
     k = np.asarray(k, dtype=float)
     theta = np.asarray(theta, dtype=float)
     if k.ndim == 1 and theta.ndim == 1:
+        if np.ndim(v) == 1:  # one vector for every row: its products with k worked out once
+            c = np.asarray(v, dtype=float)
+            return _rotate_constant(
+                (float(k[0]), float(k[1]), float(k[2])),
+                (float(c[0]), float(c[1]), float(c[2])),
+                (np.cos(theta), np.sin(theta)),
+            )
         return _rotate_about(k, theta, v)
     theta = theta[..., None]
     k = np.broadcast_to(k, (*theta.shape[:-1], 3))

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.geometry import angle_between, slerp
+from urdfpost.geometry import angle_between, norms, slerp
 from urdfpost.kinematics.forward import rotate
 from urdfpost.machine import Machine
 from urdfpost.planning.branches import Preference, Selection, select
@@ -213,8 +213,11 @@ def _cutting_point(
 def tool_axis_of(machine: Machine, rotary: np.ndarray) -> np.ndarray:
     """Tool axis in the workpiece frame for rotary angles (chain order), shape (k, 3)."""
     rot = machine.rotary
-    v = np.broadcast_to(machine.home_tool_axis, (len(rotary), 3)).copy()
-    for j in range(len(rot) - 1, -1, -1):
+    if not rot:
+        return np.broadcast_to(machine.home_tool_axis, (len(rotary), 3)).copy()
+    # the home axis is the same in every row: the last joint turns it as a constant
+    v = rotate(rot[-1].direction, rotary[:, -1], machine.home_tool_axis)
+    for j in range(len(rot) - 2, -1, -1):
         v = rotate(rot[j].direction, rotary[:, j], v)
     return v
 
@@ -227,6 +230,6 @@ def arc_length(toolpath: Toolpath) -> np.ndarray:
     """
     if len(toolpath) == 0:
         return np.zeros(0)
-    d = np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1)
+    d = norms(np.diff(toolpath.tip, axis=0))
     a = angle_between(toolpath.axis[:-1], toolpath.axis[1:])
     return np.concatenate([[0.0], np.cumsum(d + a)])

@@ -15,10 +15,13 @@ none changes it.
 
 from __future__ import annotations
 
+from types import ModuleType
+
 import numpy as np
 
+from urdfpost.planning._compiled import Kernels
 from urdfpost.planning.branches._arrays import _CHUNK, _rows_any, _total
-from urdfpost.planning.branches.costs import REWIND_COST
+from urdfpost.planning.branches.costs import JUMP, REWIND_COST
 from urdfpost.planning.branches.exclusion import _raise_dead_end
 from urdfpost.planning.branches.rules import _wrap
 from urdfpost.planning.branches.state import BranchSearch
@@ -26,6 +29,17 @@ from urdfpost.planning.branches.state import BranchSearch
 _MIN_PLUS_BLOCK = (8, 512)  # smallest and largest block of the blocked recursion, points
 _CACHE_BYTES = 256e6  # step matrices kept between the passes when they fit in this
 _COPY = 262144  # array entries per copy when laying arrays out anew
+
+
+def _load_kernels() -> ModuleType:
+    from urdfpost.planning.branches import _viterbi_kernel
+
+    return _viterbi_kernel
+
+
+KERNELS = Kernels(_load_kernels, "branch choice")
+"""The compiled recursion (:mod:`urdfpost.planning.branches._viterbi_kernel`), loaded by
+:func:`_viterbi` for a large path (:data:`urdfpost.planning._compiled.COMPILED_FROM`)."""
 
 
 def _min_plus(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -121,6 +135,18 @@ def _viterbi(
     irregular[0] = False
     if block is None:
         block = int(np.clip(np.sqrt(n), *_MIN_PLUS_BLOCK))
+    kernel = KERNELS.get(n)
+    if kernel is not None and not (p.exclude.moves or p.exclude.rewinds):
+        try:
+            found = _compiled(kernel, p, usable, irregular, cost0, state0, block)
+        except Exception as err:  # numba could not compile or cache it here: numpy runs
+            KERNELS.fail(err)
+        else:
+            chosen, arrive, settled, dead = found
+            if dead >= 0:
+                _raise_dead_end(p, dead)
+            rot_leave, rot_arrive = _angles_along(p, state0, chosen, arrive)
+            return chosen, arrive, rot_leave, rot_arrive, settled
     first = np.arange(1, n, block)  # first step of each block
     last = np.minimum(first + block, n)  # one past its last
     seq = np.logical_or.reduceat(irregular, first) if len(first) else np.zeros(0, dtype=bool)
@@ -159,6 +185,47 @@ def _viterbi(
     )
     rot_leave, rot_arrive = _angles_along(p, state0, chosen, arrive)
     return chosen, arrive, rot_leave, rot_arrive, settled
+
+
+def _compiled(
+    kernel: ModuleType,
+    p: BranchSearch,
+    usable: np.ndarray,
+    irregular: np.ndarray,
+    cost0: np.ndarray,
+    state0: np.ndarray,
+    block: int,
+) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """The recursion and the path followed back, compiled
+    (:func:`urdfpost.planning.branches._viterbi_kernel.viterbi` and ``follow_back``: the
+    numbers of the numpy passes); the chosen and arrival candidates, the settled point (as
+    :func:`_follow_back`), and the point of a dead end (-1: none; the caller raises there,
+    as :func:`_sequential` does)."""
+    n = len(usable)
+    back, rback, cost, dead = kernel.viterbi(
+        np.ascontiguousarray(p.values, dtype=float),
+        np.ascontiguousarray(usable, dtype=bool),
+        np.ascontiguousarray(p.pref_cost, dtype=float),
+        np.ascontiguousarray(p.singular, dtype=bool),
+        np.ascontiguousarray(p.cutting, dtype=bool),
+        np.ascontiguousarray(p.rewinds_at(np.arange(n)), dtype=bool),
+        np.ascontiguousarray(irregular, dtype=bool),
+        np.ascontiguousarray(p.switch, dtype=bool),
+        np.ascontiguousarray(p.weights, dtype=float),
+        np.ascontiguousarray(p.cont, dtype=bool),
+        float(p.switch_cost),
+        float(JUMP),
+        float(REWIND_COST),
+        np.ascontiguousarray(cost0, dtype=float),
+        np.ascontiguousarray(state0, dtype=float),
+        int(block),
+    )
+    if dead >= 0:
+        return back[:0, 0], back[:0, 0], -1, int(dead)
+    chosen, arrive, settled = kernel.follow_back(
+        int(np.argmin(cost)), back, rback, np.isfinite(cost)
+    )
+    return chosen, arrive, int(settled), -1
 
 
 def _sequential(

@@ -20,11 +20,13 @@ import itertools
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from types import ModuleType
 
 import numpy as np
 
-from urdfpost.geometry import angle_between
+from urdfpost.geometry import angle_between, norms
 from urdfpost.machine import Machine
+from urdfpost.planning._compiled import Kernels
 from urdfpost.planning.branches import Selection
 from urdfpost.planning.problem import (
     Plan,
@@ -71,6 +73,17 @@ GEOMETRIC_SHARE = 1e-3
 turn per unit path measure (the tube raises them to the least that fits the cone)."""
 
 
+def _load_kernels() -> ModuleType:
+    from urdfpost.planning.strategies import _cone_kernel
+
+    return _cone_kernel
+
+
+KERNELS = Kernels(_load_kernels, "cone tube")
+"""The compiled tube (:mod:`urdfpost.planning.strategies._cone_kernel`), loaded by
+:func:`strategy_cone` for a large path (:data:`urdfpost.planning._compiled.COMPILED_FROM`)."""
+
+
 @strategy("cone", rank=60)
 def strategy_cone(problem: Problem) -> Plan:
     """Keep the first rotary axis within its velocity limit by moving the tool axis in a cone.
@@ -90,6 +103,7 @@ def strategy_cone(problem: Problem) -> Plan:
     """
     machine = problem.machine
     tp = split_at_pole_crossings(problem.toolpath, machine, problem.tol.pole_crossing)
+    KERNELS.get(len(tp))  # the compiled tube, for a large path
     if len(machine.rotary) < 2 or not np.isfinite(machine.rotary[0].velocity):
         tp, sel = exact_split(problem, tp)
         return _plain(problem, tp, sel, _spans(problem, tp, sel))
@@ -272,7 +286,7 @@ def _bend(
     rot = sel.q[:, list(machine.rotary_columns)].copy()
     k1 = machine.rotary[0].direction
     vmax = machine.rotary[0].velocity
-    length = np.linalg.norm(np.diff(tp.tip, axis=0), axis=1)
+    length = norms(np.diff(tp.tip, axis=0))
     feed = tp.feed[1:] / 60.0  # mm/s
     with np.errstate(divide="ignore", invalid="ignore"):
         dt = np.where(feed > 0, length / feed, 0.0)
@@ -469,14 +483,38 @@ def _deviation_bound(
     -------
     ndarray, shape (k,), rad
         NaN where a row's angles are NaN.
+
+    Where the kernels are loaded (:data:`KERNELS`), the arithmetic after the deviations runs
+    compiled (:func:`urdfpost.planning.strategies._cone_kernel.deviation_bound`, the same
+    numbers).
     """
     dev = angle_between(tool_axis_of(machine, rot), tp.axis[param.astype(int)])
+    alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
     tilt, lo2, hi2 = rot[:, 1], machine.rotary[1].lower, machine.rotary[1].upper
+    kernel = KERNELS.loaded()
+    if (
+        kernel is not None
+        and len(seg)
+        and len(param)
+        and seg[-1] + 1 <= param[-1]  # (beyond the rows numpy raises)
+        and bool(np.all(np.diff(seg) > 0))
+    ):
+        args = [np.ascontiguousarray(a, dtype=float) for a in (dev, rot, param)]
+        try:
+            bound: np.ndarray = kernel.deviation_bound(
+                *args,
+                np.ascontiguousarray(seg, dtype=np.int64),
+                np.ascontiguousarray(alpha, dtype=float),
+                float(lo2),
+                float(hi2),
+            )
+            return bound
+        except Exception as err:  # numba could not compile or cache it here
+            KERNELS.fail(err)
     beyond = np.maximum(np.maximum(tilt - hi2, lo2 - tilt), 0.0)  # beyond the tilt's travel
     first = np.searchsorted(param, seg, side="right") - 1  # the last row at point i
     last = np.searchsorted(param, seg + 1, side="left")  # the first row at point i + 1
     turn = np.abs(rot[last] - rot[first]).sum(axis=1)
-    alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
     clipped = np.maximum(beyond[first], beyond[last])
     return 0.5 * (dev[first] + dev[last] + turn + alpha) + clipped
 
@@ -544,6 +582,31 @@ def _reachable(
 
 
 def _tube(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """:func:`_tube_numpy`, compiled where the kernels are loaded (:data:`KERNELS`, the same
+    numbers: :func:`urdfpost.planning.strategies._cone_kernel.tube`).
+
+    Parameters
+    ----------
+    exact, half : ndarray, shape (n,), rad
+    step : ndarray, shape (n - 1,), rad
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    kernel = KERNELS.loaded()
+    if kernel is not None and len(exact) > 1:
+        args = [np.ascontiguousarray(a, dtype=float) for a in (exact, half, step)]
+        if all(np.isfinite(a).all() for a in args) and (args[1] >= 0).all():
+            try:
+                tube: np.ndarray = kernel.tube(*args)
+                return tube
+            except Exception as err:  # numba could not compile or cache it here
+                KERNELS.fail(err)
+    return _tube_numpy(exact, half, step)
+
+
+def _tube_numpy(exact: np.ndarray, half: np.ndarray, step: np.ndarray) -> np.ndarray:
     """A rate-limited sequence within ``exact +- half``, as close to ``exact`` as it can be.
 
     Forward pass: the interval of values reachable at each point from the start within the
