@@ -17,7 +17,9 @@ place; ``docs/verification.md``), and which CL points the program reaches, in or
 
 from __future__ import annotations
 
+import functools
 import logging
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -33,7 +35,12 @@ from urdfpost.geometry import (
     may_reach,
     refine_max,
 )
-from urdfpost.kinematics.forward import interpolation_bounds, tip_and_axis_along
+from urdfpost.kinematics.forward import (
+    ChainArrays,
+    chain_arrays,
+    interpolation_bounds,
+    tip_and_axis_along,
+)
 from urdfpost.linearize import RowPoses, orientation_path_chord2
 from urdfpost.machine import Machine
 from urdfpost.program import (
@@ -627,6 +634,174 @@ class _Deviation:
     block_chord2: np.ndarray
 
 
+COMPILED_FROM = 50_000
+"""Feed blocks from which :func:`_block_deviation` samples and bounds them with the compiled
+loop (:mod:`urdfpost.verification._deviation_kernel`, with numba installed: the ``fast``
+extra) rather than numpy: several times faster per block, after a fixed cost per process
+(numba's import, shared with the compiled matching, and the cached machine code's loading)."""
+
+
+_KERNEL_FAILED: list[str] = []
+"""Why the compiled first pass could not run in this process (then the numpy path runs)."""
+
+
+@functools.cache
+def _kernel() -> Callable[..., None] | None:
+    """The compiled first pass, or None without numba (looked for once per process)."""
+    try:
+        from urdfpost.verification._deviation_kernel import block_deviation
+    except ImportError:
+        return None
+    return block_deviation
+
+
+def _compiled() -> Callable[..., None] | None:
+    """The compiled first pass, or None without numba (or after it failed here)."""
+    return None if _KERNEL_FAILED else _kernel()
+
+
+@dataclass(frozen=True)
+class _KernelInputs:
+    """What the compiled first pass needs of one comparison, as contiguous arrays (made once
+    per comparison; :func:`urdfpost.verification._deviation_kernel.block_deviation`).
+
+    Attributes
+    ----------
+    chain : ChainArrays
+    linear : ndarray, shape (3,), int64
+        Columns of X, Y, Z.
+    values : ndarray, shape (N, m)
+    reach, swing : ndarray, shape (N, r)
+    start, ja, jb : ndarray, shape (n,), int64
+    valid : ndarray, shape (n,), bool
+    omega : ndarray, shape (n_cl,), rad
+        Angle of the CL arc from each CL point to the next (0 for the last).
+    """
+
+    chain: ChainArrays
+    linear: np.ndarray
+    values: np.ndarray
+    reach: np.ndarray
+    swing: np.ndarray
+    start: np.ndarray
+    ja: np.ndarray
+    jb: np.ndarray
+    valid: np.ndarray
+    omega: np.ndarray
+
+    @classmethod
+    def of(cls, feed: _Blocks) -> _KernelInputs | None:
+        """The inputs of ``feed``; None for a machine the kernel does not take (a TCP program
+        on a machine without three linear axes)."""
+        linear = np.array(feed.machine.linear_columns, dtype=np.int64)
+        if feed.tcp and len(linear) != 3:
+            return None
+        tip, axis = feed.polyline.tip, feed.polyline.axis
+        nxt = np.minimum(np.arange(1, len(feed.polyline) + 1), len(feed.polyline) - 1)
+        arcs = Arcs.of_coords(axis, (axis[0][nxt], axis[1][nxt], axis[2][nxt]))
+        ints = [np.ascontiguousarray(a, dtype=np.int64) for a in (feed.start, feed.ja, feed.jb)]
+        n = len(feed.start)
+        valid = np.ones(n, dtype=np.bool_) if feed.valid is None else feed.valid
+        return cls(
+            chain=chain_arrays(feed.machine, feed.tool_length),
+            linear=np.resize(linear, 3),
+            values=np.ascontiguousarray(feed.values, dtype=float),
+            reach=np.ascontiguousarray(feed.rows.reach, dtype=float),
+            swing=np.ascontiguousarray(feed.rows.swing, dtype=float),
+            start=ints[0],
+            ja=ints[1],
+            jb=ints[2],
+            valid=np.ascontiguousarray(valid, dtype=np.bool_),
+            omega=np.ascontiguousarray(arcs.omega if len(tip[0]) else np.zeros(0)),
+        )
+
+
+def _first_pass_compiled(
+    kernel: Callable[..., None],
+    inputs: _KernelInputs,
+    feed: _Blocks,
+    part: slice,
+    t: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The first pass of :func:`_block_deviation` over the blocks of ``part`` of one
+    comparison, compiled; the blocks of long spans (more than :data:`_LONG` CL segments) by
+    numpy (:meth:`_Blocks.errors`).
+
+    Returns
+    -------
+    dist2 : ndarray, shape (s, k), mm^2
+        Squared tip distance of every sample (0 in blocks not compared).
+    best : ndarray, shape (2, k)
+        Largest squared distance and squared chord of each block.
+    worst : ndarray, shape (2, k), int
+        The samples they are at.
+    bound : ndarray, shape (2, k)
+        :meth:`_Blocks.bounds` (-inf in blocks not compared).
+    """
+    k, s = part.stop - part.start, len(t)
+    dist2, best = np.empty((s, k)), np.empty((2, k))
+    worst, bound = np.empty((2, k), dtype=np.int64), np.empty((2, k))
+    long = np.empty(k, dtype=np.bool_)
+    c = inputs.chain
+    trig = np.zeros((len(c.column), 4, k))
+    s0 = inputs.start[part]
+    h = (t[-1] - t[0]) / (s - 1)
+    for j in np.flatnonzero(c.rotary):  # as cos_sin_along: at t[0] and per step of t
+        theta0 = inputs.values[s0, c.column[j]]
+        step = inputs.values[s0 + 1, c.column[j]] - theta0
+        first = theta0 + t[0] * step
+        np.cos(first, out=trig[j, 0])
+        np.sin(first, out=trig[j, 1])
+        hs = h * step
+        np.cos(hs, out=trig[j, 2])
+        np.sin(hs, out=trig[j, 3])
+    (px, py, pz), (ax, ay, az) = feed.polyline.tip, feed.polyline.axis
+    kernel(
+        c.column,
+        c.rotary,
+        c.direction,
+        c.pivot,
+        c.rotary_index,
+        inputs.linear,
+        c.tool_point,
+        c.home_axis,
+        inputs.values,
+        inputs.reach,
+        inputs.swing,
+        inputs.start[part],
+        inputs.ja[part],
+        inputs.jb[part],
+        inputs.valid[part],
+        px,
+        py,
+        pz,
+        ax,
+        ay,
+        az,
+        inputs.omega,
+        trig,
+        t,
+        bool(feed.tcp),
+        float(feed.pivot),
+        float(feed.window),
+        _LONG,
+        dist2,
+        best,
+        worst,
+        bound,
+        long,
+    )
+    if long.any():  # searched with bounds by numpy; bounded by nothing (more than one segment)
+        cols = np.flatnonzero(long)
+        d2, c2 = feed.errors(cols + part.start, t)
+        dist2[:, cols] = d2
+        for i, e in enumerate((d2, c2)):
+            worst[i, cols] = np.argmax(e, axis=0)
+            best[i, cols] = e[worst[i, cols], np.arange(len(cols))]
+        bound[:, cols] = np.inf
+    return dist2, best, worst, bound
+
+
 def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) -> list[_Deviation]:
     """Deviation of every feed block, sampled and refined where it can matter, in one or more
     comparisons of the same program blocks (the kinematics along them evaluated once).
@@ -659,11 +834,28 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
     worst = [(np.zeros(n, dtype=int), np.zeros(n, dtype=int)) for _ in feeds]
     bound = [(np.zeros(n), np.zeros(n)) for _ in feeds]
     total = [0.0 for _ in feeds]
+    kernel = _compiled() if n >= COMPILED_FROM else None
+    inputs = [_KernelInputs.of(feed) for feed in feeds] if kernel is not None else []
     for part in chunks(n, len(t)):
         blocks = np.arange(part.start, part.stop)
-        along = feeds[0].along(blocks, t)
+        along: tuple[VecArrays | None, VecArrays] | None = None
         cols = np.arange(len(blocks))
         for f, feed in enumerate(feeds):
+            if kernel is not None and inputs[f] is not None:
+                try:
+                    dist2, b2, w2, bd = _first_pass_compiled(kernel, inputs[f], feed, part, t)
+                except Exception as e:  # numba could not compile or cache it here: numpy
+                    _KERNEL_FAILED.append(str(e))
+                    log.warning("compiled block deviation unavailable (%s); numpy runs", e)
+                    kernel = None
+                else:
+                    total[f] += float(np.sqrt(dist2).sum())
+                    for i in range(2):
+                        best[f][i][part], worst[f][i][part] = b2[i], w2[i]
+                        bound[f][i][part] = bd[i]
+                    continue
+            if along is None:
+                along = feeds[0].along(blocks, t)
             first: list[_FirstSpan] = []
             dist2, chord2 = feed.errors(blocks, t, first, along)
             valid = None if feed.valid is None else feed.valid[part]
