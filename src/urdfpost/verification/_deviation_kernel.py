@@ -39,7 +39,7 @@ _SMALL_TURN2 = 0.1 * 0.1
 (:data:`urdfpost.linearize._SMALL_TURN` squared)."""
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _turn_chord2(turn: float) -> float:
     """``4 sin^2(turn / 2)``: :func:`urdfpost.linearize._turn_chord2` of one turn (rad), with
     every term of its polynomial."""
@@ -55,7 +55,7 @@ def _turn_chord2(turn: float) -> float:
     return out * t2
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _one_minus_rho(z2: float) -> float:
     """``1 - sqrt(1 - z2)``: :func:`urdfpost.linearize._one_minus_rho` of one value."""
     if z2 > 1e-4:
@@ -72,13 +72,13 @@ def _one_minus_rho(z2: float) -> float:
     return out * z2
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _clip(x: float, lo: float, hi: float) -> float:
     """``np.clip``: ``minimum(maximum(x, lo), hi)``."""
     return min(max(x, lo), hi)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _turn(
     kind: int,
     w0: float,
@@ -112,7 +112,7 @@ def _turn(
     )
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _kind(w0: float, w1: float, w2: float) -> int:
     """The coordinate axis a unit direction lies exactly along (0, 1, 2), else -1."""
     if abs(w0) == 1.0 and w1 == 0.0 and w2 == 0.0:
@@ -124,7 +124,7 @@ def _kind(w0: float, w1: float, w2: float) -> int:
     return -1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _first_max(e: np.ndarray, col: int) -> tuple[int, float]:
     """``np.argmax`` of column ``col`` of ``e`` (the first maximum; the first NaN if any), and
     the value there."""
@@ -140,7 +140,7 @@ def _first_max(e: np.ndarray, col: int) -> tuple[int, float]:
     return arg, best
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def block_deviation(
     joint_column: np.ndarray,
     joint_rotary: np.ndarray,
@@ -351,7 +351,9 @@ def block_deviation(
                 hi = _clip(u + half, 0.0, 1.0) * omega
                 if nearest < (lo + hi) * 0.5 - np.pi:
                     nearest = nearest + 2.0 * np.pi
-                path = _turn_chord2(_clip(nearest, lo, hi) - nearest) * rho + base
+                turn = _clip(nearest, lo, hi) - nearest
+                # in the window: the chord across the arc's plane (0 turns to 0, bit for bit)
+                path = base if turn == 0.0 else _turn_chord2(turn) * rho + base
                 c2 = min(path, at)
                 near = c2 if d2 <= window2 else np.inf
                 if off == 0:

@@ -841,12 +841,13 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
         along: tuple[VecArrays | None, VecArrays] | None = None
         cols = np.arange(len(blocks))
         for f, feed in enumerate(feeds):
-            if kernel is not None and inputs[f] is not None:
+            ins = inputs[f] if kernel is not None else None
+            if kernel is not None and ins is not None:
                 try:
-                    dist2, b2, w2, bd = _first_pass_compiled(kernel, inputs[f], feed, part, t)
-                except Exception as e:  # numba could not compile or cache it here: numpy
-                    _KERNEL_FAILED.append(str(e))
-                    log.warning("compiled block deviation unavailable (%s); numpy runs", e)
+                    dist2, b2, w2, bd = _first_pass_compiled(kernel, ins, feed, part, t)
+                except Exception as err:  # numba could not compile or cache it here: numpy
+                    _KERNEL_FAILED.append(str(err))
+                    log.warning("compiled block deviation unavailable (%s); numpy runs", err)
                     kernel = None
                 else:
                     total[f] += float(np.sqrt(dist2).sum())
