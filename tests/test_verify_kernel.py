@@ -115,14 +115,17 @@ def _agree(a: np.ndarray, b: np.ndarray) -> None:
 
 def _compare(feed: _Blocks) -> None:
     """The compiled pass against the numpy pass, chunk by chunk, on every count it reports."""
-    kernel = measure._kernel()
-    assert kernel is not None
+    kernels = measure._kernel()
+    assert kernels is not None
+    kernel = kernels.block
     inputs = measure._KernelInputs.of(feed)
     assert inputs is not None
     for part in [*chunks(len(feed.start), 7 * len(T)), slice(0, len(feed.start))]:
         dist2, best, worst, bound = measure._first_pass_compiled(kernel, inputs, feed, part, T)
         want_dist2, want_chord2, tip_bound, chord_bound = _numpy_pass(feed, part)
         _agree(dist2, want_dist2)
+        # the same operations on the same cosines and sines: the same numbers
+        assert np.array_equal(dist2, want_dist2)
         cols = np.arange(part.stop - part.start)
         for i, want in enumerate((want_dist2, want_chord2)):
             _agree(best[i], want.max(axis=0))
@@ -166,11 +169,33 @@ def test_compiled_pass_is_the_numpy_pass_anywhere(
     _compare(replace(feed, polyline=_Polyline.of(tips, np.column_stack(axes))))
 
 
+@pytest.mark.parametrize("name", MACHINES)
+@pytest.mark.parametrize("pivot", [0.0, 3.0])
+def test_compiled_rows_are_the_numpy_rows(
+    name: str, pivot: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The deviation at the program rows themselves (one sample each, spans of every length,
+    long ones left to numpy): within AGREE of numpy's."""
+    rng = np.random.default_rng(5)
+    for scale in (0.002, 0.05, 0.5):
+        feed = _feed(machine(name), rng, 120, scale, False, pivot)
+        rows = feed.rows.take(slice(0, len(feed.start)))
+        args = (rows, feed.polyline, feed.ja, feed.jb, feed.window)
+        monkeypatch.setattr(measure, "COMPILED_FROM", 10**12)
+        want = measure._row_deviation(*args)
+        monkeypatch.setattr(measure, "COMPILED_FROM", 1)
+        got = measure._row_deviation(*args)
+        for g, w in zip(got, want, strict=True):
+            _agree(g, w)
+        assert np.array_equal(got[0], want[0])  # the squared distances bit for bit
+
+
 def test_compiled_bounds_hold() -> None:
     """The bounds the compiled pass gives are above the deviation anywhere in the block (dense
     samples of the numpy path): the refinement still finds what it must."""
-    kernel = measure._kernel()
-    assert kernel is not None
+    kernels = measure._kernel()
+    assert kernels is not None
+    kernel = kernels.block
     for name in MACHINES:
         for tcp in (False, True):
             feed = _feed(machine(name), np.random.default_rng(7), 60, 0.05, tcp, 3.0)
@@ -237,8 +262,9 @@ def test_block_deviation_falls_back_to_numpy_when_the_kernel_fails(
     def broken(*args: object) -> None:
         raise RuntimeError("cannot cache function 'block_deviation': no locator available")
 
+    kernels = measure._Kernels(broken, broken)
     monkeypatch.setattr(measure, "COMPILED_FROM", 1)
-    monkeypatch.setattr(measure, "_compiled", lambda: None if measure._KERNEL_FAILED else broken)
+    monkeypatch.setattr(measure, "_compiled", lambda: None if measure._KERNEL_FAILED else kernels)
     monkeypatch.setattr(measure, "_KERNEL_FAILED", [])
     with caplog.at_level("WARNING", logger="urdfpost.verification.measure"):
         assert verify(program, m, job, tool_length=tool_length) == want

@@ -125,19 +125,137 @@ def _kind(w0: float, w1: float, w2: float) -> int:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _first_max(e: np.ndarray, col: int) -> tuple[int, float]:
-    """``np.argmax`` of column ``col`` of ``e`` (the first maximum; the first NaN if any), and
-    the value there."""
-    arg, best = 0, e[0, col]
+def _first_max(e: np.ndarray, s: int) -> tuple[int, float]:
+    """``np.argmax`` of the first ``s`` values of ``e`` (the first maximum; the first NaN if
+    any), and the value there."""
+    arg, best = 0, e[0]
     if np.isnan(best):
         return 0, best
-    for k in range(1, e.shape[0]):
-        v = e[k, col]
+    for k in range(1, s):
+        v = e[k]
         if np.isnan(v):
             return k, v
         if v > best:
             arg, best = k, v
     return arg, best
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _span(
+    qx: np.ndarray,
+    qy: np.ndarray,
+    qz: np.ndarray,
+    vx: np.ndarray,
+    vy: np.ndarray,
+    vz: np.ndarray,
+    s: int,
+    first: int,
+    span: int,
+    px: np.ndarray,
+    py: np.ndarray,
+    pz: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    az: np.ndarray,
+    omega_of: np.ndarray,
+    window: float,
+    dist2: np.ndarray,
+    chord2: np.ndarray,
+    within: np.ndarray,
+    outside0: np.ndarray,
+    at0: np.ndarray,
+) -> tuple[float, float]:
+    """:func:`urdfpost.verification.measure._span_deviation` of the first ``s`` points ``q``
+    (mm) and unit axes ``v`` against the CL segments ``first .. first + span - 1``.
+
+    Writes the squared distance from the nearest segment (the first of equals) into
+    ``dist2``, the squared chord to the CL orientation in the window (that of the nearest
+    segment where no segment is within the window) into ``chord2``, and, of the first
+    segment, how far the projection parameter falls outside [0, 1] and the chord at it into
+    ``outside0`` and ``at0`` (``within``: scratch); all shape (s,) or longer.
+
+    Returns
+    -------
+    inv_dd, omega : float
+        Of the first segment: its inverse squared length (0 for a point) and the angle of its
+        arc, rad.
+    """
+    last = px.shape[0] - 1
+    window2 = window * window
+    inv_dd0 = omega0 = 0.0
+    for off in range(span):
+        a = min(first + off, last)
+        nxt = min(a + 1, last)
+        sx, sy, sz = px[a], py[a], pz[a]
+        dx, dy, dz = px[nxt] - sx, py[nxt] - sy, pz[nxt] - sz
+        dd = dx * dx + dy * dy + dz * dz
+        inv_dd = 1.0 / dd if dd > 0 else 0.0
+        half = window * np.sqrt(inv_dd) if inv_dd > 0 else np.inf
+        # the arc (Arcs.of_coords) and its frame (linearize._frame)
+        u0, u1, u2 = ax[a], ay[a], az[a]
+        dot = u0 * ax[nxt] + u1 * ay[nxt] + u2 * az[nxt]
+        g0, g1, g2 = ax[nxt] - dot * u0, ay[nxt] - dot * u1, az[nxt] - dot * u2
+        sine = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        inv = 1.0 / sine if sine > 0 else 0.0
+        g0, g1, g2 = g0 * inv, g1 * inv, g2 * inv
+        omega = omega_of[a]
+        dot = g0 * u0 + g1 * u1 + g2 * u2
+        m0, m1, m2 = g0 - dot * u0, g1 - dot * u1, g2 - dot * u2
+        length = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        if length < 0.5:  # v0 x the coordinate axis least along it
+            least = 0
+            if abs(u1) < abs(u0):
+                least = 1
+            if abs(u2) < (abs(u1) if least == 1 else abs(u0)):
+                least = 2
+            o0 = 1.0 if least == 0 else 0.0
+            o1 = 1.0 if least == 1 else 0.0
+            o2 = 1.0 if least == 2 else 0.0
+            m0, m1, m2 = u1 * o2 - u2 * o1, u2 * o0 - u0 * o2, u0 * o1 - u1 * o0
+            length = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        m0, m1, m2 = m0 / length, m1 / length, m2 / length
+        k0, k1, k2 = u1 * m2 - u2 * m1, u2 * m0 - u0 * m2, u0 * m1 - u1 * m0
+        if off == 0:
+            inv_dd0, omega0 = inv_dd, omega
+        for k in range(s):
+            w0, w1, w2 = qx[k] - sx, qy[k] - sy, qz[k] - sz
+            raw = w0 * dx + w1 * dy
+            raw = (raw + w2 * dz) * inv_dd
+            par = _clip(raw, 0.0, 1.0)
+            out = abs(raw - par)
+            e0, e1, e2 = w0 - par * dx, w1 - par * dy, w2 - par * dz
+            d2 = e0 * e0 + e1 * e1 + e2 * e2
+            u = 1.0 + out if par >= 1.0 else par - out  # not clipped
+            # orientation_path_chord2
+            x = vx[k] * u0 + vy[k] * u1 + vz[k] * u2
+            y = vx[k] * m0 + vy[k] * m1 + vz[k] * m2
+            z = vx[k] * k0 + vy[k] * k1 + vz[k] * k2
+            base = z * z
+            gap = _one_minus_rho(base)
+            rho = 1.0 - gap
+            base = base + gap * gap
+            nearest = np.arctan2(y, x)
+            at = _turn_chord2(_clip(u, 0.0, 1.0) * omega - nearest) * rho + base
+            lo = _clip(u - half, 0.0, 1.0) * omega
+            hi = _clip(u + half, 0.0, 1.0) * omega
+            if nearest < (lo + hi) * 0.5 - np.pi:
+                nearest = nearest + 2.0 * np.pi
+            turn = _clip(nearest, lo, hi) - nearest
+            # in the window: the chord across the arc's plane (0 turns to 0, bit for bit)
+            path = base if turn == 0.0 else _turn_chord2(turn) * rho + base
+            c2 = min(path, at)
+            near = c2 if d2 <= window2 else np.inf
+            if off == 0:
+                dist2[k], chord2[k], within[k] = d2, c2, near
+                outside0[k], at0[k] = out, at
+            else:
+                if d2 < dist2[k]:
+                    dist2[k], chord2[k] = d2, c2
+                within[k] = min(within[k], near)
+    for k in range(s):
+        if np.isfinite(within[k]):
+            chord2[k] = within[k]
+    return inv_dd0, omega0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -228,8 +346,6 @@ def block_deviation(
     """
     n, s = start.shape[0], t.shape[0]
     n_joints = joint_column.shape[0]
-    last = px.shape[0] - 1
-    window2 = window * window
     h = float(t[1] - t[0])
     kinds = np.empty(n_joints, dtype=np.int64)
     for j in range(n_joints):
@@ -239,7 +355,7 @@ def block_deviation(
     sin_j = np.empty((n_joints, s))
     qx, qy, qz = np.empty(s), np.empty(s), np.empty(s)  # measured point
     vx, vy, vz = np.empty(s), np.empty(s), np.empty(s)  # tool axis
-    chord2 = np.empty((s, 1))
+    chord2, d2s = np.empty(s), np.empty(s)
     within = np.empty(s)
     outside0 = np.empty(s)
     at0 = np.empty(s)
@@ -293,81 +409,34 @@ def block_deviation(
             qx[k], qy[k], qz[k] = p0, p1, p2
             vx[k], vy[k], vz[k] = a0, a1, a2
         # -- the deviation from the CL span (_span_deviation, _segment_errors) --
-        inv_dd0 = omega0 = 0.0
-        for off in range(span):
-            a = min(ja[b] + off, last)
-            nxt = min(a + 1, last)
-            sx, sy, sz = px[a], py[a], pz[a]
-            dx, dy, dz = px[nxt] - sx, py[nxt] - sy, pz[nxt] - sz
-            dd = dx * dx + dy * dy + dz * dz
-            inv_dd = 1.0 / dd if dd > 0 else 0.0
-            half = window * np.sqrt(inv_dd) if inv_dd > 0 else np.inf
-            # the arc (Arcs.of_coords) and its frame (linearize._frame)
-            u0, u1, u2 = ax[a], ay[a], az[a]
-            dot = u0 * ax[nxt] + u1 * ay[nxt] + u2 * az[nxt]
-            g0, g1, g2 = ax[nxt] - dot * u0, ay[nxt] - dot * u1, az[nxt] - dot * u2
-            sine = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-            inv = 1.0 / sine if sine > 0 else 0.0
-            g0, g1, g2 = g0 * inv, g1 * inv, g2 * inv
-            omega = omega_of[a]
-            dot = g0 * u0 + g1 * u1 + g2 * u2
-            m0, m1, m2 = g0 - dot * u0, g1 - dot * u1, g2 - dot * u2
-            length = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-            if length < 0.5:  # v0 x the coordinate axis least along it
-                least = 0
-                if abs(u1) < abs(u0):
-                    least = 1
-                if abs(u2) < (abs(u1) if least == 1 else abs(u0)):
-                    least = 2
-                o0 = 1.0 if least == 0 else 0.0
-                o1 = 1.0 if least == 1 else 0.0
-                o2 = 1.0 if least == 2 else 0.0
-                m0, m1, m2 = u1 * o2 - u2 * o1, u2 * o0 - u0 * o2, u0 * o1 - u1 * o0
-                length = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-            m0, m1, m2 = m0 / length, m1 / length, m2 / length
-            k0, k1, k2 = u1 * m2 - u2 * m1, u2 * m0 - u0 * m2, u0 * m1 - u1 * m0
-            if off == 0:
-                inv_dd0, omega0 = inv_dd, omega
-            for k in range(s):
-                w0, w1, w2 = qx[k] - sx, qy[k] - sy, qz[k] - sz
-                raw = w0 * dx + w1 * dy
-                raw = (raw + w2 * dz) * inv_dd
-                par = _clip(raw, 0.0, 1.0)
-                out = abs(raw - par)
-                e0, e1, e2 = w0 - par * dx, w1 - par * dy, w2 - par * dz
-                d2 = e0 * e0 + e1 * e1 + e2 * e2
-                u = 1.0 + out if par >= 1.0 else par - out  # not clipped
-                # orientation_path_chord2
-                x = vx[k] * u0 + vy[k] * u1 + vz[k] * u2
-                y = vx[k] * m0 + vy[k] * m1 + vz[k] * m2
-                z = vx[k] * k0 + vy[k] * k1 + vz[k] * k2
-                base = z * z
-                gap = _one_minus_rho(base)
-                rho = 1.0 - gap
-                base = base + gap * gap
-                nearest = np.arctan2(y, x)
-                at = _turn_chord2(_clip(u, 0.0, 1.0) * omega - nearest) * rho + base
-                lo = _clip(u - half, 0.0, 1.0) * omega
-                hi = _clip(u + half, 0.0, 1.0) * omega
-                if nearest < (lo + hi) * 0.5 - np.pi:
-                    nearest = nearest + 2.0 * np.pi
-                turn = _clip(nearest, lo, hi) - nearest
-                # in the window: the chord across the arc's plane (0 turns to 0, bit for bit)
-                path = base if turn == 0.0 else _turn_chord2(turn) * rho + base
-                c2 = min(path, at)
-                near = c2 if d2 <= window2 else np.inf
-                if off == 0:
-                    dist2[k, b], chord2[k, 0], within[k] = d2, c2, near
-                    outside0[k], at0[k] = out, at
-                else:
-                    if d2 < dist2[k, b]:
-                        dist2[k, b], chord2[k, 0] = d2, c2
-                    within[k] = min(within[k], near)
+        inv_dd0, omega0 = _span(
+            qx,
+            qy,
+            qz,
+            vx,
+            vy,
+            vz,
+            s,
+            ja[b],
+            span,
+            px,
+            py,
+            pz,
+            ax,
+            ay,
+            az,
+            omega_of,
+            window,
+            d2s,
+            chord2,
+            within,
+            outside0,
+            at0,
+        )
         for k in range(s):
-            if np.isfinite(within[k]):
-                chord2[k, 0] = within[k]
-        worst[0, b], best[0, b] = _first_max(dist2, b)
-        worst[1, b], best[1, b] = _first_max(chord2, 0)
+            dist2[k, b] = d2s[k]
+        worst[0, b], best[0, b] = _first_max(d2s, s)
+        worst[1, b], best[1, b] = _first_max(chord2, s)
         if jb[b] - ja[b] > 1:
             bound[0, b] = bound[1, b] = np.inf
             continue
@@ -419,3 +488,61 @@ def block_deviation(
         moves = axis_speed * (h / 2.0) + min(spin * (h / 2.0), omega0)
         third = np.sqrt(best[1, b]) + moves
         bound[1, b] = min(min(first_order, second), third)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def point_deviation(
+    tx: np.ndarray,
+    ty: np.ndarray,
+    tz: np.ndarray,
+    vx: np.ndarray,
+    vy: np.ndarray,
+    vz: np.ndarray,
+    ja: np.ndarray,
+    jb: np.ndarray,
+    px: np.ndarray,
+    py: np.ndarray,
+    pz: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    az: np.ndarray,
+    omega_of: np.ndarray,
+    window: float,
+    long_span: int,
+    dist2: np.ndarray,
+    chord2: np.ndarray,
+    long: np.ndarray,
+) -> None:
+    """:func:`urdfpost.verification.measure._span_deviation` of single points (the program's
+    rows) against their CL spans.
+
+    Parameters
+    ----------
+    tx, ty, tz, vx, vy, vz : ndarray, shape (N,)
+        The points (mm) and their unit tool axes.
+    ja, jb : ndarray, shape (N,), int64
+        CL span of each.
+    px, py, pz, ax, ay, az, omega_of, window, long_span
+        As :func:`block_deviation`.
+
+    Returns
+    -------
+    None
+        Written: ``dist2`` and ``chord2`` (N,), mm^2 and squared chord; ``long`` (N,), bool,
+        the points of spans longer than ``long_span`` (not measured).
+    """
+    one = np.empty(1)
+    d2, c2, within, outside, at = one.copy(), one.copy(), one.copy(), one.copy(), one.copy()
+    q = [one.copy() for _ in range(6)]
+    for r in range(tx.shape[0]):
+        span = max(jb[r] - ja[r], 1)
+        long[r] = span > long_span
+        if long[r]:
+            continue
+        q[0][0], q[1][0], q[2][0] = tx[r], ty[r], tz[r]
+        q[3][0], q[4][0], q[5][0] = vx[r], vy[r], vz[r]
+        _span(
+            q[0], q[1], q[2], q[3], q[4], q[5], 1, ja[r], span, px, py, pz, ax, ay, az,
+            omega_of, window, d2, c2, within, outside, at,
+        )  # fmt: skip
+        dist2[r], chord2[r] = d2[0], c2[0]

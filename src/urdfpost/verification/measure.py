@@ -21,6 +21,7 @@ import functools
 import logging
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -205,6 +206,7 @@ class _Polyline:
     _spheres: dict[int, tuple[VecArrays, np.ndarray]] = field(
         default_factory=dict, compare=False, repr=False
     )
+    _omega: list[np.ndarray] = field(default_factory=list, compare=False, repr=False)
 
     @classmethod
     def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
@@ -228,6 +230,16 @@ class _Polyline:
             r2 = sum((p - c[:, None]) ** 2 for p, c in zip(pts, centre, strict=True))
             self._spheres[size] = ((centre[0], centre[1], centre[2]), np.sqrt(np.max(r2, axis=1)))
         return self._spheres[size]
+
+    def omega(self) -> np.ndarray:
+        """Angle of the arc of the axes from every CL point to the next (0 for the last),
+        shape (n,), rad: :attr:`Arcs.omega` of :meth:`take` of every index. Made once."""
+        if not self._omega:
+            n = len(self)
+            nxt = np.minimum(np.arange(1, n + 1), n - 1)
+            ax, ay, az = self.axis
+            self._omega.append(Arcs.of_coords(self.axis, (ax[nxt], ay[nxt], az[nxt])).omega)
+        return self._omega[0]
 
     def take(self, index: np.ndarray) -> tuple[Segments, Arcs]:
         """The segments of the tips (mm) and the arcs of the axes (slerp) from CL points
@@ -645,19 +657,34 @@ _KERNEL_FAILED: list[str] = []
 """Why the compiled first pass could not run in this process (then the numpy path runs)."""
 
 
+class _Kernels(NamedTuple):
+    """The compiled loops (:mod:`urdfpost.verification._deviation_kernel`)."""
+
+    block: Callable[..., None]
+    """:func:`urdfpost.verification._deviation_kernel.block_deviation`"""
+    point: Callable[..., None]
+    """:func:`urdfpost.verification._deviation_kernel.point_deviation`"""
+
+
 @functools.cache
-def _kernel() -> Callable[..., None] | None:
-    """The compiled first pass, or None without numba (looked for once per process)."""
+def _kernel() -> _Kernels | None:
+    """The compiled loops, or None without numba (looked for once per process)."""
     try:
-        from urdfpost.verification._deviation_kernel import block_deviation
+        from urdfpost.verification._deviation_kernel import block_deviation, point_deviation
     except ImportError:
         return None
-    return block_deviation
+    return _Kernels(block_deviation, point_deviation)
 
 
-def _compiled() -> Callable[..., None] | None:
-    """The compiled first pass, or None without numba (or after it failed here)."""
+def _compiled() -> _Kernels | None:
+    """The compiled loops, or None without numba (or after they failed here)."""
     return None if _KERNEL_FAILED else _kernel()
+
+
+def _failed(err: Exception) -> None:
+    """Note that the compiled loops failed here (the numpy path runs from now on)."""
+    _KERNEL_FAILED.append(str(err))
+    log.warning("compiled block deviation unavailable (%s); numpy runs", err)
 
 
 @dataclass(frozen=True)
@@ -696,9 +723,6 @@ class _KernelInputs:
         linear = np.array(feed.machine.linear_columns, dtype=np.int64)
         if feed.tcp and len(linear) != 3:
             return None
-        tip, axis = feed.polyline.tip, feed.polyline.axis
-        nxt = np.minimum(np.arange(1, len(feed.polyline) + 1), len(feed.polyline) - 1)
-        arcs = Arcs.of_coords(axis, (axis[0][nxt], axis[1][nxt], axis[2][nxt]))
         ints = [np.ascontiguousarray(a, dtype=np.int64) for a in (feed.start, feed.ja, feed.jb)]
         n = len(feed.start)
         valid = np.ones(n, dtype=np.bool_) if feed.valid is None else feed.valid
@@ -712,7 +736,7 @@ class _KernelInputs:
             ja=ints[1],
             jb=ints[2],
             valid=np.ascontiguousarray(valid, dtype=np.bool_),
-            omega=np.ascontiguousarray(arcs.omega if len(tip[0]) else np.zeros(0)),
+            omega=feed.polyline.omega(),
         )
 
 
@@ -834,7 +858,8 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
     worst = [(np.zeros(n, dtype=int), np.zeros(n, dtype=int)) for _ in feeds]
     bound = [(np.zeros(n), np.zeros(n)) for _ in feeds]
     total = [0.0 for _ in feeds]
-    kernel = _compiled() if n >= COMPILED_FROM else None
+    kernels = _compiled() if n >= COMPILED_FROM else None
+    kernel = None if kernels is None else kernels.block
     inputs = [_KernelInputs.of(feed) for feed in feeds] if kernel is not None else []
     for part in chunks(n, len(t)):
         blocks = np.arange(part.start, part.stop)
@@ -846,8 +871,7 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
                 try:
                     dist2, b2, w2, bd = _first_pass_compiled(kernel, ins, feed, part, t)
                 except Exception as err:  # numba could not compile or cache it here: numpy
-                    _KERNEL_FAILED.append(str(err))
-                    log.warning("compiled block deviation unavailable (%s); numpy runs", err)
+                    _failed(err)
                     kernel = None
                 else:
                     total[f] += float(np.sqrt(dist2).sum())
@@ -1197,6 +1221,49 @@ def _nothing_to_compare(program: Program, values: np.ndarray, check: Check) -> V
     )
 
 
+def _row_deviation(
+    rows: RowPoses, polyline: _Polyline, ja: np.ndarray, jb: np.ndarray, window: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_span_deviation` of the program rows themselves (one sample each) against their
+    CL spans ``ja .. jb``: squared distance (mm^2) and squared chord, shape (N,).
+
+    From :data:`COMPILED_FROM` rows on, with numba, compiled
+    (:func:`urdfpost.verification._deviation_kernel.point_deviation`; the rows of long spans
+    by numpy); else by numpy in chunks.
+    """
+    n = len(rows.tip)
+    dp2, op2 = np.empty(n), np.empty(n)
+    kernels = _compiled() if n >= COMPILED_FROM else None
+    todo: np.ndarray | None = None  # rows left to numpy (None: all)
+    if kernels is not None:
+        long = np.empty(n, dtype=np.bool_)
+        try:
+            kernels.point(
+                *coords(rows.tip),
+                *coords(rows.axis),
+                np.ascontiguousarray(ja, dtype=np.int64),
+                np.ascontiguousarray(jb, dtype=np.int64),
+                *polyline.tip,
+                *polyline.axis,
+                polyline.omega(),
+                float(window),
+                _LONG,
+                dp2,
+                op2,
+                long,
+            )
+        except Exception as err:  # numba could not compile or cache it here: numpy
+            _failed(err)
+        else:
+            todo = np.flatnonzero(long)
+    for part in chunks(n if todo is None else len(todo), 1):
+        at = part if todo is None else todo[part]
+        at_rows = (_sampled_once(rows.tip[at]), _sampled_once(rows.axis[at]))
+        d2, c2 = _span_deviation(*at_rows, polyline, ja[at], jb[at], window)
+        dp2[at], op2[at] = d2[0], c2[0]
+    return dp2, op2
+
+
 @dataclass(frozen=True)
 class _Comparison:
     """One check's view of a program: which CL points its rows reach, the CL span of every
@@ -1256,11 +1323,7 @@ class _Comparison:
         ja_pt = np.maximum(before, 0)
         jb_pt = np.maximum(np.where(after < n_cl, after, n_cl - 1), ja_pt)
         polyline = _Polyline.of(cl_tip, toolpath.axis)
-        dp2, op2 = np.empty(len(rows.tip)), np.empty(len(rows.tip))
-        for part in chunks(len(rows.tip), 1):
-            at_rows = (_sampled_once(rows.tip[part]), _sampled_once(rows.axis[part]))
-            d2, c2 = _span_deviation(*at_rows, polyline, ja_pt[part], jb_pt[part], check.tol.tip)
-            dp2[part], op2[part] = d2[0], c2[0]
+        dp2, op2 = _row_deviation(rows, polyline, ja_pt, jb_pt, check.tol.tip)
         feed_pts = ~rapid | (owner >= 0)
 
         # a feed block is compared along its length with its CL span unless it starts before
