@@ -140,7 +140,7 @@ def _first_max(e: np.ndarray, s: int) -> tuple[int, float]:
     return arg, best
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _span(
     qx: np.ndarray,
     qy: np.ndarray,
@@ -531,18 +531,15 @@ def point_deviation(
         Written: ``dist2`` and ``chord2`` (N,), mm^2 and squared chord; ``long`` (N,), bool,
         the points of spans longer than ``long_span`` (not measured).
     """
-    one = np.empty(1)
-    d2, c2, within, outside, at = one.copy(), one.copy(), one.copy(), one.copy(), one.copy()
-    q = [one.copy() for _ in range(6)]
+    d2, c2, within, outside, at = np.empty(1), np.empty(1), np.empty(1), np.empty(1), np.empty(1)
     for r in range(tx.shape[0]):
         span = max(jb[r] - ja[r], 1)
         long[r] = span > long_span
         if long[r]:
             continue
-        q[0][0], q[1][0], q[2][0] = tx[r], ty[r], tz[r]
-        q[3][0], q[4][0], q[5][0] = vx[r], vy[r], vz[r]
         _span(
-            q[0], q[1], q[2], q[3], q[4], q[5], 1, ja[r], span, px, py, pz, ax, ay, az,
-            omega_of, window, d2, c2, within, outside, at,
+            tx[r : r + 1], ty[r : r + 1], tz[r : r + 1], vx[r : r + 1], vy[r : r + 1],
+            vz[r : r + 1], 1, ja[r], span, px, py, pz, ax, ay, az, omega_of, window, d2, c2,
+            within, outside, at,
         )  # fmt: skip
         dist2[r], chord2[r] = d2[0], c2[0]
