@@ -1239,8 +1239,12 @@ def _row_deviation(
         long = np.empty(n, dtype=np.bool_)
         try:
             kernels.point(
-                *coords(rows.tip),
-                *coords(rows.axis),
+                rows.tip[:, 0],  # views (strided): no copies of the rows
+                rows.tip[:, 1],
+                rows.tip[:, 2],
+                rows.axis[:, 0],
+                rows.axis[:, 1],
+                rows.axis[:, 2],
                 np.ascontiguousarray(ja, dtype=np.int64),
                 np.ascontiguousarray(jb, dtype=np.int64),
                 *polyline.tip,
