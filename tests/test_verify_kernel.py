@@ -20,6 +20,7 @@ from urdfpost import load_machine
 from urdfpost.dialects import dialect_for
 from urdfpost.geometry import chunks
 from urdfpost.kinematics.forward import tip_and_axis
+from urdfpost.linearize import RowPoses
 from urdfpost.machine import Machine
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import post
@@ -188,6 +189,38 @@ def test_compiled_rows_are_the_numpy_rows(
         for g, w in zip(got, want, strict=True):
             _agree(g, w)
         assert np.array_equal(got[0], want[0])  # the squared distances bit for bit
+
+
+@pytest.mark.parametrize("name", MACHINES)
+@pytest.mark.parametrize("tcp", [False, True])
+def test_compiled_chords_per_sample(name: str, tcp: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every sample's squared distance and chord: the points and axes the numpy path measured
+    along the blocks, through the kernel's span loop one by one (``point_deviation``), within
+    AGREE of numpy's (the distances bit for bit)."""
+    feed = _feed(machine(name), np.random.default_rng(9), 150, 0.05, tcp, 3.0)
+    seen: list = []
+    numpy_span = measure._span_deviation
+
+    def spy(*args: object, **kwargs: object) -> tuple[np.ndarray, np.ndarray]:
+        out = numpy_span(*args, **kwargs)  # type: ignore[arg-type]
+        seen.append((args, out))
+        return out
+
+    monkeypatch.setattr(measure, "_span_deviation", spy)
+    feed.errors(np.arange(len(feed.start)), T)
+    monkeypatch.setattr(measure, "_span_deviation", numpy_span)
+    (points, axes, polyline, ja, jb, window, _), (dist2, chord2) = seen[0]
+    s = len(T)
+    rows = RowPoses(
+        tip=np.column_stack([c.ravel() for c in points]),
+        axis=np.column_stack([c.ravel() for c in axes]),
+        reach=np.zeros((dist2.size, 0)),
+        swing=np.zeros((dist2.size, 0)),
+    )
+    monkeypatch.setattr(measure, "COMPILED_FROM", 1)
+    got = measure._row_deviation(rows, polyline, np.tile(ja, s), np.tile(jb, s), window)
+    assert np.array_equal(got[0], dist2.ravel())
+    _agree(got[1], chord2.ravel())
 
 
 def test_compiled_bounds_hold() -> None:
