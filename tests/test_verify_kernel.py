@@ -27,6 +27,7 @@ from urdfpost.posting.whole import post
 from urdfpost.readers import read_cl
 from urdfpost.tolerances import Tolerances
 from urdfpost.verification import verify
+from urdfpost.verification.feeds import FeedRules, tip_lengths
 from urdfpost.verification.match import _row_poses
 from urdfpost.verification.measure import _Blocks, _Polyline
 
@@ -122,7 +123,9 @@ def _compare(feed: _Blocks) -> None:
     inputs = measure._KernelInputs.of(feed)
     assert inputs is not None
     for part in [*chunks(len(feed.start), 7 * len(T)), slice(0, len(feed.start))]:
-        dist2, best, worst, bound = measure._first_pass_compiled(kernel, inputs, feed, part, T)
+        dist2, best, worst, bound, length = measure._first_pass_compiled(
+            kernel, inputs, feed, part, T
+        )
         want_dist2, want_chord2, tip_bound, chord_bound = _numpy_pass(feed, part)
         _agree(dist2, want_dist2)
         # the same operations on the same cosines and sines: the same numbers
@@ -134,6 +137,11 @@ def _compare(feed: _Blocks) -> None:
             _agree(want[worst[i], cols], want.max(axis=0))
         _agree(bound[0], tip_bound)
         _agree(bound[1], chord_bound)
+        if not feed.tcp:  # the tip's path through the samples of every block, as the feeds'
+            rows = feed.start[part]
+            q0, q1 = feed.values[rows], feed.values[rows + 1]
+            want = tip_lengths(feed.machine, q0, q1, False, feed.tool_length)
+            assert np.array_equal(length, want)
 
 
 @pytest.mark.parametrize("name", MACHINES)
@@ -235,7 +243,7 @@ def test_compiled_bounds_hold() -> None:
             inputs = measure._KernelInputs.of(feed)
             assert inputs is not None
             part = slice(0, len(feed.start))
-            _, _, _, bound = measure._first_pass_compiled(kernel, inputs, feed, part, T)
+            bound = measure._first_pass_compiled(kernel, inputs, feed, part, T)[3]
             dist2, chord2 = feed.errors(np.arange(len(feed.start)), np.linspace(0, 1, 2001))
             assert feed.valid is not None
             compared = feed.valid
@@ -272,13 +280,16 @@ def test_compiled_verification_is_the_numpy_verification(
     m = machine("dmu50")
     job = read_cl(DOME)
     tol = Tolerances.for_units("mm")
+    rules = FeedRules.of(dialect_for("fanuc").spec, "mm")
     for pivot in (0.0, 3.0):
+        kwargs = {"tol": tol, "pivot": pivot, "tool_length": tool_length, "feed_rules": rules}
         monkeypatch.setattr(measure, "COMPILED_FROM", 10**12)
-        want = verify(program, m, job, tol=tol, pivot=pivot, tool_length=tool_length)
+        want = verify(program, m, job, **kwargs)  # type: ignore[arg-type]
         monkeypatch.setattr(measure, "COMPILED_FROM", 1)
-        got = verify(program, m, job, tol=tol, pivot=pivot, tool_length=tool_length)
+        got = verify(program, m, job, **kwargs)  # type: ignore[arg-type]
         assert got == want
-        assert want.ok is not damage
+        assert want.feeds is not None  # the tip feed measured (on the kernel's tip paths)
+        assert (want.max_tip_deviation <= tol.tip) is not damage
 
 
 def test_block_deviation_falls_back_to_numpy_when_the_kernel_fails(

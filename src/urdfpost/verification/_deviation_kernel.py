@@ -293,6 +293,7 @@ def block_deviation(
     worst: np.ndarray,
     bound: np.ndarray,
     long: np.ndarray,
+    length: np.ndarray,
 ) -> None:
     """Sample every block, compare it with its CL span, bound it (the first pass of
     ``_block_deviation`` for one comparison and one chunk of blocks).
@@ -342,7 +343,9 @@ def block_deviation(
         compared; mm^2); ``best`` (2, n), the largest squared distance and chord;
         ``worst`` (2, n), int64, the samples they are at; ``bound`` (2, n), the bounds on the
         tip deviation (mm) and axis chord (-inf where not compared, inf over more than one
-        CL segment); ``long`` (n,), bool.
+        CL segment); ``long`` (n,), bool; ``length`` (n,), mm, the length of the polyline of
+        the tool tip through the samples of every block, compared or not
+        (:func:`urdfpost.verification.feeds.tip_lengths`; 0 in TCP programs).
     """
     n, s = start.shape[0], t.shape[0]
     n_joints = joint_column.shape[0]
@@ -361,18 +364,17 @@ def block_deviation(
     at0 = np.empty(s)
     reach_j, swing_j = np.empty(n_joints), np.empty(n_joints)
     for b in range(n):
-        long[b] = False
+        span = max(jb[b] - ja[b], 1)
+        long[b] = valid[b] and span > long_span
+        length[b] = 0.0
         if not valid[b]:
             for k in range(s):
                 dist2[k, b] = 0.0
             best[0, b] = best[1, b] = 0.0
             worst[0, b] = worst[1, b] = 0
             bound[0, b] = bound[1, b] = -np.inf
-            continue
-        span = max(jb[b] - ja[b], 1)
-        if span > long_span:
-            long[b] = True
-            continue
+        if tcp and (long[b] or not valid[b]):
+            continue  # (no tip path wanted: the control moves the tip on the chord)
         r0, r1 = start[b], start[b] + 1
         # -- the kinematics along the block (tip_and_axis_along) --
         for j in range(n_joints):
@@ -404,10 +406,22 @@ def block_deviation(
                 p0 = values[r0, lx] + t[k] * (values[r1, lx] - values[r0, lx]) + pivot * a0
                 p1 = values[r0, ly] + t[k] * (values[r1, ly] - values[r0, ly]) + pivot * a1
                 p2 = values[r0, lz] + t[k] * (values[r1, lz] - values[r0, lz]) + pivot * a2
-            elif pivot != 0.0:
-                p0, p1, p2 = p0 + pivot * a0, p1 + pivot * a1, p2 + pivot * a2
             qx[k], qy[k], qz[k] = p0, p1, p2
             vx[k], vy[k], vz[k] = a0, a1, a2
+        if not tcp:  # the tip's polyline (feeds.tip_lengths), then the measured point
+            for k in range(s - 1):  # summed in order, as numpy sums the rows
+                e0, e1, e2 = qx[k + 1] - qx[k], qy[k + 1] - qy[k], qz[k + 1] - qz[k]
+                chord = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+                length[b] = length[b] + chord if k else chord
+            if not valid[b] or long[b]:
+                continue
+            if pivot != 0.0:
+                for k in range(s):
+                    qx[k], qy[k], qz[k] = (
+                        qx[k] + pivot * vx[k],
+                        qy[k] + pivot * vy[k],
+                        qz[k] + pivot * vz[k],
+                    )
         # -- the deviation from the CL span (_span_deviation, _segment_errors) --
         inv_dd0, omega0 = _span(
             qx,

@@ -55,7 +55,13 @@ from urdfpost.program import (
 )
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verification.feeds import FeedCheck, FeedRules, measure_feeds, tip_lengths
+from urdfpost.verification.feeds import (
+    TIP_SAMPLES,
+    FeedCheck,
+    FeedRules,
+    measure_feeds,
+    tip_lengths,
+)
 from urdfpost.verification.holes import HOLES_NOTE, check_holes, without_holes
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
 from urdfpost.verification.planes import clamp_faults, in_own_frame
@@ -637,6 +643,10 @@ class _Deviation:
         Largest squared axis chord seen in any block.
     block_chord2 : ndarray, shape (n,)
         Largest squared axis chord seen per block (0 where the block is not compared).
+    tip_length : ndarray or None, shape (n,), mm
+        The tool tip's path length through every block's samples, the same numbers as
+        :func:`urdfpost.verification.feeds.tip_lengths`, where the compiled pass worked them
+        out on the way (None: not worked out).
     """
 
     tip: np.ndarray
@@ -644,6 +654,7 @@ class _Deviation:
     count: int
     chord2: float
     block_chord2: np.ndarray
+    tip_length: np.ndarray | None = None
 
 
 COMPILED_FROM = 50_000
@@ -746,7 +757,7 @@ def _first_pass_compiled(
     feed: _Blocks,
     part: slice,
     t: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The first pass of :func:`_block_deviation` over the blocks of ``part`` of one
     comparison, compiled; the blocks of long spans (more than :data:`_LONG` CL segments) by
     numpy (:meth:`_Blocks.errors`).
@@ -761,11 +772,14 @@ def _first_pass_compiled(
         The samples they are at.
     bound : ndarray, shape (2, k)
         :meth:`_Blocks.bounds` (-inf in blocks not compared).
+    length : ndarray, shape (k,), mm
+        The tool tip's path through the samples of every block, compared or not
+        (:func:`urdfpost.verification.feeds.tip_lengths` of them; 0 in TCP programs).
     """
     k, s = part.stop - part.start, len(t)
     dist2, best = np.empty((s, k)), np.empty((2, k))
     worst, bound = np.empty((2, k), dtype=np.int64), np.empty((2, k))
-    long = np.empty(k, dtype=np.bool_)
+    long, length = np.empty(k, dtype=np.bool_), np.empty(k)
     c = inputs.chain
     trig = np.zeros((len(c.column), 4, k))
     s0 = inputs.start[part]
@@ -814,6 +828,7 @@ def _first_pass_compiled(
         worst,
         bound,
         long,
+        length,
     )
     if long.any():  # searched with bounds by numpy; bounded by nothing (more than one segment)
         cols = np.flatnonzero(long)
@@ -823,7 +838,7 @@ def _first_pass_compiled(
             worst[i, cols] = np.argmax(e, axis=0)
             best[i, cols] = e[worst[i, cols], np.arange(len(cols))]
         bound[:, cols] = np.inf
-    return dist2, best, worst, bound
+    return dist2, best, worst, bound, length
 
 
 def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) -> list[_Deviation]:
@@ -861,6 +876,9 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
     kernels = _compiled() if n >= COMPILED_FROM else None
     kernel = None if kernels is None else kernels.block
     inputs = [_KernelInputs.of(feed) for feed in feeds] if kernel is not None else []
+    # the tip's path through the samples, a by-product of the compiled pass (feeds.tip_lengths)
+    lengths = np.empty(n)
+    measured_lengths = kernel is not None and not feeds[0].tcp and len(t) == TIP_SAMPLES
     for part in chunks(n, len(t)):
         blocks = np.arange(part.start, part.stop)
         along: tuple[VecArrays | None, VecArrays] | None = None
@@ -869,16 +887,20 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
             ins = inputs[f] if kernel is not None else None
             if kernel is not None and ins is not None:
                 try:
-                    dist2, b2, w2, bd = _first_pass_compiled(kernel, ins, feed, part, t)
+                    dist2, b2, w2, bd, ln = _first_pass_compiled(kernel, ins, feed, part, t)
                 except Exception as err:  # numba could not compile or cache it here: numpy
                     _failed(err)
                     kernel = None
                 else:
+                    if f == 0:
+                        lengths[part] = ln
                     total[f] += float(np.sqrt(dist2).sum())
                     for i in range(2):
                         best[f][i][part], worst[f][i][part] = b2[i], w2[i]
                         bound[f][i][part] = bd[i]
                     continue
+            if f == 0:
+                measured_lengths = False
             if along is None:
                 along = feeds[0].along(blocks, t)
             first: list[_FirstSpan] = []
@@ -936,6 +958,7 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
                 count=compared * len(t),
                 chord2=float(best[f][1].max(initial=0.0)),
                 block_chord2=best[f][1],
+                tip_length=lengths if measured_lengths else None,
             )
         )
     return out
@@ -1175,7 +1198,8 @@ def _verify_rows(
     if rules is None:
         return out
     q0, q1 = values[blocks - 1], values[blocks]
-    tip = tip_lengths(machine, q0, q1, program.tcp, tool_length)
+    known = deviations[0].tip_length
+    tip = tip_lengths(machine, q0, q1, program.tcp, tool_length) if known is None else known
     feed = program.move_table().feed[blocks]
     measured = []
     for v, c, part in zip(out, checks, parts, strict=True):
