@@ -503,6 +503,56 @@ def _vec(a: np.ndarray) -> Constant:
     return float(a[0]), float(a[1]), float(a[2])
 
 
+@dataclass(frozen=True)
+class ChainArrays:
+    """A chain as plain arrays, for compiled loops that carry a tool point and axis through it
+    the way :func:`_carry` does (:mod:`urdfpost.verification._deviation_kernel`).
+
+    Attributes
+    ----------
+    column : ndarray, shape (k,), int64
+        Column in ``q`` of each joint, from the tool back (:attr:`PoeChain.joints`).
+    rotary : ndarray, shape (k,), bool
+    direction : ndarray, shape (k, 3)
+        Unit direction of each joint.
+    pivot : ndarray, shape (k, 3), mm
+        A rotary joint's point of its line nearest the workpiece origin (zeros for a linear one).
+    rotary_index : ndarray, shape (k,), int64
+        A rotary joint's place in :attr:`PoeChain.rotary_columns` (the columns of ``reach`` and
+        ``swing`` of :func:`tip_axis_and_reach`); -1 for a linear one.
+    tool_point : ndarray, shape (3,), mm
+        The tool tip at home, for the tool length asked for.
+    home_axis : ndarray, shape (3,)
+        The tool axis at home.
+    """
+
+    column: np.ndarray
+    rotary: np.ndarray
+    direction: np.ndarray
+    pivot: np.ndarray
+    rotary_index: np.ndarray
+    tool_point: np.ndarray
+    home_axis: np.ndarray
+
+
+def chain_arrays(machine: Machine | PoeChain, tool_length: float) -> ChainArrays:
+    """The chain of ``machine`` as plain arrays, the tip ``tool_length`` mm from the gauge point."""
+    chain = chain_of(machine)
+    joints = chain.joints
+    index = {c: i for i, c in enumerate(chain.rotary_columns)}
+    return ChainArrays(
+        column=np.array([j.column for j in joints], dtype=np.int64),
+        rotary=np.array([j.rotary for j in joints], dtype=np.bool_),
+        direction=np.array([j.direction for j in joints], dtype=float).reshape(-1, 3),
+        pivot=np.array([j.pivot for j in joints], dtype=float).reshape(-1, 3),
+        rotary_index=np.array(
+            [index[j.column] if j.rotary else -1 for j in joints], dtype=np.int64
+        ),
+        tool_point=np.array(_tool_point(chain, -tool_length), dtype=float),
+        home_axis=np.array(_vec(chain.home_tool_axis), dtype=float),
+    )
+
+
 def _rows(v: Vec, n: int) -> np.ndarray:
     """A vector as an (n, 3) array."""
     out = np.empty((n, 3))

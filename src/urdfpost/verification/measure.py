@@ -17,8 +17,11 @@ place; ``docs/verification.md``), and which CL points the program reaches, in or
 
 from __future__ import annotations
 
+import functools
 import logging
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,7 +36,12 @@ from urdfpost.geometry import (
     may_reach,
     refine_max,
 )
-from urdfpost.kinematics.forward import interpolation_bounds, tip_and_axis_along
+from urdfpost.kinematics.forward import (
+    ChainArrays,
+    chain_arrays,
+    interpolation_bounds,
+    tip_and_axis_along,
+)
 from urdfpost.linearize import RowPoses, orientation_path_chord2
 from urdfpost.machine import Machine
 from urdfpost.program import (
@@ -47,7 +55,13 @@ from urdfpost.program import (
 )
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verification.feeds import FeedCheck, FeedRules, measure_feeds, tip_lengths
+from urdfpost.verification.feeds import (
+    TIP_SAMPLES,
+    FeedCheck,
+    FeedRules,
+    measure_feeds,
+    tip_lengths,
+)
 from urdfpost.verification.holes import HOLES_NOTE, check_holes, without_holes
 from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
 from urdfpost.verification.planes import clamp_faults, in_own_frame
@@ -198,6 +212,7 @@ class _Polyline:
     _spheres: dict[int, tuple[VecArrays, np.ndarray]] = field(
         default_factory=dict, compare=False, repr=False
     )
+    _omega: list[np.ndarray] = field(default_factory=list, compare=False, repr=False)
 
     @classmethod
     def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
@@ -221,6 +236,16 @@ class _Polyline:
             r2 = sum((p - c[:, None]) ** 2 for p, c in zip(pts, centre, strict=True))
             self._spheres[size] = ((centre[0], centre[1], centre[2]), np.sqrt(np.max(r2, axis=1)))
         return self._spheres[size]
+
+    def omega(self) -> np.ndarray:
+        """Angle of the arc of the axes from every CL point to the next (0 for the last),
+        shape (n,), rad: :attr:`Arcs.omega` of :meth:`take` of every index. Made once."""
+        if not self._omega:
+            n = len(self)
+            nxt = np.minimum(np.arange(1, n + 1), n - 1)
+            ax, ay, az = self.axis
+            self._omega.append(Arcs.of_coords(self.axis, (ax[nxt], ay[nxt], az[nxt])).omega)
+        return self._omega[0]
 
     def take(self, index: np.ndarray) -> tuple[Segments, Arcs]:
         """The segments of the tips (mm) and the arcs of the axes (slerp) from CL points
@@ -618,6 +643,10 @@ class _Deviation:
         Largest squared axis chord seen in any block.
     block_chord2 : ndarray, shape (n,)
         Largest squared axis chord seen per block (0 where the block is not compared).
+    tip_length : ndarray or None, shape (n,), mm
+        The tool tip's path length through every block's samples, the same numbers as
+        :func:`urdfpost.verification.feeds.tip_lengths`, where the compiled pass worked them
+        out on the way (None: not worked out).
     """
 
     tip: np.ndarray
@@ -625,6 +654,191 @@ class _Deviation:
     count: int
     chord2: float
     block_chord2: np.ndarray
+    tip_length: np.ndarray | None = None
+
+
+COMPILED_FROM = 50_000
+"""Feed blocks from which :func:`_block_deviation` samples and bounds them with the compiled
+loop (:mod:`urdfpost.verification._deviation_kernel`, with numba installed: the ``fast``
+extra) rather than numpy: several times faster per block, after a fixed cost per process
+(numba's import, shared with the compiled matching, and the cached machine code's loading)."""
+
+
+_KERNEL_FAILED: list[str] = []
+"""Why the compiled first pass could not run in this process (then the numpy path runs)."""
+
+
+class _Kernels(NamedTuple):
+    """The compiled loops (:mod:`urdfpost.verification._deviation_kernel`)."""
+
+    block: Callable[..., None]
+    """:func:`urdfpost.verification._deviation_kernel.block_deviation`"""
+    point: Callable[..., None]
+    """:func:`urdfpost.verification._deviation_kernel.point_deviation`"""
+
+
+@functools.cache
+def _kernel() -> _Kernels | None:
+    """The compiled loops, or None without numba (looked for once per process)."""
+    try:
+        from urdfpost.verification._deviation_kernel import block_deviation, point_deviation
+    except ImportError:
+        return None
+    return _Kernels(block_deviation, point_deviation)
+
+
+def _compiled() -> _Kernels | None:
+    """The compiled loops, or None without numba (or after they failed here)."""
+    return None if _KERNEL_FAILED else _kernel()
+
+
+def _failed(err: Exception) -> None:
+    """Note that the compiled loops failed here (the numpy path runs from now on)."""
+    _KERNEL_FAILED.append(str(err))
+    log.warning("compiled block deviation unavailable (%s); numpy runs", err)
+
+
+@dataclass(frozen=True)
+class _KernelInputs:
+    """What the compiled first pass needs of one comparison, as contiguous arrays (made once
+    per comparison; :func:`urdfpost.verification._deviation_kernel.block_deviation`).
+
+    Attributes
+    ----------
+    chain : ChainArrays
+    linear : ndarray, shape (3,), int64
+        Columns of X, Y, Z.
+    values : ndarray, shape (N, m)
+    reach, swing : ndarray, shape (N, r)
+    start, ja, jb : ndarray, shape (n,), int64
+    valid : ndarray, shape (n,), bool
+    omega : ndarray, shape (n_cl,), rad
+        Angle of the CL arc from each CL point to the next (0 for the last).
+    """
+
+    chain: ChainArrays
+    linear: np.ndarray
+    values: np.ndarray
+    reach: np.ndarray
+    swing: np.ndarray
+    start: np.ndarray
+    ja: np.ndarray
+    jb: np.ndarray
+    valid: np.ndarray
+    omega: np.ndarray
+
+    @classmethod
+    def of(cls, feed: _Blocks) -> _KernelInputs | None:
+        """The inputs of ``feed``; None for a machine the kernel does not take (a TCP program
+        on a machine without three linear axes)."""
+        linear = np.array(feed.machine.linear_columns, dtype=np.int64)
+        if feed.tcp and len(linear) != 3:
+            return None
+        ints = [np.ascontiguousarray(a, dtype=np.int64) for a in (feed.start, feed.ja, feed.jb)]
+        n = len(feed.start)
+        valid = np.ones(n, dtype=np.bool_) if feed.valid is None else feed.valid
+        return cls(
+            chain=chain_arrays(feed.machine, feed.tool_length),
+            linear=np.resize(linear, 3),
+            values=np.ascontiguousarray(feed.values, dtype=float),
+            reach=np.ascontiguousarray(feed.rows.reach, dtype=float),
+            swing=np.ascontiguousarray(feed.rows.swing, dtype=float),
+            start=ints[0],
+            ja=ints[1],
+            jb=ints[2],
+            valid=np.ascontiguousarray(valid, dtype=np.bool_),
+            omega=feed.polyline.omega(),
+        )
+
+
+def _first_pass_compiled(
+    kernel: Callable[..., None],
+    inputs: _KernelInputs,
+    feed: _Blocks,
+    part: slice,
+    t: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The first pass of :func:`_block_deviation` over the blocks of ``part`` of one
+    comparison, compiled; the blocks of long spans (more than :data:`_LONG` CL segments) by
+    numpy (:meth:`_Blocks.errors`).
+
+    Returns
+    -------
+    dist2 : ndarray, shape (s, k), mm^2
+        Squared tip distance of every sample (0 in blocks not compared).
+    best : ndarray, shape (2, k)
+        Largest squared distance and squared chord of each block.
+    worst : ndarray, shape (2, k), int
+        The samples they are at.
+    bound : ndarray, shape (2, k)
+        :meth:`_Blocks.bounds` (-inf in blocks not compared).
+    length : ndarray, shape (k,), mm
+        The tool tip's path through the samples of every block, compared or not
+        (:func:`urdfpost.verification.feeds.tip_lengths` of them; 0 in TCP programs).
+    """
+    k, s = part.stop - part.start, len(t)
+    dist2, best = np.empty((s, k)), np.empty((2, k))
+    worst, bound = np.empty((2, k), dtype=np.int64), np.empty((2, k))
+    long, length = np.empty(k, dtype=np.bool_), np.empty(k)
+    c = inputs.chain
+    trig = np.zeros((len(c.column), 4, k))
+    s0 = inputs.start[part]
+    h = (t[-1] - t[0]) / (s - 1)
+    for j in np.flatnonzero(c.rotary):  # as cos_sin_along: at t[0] and per step of t
+        theta0 = inputs.values[s0, c.column[j]]
+        step = inputs.values[s0 + 1, c.column[j]] - theta0
+        first = theta0 + t[0] * step
+        np.cos(first, out=trig[j, 0])
+        np.sin(first, out=trig[j, 1])
+        hs = h * step
+        np.cos(hs, out=trig[j, 2])
+        np.sin(hs, out=trig[j, 3])
+    (px, py, pz), (ax, ay, az) = feed.polyline.tip, feed.polyline.axis
+    kernel(
+        c.column,
+        c.rotary,
+        c.direction,
+        c.pivot,
+        c.rotary_index,
+        inputs.linear,
+        c.tool_point,
+        c.home_axis,
+        inputs.values,
+        inputs.reach,
+        inputs.swing,
+        inputs.start[part],
+        inputs.ja[part],
+        inputs.jb[part],
+        inputs.valid[part],
+        px,
+        py,
+        pz,
+        ax,
+        ay,
+        az,
+        inputs.omega,
+        trig,
+        t,
+        bool(feed.tcp),
+        float(feed.pivot),
+        float(feed.window),
+        _LONG,
+        dist2,
+        best,
+        worst,
+        bound,
+        long,
+        length,
+    )
+    if long.any():  # searched with bounds by numpy; bounded by nothing (more than one segment)
+        cols = np.flatnonzero(long)
+        d2, c2 = feed.errors(cols + part.start, t)
+        dist2[:, cols] = d2
+        for i, e in enumerate((d2, c2)):
+            worst[i, cols] = np.argmax(e, axis=0)
+            best[i, cols] = e[worst[i, cols], np.arange(len(cols))]
+        bound[:, cols] = np.inf
+    return dist2, best, worst, bound, length
 
 
 def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) -> list[_Deviation]:
@@ -659,11 +873,36 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
     worst = [(np.zeros(n, dtype=int), np.zeros(n, dtype=int)) for _ in feeds]
     bound = [(np.zeros(n), np.zeros(n)) for _ in feeds]
     total = [0.0 for _ in feeds]
+    kernels = _compiled() if n >= COMPILED_FROM else None
+    kernel = None if kernels is None else kernels.block
+    inputs = [_KernelInputs.of(feed) for feed in feeds] if kernel is not None else []
+    # the tip's path through the samples, a by-product of the compiled pass (feeds.tip_lengths)
+    lengths = np.empty(n)
+    measured_lengths = kernel is not None and not feeds[0].tcp and len(t) == TIP_SAMPLES
     for part in chunks(n, len(t)):
         blocks = np.arange(part.start, part.stop)
-        along = feeds[0].along(blocks, t)
+        along: tuple[VecArrays | None, VecArrays] | None = None
         cols = np.arange(len(blocks))
         for f, feed in enumerate(feeds):
+            ins = inputs[f] if kernel is not None else None
+            if kernel is not None and ins is not None:
+                try:
+                    dist2, b2, w2, bd, ln = _first_pass_compiled(kernel, ins, feed, part, t)
+                except Exception as err:  # numba could not compile or cache it here: numpy
+                    _failed(err)
+                    kernel = None
+                else:
+                    if f == 0:
+                        lengths[part] = ln
+                    total[f] += float(np.sqrt(dist2).sum())
+                    for i in range(2):
+                        best[f][i][part], worst[f][i][part] = b2[i], w2[i]
+                        bound[f][i][part] = bd[i]
+                    continue
+            if f == 0:
+                measured_lengths = False
+            if along is None:
+                along = feeds[0].along(blocks, t)
             first: list[_FirstSpan] = []
             dist2, chord2 = feed.errors(blocks, t, first, along)
             valid = None if feed.valid is None else feed.valid[part]
@@ -719,6 +958,7 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
                 count=compared * len(t),
                 chord2=float(best[f][1].max(initial=0.0)),
                 block_chord2=best[f][1],
+                tip_length=lengths if measured_lengths else None,
             )
         )
     return out
@@ -958,7 +1198,8 @@ def _verify_rows(
     if rules is None:
         return out
     q0, q1 = values[blocks - 1], values[blocks]
-    tip = tip_lengths(machine, q0, q1, program.tcp, tool_length)
+    known = deviations[0].tip_length
+    tip = tip_lengths(machine, q0, q1, program.tcp, tool_length) if known is None else known
     feed = program.move_table().feed[blocks]
     measured = []
     for v, c, part in zip(out, checks, parts, strict=True):
@@ -1002,6 +1243,53 @@ def _nothing_to_compare(program: Program, values: np.ndarray, check: Check) -> V
         tcp=program.tcp,
         notes=["program has no motion" if len(values) == 0 else "CL data has no motion"],
     )
+
+
+def _row_deviation(
+    rows: RowPoses, polyline: _Polyline, ja: np.ndarray, jb: np.ndarray, window: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_span_deviation` of the program rows themselves (one sample each) against their
+    CL spans ``ja .. jb``: squared distance (mm^2) and squared chord, shape (N,).
+
+    From :data:`COMPILED_FROM` rows on, with numba, compiled
+    (:func:`urdfpost.verification._deviation_kernel.point_deviation`; the rows of long spans
+    by numpy); else by numpy in chunks.
+    """
+    n = len(rows.tip)
+    dp2, op2 = np.empty(n), np.empty(n)
+    kernels = _compiled() if n >= COMPILED_FROM else None
+    todo: np.ndarray | None = None  # rows left to numpy (None: all)
+    if kernels is not None:
+        long = np.empty(n, dtype=np.bool_)
+        try:
+            kernels.point(
+                rows.tip[:, 0],  # views (strided): no copies of the rows
+                rows.tip[:, 1],
+                rows.tip[:, 2],
+                rows.axis[:, 0],
+                rows.axis[:, 1],
+                rows.axis[:, 2],
+                np.ascontiguousarray(ja, dtype=np.int64),
+                np.ascontiguousarray(jb, dtype=np.int64),
+                *polyline.tip,
+                *polyline.axis,
+                polyline.omega(),
+                float(window),
+                _LONG,
+                dp2,
+                op2,
+                long,
+            )
+        except Exception as err:  # numba could not compile or cache it here: numpy
+            _failed(err)
+        else:
+            todo = np.flatnonzero(long)
+    for part in chunks(n if todo is None else len(todo), 1):
+        at = part if todo is None else todo[part]
+        at_rows = (_sampled_once(rows.tip[at]), _sampled_once(rows.axis[at]))
+        d2, c2 = _span_deviation(*at_rows, polyline, ja[at], jb[at], window)
+        dp2[at], op2[at] = d2[0], c2[0]
+    return dp2, op2
 
 
 @dataclass(frozen=True)
@@ -1063,11 +1351,7 @@ class _Comparison:
         ja_pt = np.maximum(before, 0)
         jb_pt = np.maximum(np.where(after < n_cl, after, n_cl - 1), ja_pt)
         polyline = _Polyline.of(cl_tip, toolpath.axis)
-        dp2, op2 = np.empty(len(rows.tip)), np.empty(len(rows.tip))
-        for part in chunks(len(rows.tip), 1):
-            at_rows = (_sampled_once(rows.tip[part]), _sampled_once(rows.axis[part]))
-            d2, c2 = _span_deviation(*at_rows, polyline, ja_pt[part], jb_pt[part], check.tol.tip)
-            dp2[part], op2[part] = d2[0], c2[0]
+        dp2, op2 = _row_deviation(rows, polyline, ja_pt, jb_pt, check.tol.tip)
         feed_pts = ~rapid | (owner >= 0)
 
         # a feed block is compared along its length with its CL span unless it starts before
