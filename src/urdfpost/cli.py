@@ -523,15 +523,15 @@ def build_parser() -> argparse.ArgumentParser:
         type=_piece_points,
         metavar="N",
         help="read and check in pieces of about N CL points (bounded memory for long jobs; "
-        "the same figures, but for the mean deviation; each piece verified in a second process "
-        "while the next is read); 0: never. Default: pieces of "
+        "the same figures, but for the mean deviation; the pieces verified in worker processes, "
+        "one per core, while the next are read); 0: never. Default: pieces of "
         f"{PIECE_POINTS} points when the CL file or the program is over {_STREAM_BYTES >> 20} MB",
     )
     ve.add_argument(
         "--single-process",
         action="store_true",
         help="with --piece-points: verify each piece in this process after it is read (by "
-        "default a second process verifies it while the next is read)",
+        "default worker processes verify them while the next are read)",
     )
 
     vw = sub.add_parser(

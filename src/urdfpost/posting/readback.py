@@ -17,7 +17,7 @@ from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.posting.tools import Section, gauge_lengths, program_sections, tool_sections
-from urdfpost.posting.worker import FORK, Checks, ReadPiece
+from urdfpost.posting.worker import FORK, ReadChecks, ReadPiece
 from urdfpost.program import Blocks, Move, MoveTable, Program, Smoothing, rewind_moves
 from urdfpost.readers._stream import text_pieces
 from urdfpost.tolerances import Tolerances
@@ -269,9 +269,10 @@ def verify_stream(
         How the control times the blocks: the tip feed of every piece is measured
         (:func:`urdfpost.verification.verify`); None: not measured.
     parallel : bool, optional
-        Verify each piece in a worker process while the next one is read and cut (and its
-        process checked); default on Linux when the machine has more than one core and the
-        program more than one piece (as :func:`urdfpost.posting.stream.post_stream`).
+        Verify the pieces in worker processes, one per core, each piece by the next worker in
+        turn, while the next ones are read and cut (and their process checked here); default
+        on Linux when the machine has more than one core and the program more than one piece
+        (as :func:`urdfpost.posting.stream.post_stream`).
 
     Returns
     -------
@@ -302,18 +303,21 @@ def verify_stream(
     rows_per_point = 1.5  # a first guess, then as the pieces so far had
     rows_done = points_done = 0
     lengths: dict[int, float] = {}  # each tool's gauge length, mm
-    checks: Checks | None = None  # where the pieces are verified, in order
+    checks: ReadChecks | None = None  # where the pieces are verified, in order
 
     def check(head: Program, part: Toolpath, length: float, rules: FeedRules | None) -> None:
         """Verify a piece (in the worker, when there is one), its result taken in order at
         the end."""
         nonlocal checks
         if checks is None:
-            if parallel is None:  # a worker for a program of more than one piece
-                use = FORK and not (cl_ends and program_ends) and (os.cpu_count() or 1) > 1
+            cores = os.cpu_count() or 1
+            if parallel is None:  # workers for a program of more than one piece
+                use = FORK and not (cl_ends and program_ends) and cores > 1
             else:
                 use = parallel
-            checks = Checks(machine, controller, str(program_path), tol, head.units, use)
+            checks = ReadChecks(
+                machine, controller, str(program_path), tol, head.units, use, workers=cores
+            )
         checks.submit(ReadPiece(head, part, length, pivot, rules))
 
     length = tool_length  # of the tool section being checked

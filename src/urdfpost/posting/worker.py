@@ -467,3 +467,49 @@ class Checks:
             self.process.join()
         self.conn.close()
         self.process = None
+
+
+class ReadChecks:
+    """Pieces read already (:class:`ReadPiece`, ``urdfpost verify`` in pieces) verified by
+    several workers, each piece by the next worker in turn, the results in the pieces' order.
+
+    A read piece is verified on its own (no state carries from one to the next), so the
+    pieces can go to as many workers as the machine has cores while this process reads and
+    cuts the next ones; each worker holds at most one piece waiting (memory stays bounded).
+    With one worker or ``parallel`` False it is :class:`Checks`.
+    """
+
+    def __init__(
+        self,
+        machine: Machine,
+        controller: str,
+        path: str,
+        tol: Tolerances,
+        units: str,
+        parallel: bool,
+        workers: int = 1,
+    ) -> None:
+        self.members: list[Checks] = []
+        self.count = 0  # pieces submitted
+        try:
+            for _ in range(max(1, workers) if parallel else 1):
+                self.members.append(Checks(machine, controller, path, tol, units, parallel))
+        except BaseException:
+            self.close()
+            raise
+
+    def submit(self, job: ReadPiece) -> None:
+        """Verify ``job`` in the next worker (after the piece that worker has, if any)."""
+        self.members[self.count % len(self.members)].submit(job)
+        self.count += 1
+
+    def finish(self) -> list[tuple[Verification, Verification | None]]:
+        """Every piece's verification, in the order submitted, once all are checked."""
+        done = [member.finish() for member in self.members]
+        k = len(self.members)
+        return [done[i % k][i // k] for i in range(self.count)]
+
+    def close(self) -> None:
+        """Stop the workers."""
+        for member in self.members:
+            member.close()
