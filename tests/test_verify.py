@@ -22,7 +22,7 @@ from urdfpost.cli import main
 from urdfpost.dialects import DIALECTS
 from urdfpost.geometry import Arcs, Segments, angle_between, cos_sin
 from urdfpost.kinematics.forward import tip_and_axis, tip_and_axis_along
-from urdfpost.linearize import RowPoses, _error_bounds, _orientation_error
+from urdfpost.linearize import RowPoses, _error_bounds, _orientation_error, _Slack
 from urdfpost.machine import Machine
 from urdfpost.posting.options import PostOptions, resolve
 from urdfpost.posting.piece import post_piece
@@ -641,6 +641,52 @@ def test_subdivision_block_bounds_hold(name: str, tcp: bool, squeeze: float) -> 
         dense = _largest_errors(m, q, seg, arc, np.linspace(0.0, 1.0, 2001), tcp, window)
         assert np.all(np.sqrt(dense[0]) <= bound[0] + 1e-12)
         assert np.all(np.sqrt(dense[2]) <= bound[1] + 1e-12)
+        # from the block ends alone (what rules out sampling a chunk at all): looser, and a
+        # bound all the same
+        slack = _Slack.of(m, q[:-1], q[1:], seg, arc, ends, t[0], tcp, window)
+        zero = np.zeros(len(q) - 1)
+        tip_bound, chord_bound = slack.spaced(1.0).bounds(zero, zero, zero)
+        assert np.all(np.sqrt(dense[0]) <= tip_bound + 1e-12)
+        assert np.all(np.sqrt(dense[2]) <= chord_bound + 1e-12)
+        # and where it keeps the chunk below the targets, it says so with those bounds
+        targets = (float(tip_bound.max()) * 1.01 + 1e-9, 2.0 * np.arcsin(chord_bound.max() * 0.51))
+        assert slack.within(targets) is not None
+        assert slack.within((targets[0], 1e-9)) is None
+
+
+@pytest.mark.parametrize("tcp", [False, True])
+@pytest.mark.parametrize("name", ["dmu50", "gantry-ca", "dmu50-nutating"])
+def test_subdivision_skips_chunks_its_bounds_clear(
+    monkeypatch: pytest.MonkeyPatch, name: str, tcp: bool
+) -> None:
+    """The subdivision samples no block of a chunk whose ends alone keep every block below the
+    targets: the same rows (to the bit) as sampling every chunk, on a path where most chunks
+    are cleared and some are not (a fine raster with a coarse stretch), and it did skip."""
+    from urdfpost.linearize import subdivide
+
+    m = machine(name)
+    rng = np.random.default_rng(3)
+    tol = Tolerances()
+    fine, _ = _random_moves(m, rng, 20000, 0.0005)
+    coarse, _ = _random_moves(m, rng, 300, 0.3)
+    q = np.concatenate([fine, coarse + (fine[-1] - coarse[0])])
+    tip, axis_at = tip_and_axis(m, q, 100.0)
+    cleared: list[bool] = []
+    within = linearize_module._Slack.within
+
+    def counted(self: object, targets: tuple[float, float]) -> object:
+        out = within(self, targets)  # type: ignore[arg-type]
+        cleared.append(out is not None)
+        return out
+
+    monkeypatch.setattr(linearize_module._Slack, "within", counted)
+    got = subdivide(m, q, tip, axis_at, tool_length=100.0, tcp=tcp, tol=tol)
+    assert any(cleared) and not all(cleared)
+    monkeypatch.setattr(linearize_module._Slack, "within", lambda self, targets: None)
+    want = subdivide(m, q, tip, axis_at, tool_length=100.0, tcp=tcp, tol=tol)
+    for field in ("q", "tip", "axis", "source"):
+        np.testing.assert_array_equal(getattr(got, field), getattr(want, field))
+    assert len(got.q) > len(q)  # the coarse stretch was bisected
 
 
 def _refine_everywhere(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -157,6 +157,10 @@ def _block_errors(
             slack = _Slack.of(
                 chain, q0[part], q1[part], seg, arc, pose, 1.0 / (samples + 1), tcp, window
             )
+            sure = slack.within(targets)
+            if sure is not None:  # no sample could bisect a block of this chunk
+                tip_err[part], ori_err[part] = sure[0], angle_from_chord2(sure[1] ** 2)
+                continue
         tip_err[part], ori_err[part] = _sampled_errors(
             chain,
             scratch,
@@ -179,19 +183,24 @@ class _Slack:
     """What bounds the errors of whole blocks besides their largest samples.
 
     See :func:`_error_bounds`. Per block (arrays of shape (n,)): the larger of the squared tip
-    distances at the two block ends and the room the tip's curvature leaves between samples
-    (both None in TCP programs, where the tip is on the segment), likewise for the squared
-    chord to the CL axis at the block parameter (``end_chord2``, ``chord_room``; a bound on
-    the orientation error in TCP programs only, where the tip's parameter is the block's),
-    and for the orientation error itself (``end_path2``, ``path_room``).
+    distances at the two block ends and the tip's curvature bound (both None in TCP programs,
+    where the tip is on the segment), likewise for the squared chord to the CL axis at the
+    block parameter (``end_chord2``, and the curvature of the chord, ``chord_curv``; a bound on
+    the orientation error in TCP programs only, where the tip's parameter is the block's), and
+    for the orientation error itself (``end_path2``; the tool axis' speed ``axis_speed``, the
+    CL arc's angle ``omega`` and its speed through the window ``window_speed``). The room each
+    leaves between samples ``h`` apart (``h`` itself, or :meth:`spaced`) comes from them.
     """
 
     end_dist2: np.ndarray | None
-    tip_room: np.ndarray | None
+    tip_curv: np.ndarray | None
     end_chord2: np.ndarray
-    chord_room: np.ndarray
+    chord_curv: np.ndarray
     end_path2: np.ndarray
-    path_room: np.ndarray
+    axis_speed: np.ndarray
+    window_speed: np.ndarray
+    omega: np.ndarray
+    h: float
 
     @classmethod
     def of(
@@ -215,35 +224,55 @@ class _Slack:
             arc.chord2(coords(e.axis), c, s)
             for e, c, s in ((ends[0], 1.0, 0.0), (ends[1], np.cos(arc.omega), np.sin(arc.omega)))
         ]
-        room = h * h / 8.0
-        end_chord2, chord_room = np.maximum(*at_ends), (axis_curv + arc.omega**2) * room
+        end_chord2, chord_curv = np.maximum(*at_ends), axis_curv + arc.omega**2
         # the window follows the tip's parameter u: at the block's own speed with TCP, at most
         # |p'| / |d| without; the nearest CL axis in it moves by at most omega times that
         # (and never by more than the whole arc), the tool axis by |a'|
         u_speed = np.ones_like(arc.omega) if tcp else tip_speed * np.sqrt(seg.inv_dd)
-        path_room = axis_speed * (h / 2.0) + np.minimum(arc.omega * u_speed * (h / 2.0), arc.omega)
         end_path2 = np.maximum(
             *(
                 _orientation_error(seg, arc, coords(e.tip), coords(e.axis), t, tcp, window)[2]
                 for e, t in ((ends[0], 0.0), (ends[1], 1.0))
             )
         )
+        turning = (end_chord2, chord_curv, end_path2, axis_speed, arc.omega * u_speed, arc.omega)
         if tcp:
-            return cls(None, None, end_chord2, chord_room, end_path2, path_room)
+            return cls(None, None, *turning, h)
         at_ends = [seg.distance2(coords(e.tip))[0] for e in ends]
-        return cls(
-            np.maximum(*at_ends), tip_curv * room, end_chord2, chord_room, end_path2, path_room
-        )
+        return cls(np.maximum(*at_ends), tip_curv, *turning, h)
+
+    def spaced(self, h: float) -> _Slack:
+        """The slack of the same blocks with samples ``h`` apart."""
+        return replace(self, h=h)
+
+    @property
+    def tip_room(self) -> np.ndarray | None:
+        """How far the tip error may exceed the largest sample, mm (None with TCP)."""
+        return None if self.tip_curv is None else self.tip_curv * (self.h * self.h / 8.0)
+
+    @property
+    def chord_room(self) -> np.ndarray:
+        """Likewise the chord to the CL axis at the block parameter."""
+        return self.chord_curv * (self.h * self.h / 8.0)
+
+    @property
+    def path_room(self) -> np.ndarray:
+        """Likewise the chord of the orientation error."""
+        half = self.h / 2.0
+        return self.axis_speed * half + np.minimum(self.window_speed * half, self.omega)
 
     def take(self, index: slice) -> _Slack:
         """The slack of the blocks at ``index``."""
         return _Slack(
             None if self.end_dist2 is None else self.end_dist2[index],
-            None if self.tip_room is None else self.tip_room[index],
+            None if self.tip_curv is None else self.tip_curv[index],
             self.end_chord2[index],
-            self.chord_room[index],
+            self.chord_curv[index],
             self.end_path2[index],
-            self.path_room[index],
+            self.axis_speed[index],
+            self.window_speed[index],
+            self.omega[index],
+            self.h,
         )
 
     def bounds(
@@ -254,11 +283,29 @@ class _Slack:
         block parameter; used in TCP programs only) and ``path2`` (the orientation error),
         shape (n,)."""
         path = np.sqrt(np.maximum(path2, self.end_path2)) + self.path_room
-        if self.end_dist2 is None or self.tip_room is None:
+        tip_room = self.tip_room
+        if self.end_dist2 is None or tip_room is None:
             assert chord2 is not None  # (TCP)
             chord = np.sqrt(np.maximum(chord2, self.end_chord2)) + self.chord_room
             return np.zeros_like(path), np.minimum(chord, path)
-        return np.sqrt(np.maximum(dist2, self.end_dist2)) + self.tip_room, path
+        return np.sqrt(np.maximum(dist2, self.end_dist2)) + tip_room, path
+
+    def within(self, targets: tuple[float, float]) -> tuple[np.ndarray, np.ndarray] | None:
+        """The bounds of the blocks from their ends alone (the ends as the only samples, one
+        block apart), when they keep every block below the targets (tip mm, orientation rad)
+        with the slack of :func:`urdfpost.geometry.may_reach`; else None.
+
+        A block's sampled and refined errors are values of its error functions, which these
+        bound: with every block within, the samples can decide no bisection.
+        """
+        ends = self.spaced(1.0)
+        zero = np.zeros_like(self.end_path2)
+        tip, chord = ends.bounds(zero, zero, zero)
+        if may_reach(chord, 2.0 * np.sin(targets[1] / 2.0)).any():
+            return None
+        if self.end_dist2 is not None and may_reach(tip, targets[0]).any():
+            return None
+        return tip, chord
 
 
 def _error_bounds(
