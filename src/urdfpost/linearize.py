@@ -127,7 +127,9 @@ def _block_errors(
     ``targets`` is None, otherwise only in blocks where the refinement could take it past a
     target (tip mm, orientation rad). Elsewhere the largest sample is kept, which is then
     within the refinement's reach of the true maximum and below the target either way (see
-    :func:`_sampled_errors`).
+    :func:`_sampled_errors`). With ``targets``, a chunk whose block ends alone keep every block
+    below them (:meth:`_Slack.within`) is not sampled at all: its blocks get those bounds as
+    their errors, which decide the same (no bisection).
 
     The blocks go through the kinematics a chunk (:func:`urdfpost.geometry.chunks`) at a time,
     the same chunks whatever else changes: the refinement's cosines depend on the largest angle
