@@ -648,20 +648,25 @@ def test_subdivision_block_bounds_hold(name: str, tcp: bool, squeeze: float) -> 
         tip_bound, chord_bound = slack.spaced(1.0).bounds(zero, zero, zero)
         assert np.all(np.sqrt(dense[0]) <= tip_bound + 1e-12)
         assert np.all(np.sqrt(dense[2]) <= chord_bound + 1e-12)
-        # and where it keeps the chunk below the targets, it says so with those bounds
-        targets = (float(tip_bound.max()) * 1.01 + 1e-9, 2.0 * np.arcsin(chord_bound.max() * 0.51))
-        assert slack.within(targets) is not None
-        assert slack.within((targets[0], 1e-9)) is None
+        # and where it keeps blocks below the targets, it says so with those bounds
+        targets = (float(np.median(tip_bound)), 2.0 * np.arcsin(np.median(chord_bound) / 2.0))
+        got_tip, got_chord, clear = slack.cleared(targets)
+        np.testing.assert_array_equal(got_tip, tip_bound)
+        np.testing.assert_array_equal(got_chord, chord_bound)
+        below = chord_bound < np.median(chord_bound) * (1.0 - 1e-6)
+        if not tcp:
+            below &= tip_bound < np.median(tip_bound) * (1.0 - 1e-6)
+        np.testing.assert_array_equal(clear, below)
 
 
 @pytest.mark.parametrize("tcp", [False, True])
 @pytest.mark.parametrize("name", ["dmu50", "gantry-ca", "dmu50-nutating"])
-def test_subdivision_skips_chunks_its_bounds_clear(
+def test_subdivision_skips_blocks_its_bounds_clear(
     monkeypatch: pytest.MonkeyPatch, name: str, tcp: bool
 ) -> None:
-    """The subdivision samples no block of a chunk whose ends alone keep every block below the
-    targets: the same rows (to the bit) as sampling every chunk, on a path where most chunks
-    are cleared and some are not (a fine raster with a coarse stretch), and it did skip."""
+    """The subdivision samples no block whose ends alone keep it below the targets: the same
+    rows (to the bit) as sampling every block, on a path where most blocks are cleared and
+    some are not (a fine raster with a stretch of large steps), and it did skip."""
     from urdfpost.linearize import subdivide
 
     m = machine(name)
@@ -671,18 +676,24 @@ def test_subdivision_skips_chunks_its_bounds_clear(
     coarse, _ = _random_moves(m, rng, 300, 0.3)
     q = np.concatenate([fine, coarse + (fine[-1] - coarse[0])])
     tip, axis_at = tip_and_axis(m, q, 100.0)
-    cleared: list[bool] = []
-    within = linearize_module._Slack.within
+    cleared: list[np.ndarray] = []
+    real = linearize_module._Slack.cleared
 
-    def counted(self: object, targets: tuple[float, float]) -> object:
-        out = within(self, targets)  # type: ignore[arg-type]
-        cleared.append(out is not None)
+    def counted(self: _Slack, targets: tuple[float, float]) -> tuple[np.ndarray, ...]:
+        out = real(self, targets)
+        cleared.append(out[2])
         return out
 
-    monkeypatch.setattr(linearize_module._Slack, "within", counted)
+    monkeypatch.setattr(linearize_module._Slack, "cleared", counted)
     got = subdivide(m, q, tip, axis_at, tool_length=100.0, tcp=tcp, tol=tol)
-    assert any(cleared) and not all(cleared)
-    monkeypatch.setattr(linearize_module._Slack, "within", lambda self, targets: None)
+    share = np.concatenate(cleared).mean()
+    assert 0.5 < share < 1.0, share
+
+    def nothing(self: _Slack, targets: tuple[float, float]) -> tuple[np.ndarray, ...]:
+        tip_bound, chord_bound, clear = real(self, targets)
+        return tip_bound, chord_bound, np.zeros_like(clear)
+
+    monkeypatch.setattr(linearize_module._Slack, "cleared", nothing)
     want = subdivide(m, q, tip, axis_at, tool_length=100.0, tcp=tcp, tol=tol)
     for field in ("q", "tip", "axis", "source"):
         np.testing.assert_array_equal(getattr(got, field), getattr(want, field))

@@ -127,13 +127,12 @@ def _block_errors(
     ``targets`` is None, otherwise only in blocks where the refinement could take it past a
     target (tip mm, orientation rad). Elsewhere the largest sample is kept, which is then
     within the refinement's reach of the true maximum and below the target either way (see
-    :func:`_sampled_errors`). With ``targets``, a chunk whose block ends alone keep every block
-    below them (:meth:`_Slack.within`) is not sampled at all: its blocks get those bounds as
-    their errors, which decide the same (no bisection).
+    :func:`_sampled_errors`). With ``targets``, a block whose ends alone keep it below them
+    (:meth:`_Slack.cleared`) is not sampled at all: it gets those bounds as its errors, which
+    decide the same (no bisection); the others of its chunk are sampled on their own, to the
+    same values (every operation is element by element).
 
-    The blocks go through the kinematics a chunk (:func:`urdfpost.geometry.chunks`) at a time,
-    the same chunks whatever else changes: the refinement's cosines depend on the largest angle
-    refined in a chunk (:func:`urdfpost.geometry.cos_sin`).
+    The blocks go through the kinematics a chunk (:func:`urdfpost.geometry.chunks`) at a time.
     """
     n = q0.shape[0]
     samples = tol.samples_per_block
@@ -159,9 +158,30 @@ def _block_errors(
             slack = _Slack.of(
                 chain, q0[part], q1[part], seg, arc, pose, 1.0 / (samples + 1), tcp, window
             )
-            sure = slack.within(targets)
-            if sure is not None:  # no sample could bisect a block of this chunk
-                tip_err[part], ori_err[part] = sure[0], angle_from_chord2(sure[1] ** 2)
+            tip_bound, chord_bound, clear = slack.cleared(targets)
+            if clear.any():  # no sample could bisect these blocks: their bounds decide
+                tip_err[part] = np.where(clear, tip_bound, 0.0)
+                ori_err[part] = np.where(clear, angle_from_chord2(chord_bound**2), 0.0)
+                if clear.all():
+                    continue
+                # the others sampled on their own (every operation is element by element:
+                # the same values as sampled with the chunk)
+                keep = np.flatnonzero(~clear)
+                at = keep + part.start
+                tip_err[at], ori_err[at] = _sampled_errors(
+                    chain,
+                    scratch,
+                    q0[at],
+                    q1[at],
+                    seg.take(keep),
+                    arc.take(keep),
+                    slack.take(keep),
+                    tool_length,
+                    tcp,
+                    samples,
+                    targets,
+                    window,
+                )
                 continue
         tip_err[part], ori_err[part] = _sampled_errors(
             chain,
@@ -263,7 +283,7 @@ class _Slack:
         half = self.h / 2.0
         return self.axis_speed * half + np.minimum(self.window_speed * half, self.omega)
 
-    def take(self, index: slice) -> _Slack:
+    def take(self, index: slice | np.ndarray) -> _Slack:
         """The slack of the blocks at ``index``."""
         return _Slack(
             None if self.end_dist2 is None else self.end_dist2[index],
@@ -292,22 +312,27 @@ class _Slack:
             return np.zeros_like(path), np.minimum(chord, path)
         return np.sqrt(np.maximum(dist2, self.end_dist2)) + tip_room, path
 
-    def within(self, targets: tuple[float, float]) -> tuple[np.ndarray, np.ndarray] | None:
+    def cleared(self, targets: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The bounds of the blocks from their ends alone (the ends as the only samples, one
-        block apart), when they keep every block below the targets (tip mm, orientation rad)
-        with the slack of :func:`urdfpost.geometry.may_reach`; else None.
+        block apart), and where they keep a block below the targets (tip mm, orientation rad)
+        with the slack of :func:`urdfpost.geometry.may_reach`.
 
         A block's sampled and refined errors are values of its error functions, which these
-        bound: with every block within, the samples can decide no bisection.
+        bound: where a block is cleared, no sample of it can decide a bisection.
+
+        Returns
+        -------
+        tip, chord : ndarray, shape (n,)
+            The bounds (tip mm, 0 with TCP; the chord of the orientation error).
+        clear : ndarray, shape (n,), bool
         """
         ends = self.spaced(1.0)
         zero = np.zeros_like(self.end_path2)
         tip, chord = ends.bounds(zero, zero, zero)
-        if may_reach(chord, 2.0 * np.sin(targets[1] / 2.0)).any():
-            return None
-        if self.end_dist2 is not None and may_reach(tip, targets[0]).any():
-            return None
-        return tip, chord
+        clear = ~may_reach(chord, 2.0 * np.sin(targets[1] / 2.0))
+        if self.end_dist2 is not None:
+            clear &= ~may_reach(tip, targets[0])
+        return tip, chord, clear
 
 
 def _error_bounds(
