@@ -4,7 +4,13 @@ A streamed post hands each piece's text to :class:`Checks` as soon as it is writ
 machine with more than one core a worker process reads the texts back in order with one reader
 (its modal state carries on from piece to piece) and checks each against its CL points while
 the next piece is planned; otherwise the pieces are checked here, one after the other. Either
-way the check is :func:`urdfpost.posting.check.check_piece`, the one of every post.
+way the check is :func:`urdfpost.posting.check.check_piece`, the one of every post, and the
+piece's process (feeds, spindle, tools) is checked from the same read
+(:meth:`PieceVerifier.process_check`).
+
+``urdfpost verify`` in pieces reads and cuts the program itself and hands each piece read
+(:class:`ReadPiece`) to :class:`ReadChecks`: workers, one per core, each verifying the next
+piece in turn (a read piece carries no state to the next).
 
 The worker never outlives the post: it ignores Ctrl-C (the post stops it), takes the default
 action on ``SIGTERM`` (:meth:`Checks.close` terminates it) and leaves when the post's process is
