@@ -376,6 +376,16 @@ def test_verify_in_pieces_is_the_whole_verify(
     assert (header.tcp, header.units, header.name) == (program.tcp, program.units, program.name)
 
 
+def _spiral(n: int = 3000) -> Toolpath:
+    """A spiral of 4.2 turns at 30 degrees of tilt: more than a C axis limited to two turns
+    (gantry-ca) follows without rewinds."""
+    az = np.radians(np.linspace(0.0, 360.0 * 4.2, n))
+    t = np.radians(30.0)
+    axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
+    tip = np.stack([40 * np.cos(az), 40 * np.sin(az), np.linspace(0, -6, n)], axis=1)
+    return Toolpath.from_points(tip, axis, feed=800.0, source="spiral", spindle=10000.0)
+
+
 def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
     """A program with rewinds (a C axis limited to two turns, a spiral of four): the pieces
     are never cut inside one, and the figures are those of the whole check."""
@@ -385,12 +395,7 @@ def test_verify_in_pieces_with_rewinds(tmp_path: Path) -> None:
     from urdfpost.verification import verify
 
     m = load_machine("gantry-ca")
-    n = 3000
-    az = np.radians(np.linspace(0.0, 360.0 * 4.2, n))
-    t = np.radians(30.0)
-    axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
-    tip = np.stack([40 * np.cos(az), 40 * np.sin(az), np.linspace(0, -6, n)], axis=1)
-    job = Toolpath.from_points(tip, axis, feed=800.0, source="spiral", spindle=10000.0)
+    job = _spiral()
     result = post(job, m, PostOptions(controller="fanuc", tcp=False, strategy="recursive"))
     assert result.report.as_json()["rewinds"]
     path = tmp_path / "spiral.nc"
@@ -418,12 +423,7 @@ def test_verify_in_pieces_in_a_worker_is_the_same_verify(
     from urdfpost.tolerances import Tolerances
 
     m = load_machine("gantry-ca")
-    n = 3000
-    az = np.radians(np.linspace(0.0, 360.0 * 4.2, n))
-    t = np.radians(30.0)
-    axis = np.stack([np.sin(t) * np.cos(az), np.sin(t) * np.sin(az), np.full(n, np.cos(t))], 1)
-    tip = np.stack([40 * np.cos(az), 40 * np.sin(az), np.linspace(0, -6, n)], axis=1)
-    job = Toolpath.from_points(tip, axis, feed=800.0, source="spiral", spindle=10000.0)
+    job = _spiral()
     result = post(job, m, PostOptions(controller=controller, tcp=False, strategy="recursive"))
     tol = Tolerances.for_units("mm")
     length = result.program.tool_length
