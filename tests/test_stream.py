@@ -242,6 +242,43 @@ def test_piece_that_misses_its_tolerance_writes_nothing(
     assert [p.name for p in tmp_path.iterdir()] == ["out.nc"]
 
 
+@pytest.mark.parametrize("parallel", [False, True])
+def test_a_piece_that_fails_to_post_fails_the_post_first(
+    tmp_path: Path, raster: Toolpath, monkeypatch: pytest.MonkeyPatch, parallel: bool
+) -> None:
+    """The second piece fails to post (in the writing thread, with a worker) while the
+    third fails to plan: the post raises the second piece's error, as posting the pieces one
+    after the other does, and writes nothing."""
+    import urdfpost.posting.stream as stream
+    from urdfpost.errors import CollisionError
+
+    real_post, posts = stream.post_piece, []
+    real_plan, plans = stream.STRATEGIES["cone"], []
+
+    def post_piece(*args, **kw):
+        posts.append(1)
+        if len(posts) == 2:
+            raise CollisionError("the second piece collides")
+        return real_post(*args, **kw)
+
+    def plan(problem):
+        plans.append(1)
+        if len(plans) == 3:
+            raise UnreachableError("the third piece is out of reach")
+        return real_plan(problem)
+
+    monkeypatch.setattr(stream, "post_piece", post_piece)
+    monkeypatch.setitem(stream.STRATEGIES, "cone", plan)
+    out = tmp_path / "out.nc"
+    options = PostOptions(controller="heidenhain", tcp=False, strategy="cone")
+    with pytest.raises(CollisionError, match="the second piece collides"):
+        post_stream(toolpath_pieces(raster, 500), load_machine("dmu50"), out, options,
+                    piece_points=1000, lookahead=100, parallel=parallel)  # fmt: skip
+    # (a worker posts the second piece while the third is planned)
+    assert len(plans) == (3 if parallel else 2) and len(posts) == 2
+    assert not list(tmp_path.iterdir())
+
+
 def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> None:
     """An error in the verification worker (here a program line the reader rejects) is raised
     where the post runs, as the same error with its file and line."""
