@@ -509,6 +509,33 @@ def test_cli_verifies_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[st
     # (a piece of one point is a usage error: test_cli_rejects_a_bad_piece_size_as_a_usage_error)
 
 
+@pytest.mark.parametrize(("machine", "tcp"), [("dmu50", False), ("dmu50", True), ("umc750", False)])
+def test_the_last_row_planned_is_the_last_row_posted(
+    raster: Toolpath, machine: str, tcp: bool
+) -> None:
+    """What the next piece is planned from (posting.piece.last_row, solved alone) is the row
+    the piece is posted with: the same rotary angles, the linear values to rounding; on slices
+    of the raster that end inside and outside the bent spans."""
+    from urdfpost.planning.strategies import STRATEGIES
+    from urdfpost.posting.options import resolve
+    from urdfpost.posting.piece import last_row, make_problem, post_piece
+
+    m = load_machine(machine)
+    job = resolve(PostOptions(controller="heidenhain", tcp=tcp), m, raster.units)
+    bent = 0
+    for end in (700, 1900, 2300, 3100, 4000):
+        piece = toolpath_slice(raster, 0, end)
+        problem = make_problem(piece, job)
+        plan = STRATEGIES[job.strategy](problem)
+        bent += bool(plan.bent)
+        planned = last_row(problem, plan)
+        posted = post_piece(piece, job, problem=problem, plan=plan).joints[-1]
+        rot = list(m.rotary_columns)
+        assert np.array_equal(planned[rot], posted[rot])
+        np.testing.assert_allclose(planned, posted, rtol=0.0, atol=1e-9)
+    assert bent  # (some of the plans bend the tool axis)
+
+
 def test_pieces_reassemble_the_toolpath(raster: Toolpath) -> None:
     job = with_events(raster)
     pieces = list(toolpath_pieces(job, 777))

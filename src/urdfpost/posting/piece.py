@@ -20,7 +20,7 @@ import numpy as np
 from urdfpost.errors import CollisionError, UrdfpostError
 from urdfpost.linearize import subdivide
 from urdfpost.machine import Machine
-from urdfpost.planning.realise import with_rewinds
+from urdfpost.planning.realise import solve_rows, with_rewinds
 from urdfpost.planning.rewinds import CUT, LIFT
 from urdfpost.planning.singularity import joined_runs
 from urdfpost.planning.strategies import (
@@ -218,36 +218,20 @@ class Continuation:
     keep_tool: bool = False
 
 
-@dataclass(frozen=True)
-class Realised:
-    """A plan's rows as joint vectors, with the rows of its rewinds (:func:`realised`).
+def last_row(problem: Problem, plan: Plan) -> np.ndarray:
+    """The joint vector of the last row :func:`post_piece` posts ``plan`` with, solved alone,
+    shape (m,), mm and rad; the plan has rows.
 
-    Attributes
-    ----------
-    q : ndarray, shape (N, m)
-        Joint positions, machine units (mm, rad).
-    tip, axis : ndarray, shape (N, 3)
-        Where the tip is (mm) and the tool axis, at each row.
-    param : ndarray, shape (N,)
-        Position of each row along the plan's toolpath (CL point index, fractions between).
-    kind : ndarray, shape (N,), int
-        ``CUT``, or ``LIFT`` / ``TURN`` / ``RETURN`` for the rows of a rewind.
+    Its rotary angles are the plan's last, as posted; its linear values agree with the posted
+    ones to rounding (the posted row is solved with the others). A streamed post plans the
+    next piece from it (where only the rotary angles count) while this one is posted.
     """
-
-    q: np.ndarray
-    tip: np.ndarray
-    axis: np.ndarray
-    param: np.ndarray
-    kind: np.ndarray
-
-
-def realised(problem: Problem, plan: Plan) -> Realised:
-    """The rows :func:`post_piece` posts a plan's path with, before subdivision: the plan
-    realised (:func:`~urdfpost.planning.strategies.realise`) and its rewinds inserted
-    (:func:`~urdfpost.planning.realise.with_rewinds`). The last of them is where a streamed
-    piece ends and the next begins."""
-    q, tip, axis = realise(problem, plan)
-    return Realised(*with_rewinds(problem, plan, q, tip, axis))
+    k = slice(len(plan.param) - 1, None)
+    bent = np.zeros(1, dtype=bool)  # (as :func:`~urdfpost.planning.strategies.realise` has it)
+    if plan.curve is not None:
+        bent = np.isfinite(plan.curve(plan.param[k])).all(axis=1)
+    q, _, _ = solve_rows(problem, plan.toolpath, plan.param[k], plan.rotary[k], plan.lift[k], bent)
+    return q[0]
 
 
 @dataclass(frozen=True)
@@ -290,7 +274,6 @@ def post_piece(
     problem: Problem | None = None,
     plan: Plan | None = None,
     piece: Continuation | None = None,
-    realisation: Realised | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> PostedPiece:
     """The program of a piece of CL data, its moves checked for collisions (no text yet).
@@ -310,9 +293,6 @@ def post_piece(
         When the toolpath is a piece of a streamed post: where it starts, and whether it ends
         the program. The program of a piece that continues another has no row for its first
         CL point (the other's last), and only the last piece switches TCP off at its end.
-    realisation : Realised, optional
-        :func:`realised` of ``plan``, when already made (a streamed post makes it to know
-        where the piece ends before the piece is posted).
     progress : callable, optional
         Called with the number of CL points just processed.
 
@@ -362,8 +342,8 @@ def post_piece(
     joint_lines = np.zeros(0, dtype=int)
     before: np.ndarray | None = None  # the program row before a continued piece's first
     if n:
-        made = realised(problem, plan) if realisation is None else realisation
-        q, tip, axis, param, kind = made.q, made.tip, made.axis, made.param, made.kind
+        q, tip, axis = realise(problem, plan)
+        q, tip, axis, param, kind = with_rewinds(problem, plan, q, tip, axis)
         whole = param == np.round(param)
         owner = np.where(whole, np.round(param), np.ceil(param)).astype(int)
         first = whole.copy()

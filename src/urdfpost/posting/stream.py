@@ -32,7 +32,7 @@ How the pieces join:
   place when the last piece is verified (nothing is left behind on an error). With a
   verification worker, each piece is posted (subdivision, blocks, feeds) and written in a
   thread of its own while the next piece is planned (:class:`_Writing`): the next plan starts
-  from the piece's last row, which its plan gives before it is posted.
+  from the rotary angles of the piece's last row, which its plan gives before it is posted.
 - **Verification** reads back each piece's text with one reader (its modal state carries on
   too) and checks it against the piece's CL points, starting from the last row of the piece
   before: every block of the program is checked once. The figures are merged. On a machine
@@ -73,7 +73,7 @@ from urdfpost.posting import LOOKAHEAD, PIECE_POINTS
 from urdfpost.posting.body import coolant_after
 from urdfpost.posting.header import HeaderFigures, job_header, stock_box
 from urdfpost.posting.options import Job, PostOptions, resolve
-from urdfpost.posting.piece import Continuation, Realised, make_problem, post_piece, realised
+from urdfpost.posting.piece import Continuation, last_row, make_problem, post_piece
 from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications, program_texts
 from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
@@ -207,15 +207,19 @@ def _kept(plan: Plan, point: int, at: int, *, settled: bool) -> _Cut:
 @dataclass(frozen=True)
 class _Piece:
     """A planned piece, for :class:`_Writing` to post: the arguments of
-    :func:`~urdfpost.posting.piece.post_piece` (the continuation's coolant is the writing's),
-    whether it begins a tool section (``fresh``), the index of its first point along the
-    pieces' plan paths joined (``offset``) and the CL points it adds to the progress."""
+    :func:`~urdfpost.posting.piece.post_piece`, whether it begins a tool section (``fresh``),
+    the index of its first point along the pieces' plan paths joined (``offset``) and the CL
+    points it adds to the progress.
+
+    The continuation's start and entry say whether the piece goes on from the one before; the
+    row it goes on from, and the coolant, are the writing's (the row the piece before was
+    posted with; the planning's :func:`~urdfpost.posting.piece.last_row` has its rotary
+    angles, the only part a plan starts from, and its linear values to rounding)."""
 
     toolpath: Toolpath
     job: Job
     problem: Problem
     plan: Plan
-    rows: Realised | None
     continuation: Continuation
     fresh: bool
     offset: int
@@ -268,6 +272,7 @@ class _Writing:
         self.placeholder = 0
         self._writer: ProgramWriter | None = None
         self._coolant: str | None = None  # on where the next piece starts
+        self._last: np.ndarray | None = None  # the last row posted, mm and rad
         self._checks: Checks | None = None
         self._pool: ThreadPoolExecutor | None = None
         self._pending: Future[None] | None = None
@@ -308,15 +313,18 @@ class _Writing:
     def _post(self, piece: _Piece) -> None:
         assert self._checks is not None, "begin() first"
         job = self.job
-        continuation = replace(piece.continuation, coolant=self._coolant)
-        posted = post_piece(
-            piece.toolpath,
-            piece.job,
-            problem=piece.problem,
-            plan=piece.plan,
-            piece=continuation,
-            realisation=piece.rows,
+        given = piece.continuation
+        continuation = replace(
+            given,
+            start=None if given.start is None else self._last,
+            entry=None if given.entry is None else self._last,
+            coolant=self._coolant,
         )
+        posted = post_piece(
+            piece.toolpath, piece.job, problem=piece.problem, plan=piece.plan, piece=continuation
+        )
+        if len(posted.joints):
+            self._last = posted.joints[-1]
         program = posted.program
         leave = continuation.leave  # (it stops the coolant for the next section: its last block)
         self._coolant = coolant_after(program.parts[:-1] if leave else program.parts, self._coolant)
@@ -520,7 +528,6 @@ def post_stream(
                     entry=entry,
                     leave=boundary is not None,
                 )
-                rows = realised(replace(problem, toolpath=piece), plan) if len(piece) else None
                 fresh.append(entry is not None)
                 writing.submit(
                     _Piece(
@@ -528,7 +535,6 @@ def post_stream(
                         section,
                         problem,
                         plan,
-                        rows,
                         continuation,
                         fresh=fresh[-1],
                         offset=offset,
@@ -536,8 +542,8 @@ def post_stream(
                     )
                 )
                 entry = None
-                if rows is not None and len(rows.q):
-                    start = rows.q[-1]  # (the posted piece's last row)
+                if len(plan.param):  # (to plan from: the posted one is the writing's)
+                    start = last_row(problem, plan)
                 count += 1
                 if last:
                     break
