@@ -141,6 +141,100 @@ def _first_max(e: np.ndarray, s: int) -> tuple[int, float]:
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _sampled(
+    joint_column: np.ndarray,
+    joint_rotary: np.ndarray,
+    joint_direction: np.ndarray,
+    joint_pivot: np.ndarray,
+    kinds: np.ndarray,
+    linear_columns: np.ndarray,
+    tool_point: np.ndarray,
+    home_axis: np.ndarray,
+    values: np.ndarray,
+    r0: int,
+    t: np.ndarray,
+    s: int,
+    cos_j: np.ndarray,
+    sin_j: np.ndarray,
+    tcp: bool,
+    pivot: float,
+    qx: np.ndarray,
+    qy: np.ndarray,
+    qz: np.ndarray,
+    vx: np.ndarray,
+    vy: np.ndarray,
+    vz: np.ndarray,
+) -> float:
+    """The measured point and the tool axis of the block from program row ``r0`` to the next
+    at its first ``s`` parameters ``t`` (:meth:`urdfpost.verification.measure._Blocks.errors`,
+    one sample as the others: the kinematics of
+    :func:`urdfpost.kinematics.forward.tip_and_axis_along`, then the pivot up the tool axis; in
+    TCP programs the straight line plus the pivot).
+
+    Parameters
+    ----------
+    joint_column, joint_rotary, joint_direction, joint_pivot, linear_columns, tool_point,
+    home_axis, values, tcp, pivot
+        As :func:`block_deviation`.
+    kinds : ndarray, shape (k,), int64
+        :func:`_kind` of every joint's direction.
+    r0 : int
+    t : ndarray, shape (s,) or longer
+    s : int
+    cos_j, sin_j : ndarray, shape (k, s) or wider
+        The cosine and sine of every rotary joint's angle at the samples (rows of linear
+        joints not read).
+
+    Returns
+    -------
+    float
+        The length of the polyline of the tool tip through the samples, mm (0 in TCP
+        programs: not measured). Written: ``qx, qy, qz`` (mm) and ``vx, vy, vz``, shape (s,)
+        or longer, the measured point and unit tool axis at every sample.
+    """
+    r1 = r0 + 1
+    for k in range(s):
+        p0, p1, p2 = tool_point[0], tool_point[1], tool_point[2]
+        a0, a1, a2 = home_axis[0], home_axis[1], home_axis[2]
+        for j in range(joint_column.shape[0]):
+            w0, w1, w2 = joint_direction[j, 0], joint_direction[j, 1], joint_direction[j, 2]
+            if not joint_rotary[j]:
+                if not tcp:
+                    c = joint_column[j]
+                    value = t[k] * (values[r1, c] - values[r0, c]) + values[r0, c]
+                    p0, p1, p2 = p0 + w0 * value, p1 + w1 * value, p2 + w2 * value
+                continue
+            cos, sin = cos_j[j, k], sin_j[j, k]
+            if not tcp:  # the point about the joint's line
+                c0, c1, c2 = joint_pivot[j, 0], joint_pivot[j, 1], joint_pivot[j, 2]
+                p0, p1, p2 = _turn(kinds[j], w0, w1, w2, cos, sin, p0 - c0, p1 - c1, p2 - c2)
+                p0, p1, p2 = p0 + c0, p1 + c1, p2 + c2
+            a0, a1, a2 = _turn(kinds[j], w0, w1, w2, cos, sin, a0, a1, a2)
+        if tcp:  # the control moves the tip on the straight line
+            lx, ly, lz = linear_columns[0], linear_columns[1], linear_columns[2]
+            p0 = values[r0, lx] + t[k] * (values[r1, lx] - values[r0, lx]) + pivot * a0
+            p1 = values[r0, ly] + t[k] * (values[r1, ly] - values[r0, ly]) + pivot * a1
+            p2 = values[r0, lz] + t[k] * (values[r1, lz] - values[r0, lz]) + pivot * a2
+        qx[k], qy[k], qz[k] = p0, p1, p2
+        vx[k], vy[k], vz[k] = a0, a1, a2
+    length = 0.0
+    if tcp:
+        return length
+    for k in range(s - 1):  # the tip's polyline (feeds.tip_lengths), summed in numpy's order
+        e0, e1, e2 = qx[k + 1] - qx[k], qy[k + 1] - qy[k], qz[k + 1] - qz[k]
+        chord = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        length = length + chord if k else chord
+    if pivot != 0.0:  # the measured point
+        for k in range(s):
+            qx[k], qy[k], qz[k] = (
+                qx[k] + pivot * vx[k],
+                qy[k] + pivot * vy[k],
+                qz[k] + pivot * vz[k],
+            )
+    return length
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _span(
     qx: np.ndarray,
     qy: np.ndarray,
@@ -384,44 +478,32 @@ def block_deviation(
                 for k in range(1, s):
                     cos_j[j, k] = cos_j[j, k - 1] * cd - sin_j[j, k - 1] * sd
                     sin_j[j, k] = sin_j[j, k - 1] * cd + cos_j[j, k - 1] * sd
-        for k in range(s):
-            p0, p1, p2 = tool_point[0], tool_point[1], tool_point[2]
-            a0, a1, a2 = home_axis[0], home_axis[1], home_axis[2]
-            for j in range(n_joints):
-                w0, w1, w2 = joint_direction[j, 0], joint_direction[j, 1], joint_direction[j, 2]
-                if not joint_rotary[j]:
-                    if not tcp:
-                        c = joint_column[j]
-                        value = t[k] * (values[r1, c] - values[r0, c]) + values[r0, c]
-                        p0, p1, p2 = p0 + w0 * value, p1 + w1 * value, p2 + w2 * value
-                    continue
-                cos, sin = cos_j[j, k], sin_j[j, k]
-                if not tcp:  # the point about the joint's line
-                    c0, c1, c2 = joint_pivot[j, 0], joint_pivot[j, 1], joint_pivot[j, 2]
-                    p0, p1, p2 = _turn(kinds[j], w0, w1, w2, cos, sin, p0 - c0, p1 - c1, p2 - c2)
-                    p0, p1, p2 = p0 + c0, p1 + c1, p2 + c2
-                a0, a1, a2 = _turn(kinds[j], w0, w1, w2, cos, sin, a0, a1, a2)
-            if tcp:  # the control moves the tip on the straight line
-                lx, ly, lz = linear_columns[0], linear_columns[1], linear_columns[2]
-                p0 = values[r0, lx] + t[k] * (values[r1, lx] - values[r0, lx]) + pivot * a0
-                p1 = values[r0, ly] + t[k] * (values[r1, ly] - values[r0, ly]) + pivot * a1
-                p2 = values[r0, lz] + t[k] * (values[r1, lz] - values[r0, lz]) + pivot * a2
-            qx[k], qy[k], qz[k] = p0, p1, p2
-            vx[k], vy[k], vz[k] = a0, a1, a2
-        if not tcp:  # the tip's polyline (feeds.tip_lengths), then the measured point
-            for k in range(s - 1):  # summed in order, as numpy sums the rows
-                e0, e1, e2 = qx[k + 1] - qx[k], qy[k + 1] - qy[k], qz[k + 1] - qz[k]
-                chord = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-                length[b] = length[b] + chord if k else chord
-            if not valid[b] or long[b]:
-                continue
-            if pivot != 0.0:
-                for k in range(s):
-                    qx[k], qy[k], qz[k] = (
-                        qx[k] + pivot * vx[k],
-                        qy[k] + pivot * vy[k],
-                        qz[k] + pivot * vz[k],
-                    )
+        length[b] = _sampled(
+            joint_column,
+            joint_rotary,
+            joint_direction,
+            joint_pivot,
+            kinds,
+            linear_columns,
+            tool_point,
+            home_axis,
+            values,
+            r0,
+            t,
+            s,
+            cos_j,
+            sin_j,
+            tcp,
+            pivot,
+            qx,
+            qy,
+            qz,
+            vx,
+            vy,
+            vz,
+        )
+        if not valid[b] or long[b]:
+            continue
         # -- the deviation from the CL span (_span_deviation, _segment_errors) --
         inv_dd0, omega0 = _span(
             qx,
