@@ -1,4 +1,5 @@
-"""The first pass of :func:`urdfpost.verification.measure._block_deviation`, compiled.
+"""The first pass and the refinement of :func:`urdfpost.verification.measure._block_deviation`,
+compiled.
 
 Per feed block, in one loop: the forward kinematics at the block's samples (the tool point and
 axis carried through the chain's joints, as :func:`urdfpost.kinematics.forward.tip_and_axis_along`
@@ -11,6 +12,11 @@ window), the largest of each and the sample it is at, and the bounds over the wh
 :func:`urdfpost.kinematics.forward.interpolation_bounds`). Nothing of size samples times
 blocks is made but the squared distances the mean is summed from.
 
+The refinement (:func:`refine_deviation`) runs the golden-section searches of
+:func:`urdfpost.geometry.refine_max` block by block, each iteration's two points as two
+samples of the first pass's code (:func:`deviation_at`), their cosines and sines of the angle
+itself as numpy takes them there.
+
 Imported by ``_block_deviation`` when it first runs on enough blocks (numba's import takes a
 third of a second); the machine code is cached on disk beside this module (``__pycache__``).
 The numpy path stays the definition: the operations are those of the numpy path in the same
@@ -18,17 +24,19 @@ order, so the squared distances come out the same bit for bit where the cosines 
 the chords differ by the last bits of ``arctan2`` (numpy's vectorised one is not libm's) and of
 the Taylor polynomial of :func:`urdfpost.linearize._turn_chord2` (all its terms here, as many as
 the largest turn of a chunk needs there). ``tests/test_verify_kernel.py`` holds the two to
-:data:`AGREE` per sample on generated jobs of several machines.
+:data:`AGREE` per sample and per refined maximum on generated jobs of several machines.
 
 Blocks compared with more than ``long_span`` CL segments (a program that left the CL path) are
 flagged and left to the numpy path, whose search with bounds (``_far_segments``) does not grow
-with the span.
+with the span; nor are they handed to the refinement.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from urdfpost.geometry import GOLDEN
 
 AGREE = 1e-12
 """How far a squared distance (mm^2) or squared chord of the kernel may be from the numpy
@@ -639,3 +647,180 @@ def point_deviation(
             within, outside, at,
         )  # fmt: skip
         dist2[r], chord2[r] = d2[0], c2[0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _maximum(x: float, y: float) -> float:
+    """``np.maximum`` of two values: the larger, NaN if either is."""
+    return x if x >= y or np.isnan(x) else y
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def deviation_at(
+    joint_column: np.ndarray,
+    joint_rotary: np.ndarray,
+    joint_direction: np.ndarray,
+    joint_pivot: np.ndarray,
+    kinds: np.ndarray,
+    linear_columns: np.ndarray,
+    tool_point: np.ndarray,
+    home_axis: np.ndarray,
+    values: np.ndarray,
+    r0: int,
+    first: int,
+    span: int,
+    px: np.ndarray,
+    py: np.ndarray,
+    pz: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    az: np.ndarray,
+    omega_of: np.ndarray,
+    tcp: bool,
+    pivot: float,
+    window: float,
+    u: np.ndarray,
+    s: int,
+    dist2: np.ndarray,
+    chord2: np.ndarray,
+    work: np.ndarray,
+    trig: np.ndarray,
+) -> None:
+    """The squared distance and chord of one block at the parameters ``u`` against its CL
+    span (:meth:`urdfpost.verification.measure._Blocks.errors` of one block at parameters of
+    its own): the first pass's samples of :func:`block_deviation`, with the cosines and sines
+    of the angles themselves (as :func:`urdfpost.kinematics.forward.tip_and_axis_along` takes
+    them at parameters that are not one evenly spaced set).
+
+    Parameters
+    ----------
+    joint_column, joint_rotary, joint_direction, joint_pivot, kinds, linear_columns,
+    tool_point, home_axis, values, r0, tcp, pivot
+        As :func:`_sampled`.
+    first, span : int
+        The first CL segment of the block's span and how many segments it has.
+    px, py, pz, ax, ay, az, omega_of, window
+        As :func:`block_deviation`.
+    u : ndarray, shape (s,) or longer
+        The parameters, in [0, 1].
+    s : int
+    work : ndarray, shape (9, s) or wider
+        Scratch.
+    trig : ndarray, shape (2, k, s) or wider
+        Scratch for the cosines and sines.
+
+    Returns
+    -------
+    None
+        Written: ``dist2`` (mm^2) and ``chord2``, shape (s,) or longer.
+    """
+    r1 = r0 + 1
+    cos_j, sin_j = trig[0], trig[1]
+    for j in range(joint_column.shape[0]):
+        if joint_rotary[j]:
+            c = joint_column[j]
+            for k in range(s):  # q0 + t dq, as numpy sums the two terms
+                angle = u[k] * (values[r1, c] - values[r0, c]) + values[r0, c]
+                cos_j[j, k], sin_j[j, k] = np.cos(angle), np.sin(angle)
+    _sampled(
+        joint_column, joint_rotary, joint_direction, joint_pivot, kinds, linear_columns,
+        tool_point, home_axis, values, r0, u, s, cos_j, sin_j, tcp, pivot, work[0], work[1],
+        work[2], work[3], work[4], work[5],
+    )  # fmt: skip
+    _span(
+        work[0], work[1], work[2], work[3], work[4], work[5], s, first, span, px, py, pz, ax,
+        ay, az, omega_of, window, dist2, chord2, work[6], work[7], work[8],
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def refine_deviation(
+    joint_column: np.ndarray,
+    joint_rotary: np.ndarray,
+    joint_direction: np.ndarray,
+    joint_pivot: np.ndarray,
+    linear_columns: np.ndarray,
+    tool_point: np.ndarray,
+    home_axis: np.ndarray,
+    values: np.ndarray,
+    start: np.ndarray,
+    ja: np.ndarray,
+    jb: np.ndarray,
+    px: np.ndarray,
+    py: np.ndarray,
+    pz: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    az: np.ndarray,
+    omega_of: np.ndarray,
+    t: np.ndarray,
+    tcp: bool,
+    pivot: float,
+    window: float,
+    iterations: int,
+    worst: np.ndarray,
+    wanted: np.ndarray,
+    best: np.ndarray,
+) -> None:
+    """The refinement of the first pass's maxima (the squared distance and the squared chord)
+    of blocks: :func:`urdfpost.geometry.refine_max` of every block, both golden-section
+    searches of a block in one loop, each point evaluated by :func:`deviation_at`.
+
+    A block's searches do not depend on other blocks, so the brackets, the points evaluated
+    and the maxima are those of ``refine_max`` given the same evaluations.
+
+    Parameters
+    ----------
+    joint_column, joint_rotary, joint_direction, joint_pivot, linear_columns, tool_point,
+    home_axis, values
+        As :func:`block_deviation`.
+    start, ja, jb : ndarray, shape (n,), int64
+        First row and CL span of each block refined.
+    px, py, pz, ax, ay, az, omega_of, tcp, pivot, window
+        As :func:`block_deviation`.
+    t : ndarray, shape (s,)
+        The first pass's sample parameters, evenly spaced.
+    iterations : int
+        Golden-section iterations.
+    worst : ndarray, shape (2, n), int64
+        The sample of each block's largest squared distance and chord.
+    wanted : ndarray, shape (2, n), bool
+        The blocks whose largest squared distance, and squared chord, are refined.
+    best : ndarray, shape (2, n)
+        The largest squared distance (mm^2) and chord sampled; updated in place to the
+        largest seen.
+
+    Returns
+    -------
+    None
+    """
+    n_joints = joint_column.shape[0]
+    kinds = np.empty(n_joints, dtype=np.int64)
+    for j in range(n_joints):
+        kinds[j] = _kind(joint_direction[j, 0], joint_direction[j, 1], joint_direction[j, 2])
+    h = t[1] - t[0] if t.shape[0] > 1 else 0.5
+    u, work, trig = np.empty(2), np.empty((9, 2)), np.empty((2, n_joints, 2))
+    dist2, chord2 = np.empty(2), np.empty(2)
+    for b in range(start.shape[0]):
+        span = max(jb[b] - ja[b], 1)
+        for i in range(2):
+            if not wanted[i, b]:
+                continue
+            value = dist2 if i == 0 else chord2
+            lo = _clip(t[worst[i, b]] - h, 0.0, 1.0)
+            hi = _clip(t[worst[i, b]] + h, 0.0, 1.0)
+            top = best[i, b]
+            for _ in range(iterations):  # both points of an iteration as two samples
+                u[0] = hi - GOLDEN * (hi - lo)
+                u[1] = lo + GOLDEN * (hi - lo)
+                deviation_at(
+                    joint_column, joint_rotary, joint_direction, joint_pivot, kinds,
+                    linear_columns, tool_point, home_axis, values, start[b], ja[b], span, px, py,
+                    pz, ax, ay, az, omega_of, tcp, pivot, window, u, 2, dist2, chord2, work, trig,
+                )  # fmt: skip
+                top = _maximum(top, _maximum(value[0], value[1]))
+                if value[0] > value[1]:  # on [lo, u[1]] from here
+                    hi = u[1]
+                else:
+                    lo = u[0]
+            best[i, b] = top
