@@ -278,17 +278,22 @@ def _kernel_errors(feed: _Blocks, inputs: measure._KernelInputs, blocks: np.ndar
     kinds = np.array([_deviation_kernel._kind(*w) for w in c.direction], dtype=np.int64)
     u, dist2, chord2 = np.empty(1), np.empty(1), np.empty(1)
     work, trig = np.empty((9, 1)), np.empty((2, len(c.column), 1))
+    frames = np.empty((measure._LONG, _deviation_kernel._FRAME))
 
     def errors(idx: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         d2, c2 = np.empty(len(idx)), np.empty(len(idx))
         for m, (i, x) in enumerate(zip(idx, tt, strict=True)):
             b = blocks[i]
+            span = max(inputs.jb[b] - inputs.ja[b], 1)
+            _deviation_kernel._frames(
+                inputs.ja[b], span, *feed.polyline.tip, *feed.polyline.axis, inputs.omega,
+                feed.window, frames,
+            )  # fmt: skip
             u[0] = x
             _deviation_kernel.deviation_at(
                 c.column, c.rotary, c.direction, c.pivot, kinds, inputs.linear, c.tool_point,
-                c.home_axis, inputs.values, inputs.start[b], inputs.ja[b],
-                max(inputs.jb[b] - inputs.ja[b], 1), *feed.polyline.tip, *feed.polyline.axis,
-                inputs.omega, feed.tcp, feed.pivot, feed.window, u, 1, dist2, chord2, work, trig,
+                c.home_axis, inputs.values, inputs.start[b], span, frames, feed.tcp, feed.pivot,
+                feed.window, u, 1, dist2, chord2, work, trig,
             )  # fmt: skip
             d2[m], c2[m] = dist2[0], chord2[0]
         return d2, c2

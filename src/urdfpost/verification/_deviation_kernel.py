@@ -242,15 +242,12 @@ def _sampled(
     return length
 
 
+_FRAME = 18
+"""Numbers per CL segment in the rows of :func:`_frames`."""
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _span(
-    qx: np.ndarray,
-    qy: np.ndarray,
-    qz: np.ndarray,
-    vx: np.ndarray,
-    vy: np.ndarray,
-    vz: np.ndarray,
-    s: int,
+def _frames(
     first: int,
     span: int,
     px: np.ndarray,
@@ -261,30 +258,15 @@ def _span(
     az: np.ndarray,
     omega_of: np.ndarray,
     window: float,
-    dist2: np.ndarray,
-    chord2: np.ndarray,
-    within: np.ndarray,
-    outside0: np.ndarray,
-    at0: np.ndarray,
-) -> tuple[float, float]:
-    """:func:`urdfpost.verification.measure._span_deviation` of the first ``s`` points ``q``
-    (mm) and unit axes ``v`` against the CL segments ``first .. first + span - 1``.
-
-    Writes the squared distance from the nearest segment (the first of equals) into
-    ``dist2``, the squared chord to the CL orientation in the window (that of the nearest
-    segment where no segment is within the window) into ``chord2``, and, of the first
-    segment, how far the projection parameter falls outside [0, 1] and the chord at it into
-    ``outside0`` and ``at0`` (``within``: scratch); all shape (s,) or longer.
-
-    Returns
-    -------
-    inv_dd, omega : float
-        Of the first segment: its inverse squared length (0 for a point) and the angle of its
-        arc, rad.
-    """
+    frames: np.ndarray,
+) -> None:
+    """The CL segments ``first .. first + span - 1`` and their arcs as :func:`_span` compares
+    samples with them, one row of ``frames`` (shape (span, :data:`_FRAME`) or larger) each:
+    the start (mm) and the step to the next CL point (mm), the inverse squared length (0 for a
+    point, 1/mm^2), the half window in the segment's parameter (inf for a point), the arc's
+    frame (its start, the unit direction it turns towards and their cross product,
+    :func:`urdfpost.linearize._frame`) and its angle (rad)."""
     last = px.shape[0] - 1
-    window2 = window * window
-    inv_dd0 = omega0 = 0.0
     for off in range(span):
         a = min(first + off, last)
         nxt = min(a + 1, last)
@@ -300,7 +282,6 @@ def _span(
         sine = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
         inv = 1.0 / sine if sine > 0 else 0.0
         g0, g1, g2 = g0 * inv, g1 * inv, g2 * inv
-        omega = omega_of[a]
         dot = g0 * u0 + g1 * u1 + g2 * u2
         m0, m1, m2 = g0 - dot * u0, g1 - dot * u1, g2 - dot * u2
         length = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
@@ -317,8 +298,47 @@ def _span(
             length = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
         m0, m1, m2 = m0 / length, m1 / length, m2 / length
         k0, k1, k2 = u1 * m2 - u2 * m1, u2 * m0 - u0 * m2, u0 * m1 - u1 * m0
-        if off == 0:
-            inv_dd0, omega0 = inv_dd, omega
+        f = frames[off]
+        f[0], f[1], f[2], f[3], f[4], f[5] = sx, sy, sz, dx, dy, dz
+        f[6], f[7], f[8], f[9], f[10] = inv_dd, half, u0, u1, u2
+        f[11], f[12], f[13], f[14], f[15], f[16] = m0, m1, m2, k0, k1, k2
+        f[17] = omega_of[a]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _span(
+    qx: np.ndarray,
+    qy: np.ndarray,
+    qz: np.ndarray,
+    vx: np.ndarray,
+    vy: np.ndarray,
+    vz: np.ndarray,
+    s: int,
+    span: int,
+    frames: np.ndarray,
+    window: float,
+    dist2: np.ndarray,
+    chord2: np.ndarray,
+    within: np.ndarray,
+    outside0: np.ndarray,
+    at0: np.ndarray,
+) -> None:
+    """:func:`urdfpost.verification.measure._span_deviation` of the first ``s`` points ``q``
+    (mm) and unit axes ``v`` against the ``span`` CL segments of ``frames`` (:func:`_frames`).
+
+    Writes the squared distance from the nearest segment (the first of equals) into
+    ``dist2``, the squared chord to the CL orientation in the window (that of the nearest
+    segment where no segment is within the window) into ``chord2``, and, of the first
+    segment, how far the projection parameter falls outside [0, 1] and the chord at it into
+    ``outside0`` and ``at0`` (``within``: scratch); all shape (s,) or longer.
+    """
+    window2 = window * window
+    for off in range(span):
+        f = frames[off]
+        sx, sy, sz, dx, dy, dz = f[0], f[1], f[2], f[3], f[4], f[5]
+        inv_dd, half, u0, u1, u2 = f[6], f[7], f[8], f[9], f[10]
+        m0, m1, m2, k0, k1, k2 = f[11], f[12], f[13], f[14], f[15], f[16]
+        omega = f[17]
         for k in range(s):
             w0, w1, w2 = qx[k] - sx, qy[k] - sy, qz[k] - sz
             raw = w0 * dx + w1 * dy
@@ -357,7 +377,6 @@ def _span(
     for k in range(s):
         if np.isfinite(within[k]):
             chord2[k] = within[k]
-    return inv_dd0, omega0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -465,6 +484,7 @@ def block_deviation(
     outside0 = np.empty(s)
     at0 = np.empty(s)
     reach_j, swing_j = np.empty(n_joints), np.empty(n_joints)
+    frames = np.empty((max(long_span, 1), _FRAME))
     for b in range(n):
         span = max(jb[b] - ja[b], 1)
         long[b] = valid[b] and span > long_span
@@ -513,30 +533,9 @@ def block_deviation(
         if not valid[b] or long[b]:
             continue
         # -- the deviation from the CL span (_span_deviation, _segment_errors) --
-        inv_dd0, omega0 = _span(
-            qx,
-            qy,
-            qz,
-            vx,
-            vy,
-            vz,
-            s,
-            ja[b],
-            span,
-            px,
-            py,
-            pz,
-            ax,
-            ay,
-            az,
-            omega_of,
-            window,
-            d2s,
-            chord2,
-            within,
-            outside0,
-            at0,
-        )
+        _frames(ja[b], span, px, py, pz, ax, ay, az, omega_of, window, frames)
+        _span(qx, qy, qz, vx, vy, vz, s, span, frames, window, d2s, chord2, within, outside0, at0)
+        inv_dd0, omega0 = frames[0, 6], frames[0, 17]
         for k in range(s):
             dist2[k, b] = d2s[k]
         worst[0, b], best[0, b] = _first_max(d2s, s)
@@ -636,15 +635,16 @@ def point_deviation(
         the points of spans longer than ``long_span`` (not measured).
     """
     d2, c2, within, outside, at = np.empty(1), np.empty(1), np.empty(1), np.empty(1), np.empty(1)
+    frames = np.empty((max(long_span, 1), _FRAME))
     for r in range(tx.shape[0]):
         span = max(jb[r] - ja[r], 1)
         long[r] = span > long_span
         if long[r]:
             continue
+        _frames(ja[r], span, px, py, pz, ax, ay, az, omega_of, window, frames)
         _span(
             tx[r : r + 1], ty[r : r + 1], tz[r : r + 1], vx[r : r + 1], vy[r : r + 1],
-            vz[r : r + 1], 1, ja[r], span, px, py, pz, ax, ay, az, omega_of, window, d2, c2,
-            within, outside, at,
+            vz[r : r + 1], 1, span, frames, window, d2, c2, within, outside, at,
         )  # fmt: skip
         dist2[r], chord2[r] = d2[0], c2[0]
 
@@ -667,15 +667,8 @@ def deviation_at(
     home_axis: np.ndarray,
     values: np.ndarray,
     r0: int,
-    first: int,
     span: int,
-    px: np.ndarray,
-    py: np.ndarray,
-    pz: np.ndarray,
-    ax: np.ndarray,
-    ay: np.ndarray,
-    az: np.ndarray,
-    omega_of: np.ndarray,
+    frames: np.ndarray,
     tcp: bool,
     pivot: float,
     window: float,
@@ -697,10 +690,11 @@ def deviation_at(
     joint_column, joint_rotary, joint_direction, joint_pivot, kinds, linear_columns,
     tool_point, home_axis, values, r0, tcp, pivot
         As :func:`_sampled`.
-    first, span : int
-        The first CL segment of the block's span and how many segments it has.
-    px, py, pz, ax, ay, az, omega_of, window
-        As :func:`block_deviation`.
+    span : int
+        How many CL segments the block's span has.
+    frames : ndarray, shape (span, _FRAME) or larger
+        :func:`_frames` of them.
+    window : float, mm
     u : ndarray, shape (s,) or longer
         The parameters, in [0, 1].
     s : int
@@ -728,8 +722,8 @@ def deviation_at(
         work[2], work[3], work[4], work[5],
     )  # fmt: skip
     _span(
-        work[0], work[1], work[2], work[3], work[4], work[5], s, first, span, px, py, pz, ax,
-        ay, az, omega_of, window, dist2, chord2, work[6], work[7], work[8],
+        work[0], work[1], work[2], work[3], work[4], work[5], s, span, frames, window, dist2,
+        chord2, work[6], work[7], work[8],
     )  # fmt: skip
 
 
@@ -764,7 +758,8 @@ def refine_deviation(
 ) -> None:
     """The refinement of the first pass's maxima (the squared distance and the squared chord)
     of blocks: :func:`urdfpost.geometry.refine_max` of every block, both golden-section
-    searches of a block in one loop, each point evaluated by :func:`deviation_at`.
+    searches of a block in one loop, the two points of each iteration evaluated together by
+    :func:`deviation_at` against the block's CL segments, worked out once (:func:`_frames`).
 
     A block's searches do not depend on other blocks, so the brackets, the points evaluated
     and the maxima are those of ``refine_max`` given the same evaluations.
@@ -801,8 +796,14 @@ def refine_deviation(
     h = t[1] - t[0] if t.shape[0] > 1 else 0.5
     u, work, trig = np.empty(2), np.empty((9, 2)), np.empty((2, n_joints, 2))
     dist2, chord2 = np.empty(2), np.empty(2)
+    most = 1
+    for b in range(start.shape[0]):
+        most = max(most, jb[b] - ja[b])
+    frames = np.empty((most, _FRAME))
     for b in range(start.shape[0]):
         span = max(jb[b] - ja[b], 1)
+        if wanted[0, b] or wanted[1, b]:
+            _frames(ja[b], span, px, py, pz, ax, ay, az, omega_of, window, frames)
         for i in range(2):
             if not wanted[i, b]:
                 continue
@@ -815,8 +816,8 @@ def refine_deviation(
                 u[1] = lo + GOLDEN * (hi - lo)
                 deviation_at(
                     joint_column, joint_rotary, joint_direction, joint_pivot, kinds,
-                    linear_columns, tool_point, home_axis, values, start[b], ja[b], span, px, py,
-                    pz, ax, ay, az, omega_of, tcp, pivot, window, u, 2, dist2, chord2, work, trig,
+                    linear_columns, tool_point, home_axis, values, start[b], span, frames, tcp,
+                    pivot, window, u, 2, dist2, chord2, work, trig,
                 )  # fmt: skip
                 top = _maximum(top, _maximum(value[0], value[1]))
                 if value[0] > value[1]:  # on [lo, u[1]] from here
