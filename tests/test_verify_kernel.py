@@ -1,7 +1,8 @@
-"""The compiled first pass of verification's block deviation
-(:mod:`urdfpost.verification._deviation_kernel`) against the numpy path it stands for: per
-sample, per block (maxima, the samples they are at, the bounds), and through whole
-verifications of posted programs, good and damaged; and the numpy path when it cannot run."""
+"""The compiled first pass and refinement of verification's block deviation
+(:mod:`urdfpost.verification._deviation_kernel`) against the numpy path they stand for: per
+sample, per block (maxima, the samples they are at, the bounds, the refined maxima), and
+through whole verifications of posted programs, good and damaged; and the numpy path when they
+cannot run."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import functools
 import re
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,7 +20,7 @@ from hypothesis import strategies as st
 import urdfpost.verification.measure as measure
 from urdfpost import load_machine
 from urdfpost.dialects import dialect_for
-from urdfpost.geometry import chunks
+from urdfpost.geometry import chunks, refine_max
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.linearize import RowPoses
 from urdfpost.machine import Machine
@@ -33,6 +35,7 @@ from urdfpost.verification.measure import _Blocks, _Polyline
 
 pytest.importorskip("numba")
 
+from urdfpost.verification import _deviation_kernel
 from urdfpost.verification._deviation_kernel import AGREE
 
 DOME = Path(__file__).resolve().parents[1] / "examples" / "dome.apt"
@@ -251,6 +254,94 @@ def test_compiled_bounds_hold() -> None:
             assert np.all(np.sqrt(chord2.max(axis=0))[compared] <= bound[1][compared] + 1e-12)
 
 
+def _refined(
+    feed: _Blocks, rng: np.random.Generator
+) -> tuple[measure._KernelInputs, np.ndarray, tuple, tuple, tuple]:
+    """The compiled first pass over every block, and a random half of the compared blocks to
+    refine by tip and four fifths by orientation: the inputs, the blocks refined, and the
+    samples worst, the maxima sampled and the blocks wanted (of each of the two)."""
+    kernels = measure._kernel()
+    inputs = measure._KernelInputs.of(feed)
+    assert kernels is not None and inputs is not None
+    n = len(feed.start)
+    _, best, worst, _, _ = measure._first_pass_compiled(kernels.block, inputs, feed, slice(0, n), T)
+    assert feed.valid is not None
+    wanted = (rng.random(n) < 0.5) & feed.valid, (rng.random(n) < 0.8) & feed.valid
+    todo = np.flatnonzero(wanted[0] | wanted[1])
+    return inputs, todo, (worst[0], worst[1]), (best[0], best[1]), wanted
+
+
+def _kernel_errors(feed: _Blocks, inputs: measure._KernelInputs, blocks: np.ndarray):
+    """``refine_max``'s function of the blocks, each point through the kernel's evaluation
+    (``deviation_at``) on its own."""
+    c = inputs.chain
+    kinds = np.array([_deviation_kernel._kind(*w) for w in c.direction], dtype=np.int64)
+    u, dist2, chord2 = np.empty(1), np.empty(1), np.empty(1)
+    work, trig = np.empty((9, 1)), np.empty((2, len(c.column), 1))
+    frames = np.empty((measure._LONG, _deviation_kernel._FRAME))
+
+    def errors(idx: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d2, c2 = np.empty(len(idx)), np.empty(len(idx))
+        for m, (i, x) in enumerate(zip(idx, tt, strict=True)):
+            b = blocks[i]
+            span = max(inputs.jb[b] - inputs.ja[b], 1)
+            _deviation_kernel._frames(
+                inputs.ja[b], span, *feed.polyline.tip, *feed.polyline.axis, inputs.omega,
+                feed.window, frames,
+            )  # fmt: skip
+            u[0] = x
+            _deviation_kernel.deviation_at(
+                c.column, c.rotary, c.direction, c.pivot, kinds, inputs.linear, c.tool_point,
+                c.home_axis, inputs.values, inputs.start[b], span, frames, feed.tcp, feed.pivot,
+                feed.window, u, 1, dist2, chord2, work, trig,
+            )  # fmt: skip
+            d2[m], c2[m] = dist2[0], chord2[0]
+        return d2, c2
+
+    return errors
+
+
+@pytest.mark.parametrize("name", MACHINES)
+@pytest.mark.parametrize("tcp", [False, True])
+@pytest.mark.parametrize("pivot", [0.0, 3.0])
+def test_compiled_refinement_is_refine_max(name: str, tcp: bool, pivot: float) -> None:
+    """The compiled refinement of blocks of every kind of machine: the maxima of
+    ``refine_max`` with the kernel's evaluations, to the bit (the same brackets), and within
+    AGREE of ``refine_max`` with numpy's; the blocks of long spans left to numpy, untouched."""
+    rng = np.random.default_rng(hash((name, tcp, pivot, "refine")) % 2**32)
+    for scale in (0.002, 0.05, 0.5):
+        feed = _feed(machine(name), rng, 60, scale, tcp, pivot)
+        inputs, todo, worst, best, wanted = _refined(feed, rng)
+        kernels = measure._kernel()
+        assert kernels is not None
+        got = (best[0].copy(), best[1].copy())
+        left = measure._refine_compiled(kernels.refine, inputs, feed, todo, T, worst, got, wanted)
+        long = np.maximum(feed.jb - feed.ja, 1)[todo] > measure._LONG
+        assert np.array_equal(left, todo[long])
+        short = todo[~long]
+        args = (
+            T,
+            (worst[0][short], worst[1][short]),
+            (best[0][short], best[1][short]),
+            (wanted[0][short], wanted[1][short]),
+        )
+        with_kernel = refine_max(_kernel_errors(feed, inputs, short), *args, measure._ITERATIONS)
+
+        def numpy_errors(
+            idx: np.ndarray, tt: np.ndarray, feed: _Blocks = feed, short: np.ndarray = short
+        ) -> tuple[np.ndarray, np.ndarray]:
+            dist2, chord2 = feed.errors(short[idx], tt[None, :])
+            return dist2[0], chord2[0]
+
+        with_numpy = refine_max(numpy_errors, *args, measure._ITERATIONS)
+        for i in range(2):
+            assert np.array_equal(got[i][short], with_kernel[i])
+            _agree(got[i][short], with_numpy[i])
+            assert np.array_equal(got[i][left], best[i][left])
+            # refined where wanted: never below the sampled maximum
+            assert np.all(got[i][short] >= best[i][short])
+
+
 @functools.cache
 def _posted(tcp: bool) -> tuple[str, float]:
     """The dome job posted (fanuc), its text and tool length."""
@@ -306,7 +397,7 @@ def test_block_deviation_falls_back_to_numpy_when_the_kernel_fails(
     def broken(*args: object) -> None:
         raise RuntimeError("cannot cache function 'block_deviation': no locator available")
 
-    kernels = measure._Kernels(broken, broken)
+    kernels = measure._Kernels(broken, broken, broken)
     monkeypatch.setattr(measure, "COMPILED_FROM", 1)
     monkeypatch.setattr(measure, "_compiled", lambda: None if measure._KERNEL_FAILED else kernels)
     monkeypatch.setattr(measure, "_KERNEL_FAILED", [])
@@ -315,3 +406,73 @@ def test_block_deviation_falls_back_to_numpy_when_the_kernel_fails(
     assert "compiled block deviation unavailable (cannot cache function" in caplog.text
     assert measure._KERNEL_FAILED
     assert verify(program, m, job, tool_length=tool_length) == want
+
+
+def test_refinement_falls_back_to_numpy_when_its_kernel_fails(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The first pass compiled, the refinement's kernel failing: a warning, and every block
+    wanted refined by numpy (``refine_max``), within AGREE of the numpy path's maxima."""
+    feed = _feed(machine("dmu50"), np.random.default_rng(11), 200, 0.05, False, 3.0)
+    levels = [(0.0, 0.0)]
+    monkeypatch.setattr(measure, "COMPILED_FROM", 10**12)
+    (want,) = measure._block_deviation([feed], levels)
+    real = measure._kernel()
+    assert real is not None
+
+    def broken(*args: object) -> None:
+        raise RuntimeError("cannot cache function 'refine_deviation': no locator available")
+
+    refined: list[int] = []
+
+    def spy(*args: Any, **kwargs: Any) -> tuple[np.ndarray, np.ndarray]:
+        wanted = args[4]
+        refined.append(int(wanted[0].sum() + wanted[1].sum()))
+        return refine_max(*args, **kwargs)
+
+    kernels = measure._Kernels(real.block, real.point, broken)
+    monkeypatch.setattr(measure, "COMPILED_FROM", 1)
+    monkeypatch.setattr(measure, "_compiled", lambda: None if measure._KERNEL_FAILED else kernels)
+    monkeypatch.setattr(measure, "_KERNEL_FAILED", [])
+    monkeypatch.setattr(measure, "refine_max", spy)
+    with caplog.at_level("WARNING", logger="urdfpost.verification.measure"):
+        (got,) = measure._block_deviation([feed], levels)
+    assert "compiled block deviation unavailable (cannot cache function" in caplog.text
+    assert measure._KERNEL_FAILED
+    assert sum(refined) > 0
+    _agree(got.tip, want.tip)
+    _agree(got.block_chord2, want.block_chord2)
+
+
+def test_without_numba_the_numpy_path_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No numba (the kernels' module cannot be imported): no kernels, whatever the size, and
+    the verification the numpy path gives."""
+    import builtins
+
+    text, tool_length = _posted(False)
+    program = dialect_for("fanuc").read(text, path="prog.nc")
+    m = machine("dmu50")
+    job = read_cl(DOME)
+    monkeypatch.setattr(measure, "COMPILED_FROM", 10**12)
+    want = verify(program, m, job, tool_length=tool_length)
+    real_import = builtins.__import__
+
+    def no_kernels(name: str, *args: object, **kwargs: object) -> object:
+        if name == "urdfpost.verification._deviation_kernel":
+            raise ImportError("no numba here")
+        return real_import(name, *args, **kwargs)  # type: ignore[arg-type]
+
+    def compiled(*args: object) -> None:
+        raise AssertionError("a compiled pass ran")
+
+    measure._kernel.cache_clear()
+    monkeypatch.setattr(builtins, "__import__", no_kernels)
+    monkeypatch.setattr(measure, "COMPILED_FROM", 1)
+    monkeypatch.setattr(measure, "_first_pass_compiled", compiled)
+    monkeypatch.setattr(measure, "_refine_compiled", compiled)
+    try:
+        assert measure._compiled() is None
+        assert verify(program, m, job, tool_length=tool_length) == want
+    finally:
+        monkeypatch.undo()
+        measure._kernel.cache_clear()

@@ -382,7 +382,7 @@ def angle_from_chord2(chord2: np.ndarray | float) -> np.ndarray | np.float64:
     return 2.0 * np.arctan2(np.sqrt(chord2), np.sqrt(np.maximum(4.0 - chord2, 0.0)))
 
 
-_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 """The inverse golden ratio: the golden-section search of :func:`refine_max` keeps this share
 of its bracket every iteration."""
 
@@ -434,8 +434,8 @@ def refine_max(
     n0, n1 = len(rows[0]), len(rows[1])
     parts = [slice(0, n0), slice(n0, 2 * n0), slice(2 * n0, 2 * n0 + n1), slice(2 * n0 + n1, None)]
     for _ in range(iterations):
-        a = [hi[i] - _GOLDEN * (hi[i] - lo[i]) for i in range(2)]
-        b = [lo[i] + _GOLDEN * (hi[i] - lo[i]) for i in range(2)]
+        a = [hi[i] - GOLDEN * (hi[i] - lo[i]) for i in range(2)]
+        b = [lo[i] + GOLDEN * (hi[i] - lo[i]) for i in range(2)]
         values = errors(blocks, np.concatenate([a[0], b[0], a[1], b[1]]))
         for i in range(2):
             fa, fb = values[i][parts[2 * i]], values[i][parts[2 * i + 1]]

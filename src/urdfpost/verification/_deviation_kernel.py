@@ -1,4 +1,5 @@
-"""The first pass of :func:`urdfpost.verification.measure._block_deviation`, compiled.
+"""The first pass and the refinement of :func:`urdfpost.verification.measure._block_deviation`,
+compiled.
 
 Per feed block, in one loop: the forward kinematics at the block's samples (the tool point and
 axis carried through the chain's joints, as :func:`urdfpost.kinematics.forward.tip_and_axis_along`
@@ -11,6 +12,11 @@ window), the largest of each and the sample it is at, and the bounds over the wh
 :func:`urdfpost.kinematics.forward.interpolation_bounds`). Nothing of size samples times
 blocks is made but the squared distances the mean is summed from.
 
+The refinement (:func:`refine_deviation`) runs the golden-section searches of
+:func:`urdfpost.geometry.refine_max` block by block, each iteration's two points as two
+samples of the first pass's code (:func:`deviation_at`), their cosines and sines of the angle
+itself as numpy takes them there.
+
 Imported by ``_block_deviation`` when it first runs on enough blocks (numba's import takes a
 third of a second); the machine code is cached on disk beside this module (``__pycache__``).
 The numpy path stays the definition: the operations are those of the numpy path in the same
@@ -18,17 +24,19 @@ order, so the squared distances come out the same bit for bit where the cosines 
 the chords differ by the last bits of ``arctan2`` (numpy's vectorised one is not libm's) and of
 the Taylor polynomial of :func:`urdfpost.linearize._turn_chord2` (all its terms here, as many as
 the largest turn of a chunk needs there). ``tests/test_verify_kernel.py`` holds the two to
-:data:`AGREE` per sample on generated jobs of several machines.
+:data:`AGREE` per sample and per refined maximum on generated jobs of several machines.
 
 Blocks compared with more than ``long_span`` CL segments (a program that left the CL path) are
 flagged and left to the numpy path, whose search with bounds (``_far_segments``) does not grow
-with the span.
+with the span; nor are they handed to the refinement.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from urdfpost.geometry import GOLDEN
 
 AGREE = 1e-12
 """How far a squared distance (mm^2) or squared chord of the kernel may be from the numpy
@@ -141,14 +149,105 @@ def _first_max(e: np.ndarray, s: int) -> tuple[int, float]:
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _span(
+def _sampled(
+    joint_column: np.ndarray,
+    joint_rotary: np.ndarray,
+    joint_direction: np.ndarray,
+    joint_pivot: np.ndarray,
+    kinds: np.ndarray,
+    linear_columns: np.ndarray,
+    tool_point: np.ndarray,
+    home_axis: np.ndarray,
+    values: np.ndarray,
+    r0: int,
+    t: np.ndarray,
+    s: int,
+    cos_j: np.ndarray,
+    sin_j: np.ndarray,
+    tcp: bool,
+    pivot: float,
     qx: np.ndarray,
     qy: np.ndarray,
     qz: np.ndarray,
     vx: np.ndarray,
     vy: np.ndarray,
     vz: np.ndarray,
-    s: int,
+) -> float:
+    """The measured point and the tool axis of the block from program row ``r0`` to the next
+    at its first ``s`` parameters ``t`` (:meth:`urdfpost.verification.measure._Blocks.errors`,
+    one sample as the others: the kinematics of
+    :func:`urdfpost.kinematics.forward.tip_and_axis_along`, then the pivot up the tool axis; in
+    TCP programs the straight line plus the pivot).
+
+    Parameters
+    ----------
+    joint_column, joint_rotary, joint_direction, joint_pivot, linear_columns, tool_point,
+    home_axis, values, tcp, pivot
+        As :func:`block_deviation`.
+    kinds : ndarray, shape (k,), int64
+        :func:`_kind` of every joint's direction.
+    r0 : int
+    t : ndarray, shape (s,) or longer
+    s : int
+    cos_j, sin_j : ndarray, shape (k, s) or wider
+        The cosine and sine of every rotary joint's angle at the samples (rows of linear
+        joints not read).
+
+    Returns
+    -------
+    float
+        The length of the polyline of the tool tip through the samples, mm (0 in TCP
+        programs: not measured). Written: ``qx, qy, qz`` (mm) and ``vx, vy, vz``, shape (s,)
+        or longer, the measured point and unit tool axis at every sample.
+    """
+    r1 = r0 + 1
+    for k in range(s):
+        p0, p1, p2 = tool_point[0], tool_point[1], tool_point[2]
+        a0, a1, a2 = home_axis[0], home_axis[1], home_axis[2]
+        for j in range(joint_column.shape[0]):
+            w0, w1, w2 = joint_direction[j, 0], joint_direction[j, 1], joint_direction[j, 2]
+            if not joint_rotary[j]:
+                if not tcp:
+                    c = joint_column[j]
+                    value = t[k] * (values[r1, c] - values[r0, c]) + values[r0, c]
+                    p0, p1, p2 = p0 + w0 * value, p1 + w1 * value, p2 + w2 * value
+                continue
+            cos, sin = cos_j[j, k], sin_j[j, k]
+            if not tcp:  # the point about the joint's line
+                c0, c1, c2 = joint_pivot[j, 0], joint_pivot[j, 1], joint_pivot[j, 2]
+                p0, p1, p2 = _turn(kinds[j], w0, w1, w2, cos, sin, p0 - c0, p1 - c1, p2 - c2)
+                p0, p1, p2 = p0 + c0, p1 + c1, p2 + c2
+            a0, a1, a2 = _turn(kinds[j], w0, w1, w2, cos, sin, a0, a1, a2)
+        if tcp:  # the control moves the tip on the straight line
+            lx, ly, lz = linear_columns[0], linear_columns[1], linear_columns[2]
+            p0 = values[r0, lx] + t[k] * (values[r1, lx] - values[r0, lx]) + pivot * a0
+            p1 = values[r0, ly] + t[k] * (values[r1, ly] - values[r0, ly]) + pivot * a1
+            p2 = values[r0, lz] + t[k] * (values[r1, lz] - values[r0, lz]) + pivot * a2
+        qx[k], qy[k], qz[k] = p0, p1, p2
+        vx[k], vy[k], vz[k] = a0, a1, a2
+    length = 0.0
+    if tcp:
+        return length
+    for k in range(s - 1):  # the tip's polyline (feeds.tip_lengths), summed in numpy's order
+        e0, e1, e2 = qx[k + 1] - qx[k], qy[k + 1] - qy[k], qz[k + 1] - qz[k]
+        chord = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        length = length + chord if k else chord
+    if pivot != 0.0:  # the measured point
+        for k in range(s):
+            qx[k], qy[k], qz[k] = (
+                qx[k] + pivot * vx[k],
+                qy[k] + pivot * vy[k],
+                qz[k] + pivot * vz[k],
+            )
+    return length
+
+
+_FRAME = 18
+"""Numbers per CL segment in the rows of :func:`_frames`."""
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _frames(
     first: int,
     span: int,
     px: np.ndarray,
@@ -159,30 +258,15 @@ def _span(
     az: np.ndarray,
     omega_of: np.ndarray,
     window: float,
-    dist2: np.ndarray,
-    chord2: np.ndarray,
-    within: np.ndarray,
-    outside0: np.ndarray,
-    at0: np.ndarray,
-) -> tuple[float, float]:
-    """:func:`urdfpost.verification.measure._span_deviation` of the first ``s`` points ``q``
-    (mm) and unit axes ``v`` against the CL segments ``first .. first + span - 1``.
-
-    Writes the squared distance from the nearest segment (the first of equals) into
-    ``dist2``, the squared chord to the CL orientation in the window (that of the nearest
-    segment where no segment is within the window) into ``chord2``, and, of the first
-    segment, how far the projection parameter falls outside [0, 1] and the chord at it into
-    ``outside0`` and ``at0`` (``within``: scratch); all shape (s,) or longer.
-
-    Returns
-    -------
-    inv_dd, omega : float
-        Of the first segment: its inverse squared length (0 for a point) and the angle of its
-        arc, rad.
-    """
+    frames: np.ndarray,
+) -> None:
+    """The CL segments ``first .. first + span - 1`` and their arcs as :func:`_span` compares
+    samples with them, one row of ``frames`` (shape (span, :data:`_FRAME`) or larger) each:
+    the start (mm) and the step to the next CL point (mm), the inverse squared length (0 for a
+    point, 1/mm^2), the half window in the segment's parameter (inf for a point), the arc's
+    frame (its start, the unit direction it turns towards and their cross product,
+    :func:`urdfpost.linearize._frame`) and its angle (rad)."""
     last = px.shape[0] - 1
-    window2 = window * window
-    inv_dd0 = omega0 = 0.0
     for off in range(span):
         a = min(first + off, last)
         nxt = min(a + 1, last)
@@ -198,7 +282,6 @@ def _span(
         sine = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
         inv = 1.0 / sine if sine > 0 else 0.0
         g0, g1, g2 = g0 * inv, g1 * inv, g2 * inv
-        omega = omega_of[a]
         dot = g0 * u0 + g1 * u1 + g2 * u2
         m0, m1, m2 = g0 - dot * u0, g1 - dot * u1, g2 - dot * u2
         length = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
@@ -215,8 +298,47 @@ def _span(
             length = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
         m0, m1, m2 = m0 / length, m1 / length, m2 / length
         k0, k1, k2 = u1 * m2 - u2 * m1, u2 * m0 - u0 * m2, u0 * m1 - u1 * m0
-        if off == 0:
-            inv_dd0, omega0 = inv_dd, omega
+        f = frames[off]
+        f[0], f[1], f[2], f[3], f[4], f[5] = sx, sy, sz, dx, dy, dz
+        f[6], f[7], f[8], f[9], f[10] = inv_dd, half, u0, u1, u2
+        f[11], f[12], f[13], f[14], f[15], f[16] = m0, m1, m2, k0, k1, k2
+        f[17] = omega_of[a]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _span(
+    qx: np.ndarray,
+    qy: np.ndarray,
+    qz: np.ndarray,
+    vx: np.ndarray,
+    vy: np.ndarray,
+    vz: np.ndarray,
+    s: int,
+    span: int,
+    frames: np.ndarray,
+    window: float,
+    dist2: np.ndarray,
+    chord2: np.ndarray,
+    within: np.ndarray,
+    outside0: np.ndarray,
+    at0: np.ndarray,
+) -> None:
+    """:func:`urdfpost.verification.measure._span_deviation` of the first ``s`` points ``q``
+    (mm) and unit axes ``v`` against the ``span`` CL segments of ``frames`` (:func:`_frames`).
+
+    Writes the squared distance from the nearest segment (the first of equals) into
+    ``dist2``, the squared chord to the CL orientation in the window (that of the nearest
+    segment where no segment is within the window) into ``chord2``, and, of the first
+    segment, how far the projection parameter falls outside [0, 1] and the chord at it into
+    ``outside0`` and ``at0`` (``within``: scratch); all shape (s,) or longer.
+    """
+    window2 = window * window
+    for off in range(span):
+        f = frames[off]
+        sx, sy, sz, dx, dy, dz = f[0], f[1], f[2], f[3], f[4], f[5]
+        inv_dd, half, u0, u1, u2 = f[6], f[7], f[8], f[9], f[10]
+        m0, m1, m2, k0, k1, k2 = f[11], f[12], f[13], f[14], f[15], f[16]
+        omega = f[17]
         for k in range(s):
             w0, w1, w2 = qx[k] - sx, qy[k] - sy, qz[k] - sz
             raw = w0 * dx + w1 * dy
@@ -255,7 +377,6 @@ def _span(
     for k in range(s):
         if np.isfinite(within[k]):
             chord2[k] = within[k]
-    return inv_dd0, omega0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -363,6 +484,7 @@ def block_deviation(
     outside0 = np.empty(s)
     at0 = np.empty(s)
     reach_j, swing_j = np.empty(n_joints), np.empty(n_joints)
+    frames = np.empty((max(long_span, 1), _FRAME))
     for b in range(n):
         span = max(jb[b] - ja[b], 1)
         long[b] = valid[b] and span > long_span
@@ -384,69 +506,36 @@ def block_deviation(
                 for k in range(1, s):
                     cos_j[j, k] = cos_j[j, k - 1] * cd - sin_j[j, k - 1] * sd
                     sin_j[j, k] = sin_j[j, k - 1] * cd + cos_j[j, k - 1] * sd
-        for k in range(s):
-            p0, p1, p2 = tool_point[0], tool_point[1], tool_point[2]
-            a0, a1, a2 = home_axis[0], home_axis[1], home_axis[2]
-            for j in range(n_joints):
-                w0, w1, w2 = joint_direction[j, 0], joint_direction[j, 1], joint_direction[j, 2]
-                if not joint_rotary[j]:
-                    if not tcp:
-                        c = joint_column[j]
-                        value = t[k] * (values[r1, c] - values[r0, c]) + values[r0, c]
-                        p0, p1, p2 = p0 + w0 * value, p1 + w1 * value, p2 + w2 * value
-                    continue
-                cos, sin = cos_j[j, k], sin_j[j, k]
-                if not tcp:  # the point about the joint's line
-                    c0, c1, c2 = joint_pivot[j, 0], joint_pivot[j, 1], joint_pivot[j, 2]
-                    p0, p1, p2 = _turn(kinds[j], w0, w1, w2, cos, sin, p0 - c0, p1 - c1, p2 - c2)
-                    p0, p1, p2 = p0 + c0, p1 + c1, p2 + c2
-                a0, a1, a2 = _turn(kinds[j], w0, w1, w2, cos, sin, a0, a1, a2)
-            if tcp:  # the control moves the tip on the straight line
-                lx, ly, lz = linear_columns[0], linear_columns[1], linear_columns[2]
-                p0 = values[r0, lx] + t[k] * (values[r1, lx] - values[r0, lx]) + pivot * a0
-                p1 = values[r0, ly] + t[k] * (values[r1, ly] - values[r0, ly]) + pivot * a1
-                p2 = values[r0, lz] + t[k] * (values[r1, lz] - values[r0, lz]) + pivot * a2
-            qx[k], qy[k], qz[k] = p0, p1, p2
-            vx[k], vy[k], vz[k] = a0, a1, a2
-        if not tcp:  # the tip's polyline (feeds.tip_lengths), then the measured point
-            for k in range(s - 1):  # summed in order, as numpy sums the rows
-                e0, e1, e2 = qx[k + 1] - qx[k], qy[k + 1] - qy[k], qz[k + 1] - qz[k]
-                chord = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-                length[b] = length[b] + chord if k else chord
-            if not valid[b] or long[b]:
-                continue
-            if pivot != 0.0:
-                for k in range(s):
-                    qx[k], qy[k], qz[k] = (
-                        qx[k] + pivot * vx[k],
-                        qy[k] + pivot * vy[k],
-                        qz[k] + pivot * vz[k],
-                    )
-        # -- the deviation from the CL span (_span_deviation, _segment_errors) --
-        inv_dd0, omega0 = _span(
+        length[b] = _sampled(
+            joint_column,
+            joint_rotary,
+            joint_direction,
+            joint_pivot,
+            kinds,
+            linear_columns,
+            tool_point,
+            home_axis,
+            values,
+            r0,
+            t,
+            s,
+            cos_j,
+            sin_j,
+            tcp,
+            pivot,
             qx,
             qy,
             qz,
             vx,
             vy,
             vz,
-            s,
-            ja[b],
-            span,
-            px,
-            py,
-            pz,
-            ax,
-            ay,
-            az,
-            omega_of,
-            window,
-            d2s,
-            chord2,
-            within,
-            outside0,
-            at0,
         )
+        if not valid[b] or long[b]:
+            continue
+        # -- the deviation from the CL span (_span_deviation, _segment_errors) --
+        _frames(ja[b], span, px, py, pz, ax, ay, az, omega_of, window, frames)
+        _span(qx, qy, qz, vx, vy, vz, s, span, frames, window, d2s, chord2, within, outside0, at0)
+        inv_dd0, omega0 = frames[0, 6], frames[0, 17]
         for k in range(s):
             dist2[k, b] = d2s[k]
         worst[0, b], best[0, b] = _first_max(d2s, s)
@@ -546,14 +635,193 @@ def point_deviation(
         the points of spans longer than ``long_span`` (not measured).
     """
     d2, c2, within, outside, at = np.empty(1), np.empty(1), np.empty(1), np.empty(1), np.empty(1)
+    frames = np.empty((max(long_span, 1), _FRAME))
     for r in range(tx.shape[0]):
         span = max(jb[r] - ja[r], 1)
         long[r] = span > long_span
         if long[r]:
             continue
+        _frames(ja[r], span, px, py, pz, ax, ay, az, omega_of, window, frames)
         _span(
             tx[r : r + 1], ty[r : r + 1], tz[r : r + 1], vx[r : r + 1], vy[r : r + 1],
-            vz[r : r + 1], 1, ja[r], span, px, py, pz, ax, ay, az, omega_of, window, d2, c2,
-            within, outside, at,
+            vz[r : r + 1], 1, span, frames, window, d2, c2, within, outside, at,
         )  # fmt: skip
         dist2[r], chord2[r] = d2[0], c2[0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _maximum(x: float, y: float) -> float:
+    """``np.maximum`` of two values: the larger, NaN if either is."""
+    return x if x >= y or np.isnan(x) else y
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def deviation_at(
+    joint_column: np.ndarray,
+    joint_rotary: np.ndarray,
+    joint_direction: np.ndarray,
+    joint_pivot: np.ndarray,
+    kinds: np.ndarray,
+    linear_columns: np.ndarray,
+    tool_point: np.ndarray,
+    home_axis: np.ndarray,
+    values: np.ndarray,
+    r0: int,
+    span: int,
+    frames: np.ndarray,
+    tcp: bool,
+    pivot: float,
+    window: float,
+    u: np.ndarray,
+    s: int,
+    dist2: np.ndarray,
+    chord2: np.ndarray,
+    work: np.ndarray,
+    trig: np.ndarray,
+) -> None:
+    """The squared distance and chord of one block at the parameters ``u`` against its CL
+    span (:meth:`urdfpost.verification.measure._Blocks.errors` of one block at parameters of
+    its own): the first pass's samples of :func:`block_deviation`, with the cosines and sines
+    of the angles themselves (as :func:`urdfpost.kinematics.forward.tip_and_axis_along` takes
+    them at parameters that are not one evenly spaced set).
+
+    Parameters
+    ----------
+    joint_column, joint_rotary, joint_direction, joint_pivot, kinds, linear_columns,
+    tool_point, home_axis, values, r0, tcp, pivot
+        As :func:`_sampled`.
+    span : int
+        How many CL segments the block's span has.
+    frames : ndarray, shape (span, _FRAME) or larger
+        :func:`_frames` of them.
+    window : float, mm
+    u : ndarray, shape (s,) or longer
+        The parameters, in [0, 1].
+    s : int
+    work : ndarray, shape (9, s) or wider
+        Scratch.
+    trig : ndarray, shape (2, k, s) or wider
+        Scratch for the cosines and sines.
+
+    Returns
+    -------
+    None
+        Written: ``dist2`` (mm^2) and ``chord2``, shape (s,) or longer.
+    """
+    r1 = r0 + 1
+    cos_j, sin_j = trig[0], trig[1]
+    for j in range(joint_column.shape[0]):
+        if joint_rotary[j]:
+            c = joint_column[j]
+            for k in range(s):  # q0 + t dq, as numpy sums the two terms
+                angle = u[k] * (values[r1, c] - values[r0, c]) + values[r0, c]
+                cos_j[j, k], sin_j[j, k] = np.cos(angle), np.sin(angle)
+    _sampled(
+        joint_column, joint_rotary, joint_direction, joint_pivot, kinds, linear_columns,
+        tool_point, home_axis, values, r0, u, s, cos_j, sin_j, tcp, pivot, work[0], work[1],
+        work[2], work[3], work[4], work[5],
+    )  # fmt: skip
+    _span(
+        work[0], work[1], work[2], work[3], work[4], work[5], s, span, frames, window, dist2,
+        chord2, work[6], work[7], work[8],
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def refine_deviation(
+    joint_column: np.ndarray,
+    joint_rotary: np.ndarray,
+    joint_direction: np.ndarray,
+    joint_pivot: np.ndarray,
+    linear_columns: np.ndarray,
+    tool_point: np.ndarray,
+    home_axis: np.ndarray,
+    values: np.ndarray,
+    start: np.ndarray,
+    ja: np.ndarray,
+    jb: np.ndarray,
+    px: np.ndarray,
+    py: np.ndarray,
+    pz: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    az: np.ndarray,
+    omega_of: np.ndarray,
+    t: np.ndarray,
+    tcp: bool,
+    pivot: float,
+    window: float,
+    iterations: int,
+    worst: np.ndarray,
+    wanted: np.ndarray,
+    best: np.ndarray,
+) -> None:
+    """The refinement of the first pass's maxima (the squared distance and the squared chord)
+    of blocks: :func:`urdfpost.geometry.refine_max` of every block, both golden-section
+    searches of a block in one loop, the two points of each iteration evaluated together by
+    :func:`deviation_at` against the block's CL segments, worked out once (:func:`_frames`).
+
+    A block's searches do not depend on other blocks, so the brackets, the points evaluated
+    and the maxima are those of ``refine_max`` given the same evaluations.
+
+    Parameters
+    ----------
+    joint_column, joint_rotary, joint_direction, joint_pivot, linear_columns, tool_point,
+    home_axis, values
+        As :func:`block_deviation`.
+    start, ja, jb : ndarray, shape (n,), int64
+        First row and CL span of each block refined.
+    px, py, pz, ax, ay, az, omega_of, tcp, pivot, window
+        As :func:`block_deviation`.
+    t : ndarray, shape (s,)
+        The first pass's sample parameters, evenly spaced.
+    iterations : int
+        Golden-section iterations.
+    worst : ndarray, shape (2, n), int64
+        The sample of each block's largest squared distance and chord.
+    wanted : ndarray, shape (2, n), bool
+        The blocks whose largest squared distance, and squared chord, are refined.
+    best : ndarray, shape (2, n)
+        The largest squared distance (mm^2) and chord sampled; updated in place to the
+        largest seen.
+
+    Returns
+    -------
+    None
+    """
+    n_joints = joint_column.shape[0]
+    kinds = np.empty(n_joints, dtype=np.int64)
+    for j in range(n_joints):
+        kinds[j] = _kind(joint_direction[j, 0], joint_direction[j, 1], joint_direction[j, 2])
+    h = t[1] - t[0] if t.shape[0] > 1 else 0.5
+    u, work, trig = np.empty(2), np.empty((9, 2)), np.empty((2, n_joints, 2))
+    dist2, chord2 = np.empty(2), np.empty(2)
+    most = 1
+    for b in range(start.shape[0]):
+        most = max(most, jb[b] - ja[b])
+    frames = np.empty((most, _FRAME))
+    for b in range(start.shape[0]):
+        span = max(jb[b] - ja[b], 1)
+        if wanted[0, b] or wanted[1, b]:
+            _frames(ja[b], span, px, py, pz, ax, ay, az, omega_of, window, frames)
+        for i in range(2):
+            if not wanted[i, b]:
+                continue
+            value = dist2 if i == 0 else chord2
+            lo = _clip(t[worst[i, b]] - h, 0.0, 1.0)
+            hi = _clip(t[worst[i, b]] + h, 0.0, 1.0)
+            top = best[i, b]
+            for _ in range(iterations):  # both points of an iteration as two samples
+                u[0] = hi - GOLDEN * (hi - lo)
+                u[1] = lo + GOLDEN * (hi - lo)
+                deviation_at(
+                    joint_column, joint_rotary, joint_direction, joint_pivot, kinds,
+                    linear_columns, tool_point, home_axis, values, start[b], span, frames, tcp,
+                    pivot, window, u, 2, dist2, chord2, work, trig,
+                )  # fmt: skip
+                top = _maximum(top, _maximum(value[0], value[1]))
+                if value[0] > value[1]:  # on [lo, u[1]] from here
+                    hi = u[1]
+                else:
+                    lo = u[0]
+            best[i, b] = top

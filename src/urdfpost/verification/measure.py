@@ -658,14 +658,14 @@ class _Deviation:
 
 
 COMPILED_FROM = 50_000
-"""Feed blocks from which :func:`_block_deviation` samples and bounds them with the compiled
-loop (:mod:`urdfpost.verification._deviation_kernel`, with numba installed: the ``fast``
-extra) rather than numpy: several times faster per block, after a fixed cost per process
+"""Feed blocks from which :func:`_block_deviation` samples, bounds and refines them with the
+compiled loops (:mod:`urdfpost.verification._deviation_kernel`, with numba installed: the
+``fast`` extra) rather than numpy: several times faster per block, after a fixed cost per process
 (numba's import, shared with the compiled matching, and the cached machine code's loading)."""
 
 
 _KERNEL_FAILED: list[str] = []
-"""Why the compiled first pass could not run in this process (then the numpy path runs)."""
+"""Why the compiled loops could not run in this process (then the numpy path runs)."""
 
 
 class _Kernels(NamedTuple):
@@ -675,16 +675,22 @@ class _Kernels(NamedTuple):
     """:func:`urdfpost.verification._deviation_kernel.block_deviation`"""
     point: Callable[..., None]
     """:func:`urdfpost.verification._deviation_kernel.point_deviation`"""
+    refine: Callable[..., None]
+    """:func:`urdfpost.verification._deviation_kernel.refine_deviation`"""
 
 
 @functools.cache
 def _kernel() -> _Kernels | None:
     """The compiled loops, or None without numba (looked for once per process)."""
     try:
-        from urdfpost.verification._deviation_kernel import block_deviation, point_deviation
+        from urdfpost.verification._deviation_kernel import (
+            block_deviation,
+            point_deviation,
+            refine_deviation,
+        )
     except ImportError:
         return None
-    return _Kernels(block_deviation, point_deviation)
+    return _Kernels(block_deviation, point_deviation, refine_deviation)
 
 
 def _compiled() -> _Kernels | None:
@@ -841,6 +847,77 @@ def _first_pass_compiled(
     return dist2, best, worst, bound, length
 
 
+def _refine_compiled(
+    kernel: Callable[..., None],
+    inputs: _KernelInputs,
+    feed: _Blocks,
+    todo: np.ndarray,
+    t: np.ndarray,
+    worst: tuple[np.ndarray, np.ndarray],
+    best: tuple[np.ndarray, np.ndarray],
+    wanted: tuple[np.ndarray, np.ndarray],
+) -> np.ndarray:
+    """The refinement of :func:`_block_deviation` of the blocks ``todo`` of one comparison,
+    compiled (:func:`urdfpost.verification._deviation_kernel.refine_deviation`): what
+    :func:`refine_max` gives with the kernel's evaluations, every block's searches in one loop.
+    The blocks of long spans (more than :data:`_LONG` CL segments) are left to numpy, as
+    everything is when the kernel fails.
+
+    Parameters
+    ----------
+    kernel : callable
+    inputs : _KernelInputs
+    feed : _Blocks
+    todo : ndarray, shape (k,), int
+        The blocks refined.
+    t : ndarray, shape (s,)
+        The first pass's sample parameters.
+    worst, best, wanted : tuple of two ndarray, shape (n,)
+        As :func:`refine_max`, of every block of the comparison; ``best`` is updated in place
+        at the blocks refined here.
+
+    Returns
+    -------
+    ndarray, shape (m,), int
+        The blocks of ``todo`` left to refine.
+    """
+    ja, jb = inputs.ja[todo], inputs.jb[todo]
+    short = np.maximum(jb - ja, 1) <= _LONG
+    blocks = todo[short]
+    found = np.stack([best[0][blocks], best[1][blocks]])
+    c = inputs.chain
+    try:
+        kernel(
+            c.column,
+            c.rotary,
+            c.direction,
+            c.pivot,
+            inputs.linear,
+            c.tool_point,
+            c.home_axis,
+            inputs.values,
+            inputs.start[blocks],
+            ja[short],
+            jb[short],
+            *feed.polyline.tip,
+            *feed.polyline.axis,
+            inputs.omega,
+            t,
+            bool(feed.tcp),
+            float(feed.pivot),
+            float(feed.window),
+            _ITERATIONS,
+            np.stack([worst[0][blocks], worst[1][blocks]]).astype(np.int64),
+            np.stack([wanted[0][blocks], wanted[1][blocks]]),
+            found,
+        )
+    except Exception as err:  # numba could not compile or cache it here: numpy
+        _failed(err)
+        return todo
+    best[0][blocks], best[1][blocks] = found
+    return todo[~short]
+
+
 def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) -> list[_Deviation]:
     """Deviation of every feed block, sampled and refined where it can matter, in one or more
     comparisons of the same program blocks (the kinematics along them evaluated once).
@@ -850,7 +927,9 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
     that could change what verification reports: where the bound of :meth:`_Blocks.bounds`
     reaches the largest deviation sampled in any block, or the level given (the largest at the
     program points). Elsewhere the refined value would stay below that, so the reported maxima
-    (and the block they are in) are those of refining every block.
+    (and the block they are in) are those of refining every block. From :data:`COMPILED_FROM`
+    blocks on, with numba, both passes are compiled (:func:`_first_pass_compiled`,
+    :func:`_refine_compiled`).
 
     Parameters
     ----------
@@ -932,6 +1011,10 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
             wanted[0].sum(),
             wanted[1].sum(),
         )
+        ins = inputs[f] if inputs else None
+        kernels = _compiled() if ins is not None and len(todo) else None  # (None after a failure)
+        if kernels is not None and ins is not None:
+            todo = _refine_compiled(kernels.refine, ins, feed, todo, t, worst[f], best[f], wanted)
         for part in chunks(len(todo), 4):  # four evaluations per block at a time
             sub = todo[part]
 
