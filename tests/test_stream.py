@@ -279,6 +279,39 @@ def test_a_piece_that_fails_to_post_fails_the_post_first(
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("parallel", [False, True])
+def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel: bool) -> None:
+    """A CL line the reader rejects in the fourth piece (read ahead in a thread with a
+    worker): the post raises the reader's error with its file and line, once the pieces
+    before it are posted, and writes nothing."""
+    import urdfpost.posting.stream as stream
+    from urdfpost.errors import CLDataError
+    from urdfpost.readers import read_cl_chunks
+
+    path = write_hemisphere(4000, tmp_path / "bad.apt")
+    lines = path.read_text().splitlines(keepends=True)
+    bad = next(k for k in range(3300, len(lines)) if lines[k].startswith("GOTO/"))
+    lines[bad] = "GOTO/1.0,2.0,x3.0\n"
+    path.write_text("".join(lines))
+    posted = []
+    real = stream.post_piece
+
+    def post_piece(*args, **kw):
+        posted.append(1)
+        return real(*args, **kw)
+
+    out = tmp_path / "out.nc"
+    pieces = read_cl_chunks(path, max_points=800, units="mm")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(stream, "post_piece", post_piece)
+        with pytest.raises(CLDataError) as err:
+            post_stream(pieces, load_machine("dmu50"), out, PostOptions(controller="heidenhain"),
+                        piece_points=900, lookahead=100, parallel=parallel)  # fmt: skip
+    assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad + 1)
+    assert len(posted) >= 2  # (the pieces before it were posted)
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.apt"]
+
+
 def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> None:
     """An error in the verification worker (here a program line the reader rejects) is raised
     where the post runs, as the same error with its file and line."""
