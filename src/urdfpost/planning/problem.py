@@ -27,6 +27,7 @@ import numpy as np
 
 from urdfpost.geometry import angle_between, norms, slerp
 from urdfpost.kinematics.forward import rotate
+from urdfpost.kinematics.inverse import IKResult
 from urdfpost.machine import Machine
 from urdfpost.planning.branches import Preference, Selection, select
 from urdfpost.planning.rewinds import DEFAULT_RETRACT
@@ -144,8 +145,15 @@ def entry_mask(toolpath: Toolpath) -> np.ndarray:
     return entry
 
 
-def exact_selection(problem: Problem, toolpath: Toolpath, planner: str | None = None) -> Selection:
-    """Exact solutions at every point of ``toolpath`` with the problem's branch rules."""
+def exact_selection(
+    problem: Problem,
+    toolpath: Toolpath,
+    planner: str | None = None,
+    ik: IKResult | None = None,
+) -> Selection:
+    """Exact solutions at every point of ``toolpath`` with the problem's branch rules (``ik``:
+    the inverse kinematics of its points where the caller has it,
+    :func:`urdfpost.planning.branches.select`)."""
     return select(
         problem.machine,
         toolpath.tip,
@@ -162,6 +170,7 @@ def exact_selection(problem: Problem, toolpath: Toolpath, planner: str | None = 
         retract=problem.retract,
         start=problem.start,
         fixed_start=problem.start is not None,
+        ik=ik,
     )
 
 

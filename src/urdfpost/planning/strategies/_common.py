@@ -266,7 +266,7 @@ a branch switch on it is made (:func:`split_at_switches`)."""
 
 def split_at_switches(
     problem: Problem, toolpath: Toolpath, sel: Selection
-) -> tuple[Toolpath, Selection]:
+) -> tuple[Toolpath, Selection, np.ndarray]:
     """Make each branch switch on a cutting move a turn at one point, where the branches meet.
 
     Near a pole the two inverse kinematics branches are close (the first rotary axis half a
@@ -290,17 +290,19 @@ def split_at_switches(
     sel : Selection
         With a point for each inserted one (``arrive`` on the first branch, ``q`` on the
         second, ``rewind`` True).
+    old : ndarray, shape (n,), int
+        Index of each point of ``toolpath`` in the returned one.
     """
     machine, tol = problem.machine, problem.tol
     n = len(toolpath)
     if n < 2 or len(machine.rotary) != 2:
-        return toolpath, sel
+        return toolpath, sel, np.arange(n)
     ok = sel.status == IKStatus.OK
     entry = entry_mask(toolpath)
     moving = (toolpath.motion == Motion.FEED) & ~entry & ~sel.rewind
     at = np.flatnonzero(ok[:-1] & ok[1:] & moving[1:] & (sel.branch[:-1] != sel.branch[1:]))
     if not at.size:
-        return toolpath, sel
+        return toolpath, sel, np.arange(n)
     cols = list(machine.rotary_columns)
     lo = np.array([a.lower for a in machine.rotary])
     hi = np.array([a.upper for a in machine.rotary])
@@ -325,7 +327,7 @@ def split_at_switches(
             arrive.append(rows[0])
             leave.append(rows[1])
     if not params:
-        return toolpath, sel
+        return toolpath, sel, np.arange(n)
     new_tp, old, new = insert_points(toolpath, np.array(params))
     tip = new_tp.tip[new]
     q_arrive, q_leave = (
@@ -334,7 +336,7 @@ def split_at_switches(
     )
     log.debug("%d branch switches made turns at a point between CL points", len(params))
     ins = np.floor(params).astype(int) + 1  # where they go in the old arrays
-    return new_tp, replace(
+    sel = replace(
         sel,
         q=np.insert(sel.q, ins, q_leave, axis=0),
         arrive=np.insert(sel.arrive, ins, q_arrive, axis=0),
@@ -343,6 +345,7 @@ def split_at_switches(
         rewind=np.insert(sel.rewind, ins, True),
         settled=None if sel.settled is None or sel.settled < 0 else int(old[sel.settled]),
     )
+    return new_tp, sel, old
 
 
 def _closest_branches(machine: Machine, va: np.ndarray, vb: np.ndarray, tol: Tolerances) -> float:
@@ -425,7 +428,8 @@ def _plain(problem: Problem, toolpath: Toolpath, sel: Selection, spans: list[Spa
 def exact_split(problem: Problem, toolpath: Toolpath) -> tuple[Toolpath, Selection]:
     """The exact branch choice on ``toolpath`` with its branch switches made turns at a point
     (:func:`split_at_switches`): the toolpath the plan's rows then refer to, and the choice."""
-    return split_at_switches(problem, toolpath, exact_selection(problem, toolpath))
+    tp, sel, _ = split_at_switches(problem, toolpath, exact_selection(problem, toolpath))
+    return tp, sel
 
 
 def _spans(problem: Problem, toolpath: Toolpath, sel: Selection) -> list[Span]:
