@@ -64,3 +64,33 @@ def test_rotating_one_vector_is_rotating_its_rows(seed: int, n: int, axis: str, 
     theta = rng.uniform(-7.0, 7.0, n)
     want = _rotate_about(k, theta, np.broadcast_to(v, (n, 3)).copy())
     assert np.array_equal(bits(rotate(k, theta, v)), bits(want))
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 3 * 8192 + 5),
+    machine_name=st.sampled_from(["dmu50", "gantry-ca", "dmu50-nutating", "vf2-4axis"]),
+)
+def test_the_tool_axes_in_chunks_are_those_of_one_pass(
+    seed: int, n: int, machine_name: str
+) -> None:
+    """``tool_axis_of`` works a few thousand rows at a time: the bits of one pass of its
+    rotations over all rows, and of each row alone (two- and one-rotary machines)."""
+    from urdfpost.kinematics.forward import rotate
+    from urdfpost.machine import load_machine
+    from urdfpost.planning.problem import tool_axis_of
+
+    m = load_machine(machine_name)
+    rng = np.random.default_rng(seed)
+    rotary = rng.uniform(-7.0, 7.0, (n, len(m.rotary)))
+    rotary[rng.random(n) < 0.1] = 0.0
+    got = tool_axis_of(m, rotary)
+    rot = m.rotary
+    want = rotate(rot[-1].direction, rotary[:, -1], m.home_tool_axis)
+    for j in range(len(rot) - 2, -1, -1):
+        want = rotate(rot[j].direction, rotary[:, j], want)
+    assert np.array_equal(bits(got), bits(want))
+    at = rng.choice(n, min(n, 20), replace=False)
+    alone = np.concatenate([tool_axis_of(m, rotary[i : i + 1]) for i in at])
+    assert np.array_equal(bits(got[at]), bits(alone))
