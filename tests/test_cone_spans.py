@@ -162,9 +162,9 @@ def whole_rounds(monkeypatch: pytest.MonkeyPatch, problem: Problem) -> tuple[obj
     planned = cone._planned
     count = [0]
 
-    def counted(p: Problem, tp: Toolpath) -> object:
+    def counted(p: Problem, tp: Toolpath, solved: object) -> object:
         count[0] += 1
-        return planned(p, tp)
+        return planned(p, tp, solved)
 
     with monkeypatch.context() as mp:
         mp.setattr(cone, "_windows", lambda machine, r: [])
@@ -192,10 +192,14 @@ def test_rounds_on_windows_give_the_plan_of_rounds_on_the_whole_path(
         windows: list[int] = []
 
         def counted(
-            p: Problem, path: Toolpath, full: list[int] = full, windows: list[int] = windows
+            p: Problem,
+            path: Toolpath,
+            solved: object,
+            full: list[int] = full,
+            windows: list[int] = windows,
         ) -> object:
             (full if p.start is None else windows).append(len(path))
-            return planned(p, path)
+            return planned(p, path, solved)
 
         monkeypatch.setattr(cone, "_planned", counted)
         plan = STRATEGIES["cone"](problem)

@@ -64,3 +64,59 @@ def test_rotating_one_vector_is_rotating_its_rows(seed: int, n: int, axis: str, 
     theta = rng.uniform(-7.0, 7.0, n)
     want = _rotate_about(k, theta, np.broadcast_to(v, (n, 3)).copy())
     assert np.array_equal(bits(rotate(k, theta, v)), bits(want))
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 3 * 8192 + 5),
+    machine_name=st.sampled_from(["dmu50", "gantry-ca", "dmu50-nutating", "vf2-4axis"]),
+)
+def test_the_tool_axes_in_chunks_are_those_of_one_pass(
+    seed: int, n: int, machine_name: str
+) -> None:
+    """``tool_axis_of`` works a few thousand rows at a time: the bits of one pass of its
+    rotations over all rows, and of each row alone (two- and one-rotary machines)."""
+    from urdfpost.kinematics.forward import rotate
+    from urdfpost.machine import load_machine
+    from urdfpost.planning.problem import tool_axis_of
+
+    m = load_machine(machine_name)
+    rng = np.random.default_rng(seed)
+    rotary = rng.uniform(-7.0, 7.0, (n, len(m.rotary)))
+    rotary[rng.random(n) < 0.1] = 0.0
+    got = tool_axis_of(m, rotary)
+    rot = m.rotary
+    want = rotate(rot[-1].direction, rotary[:, -1], m.home_tool_axis)
+    for j in range(len(rot) - 2, -1, -1):
+        want = rotate(rot[j].direction, rotary[:, j], want)
+    assert np.array_equal(bits(got), bits(want))
+    at = rng.choice(n, min(n, 20), replace=False)
+    alone = np.concatenate([tool_axis_of(m, rotary[i : i + 1]) for i in at])
+    assert np.array_equal(bits(got[at]), bits(alone))
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 3 * 8192 + 5),
+    machine_name=st.sampled_from(["dmu50", "gantry-ca", "dmu50-nutating", "monoblock"]),
+)
+def test_the_best_tilt_in_chunks_is_that_of_one_pass(seed: int, n: int, machine_name: str) -> None:
+    """``best_tilt`` turns the target axes back a few thousand rows at a time: the bits of
+    turning them all in one pass."""
+    from urdfpost.kinematics.forward import rotate
+    from urdfpost.machine import load_machine
+    from urdfpost.planning.strategies._common import TWO_PI, best_tilt
+
+    m = load_machine(machine_name)
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=(n, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    theta1, near = rng.uniform(-7.0, 7.0, n), rng.uniform(-7.0, 7.0, n)
+    k1, k2 = m.rotary[0].direction, m.rotary[1].direction
+    v0 = m.home_tool_axis
+    w = rotate(k1, -theta1, axis)
+    t2 = np.arctan2(w @ np.cross(k2, v0), w @ (v0 - k2 * (k2 @ v0)))
+    want = t2 + TWO_PI * np.round((near - t2) / TWO_PI)
+    assert np.array_equal(bits(best_tilt(m, axis, theta1, near)), bits(want))

@@ -26,7 +26,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from urdfpost.geometry import angle_between, norms, slerp
-from urdfpost.kinematics.forward import rotate
+from urdfpost.kinematics.forward import rotate, row_chunks
+from urdfpost.kinematics.inverse import IKResult
 from urdfpost.machine import Machine
 from urdfpost.planning.branches import Preference, Selection, select
 from urdfpost.planning.rewinds import DEFAULT_RETRACT
@@ -144,8 +145,15 @@ def entry_mask(toolpath: Toolpath) -> np.ndarray:
     return entry
 
 
-def exact_selection(problem: Problem, toolpath: Toolpath, planner: str | None = None) -> Selection:
-    """Exact solutions at every point of ``toolpath`` with the problem's branch rules."""
+def exact_selection(
+    problem: Problem,
+    toolpath: Toolpath,
+    planner: str | None = None,
+    ik: IKResult | None = None,
+) -> Selection:
+    """Exact solutions at every point of ``toolpath`` with the problem's branch rules (``ik``:
+    the inverse kinematics of its points where the caller has it,
+    :func:`urdfpost.planning.branches.select`)."""
     return select(
         problem.machine,
         toolpath.tip,
@@ -162,6 +170,7 @@ def exact_selection(problem: Problem, toolpath: Toolpath, planner: str | None = 
         retract=problem.retract,
         start=problem.start,
         fixed_start=problem.start is not None,
+        ik=ik,
     )
 
 
@@ -211,15 +220,23 @@ def _cutting_point(
 
 
 def tool_axis_of(machine: Machine, rotary: np.ndarray) -> np.ndarray:
-    """Tool axis in the workpiece frame for rotary angles (chain order), shape (k, 3)."""
+    """Tool axis in the workpiece frame for rotary angles (chain order), shape (k, 3).
+
+    Worked out :data:`~urdfpost.kinematics.forward.ROWS` rows at a time, so that the
+    temporaries stay in the CPU cache (about half the time of one pass over 100k rows); each
+    row is made by element-by-element operations, so it has the bits of one pass over all.
+    """
     rot = machine.rotary
     if not rot:
         return np.broadcast_to(machine.home_tool_axis, (len(rotary), 3)).copy()
-    # the home axis is the same in every row: the last joint turns it as a constant
-    v = rotate(rot[-1].direction, rotary[:, -1], machine.home_tool_axis)
-    for j in range(len(rot) - 2, -1, -1):
-        v = rotate(rot[j].direction, rotary[:, j], v)
-    return v
+    out = np.empty((len(rotary), 3))
+    for part in row_chunks(len(rotary)):
+        # the home axis is the same in every row: the last joint turns it as a constant
+        v = rotate(rot[-1].direction, rotary[part, -1], machine.home_tool_axis)
+        for j in range(len(rot) - 2, -1, -1):
+            v = rotate(rot[j].direction, rotary[part, j], v)
+        out[part] = v
+    return out
 
 
 def arc_length(toolpath: Toolpath) -> np.ndarray:

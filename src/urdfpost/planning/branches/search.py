@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from urdfpost.errors import CollisionError, LinearTravelError, UnreachableError
-from urdfpost.kinematics.inverse import IKStatus, assemble, inverse, solve_linear
+from urdfpost.kinematics.inverse import IKResult, IKStatus, assemble, inverse, solve_linear
 from urdfpost.machine import Machine
 from urdfpost.planning.branches._arrays import _rows_any
 from urdfpost.planning.branches.costs import _point_costs, _step_weights
@@ -62,6 +62,7 @@ def select(
     collision: CollisionWorld | None = None,
     retract: float = DEFAULT_RETRACT,
     fixed_start: bool = False,
+    ik: IKResult | None = None,
 ) -> Selection:
     """Choose one solution per point (the rules: :mod:`urdfpost.planning.branches`).
 
@@ -102,6 +103,11 @@ def select(
         The first point continues a path posted before (a piece of a streamed post): it must
         take the rotary angles of ``start`` exactly (unwrapped as they are), whatever the
         preference; ``start`` is required then.
+    ik : IKResult, optional
+        The inverse kinematics of the points where the caller has it already: what
+        ``inverse(machine, tip, axis, tool_length, tol, pole_angle=0.0)`` gives (the ``cone``
+        plans a path again with points inserted, and keeps the old points'); read, never
+        modified. None: solved here.
 
     Returns
     -------
@@ -135,7 +141,10 @@ def select(
             arrive=none,
             rewind=np.zeros(0, dtype=bool),
         )
-    ik = inverse(machine, tip, axis, tool_length, tol, pole_angle=0.0)
+    if ik is None:
+        ik = inverse(machine, tip, axis, tool_length, tol, pole_angle=0.0)
+    elif len(ik.q) != n:
+        raise ValueError(f"the inverse kinematics given has {len(ik.q)} points, the path {n}")
     values, ok, branch = _candidates(machine, ik.rotary.angles, ik.rotary.valid)
     pole = ik.status == IKStatus.POLE
     # linear travel: known per branch except at poles, where it depends on the held angle

@@ -20,7 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 from urdfpost.geometry import angle_between, slerp
-from urdfpost.kinematics.forward import cross, rotate
+from urdfpost.kinematics.forward import cross, rotate, row_chunks
 from urdfpost.kinematics.inverse import IKStatus, assemble, solve_linear, solve_rotary
 from urdfpost.machine import Machine
 from urdfpost.planning.branches import Selection
@@ -43,7 +43,10 @@ def best_tilt(
     With ``v = R(k1, t1) R(k2, t2) v0``, the angle to the target ``w`` is smallest where
     ``(R(k1, -t1) w) . R(k2, t2) v0`` is largest: ``t2 = atan2(B, A)`` with
     ``A = w'.(v0 - k2 (k2.v0))`` and ``B = w'.(k2 x v0)``. Where the first angle is exact this
-    is the exact tilt.
+    is the exact tilt. ``w'`` is worked out :data:`~urdfpost.kinematics.forward.ROWS` rows at
+    a time (its temporaries in the CPU cache; element by element, so the bits of one pass),
+    ``A`` and ``B`` over all rows at once (the last bits of a matrix product can depend on how
+    its rows are split).
 
     Parameters
     ----------
@@ -60,7 +63,9 @@ def best_tilt(
     """
     k1, k2 = machine.rotary[0].direction, machine.rotary[1].direction
     v0 = machine.home_tool_axis
-    w = rotate(k1, -theta1, axis)
+    w = np.empty((len(theta1), 3))
+    for part in row_chunks(len(theta1)):
+        w[part] = rotate(k1, -theta1[part], axis[part])
     a = w @ (v0 - k2 * (k2 @ v0))
     b = w @ np.cross(k2, v0)
     t2 = np.arctan2(b, a)
@@ -266,7 +271,7 @@ a branch switch on it is made (:func:`split_at_switches`)."""
 
 def split_at_switches(
     problem: Problem, toolpath: Toolpath, sel: Selection
-) -> tuple[Toolpath, Selection]:
+) -> tuple[Toolpath, Selection, np.ndarray]:
     """Make each branch switch on a cutting move a turn at one point, where the branches meet.
 
     Near a pole the two inverse kinematics branches are close (the first rotary axis half a
@@ -290,17 +295,19 @@ def split_at_switches(
     sel : Selection
         With a point for each inserted one (``arrive`` on the first branch, ``q`` on the
         second, ``rewind`` True).
+    old : ndarray, shape (n,), int
+        Index of each point of ``toolpath`` in the returned one.
     """
     machine, tol = problem.machine, problem.tol
     n = len(toolpath)
     if n < 2 or len(machine.rotary) != 2:
-        return toolpath, sel
+        return toolpath, sel, np.arange(n)
     ok = sel.status == IKStatus.OK
     entry = entry_mask(toolpath)
     moving = (toolpath.motion == Motion.FEED) & ~entry & ~sel.rewind
     at = np.flatnonzero(ok[:-1] & ok[1:] & moving[1:] & (sel.branch[:-1] != sel.branch[1:]))
     if not at.size:
-        return toolpath, sel
+        return toolpath, sel, np.arange(n)
     cols = list(machine.rotary_columns)
     lo = np.array([a.lower for a in machine.rotary])
     hi = np.array([a.upper for a in machine.rotary])
@@ -325,7 +332,7 @@ def split_at_switches(
             arrive.append(rows[0])
             leave.append(rows[1])
     if not params:
-        return toolpath, sel
+        return toolpath, sel, np.arange(n)
     new_tp, old, new = insert_points(toolpath, np.array(params))
     tip = new_tp.tip[new]
     q_arrive, q_leave = (
@@ -334,7 +341,7 @@ def split_at_switches(
     )
     log.debug("%d branch switches made turns at a point between CL points", len(params))
     ins = np.floor(params).astype(int) + 1  # where they go in the old arrays
-    return new_tp, replace(
+    sel = replace(
         sel,
         q=np.insert(sel.q, ins, q_leave, axis=0),
         arrive=np.insert(sel.arrive, ins, q_arrive, axis=0),
@@ -343,6 +350,7 @@ def split_at_switches(
         rewind=np.insert(sel.rewind, ins, True),
         settled=None if sel.settled is None or sel.settled < 0 else int(old[sel.settled]),
     )
+    return new_tp, sel, old
 
 
 def _closest_branches(machine: Machine, va: np.ndarray, vb: np.ndarray, tol: Tolerances) -> float:
@@ -425,7 +433,8 @@ def _plain(problem: Problem, toolpath: Toolpath, sel: Selection, spans: list[Spa
 def exact_split(problem: Problem, toolpath: Toolpath) -> tuple[Toolpath, Selection]:
     """The exact branch choice on ``toolpath`` with its branch switches made turns at a point
     (:func:`split_at_switches`): the toolpath the plan's rows then refer to, and the choice."""
-    return split_at_switches(problem, toolpath, exact_selection(problem, toolpath))
+    tp, sel, _ = split_at_switches(problem, toolpath, exact_selection(problem, toolpath))
+    return tp, sel
 
 
 def _spans(problem: Problem, toolpath: Toolpath, sel: Selection) -> list[Span]:

@@ -25,6 +25,7 @@ from types import ModuleType
 import numpy as np
 
 from urdfpost.geometry import angle_between, norms
+from urdfpost.kinematics.inverse import IKResult, RotarySolutions, inverse
 from urdfpost.machine import Machine
 from urdfpost.planning._compiled import Kernels
 from urdfpost.planning.branches import Selection
@@ -34,6 +35,7 @@ from urdfpost.planning.problem import (
     arc_length,
     at_param,
     entry_mask,
+    exact_selection,
     tool_axis_of,
 )
 from urdfpost.planning.singularity import Span, feed_runs
@@ -45,7 +47,9 @@ from urdfpost.planning.strategies._common import (
     exact_split,
     insert_points,
     split_at_pole_crossings,
+    split_at_switches,
 )
+from urdfpost.planning.strategies._pointwise import PointMemo
 from urdfpost.planning.strategies._registry import strategy
 from urdfpost.toolpath import Motion, Toolpath, toolpath_slice
 
@@ -94,7 +98,9 @@ def strategy_cone(problem: Problem) -> Plan:
     orientation turns faster in the first rotary angle mid-segment than at the ends), a point
     is inserted on the segment where it leaves it most, and the cone is planned again, up to
     :data:`ROUNDS` times. The rounds after the first are planned on windows around what the
-    cone bent (:func:`_inserted`); the plan is always made on the whole path.
+    cone bent (:func:`_inserted`); the plan is always made on the whole path. Each round takes
+    the inverse kinematics of the points it shares with the round before over from it
+    (:func:`_solved`).
 
     A cutting move with no feed has no time to rate the first rotary axis by: in a feed run
     with such a move, the axis is bent only inside the singular spans, to the least peak turn
@@ -108,15 +114,16 @@ def strategy_cone(problem: Problem) -> Plan:
         tp, sel = exact_split(problem, tp)
         return _plain(problem, tp, sel, _spans(problem, tp, sel))
     done = 0  # rounds of points inserted
+    solved = _solved(problem, len(tp))
     while True:
-        r = _planned(problem, tp)
+        r = _planned(problem, tp, solved)
         if r.bent is None:
             _say(r.notes)
             plain = _plain(problem, r.tp, r.sel, r.spans)
             return replace(plain, notes=[*r.sel.notes, *r.notes])
         if not r.over.size or done == ROUNDS:
             break
-        tp, rounds = _inserted(problem, r, ROUNDS - done)
+        tp, rounds, solved = _inserted(problem, r, ROUNDS - done)
         log.debug("cone: %d rounds of points inserted where the curve leaves the cone", rounds)
         done += rounds
     assert r.curve is not None
@@ -154,6 +161,8 @@ class _Round:
         The joint curve through the rows.
     over : ndarray, shape (k,)
         Positions where the curve leaves the angle tolerance (:func:`_beyond`).
+    solved : PointMemo
+        The inverse kinematics of the points of ``tp`` (:func:`_solved`).
     """
 
     tp: Toolpath
@@ -165,31 +174,52 @@ class _Round:
     rot: np.ndarray
     curve: Callable[[np.ndarray], np.ndarray] | None
     over: np.ndarray
+    solved: PointMemo
 
 
-def _planned(problem: Problem, tp: Toolpath) -> _Round:
-    """One round of the cone on ``tp``: branch choice, spans, the bent angles, the rows and
-    their curve, and where the curve leaves the angle tolerance."""
+def _solved(problem: Problem, n: int) -> PointMemo:
+    """The inverse kinematics of the branch choice (:func:`urdfpost.planning.branches.select`)
+    as a row function of the points' tips and tool axes, ``(tip (k, 3), axis (k, 3)) -> (q,
+    angles, valid, status)`` (the fields of :class:`urdfpost.kinematics.inverse.IKResult`),
+    for a toolpath of ``n`` points: each round plans the points of the round before with a few
+    inserted, and takes their solutions over (why that is exact:
+    :mod:`urdfpost.planning.strategies._pointwise`)."""
     machine = problem.machine
-    tp, sel = exact_split(problem, tp)
+
+    def solved(tip: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, ...]:
+        ik = inverse(machine, tip, axis, problem.tool_length, problem.tol, pole_angle=0.0)
+        return ik.q, ik.rotary.angles, ik.rotary.valid, ik.rotary.status
+
+    return PointMemo.new(solved, n)
+
+
+def _planned(problem: Problem, tp: Toolpath, solved: PointMemo) -> _Round:
+    """One round of the cone on ``tp``: branch choice, spans, the bent angles, the rows and
+    their curve, and where the curve leaves the angle tolerance. ``solved``: the inverse
+    kinematics the round before computed (:func:`_solved`), on ``tp``."""
+    machine = problem.machine
+    (q, angles, valid, status), solved = solved(np.arange(len(tp)), tp.tip, tp.axis)
+    sel = exact_selection(problem, tp, ik=IKResult(q, RotarySolutions(angles, valid, status)))
+    tp, sel, old = split_at_switches(problem, tp, sel)
+    solved = solved.moved(old, len(tp))
     spans = _spans(problem, tp, sel)
     bent, notes = _bend(problem, tp, sel, spans)
     if bent is None:
         none = np.zeros(0)
-        return _Round(tp, sel, spans, notes, None, none, none.reshape(0, 2), None, none)
+        return _Round(tp, sel, spans, notes, None, none, none.reshape(0, 2), None, none, solved)
     q = sel.q.copy()
     q[:, list(machine.rotary_columns)] = bent
     # rows are the CL points, with a turn in place where a row stands on the pole
     param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
     curve = _curve(machine, tp, param, rot)
     over = _beyond(problem, tp, curve, param, rot)
-    return _Round(tp, sel, spans, notes, bent, param, rot, curve, over)
+    return _Round(tp, sel, spans, notes, bent, param, rot, curve, over, solved)
 
 
-def _inserted(problem: Problem, r: _Round, left: int) -> tuple[Toolpath, int]:
+def _inserted(problem: Problem, r: _Round, left: int) -> tuple[Toolpath, int, PointMemo]:
     """The toolpath of round ``r`` with the points it asks for inserted, and with those the
-    next rounds would insert, found on windows of the path; and how many rounds of points
-    that is (1 to ``left``).
+    next rounds would insert, found on windows of the path; how many rounds of points that is
+    (1 to ``left``); and the inverse kinematics ``r`` computed, on that toolpath.
 
     A round changes the plan only where the cone bends, on the spans and where points are
     inserted: each stretch of ``r`` that has any of these gets a window reaching
@@ -202,17 +232,19 @@ def _inserted(problem: Problem, r: _Round, left: int) -> tuple[Toolpath, int]:
     whole path's next round inserts what is still missing.
     """
     tp, old, _ = insert_points(r.tp, r.over, problem.pivot)
+    solved = r.solved.moved(old, len(tp))
     windows = _windows(problem.machine, r)
     pos = old  # index in ``tp`` of each point of ``r.tp``
     rounds = 1
     while rounds < left and windows:
-        over = _window_round(problem, r, tp, pos, windows)
+        over = _window_round(problem, r, tp, pos, windows, solved)
         if over is None or not over.size:
             break
         tp, old, _ = insert_points(tp, over, problem.pivot)
+        solved = solved.moved(old, len(tp))
         pos = old[pos]
         rounds += 1
-    return tp, rounds
+    return tp, rounds, solved
 
 
 def _windows(machine: Machine, r: _Round) -> list[tuple[int, int]]:
@@ -244,16 +276,20 @@ def _window_round(
     tp: Toolpath,
     pos: np.ndarray,
     windows: list[tuple[int, int]],
+    solved: PointMemo,
 ) -> np.ndarray | None:
     """The positions on ``tp`` where the next round, planned on each window alone, inserts
     points, shape (k,); None where a window's branch choice is not that of ``r`` (at the
-    points of ``r.tp``, ``pos`` their indices in ``tp``) or it bends nothing."""
+    points of ``r.tp``, ``pos`` their indices in ``tp``) or it bends nothing. ``solved``: the
+    inverse kinematics ``r`` computed, on ``tp``."""
     cols = list(problem.machine.rotary_columns)
     found = []
     for ra, rb in windows:
         a, b = int(pos[ra]), int(pos[rb])
         sub = toolpath_slice(tp, a, b + 1)
-        local = _planned(replace(problem, toolpath=sub, start=r.sel.q[ra]), sub)
+        local = _planned(
+            replace(problem, toolpath=sub, start=r.sel.q[ra]), sub, solved.taken(slice(a, b + 1))
+        )
         if local.bent is None or len(local.tp) != len(sub):
             return None
         at = pos[ra : rb + 1] - a
