@@ -28,7 +28,7 @@ from test_viterbi import MACHINES, random_walk, spiral_axis
 from urdfpost.analysis.testpaths import PATHS, hemisphere_raster
 from urdfpost.errors import UnreachableError
 from urdfpost.machine import load_machine
-from urdfpost.planning._compiled import Kernels
+from urdfpost._compiled import Kernels
 from urdfpost.planning.branches import engine, search, select
 from urdfpost.planning.branches.state import BranchSearch, _Exclusions
 from urdfpost.planning.problem import Problem, entry_mask
@@ -382,7 +382,7 @@ def test_a_failing_kernel_falls_back_to_numpy_with_a_warning(
 
     monkeypatch.setattr(engine.KERNELS.module, "viterbi", broken)
     monkeypatch.setattr(cone.KERNELS.module, "tube", broken)
-    with caplog.at_level(logging.WARNING, logger="urdfpost.planning._compiled"):
+    with caplog.at_level(logging.WARNING, logger="urdfpost._compiled"):
         got = STRATEGIES["cone"](problem)
     assert engine.KERNELS.failed and cone.KERNELS.failed
     assert engine.KERNELS.loaded() is None and cone.KERNELS.loaded() is None

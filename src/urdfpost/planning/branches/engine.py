@@ -19,7 +19,7 @@ from types import ModuleType
 
 import numpy as np
 
-from urdfpost.planning._compiled import Kernels
+from urdfpost._compiled import Kernels
 from urdfpost.planning.branches._arrays import _CHUNK, _rows_any, _total
 from urdfpost.planning.branches.costs import JUMP, REWIND_COST
 from urdfpost.planning.branches.exclusion import _raise_dead_end
@@ -39,7 +39,7 @@ def _load_kernels() -> ModuleType:
 
 KERNELS = Kernels(_load_kernels, "branch choice")
 """The compiled recursion (:mod:`urdfpost.planning.branches._viterbi_kernel`), loaded by
-:func:`_viterbi` for a large path (:data:`urdfpost.planning._compiled.COMPILED_FROM`)."""
+:func:`_viterbi` for a large path (:data:`urdfpost._compiled.COMPILED_FROM`)."""
 
 
 def _min_plus(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:

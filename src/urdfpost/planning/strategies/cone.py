@@ -27,7 +27,7 @@ import numpy as np
 from urdfpost.geometry import angle_between, norms
 from urdfpost.kinematics.inverse import IKResult, RotarySolutions, inverse
 from urdfpost.machine import Machine
-from urdfpost.planning._compiled import Kernels
+from urdfpost._compiled import Kernels
 from urdfpost.planning.branches import Selection
 from urdfpost.planning.problem import (
     Plan,
@@ -85,7 +85,7 @@ def _load_kernels() -> ModuleType:
 
 KERNELS = Kernels(_load_kernels, "cone tube")
 """The compiled tube (:mod:`urdfpost.planning.strategies._cone_kernel`), loaded by
-:func:`strategy_cone` for a large path (:data:`urdfpost.planning._compiled.COMPILED_FROM`)."""
+:func:`strategy_cone` for a large path (:data:`urdfpost._compiled.COMPILED_FROM`)."""
 
 
 @strategy("cone", rank=60)
