@@ -7,9 +7,13 @@ them to stay fast.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
+
+from urdfpost._compiled import Kernels
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_CL = ROOT.parent / "shared" / "testdata" / "cl"
@@ -34,3 +38,20 @@ def shared_cl(name: str) -> Path:
     if not path.is_file():
         pytest.skip(f"real CL file {path} not present (../shared is not part of a fresh clone)")
     return path
+
+
+StandIn = Callable[[Kernels, SimpleNamespace], None]
+
+
+@pytest.fixture
+def stand_in(monkeypatch: pytest.MonkeyPatch) -> StandIn:
+    """Make a :class:`~urdfpost._compiled.Kernels` hand out a stand-in for its module (kernels
+    that fail, or wrap the real ones) in this test, as if loaded and never failed; the object is
+    as it was after the test."""
+
+    def install(kernels: Kernels, module: SimpleNamespace) -> None:
+        monkeypatch.setattr(kernels, "module", module)
+        monkeypatch.setattr(kernels, "failed", None)
+        monkeypatch.setattr(kernels, "_tried", True)
+
+    return install

@@ -8,9 +8,11 @@ import json
 import re
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import StandIn
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from jobs import write_hemisphere
@@ -521,7 +523,7 @@ def test_compiled_matching_of_posted_programs(
     tol = Tolerances.for_units("mm")
     want = match_points_numpy(job.tip, job.axis, rows.tip, rows.axis, tol)
     assert bool((want < 0).sum() > 1000) == damage  # the stretch's points missed
-    monkeypatch.setattr(match, "COMPILED_FROM", 1)
+    monkeypatch.setattr(match.KERNELS, "start", 1)
     got = match.match_points(job.tip, job.axis, rows.tip, rows.axis, tol)
     np.testing.assert_array_equal(got, want)
 
@@ -747,7 +749,7 @@ def test_cos_sin_of_small_angles(largest: float) -> None:
 
 
 def test_matching_falls_back_to_numpy_when_the_compiled_loop_fails(
-    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture, stand_in: StandIn
 ) -> None:
     """numba that cannot compile or cache the loop on this machine: a warning, and the numpy
     rounds give the rows (for the rest of the process too)."""
@@ -756,9 +758,8 @@ def test_matching_falls_back_to_numpy_when_the_compiled_loop_fails(
     def broken(*args: object) -> np.ndarray:
         raise RuntimeError("cannot cache function 'match_rows': no locator available")
 
-    monkeypatch.setattr(match, "COMPILED_FROM", 1)
-    monkeypatch.setattr(match, "_compiled", lambda: None if match._KERNEL_FAILED else broken)
-    monkeypatch.setattr(match, "_KERNEL_FAILED", [])
+    monkeypatch.setattr(match.KERNELS, "start", 1)
+    stand_in(match.KERNELS, SimpleNamespace(match_rows=broken))
     p = {"repeat": 0.0, "dense": 0.1, "insert": 0.1, "drop": 0.02, "off": 0.02, "turn": 0.05}
     cl_tip, cl_axis, tip, axis = _cl_and_program(np.random.default_rng(3), 300, p)
     tol = Tolerances()
@@ -766,5 +767,5 @@ def test_matching_falls_back_to_numpy_when_the_compiled_loop_fails(
     with caplog.at_level("WARNING", logger="urdfpost.verification.match"):
         np.testing.assert_array_equal(match.match_points(cl_tip, cl_axis, tip, axis, tol), want)
     assert "compiled matching unavailable (cannot cache function" in caplog.text
-    assert match._KERNEL_FAILED
+    assert match.KERNELS.failed
     np.testing.assert_array_equal(match.match_points(cl_tip, cl_axis, tip, axis, tol), want)

@@ -14,13 +14,13 @@ be cut.
 
 from __future__ import annotations
 
-import functools
 import logging
-from collections.abc import Callable
 from dataclasses import replace
+from types import ModuleType
 
 import numpy as np
 
+from urdfpost._compiled import Kernels
 from urdfpost.errors import DialectError
 from urdfpost.geometry import VecArrays, angle_between, coords
 from urdfpost.linearize import RowPoses
@@ -333,23 +333,15 @@ process (numba's import and the cached machine code's loading), which a run of t
 makes up for."""
 
 
-_KERNEL_FAILED: list[str] = []
-"""Why the compiled loop could not run in this process (then the numpy rounds run)."""
+def _load_kernel() -> ModuleType:
+    from urdfpost.verification import _match_kernel
+
+    return _match_kernel
 
 
-@functools.cache
-def _kernel() -> Callable[..., np.ndarray] | None:
-    """The compiled matching loop, or None without numba (looked for once per process)."""
-    try:
-        from urdfpost.verification._match_kernel import match_rows
-    except ImportError:
-        return None
-    return match_rows
-
-
-def _compiled() -> Callable[..., np.ndarray] | None:
-    """The compiled matching loop, or None without numba (or after it failed here)."""
-    return None if _KERNEL_FAILED else _kernel()
+KERNELS = Kernels(_load_kernel, "matching", start=COMPILED_FROM, stays=False, logger=log)
+"""The compiled matching loop (:mod:`urdfpost.verification._match_kernel`), used by
+:func:`match_points` from :data:`COMPILED_FROM` CL points on."""
 
 
 def match_points(
@@ -376,15 +368,14 @@ def match_points(
     -------
     ndarray, shape (n_cl,), int
     """
-    kernel = _compiled() if len(cl_tip) >= COMPILED_FROM else None
+    kernel = KERNELS.get(len(cl_tip))
     if kernel is None:
         return match_points_numpy(cl_tip, cl_axis, tip, axis, tol)
     arrays = [np.ascontiguousarray(a, dtype=float) for a in (cl_tip, cl_axis, tip, axis)]
     try:
-        return kernel(*arrays, float(tol.tip), float(tol.orientation), REACH)
+        return kernel.match_rows(*arrays, float(tol.tip), float(tol.orientation), REACH)
     except Exception as e:  # numba could not compile or cache it here: the numpy rounds
-        _KERNEL_FAILED.append(str(e))
-        log.warning("compiled matching unavailable (%s); the numpy path runs", e)
+        KERNELS.fail(e)
         return match_points_numpy(cl_tip, cl_axis, tip, axis, tol)
 
 
