@@ -25,10 +25,10 @@ from test_cone_spans import jobs
 from test_tube import pole_pass
 from test_viterbi import MACHINES, random_walk, spiral_axis
 
+from urdfpost._compiled import Kernels
 from urdfpost.analysis.testpaths import PATHS, hemisphere_raster
 from urdfpost.errors import UnreachableError
 from urdfpost.machine import load_machine
-from urdfpost._compiled import Kernels
 from urdfpost.planning.branches import engine, search, select
 from urdfpost.planning.branches.state import BranchSearch, _Exclusions
 from urdfpost.planning.problem import Problem, entry_mask

@@ -24,10 +24,10 @@ from types import ModuleType
 
 import numpy as np
 
+from urdfpost._compiled import Kernels
 from urdfpost.geometry import angle_between, norms
 from urdfpost.kinematics.inverse import IKResult, RotarySolutions, inverse
 from urdfpost.machine import Machine
-from urdfpost._compiled import Kernels
 from urdfpost.planning.branches import Selection
 from urdfpost.planning.problem import (
     Plan,
