@@ -41,6 +41,7 @@ def shared_cl(name: str) -> Path:
 
 
 StandIn = Callable[[Kernels, SimpleNamespace], None]
+Unloaded = Callable[[Kernels], None]
 
 
 @pytest.fixture
@@ -55,3 +56,16 @@ def stand_in(monkeypatch: pytest.MonkeyPatch) -> StandIn:
         monkeypatch.setattr(kernels, "_tried", True)
 
     return install
+
+
+@pytest.fixture
+def unloaded(monkeypatch: pytest.MonkeyPatch) -> Unloaded:
+    """Make a :class:`~urdfpost._compiled.Kernels` as if its module had never been looked for
+    in this process (nor failed); the object is as it was after the test."""
+
+    def reset(kernels: Kernels) -> None:
+        monkeypatch.setattr(kernels, "module", None)
+        monkeypatch.setattr(kernels, "failed", None)
+        monkeypatch.setattr(kernels, "_tried", False)
+
+    return reset

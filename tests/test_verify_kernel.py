@@ -10,10 +10,12 @@ import functools
 import re
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 import pytest
+from conftest import StandIn, Unloaded
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -120,9 +122,9 @@ def _agree(a: np.ndarray, b: np.ndarray) -> None:
 
 def _compare(feed: _Blocks) -> None:
     """The compiled pass against the numpy pass, chunk by chunk, on every count it reports."""
-    kernels = measure._kernel()
+    kernels = measure.KERNELS.load()
     assert kernels is not None
-    kernel = kernels.block
+    kernel = kernels.block_deviation
     inputs = measure._KernelInputs.of(feed)
     assert inputs is not None
     for part in [*chunks(len(feed.start), 7 * len(T)), slice(0, len(feed.start))]:
@@ -193,9 +195,9 @@ def test_compiled_rows_are_the_numpy_rows(
         feed = _feed(machine(name), rng, 120, scale, False, pivot)
         rows = feed.rows.take(slice(0, len(feed.start)))
         args = (rows, feed.polyline, feed.ja, feed.jb, feed.window)
-        monkeypatch.setattr(measure, "COMPILED_FROM", 10**12)
+        monkeypatch.setattr(measure.KERNELS, "start", 10**12)
         want = measure._row_deviation(*args)
-        monkeypatch.setattr(measure, "COMPILED_FROM", 1)
+        monkeypatch.setattr(measure.KERNELS, "start", 1)
         got = measure._row_deviation(*args)
         for g, w in zip(got, want, strict=True):
             _agree(g, w)
@@ -228,7 +230,7 @@ def test_compiled_chords_per_sample(name: str, tcp: bool, monkeypatch: pytest.Mo
         reach=np.zeros((dist2.size, 0)),
         swing=np.zeros((dist2.size, 0)),
     )
-    monkeypatch.setattr(measure, "COMPILED_FROM", 1)
+    monkeypatch.setattr(measure.KERNELS, "start", 1)
     got = measure._row_deviation(rows, polyline, np.tile(ja, s), np.tile(jb, s), window)
     assert np.array_equal(got[0], dist2.ravel())
     _agree(got[1], chord2.ravel())
@@ -237,9 +239,9 @@ def test_compiled_chords_per_sample(name: str, tcp: bool, monkeypatch: pytest.Mo
 def test_compiled_bounds_hold() -> None:
     """The bounds the compiled pass gives are above the deviation anywhere in the block (dense
     samples of the numpy path): the refinement still finds what it must."""
-    kernels = measure._kernel()
+    kernels = measure.KERNELS.load()
     assert kernels is not None
-    kernel = kernels.block
+    kernel = kernels.block_deviation
     for name in MACHINES:
         for tcp in (False, True):
             feed = _feed(machine(name), np.random.default_rng(7), 60, 0.05, tcp, 3.0)
@@ -260,11 +262,13 @@ def _refined(
     """The compiled first pass over every block, and a random half of the compared blocks to
     refine by tip and four fifths by orientation: the inputs, the blocks refined, and the
     samples worst, the maxima sampled and the blocks wanted (of each of the two)."""
-    kernels = measure._kernel()
+    kernels = measure.KERNELS.load()
     inputs = measure._KernelInputs.of(feed)
     assert kernels is not None and inputs is not None
     n = len(feed.start)
-    _, best, worst, _, _ = measure._first_pass_compiled(kernels.block, inputs, feed, slice(0, n), T)
+    _, best, worst, _, _ = measure._first_pass_compiled(
+        kernels.block_deviation, inputs, feed, slice(0, n), T
+    )
     assert feed.valid is not None
     wanted = (rng.random(n) < 0.5) & feed.valid, (rng.random(n) < 0.8) & feed.valid
     todo = np.flatnonzero(wanted[0] | wanted[1])
@@ -312,10 +316,12 @@ def test_compiled_refinement_is_refine_max(name: str, tcp: bool, pivot: float) -
     for scale in (0.002, 0.05, 0.5):
         feed = _feed(machine(name), rng, 60, scale, tcp, pivot)
         inputs, todo, worst, best, wanted = _refined(feed, rng)
-        kernels = measure._kernel()
+        kernels = measure.KERNELS.load()
         assert kernels is not None
         got = (best[0].copy(), best[1].copy())
-        left = measure._refine_compiled(kernels.refine, inputs, feed, todo, T, worst, got, wanted)
+        left = measure._refine_compiled(
+            kernels.refine_deviation, inputs, feed, todo, T, worst, got, wanted
+        )
         long = np.maximum(feed.jb - feed.ja, 1)[todo] > measure._LONG
         assert np.array_equal(left, todo[long])
         short = todo[~long]
@@ -374,9 +380,9 @@ def test_compiled_verification_is_the_numpy_verification(
     rules = FeedRules.of(dialect_for("fanuc").spec, "mm")
     for pivot in (0.0, 3.0):
         kwargs = {"tol": tol, "pivot": pivot, "tool_length": tool_length, "feed_rules": rules}
-        monkeypatch.setattr(measure, "COMPILED_FROM", 10**12)
+        monkeypatch.setattr(measure.KERNELS, "start", 10**12)
         want = verify(program, m, job, **kwargs)  # type: ignore[arg-type]
-        monkeypatch.setattr(measure, "COMPILED_FROM", 1)
+        monkeypatch.setattr(measure.KERNELS, "start", 1)
         got = verify(program, m, job, **kwargs)  # type: ignore[arg-type]
         assert got == want
         assert want.feeds is not None  # the tip feed measured (on the kernel's tip paths)
@@ -384,7 +390,7 @@ def test_compiled_verification_is_the_numpy_verification(
 
 
 def test_block_deviation_falls_back_to_numpy_when_the_kernel_fails(
-    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture, stand_in: StandIn
 ) -> None:
     """numba that cannot compile or cache the kernel on this machine: a warning, and the numpy
     path gives the verification (for the rest of the process too)."""
@@ -397,27 +403,28 @@ def test_block_deviation_falls_back_to_numpy_when_the_kernel_fails(
     def broken(*args: object) -> None:
         raise RuntimeError("cannot cache function 'block_deviation': no locator available")
 
-    kernels = measure._Kernels(broken, broken, broken)
-    monkeypatch.setattr(measure, "COMPILED_FROM", 1)
-    monkeypatch.setattr(measure, "_compiled", lambda: None if measure._KERNEL_FAILED else kernels)
-    monkeypatch.setattr(measure, "_KERNEL_FAILED", [])
+    kernels = SimpleNamespace(
+        block_deviation=broken, point_deviation=broken, refine_deviation=broken
+    )
+    monkeypatch.setattr(measure.KERNELS, "start", 1)
+    stand_in(measure.KERNELS, kernels)
     with caplog.at_level("WARNING", logger="urdfpost.verification.measure"):
         assert verify(program, m, job, tool_length=tool_length) == want
     assert "compiled block deviation unavailable (cannot cache function" in caplog.text
-    assert measure._KERNEL_FAILED
+    assert measure.KERNELS.failed
     assert verify(program, m, job, tool_length=tool_length) == want
 
 
 def test_refinement_falls_back_to_numpy_when_its_kernel_fails(
-    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture, stand_in: StandIn
 ) -> None:
     """The first pass compiled, the refinement's kernel failing: a warning, and every block
     wanted refined by numpy (``refine_max``), within AGREE of the numpy path's maxima."""
     feed = _feed(machine("dmu50"), np.random.default_rng(11), 200, 0.05, False, 3.0)
     levels = [(0.0, 0.0)]
-    monkeypatch.setattr(measure, "COMPILED_FROM", 10**12)
+    monkeypatch.setattr(measure.KERNELS, "start", 10**12)
     (want,) = measure._block_deviation([feed], levels)
-    real = measure._kernel()
+    real = measure.KERNELS.load()
     assert real is not None
 
     def broken(*args: object) -> None:
@@ -430,21 +437,26 @@ def test_refinement_falls_back_to_numpy_when_its_kernel_fails(
         refined.append(int(wanted[0].sum() + wanted[1].sum()))
         return refine_max(*args, **kwargs)
 
-    kernels = measure._Kernels(real.block, real.point, broken)
-    monkeypatch.setattr(measure, "COMPILED_FROM", 1)
-    monkeypatch.setattr(measure, "_compiled", lambda: None if measure._KERNEL_FAILED else kernels)
-    monkeypatch.setattr(measure, "_KERNEL_FAILED", [])
+    kernels = SimpleNamespace(
+        block_deviation=real.block_deviation,
+        point_deviation=real.point_deviation,
+        refine_deviation=broken,
+    )
+    monkeypatch.setattr(measure.KERNELS, "start", 1)
+    stand_in(measure.KERNELS, kernels)
     monkeypatch.setattr(measure, "refine_max", spy)
     with caplog.at_level("WARNING", logger="urdfpost.verification.measure"):
         (got,) = measure._block_deviation([feed], levels)
     assert "compiled block deviation unavailable (cannot cache function" in caplog.text
-    assert measure._KERNEL_FAILED
+    assert measure.KERNELS.failed
     assert sum(refined) > 0
     _agree(got.tip, want.tip)
     _agree(got.block_chord2, want.block_chord2)
 
 
-def test_without_numba_the_numpy_path_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_without_numba_the_numpy_path_runs(
+    monkeypatch: pytest.MonkeyPatch, unloaded: Unloaded
+) -> None:
     """No numba (the kernels' module cannot be imported): no kernels, whatever the size, and
     the verification the numpy path gives."""
     import builtins
@@ -453,26 +465,25 @@ def test_without_numba_the_numpy_path_runs(monkeypatch: pytest.MonkeyPatch) -> N
     program = dialect_for("fanuc").read(text, path="prog.nc")
     m = machine("dmu50")
     job = read_cl(DOME)
-    monkeypatch.setattr(measure, "COMPILED_FROM", 10**12)
+    monkeypatch.setattr(measure.KERNELS, "start", 10**12)
     want = verify(program, m, job, tool_length=tool_length)
     real_import = builtins.__import__
 
     def no_kernels(name: str, *args: object, **kwargs: object) -> object:
-        if name == "urdfpost.verification._deviation_kernel":
+        if name == "urdfpost.verification" and "_deviation_kernel" in (args[2] or ()):  # type: ignore[operator]
             raise ImportError("no numba here")
         return real_import(name, *args, **kwargs)  # type: ignore[arg-type]
 
     def compiled(*args: object) -> None:
         raise AssertionError("a compiled pass ran")
 
-    measure._kernel.cache_clear()
+    unloaded(measure.KERNELS)
     monkeypatch.setattr(builtins, "__import__", no_kernels)
-    monkeypatch.setattr(measure, "COMPILED_FROM", 1)
+    monkeypatch.setattr(measure.KERNELS, "start", 1)
     monkeypatch.setattr(measure, "_first_pass_compiled", compiled)
     monkeypatch.setattr(measure, "_refine_compiled", compiled)
     try:
-        assert measure._compiled() is None
+        assert measure.KERNELS.get(10**9) is None
         assert verify(program, m, job, tool_length=tool_length) == want
     finally:
         monkeypatch.undo()
-        measure._kernel.cache_clear()

@@ -17,14 +17,14 @@ place; ``docs/verification.md``), and which CL points the program reaches, in or
 
 from __future__ import annotations
 
-import functools
 import logging
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
-from typing import NamedTuple
+from types import ModuleType
 
 import numpy as np
 
+from urdfpost._compiled import Kernels
 from urdfpost.errors import DialectError, ProgramParseError
 from urdfpost.geometry import (
     Arcs,
@@ -664,44 +664,22 @@ compiled loops (:mod:`urdfpost.verification._deviation_kernel`, with numba insta
 (numba's import, shared with the compiled matching, and the cached machine code's loading)."""
 
 
-_KERNEL_FAILED: list[str] = []
-"""Why the compiled loops could not run in this process (then the numpy path runs)."""
+def _load_kernels() -> ModuleType:
+    from urdfpost.verification import _deviation_kernel
+
+    return _deviation_kernel
 
 
-class _Kernels(NamedTuple):
-    """The compiled loops (:mod:`urdfpost.verification._deviation_kernel`)."""
-
-    block: Callable[..., None]
-    """:func:`urdfpost.verification._deviation_kernel.block_deviation`"""
-    point: Callable[..., None]
-    """:func:`urdfpost.verification._deviation_kernel.point_deviation`"""
-    refine: Callable[..., None]
-    """:func:`urdfpost.verification._deviation_kernel.refine_deviation`"""
-
-
-@functools.cache
-def _kernel() -> _Kernels | None:
-    """The compiled loops, or None without numba (looked for once per process)."""
-    try:
-        from urdfpost.verification._deviation_kernel import (
-            block_deviation,
-            point_deviation,
-            refine_deviation,
-        )
-    except ImportError:
-        return None
-    return _Kernels(block_deviation, point_deviation, refine_deviation)
-
-
-def _compiled() -> _Kernels | None:
-    """The compiled loops, or None without numba (or after they failed here)."""
-    return None if _KERNEL_FAILED else _kernel()
-
-
-def _failed(err: Exception) -> None:
-    """Note that the compiled loops failed here (the numpy path runs from now on)."""
-    _KERNEL_FAILED.append(str(err))
-    log.warning("compiled block deviation unavailable (%s); numpy runs", err)
+KERNELS = Kernels(
+    _load_kernels,
+    "block deviation",
+    start=COMPILED_FROM,
+    stays=False,
+    logger=log,
+    warning="compiled %s unavailable (%s); numpy runs",
+)
+"""The compiled loops (:mod:`urdfpost.verification._deviation_kernel`), used from
+:data:`COMPILED_FROM` feed blocks or rows on."""
 
 
 @dataclass(frozen=True)
@@ -912,7 +890,7 @@ def _refine_compiled(
             found,
         )
     except Exception as err:  # numba could not compile or cache it here: numpy
-        _failed(err)
+        KERNELS.fail(err)
         return todo
     best[0][blocks], best[1][blocks] = found
     return todo[~short]
@@ -952,8 +930,8 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
     worst = [(np.zeros(n, dtype=int), np.zeros(n, dtype=int)) for _ in feeds]
     bound = [(np.zeros(n), np.zeros(n)) for _ in feeds]
     total = [0.0 for _ in feeds]
-    kernels = _compiled() if n >= COMPILED_FROM else None
-    kernel = None if kernels is None else kernels.block
+    kernels = KERNELS.get(n)
+    kernel = None if kernels is None else kernels.block_deviation
     inputs = [_KernelInputs.of(feed) for feed in feeds] if kernel is not None else []
     # the tip's path through the samples, a by-product of the compiled pass (feeds.tip_lengths)
     lengths = np.empty(n)
@@ -968,7 +946,7 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
                 try:
                     dist2, b2, w2, bd, ln = _first_pass_compiled(kernel, ins, feed, part, t)
                 except Exception as err:  # numba could not compile or cache it here: numpy
-                    _failed(err)
+                    KERNELS.fail(err)
                     kernel = None
                 else:
                     if f == 0:
@@ -1012,9 +990,10 @@ def _block_deviation(feeds: list[_Blocks], levels: list[tuple[float, float]]) ->
             wanted[1].sum(),
         )
         ins = inputs[f] if inputs else None
-        kernels = _compiled() if ins is not None and len(todo) else None  # (None after a failure)
+        kernels = KERNELS.load() if ins is not None and len(todo) else None  # (None: failed)
         if kernels is not None and ins is not None:
-            todo = _refine_compiled(kernels.refine, ins, feed, todo, t, worst[f], best[f], wanted)
+            refine = kernels.refine_deviation
+            todo = _refine_compiled(refine, ins, feed, todo, t, worst[f], best[f], wanted)
         for part in chunks(len(todo), 4):  # four evaluations per block at a time
             sub = todo[part]
 
@@ -1340,12 +1319,12 @@ def _row_deviation(
     """
     n = len(rows.tip)
     dp2, op2 = np.empty(n), np.empty(n)
-    kernels = _compiled() if n >= COMPILED_FROM else None
+    kernels = KERNELS.get(n)
     todo: np.ndarray | None = None  # rows left to numpy (None: all)
     if kernels is not None:
         long = np.empty(n, dtype=np.bool_)
         try:
-            kernels.point(
+            kernels.point_deviation(
                 rows.tip[:, 0],  # views (strided): no copies of the rows
                 rows.tip[:, 1],
                 rows.tip[:, 2],
@@ -1364,7 +1343,7 @@ def _row_deviation(
                 long,
             )
         except Exception as err:  # numba could not compile or cache it here: numpy
-            _failed(err)
+            KERNELS.fail(err)
         else:
             todo = np.flatnonzero(long)
     for part in chunks(n if todo is None else len(todo), 1):
