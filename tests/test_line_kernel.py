@@ -11,9 +11,11 @@ from __future__ import annotations
 import logging
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import StandIn
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_dialect_speedpaths import (
@@ -66,7 +68,7 @@ def check(text: str, grammar: _bulk.MotionGrammar) -> _bulk.MotionLines | None:
 @pytest.fixture(autouse=True)
 def _kernel_works(monkeypatch: pytest.MonkeyPatch) -> None:
     """Each test starts with the compiled loop usable (a test may break it)."""
-    monkeypatch.setattr(_bulk, "_KERNEL_FAILED", [])
+    monkeypatch.setattr(_bulk.KERNELS, "failed", None)
 
 
 # -- texts ------------------------------------------------------------------------------------
@@ -316,7 +318,7 @@ def test_the_reader_reads_compiled_from_its_threshold(monkeypatch: pytest.Monkey
 
 
 def test_without_numba_the_numpy_path_reads(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(_bulk, "_compiled", lambda: None)
+    monkeypatch.setattr(_bulk.KERNELS, "forced", False)
     text = DIALECTS["siemens"].write(_program("mm"), block_numbers=True)
     grammar = GRAMMARS["siemens"]
     assert compiled(text, grammar) is None
@@ -326,7 +328,7 @@ def test_without_numba_the_numpy_path_reads(monkeypatch: pytest.MonkeyPatch) -> 
 
 
 def test_the_numpy_path_reads_when_the_compiled_loop_fails(
-    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture, stand_in: StandIn
 ) -> None:
     """numba that cannot compile or cache the loop here: a warning, and the numpy path reads
     (for the rest of the process too)."""
@@ -334,14 +336,14 @@ def test_the_numpy_path_reads_when_the_compiled_loop_fails(
     def broken(*args: object) -> tuple:
         raise RuntimeError("cannot cache function 'read_lines': no locator available")
 
-    monkeypatch.setattr(_bulk, "_compiled", lambda: None if _bulk._KERNEL_FAILED else broken)
+    stand_in(_bulk.KERNELS, SimpleNamespace(read_lines=broken))
     text = DIALECTS["heidenhain"].write(_program("mm"))
     grammar = GRAMMARS["heidenhain"]
     want = reference_motion_lines(text, grammar)
     with caplog.at_level(logging.WARNING, logger="urdfpost.dialects._bulk"):
         assert_same(_bulk.motion_lines(text, grammar, compiled=True), want)
     assert "compiled program reading unavailable (cannot cache function" in caplog.text
-    assert _bulk._KERNEL_FAILED
+    assert _bulk.KERNELS.failed
     assert_same(_bulk.motion_lines(text, grammar, compiled=True), want)
     monkeypatch.setattr(reader_module, "COMPILED_FROM", 0)
     numpy = _outcome(lambda: repr(DIALECTS["heidenhain"].read(text)))

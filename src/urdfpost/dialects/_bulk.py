@@ -19,14 +19,15 @@ compiled (large texts, with numba installed), it is one loop over the bytes
 
 from __future__ import annotations
 
-import functools
 import logging
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 
+from urdfpost._compiled import Kernels
 from urdfpost.dialects.spec import NumberFormat
 
 log = logging.getLogger(__name__)
@@ -441,23 +442,15 @@ def motion_lines(
     return _no_motion(starts, ends) if unread else out
 
 
-_KERNEL_FAILED: list[str] = []
-"""Why the compiled loop could not run in this process (then the numpy path runs)."""
+def _load_kernel() -> ModuleType:
+    from urdfpost.dialects import _line_kernel
+
+    return _line_kernel
 
 
-@functools.cache
-def _kernel() -> Callable[..., tuple] | None:
-    """The compiled loop, or None without numba (looked for once per process)."""
-    try:
-        from urdfpost.dialects._line_kernel import read_lines
-    except ImportError:
-        return None
-    return read_lines
-
-
-def _compiled() -> Callable[..., tuple] | None:
-    """The compiled loop, or None without numba (or after it failed here)."""
-    return None if _KERNEL_FAILED else _kernel()
+KERNELS = Kernels(_load_kernel, "program reading", logger=log)
+"""The compiled loop (:mod:`urdfpost.dialects._line_kernel`), loaded by :func:`motion_lines`
+when it is asked to read compiled (the reader decides from the size of its text)."""
 
 
 def _word_bytes(word: str | None) -> np.ndarray:
@@ -469,13 +462,13 @@ def _compiled_lines(raw: bytes, grammar: MotionGrammar) -> MotionLines | None:
     """:func:`motion_lines` of a text (ASCII bytes, not empty) by the compiled loop, or None
     where it does not read it (numba missing or failing here, a number of more than 15
     digits in a plain block)."""
-    kernel = _compiled()
+    kernel = KERNELS.load()
     if kernel is None:
         return None
     keys = np.array(list(grammar.codes), dtype=float)
     rapid = np.array(list(grammar.codes.values()), dtype=bool)
     try:
-        *fields, status = kernel(
+        *fields, status = kernel.read_lines(
             np.frombuffer(raw, dtype=np.uint8),
             raw.count(b"\n"),
             ord(grammar.number_letter) if grammar.number_letter else -1,
@@ -487,8 +480,7 @@ def _compiled_lines(raw: bytes, grammar: MotionGrammar) -> MotionLines | None:
             grammar.require_point,
         )
     except Exception as e:  # numba could not compile or cache it here: the numpy path
-        _KERNEL_FAILED.append(str(e))
-        log.warning("compiled program reading unavailable (%s); the numpy path runs", e)
+        KERNELS.fail(e)
         return None
     if status:
         return None
