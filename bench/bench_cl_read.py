@@ -47,7 +47,7 @@ t0 = time.perf_counter(); c0 = time.process_time()
 import urdfpost.readers.apt as apt
 from urdfpost.readers import read_cl
 if sys.argv[2] == "numpy":
-    apt.COMPILED_FROM = apt.COMPILED_WARM_FROM = 1 << 62
+    apt.KERNELS.start = apt.KERNELS.warm_start = 1 << 62
 tp = read_cl(sys.argv[1])
 print(time.perf_counter() - t0, time.process_time() - c0, len(tp))
 """
@@ -80,7 +80,7 @@ def main() -> None:
     from urdfpost.readers import read_cl, read_cl_chunks
 
     if args.numpy:
-        apt.COMPILED_FROM = apt.COMPILED_WARM_FROM = 1 << 62
+        apt.KERNELS.start = apt.KERNELS.warm_start = 1 << 62
     if args.numba_imported:
         import numba  # noqa: F401
 

@@ -61,8 +61,8 @@ def outcome(read: Callable[[], Toolpath | list[Toolpath]]) -> object:
 
 def compiled_from(monkeypatch: pytest.MonkeyPatch, size: int) -> None:
     """Read with the compiled loop from ``size`` characters on, numba imported or not."""
-    monkeypatch.setattr(apt_module, "COMPILED_FROM", size)
-    monkeypatch.setattr(apt_module, "COMPILED_WARM_FROM", size)
+    monkeypatch.setattr(apt_module.KERNELS, "start", size)
+    monkeypatch.setattr(apt_module.KERNELS, "warm_start", size)
 
 
 def both_ways(read: Callable[[], Toolpath | list[Toolpath]]) -> tuple[object, object]:
@@ -469,26 +469,34 @@ def test_odd_lines_are_read_by_loadtxt(monkeypatch):
     assert bits(values) == bits([[float(f"{k}e-1"), 1.0, k] for k in range(6)])
 
 
-def test_without_numba_the_numpy_path_runs(monkeypatch):
+def test_without_numba_the_numpy_path_runs(monkeypatch, unloaded):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_kernels(name: str, *args: object, **kwargs: object) -> object:
+        if name == "urdfpost.readers" and "_goto_kernel" in (args[2] or ()):  # type: ignore[operator]
+            raise ImportError("no numba here")
+        return real_import(name, *args, **kwargs)  # type: ignore[arg-type]
+
     text = hemisphere(400)
-    monkeypatch.setattr(apt_module, "_kernel", lambda: None)
+    unloaded(apt_module.KERNELS)
     compiled_from(monkeypatch, 0)
-    assert apt_module._compiled_runs(text, 1 << 20) is None
+    with monkeypatch.context() as m:
+        m.setattr(builtins, "__import__", no_kernels)
+        assert apt_module._compiled_runs(text, 1 << 20) is None
     got = outcome(lambda: read_cl_text(text))
     compiled_from(monkeypatch, NEVER)
     assert got == outcome(lambda: read_cl_text(text))
 
 
-def test_a_failing_kernel_falls_back_with_a_warning(monkeypatch, caplog):
+def test_a_failing_kernel_falls_back_with_a_warning(monkeypatch, caplog, stand_in):
     def broken(*args: object) -> None:
         raise RuntimeError("no LLVM here")
 
     text = hemisphere(400)
     expected = outcome(lambda: read_cl_text(text))
-    monkeypatch.setattr(
-        apt_module, "_kernel", lambda: SimpleNamespace(goto_runs=broken, plain_goto_lines=broken)
-    )
-    monkeypatch.setattr(apt_module, "_KERNEL_FAILED", [])
+    stand_in(apt_module.KERNELS, SimpleNamespace(goto_runs=broken, plain_goto_lines=broken))
     compiled_from(monkeypatch, 0)
     with caplog.at_level(logging.WARNING, logger="urdfpost.readers.apt"):
         assert outcome(lambda: read_cl_text(text)) == expected
@@ -502,18 +510,18 @@ def test_small_texts_do_not_load_the_kernel(monkeypatch):
     def refused() -> None:
         raise AssertionError("the compiled loop was looked for")
 
-    monkeypatch.setattr(apt_module, "_kernel", refused)
+    monkeypatch.setattr(apt_module.KERNELS, "load", refused)
     read_cl_text(hemisphere(400))
 
 
 def test_the_threshold_is_lower_once_numba_is_imported(monkeypatch):
     assert "numba" in sys.modules  # (imported above)
     assert apt_module.COMPILED_WARM_FROM < apt_module.COMPILED_FROM
-    assert apt_module._use_compiled(apt_module.COMPILED_WARM_FROM)
-    assert not apt_module._use_compiled(apt_module.COMPILED_WARM_FROM - 1)
+    assert apt_module.KERNELS.wanted(apt_module.COMPILED_WARM_FROM)
+    assert not apt_module.KERNELS.wanted(apt_module.COMPILED_WARM_FROM - 1)
     monkeypatch.delitem(sys.modules, "numba")
-    assert not apt_module._use_compiled(apt_module.COMPILED_WARM_FROM)
-    assert apt_module._use_compiled(apt_module.COMPILED_FROM)
+    assert not apt_module.KERNELS.wanted(apt_module.COMPILED_WARM_FROM)
+    assert apt_module.KERNELS.wanted(apt_module.COMPILED_FROM)
 
 
 def test_the_size_threshold_applies_to_streamed_files(tmp_path, monkeypatch):

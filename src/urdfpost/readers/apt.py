@@ -117,14 +117,12 @@ evidence of neighbouring moves, which are not always tangent).
 
 from __future__ import annotations
 
-import functools
 import io
 import itertools
 import logging
 import math
 import os
 import re
-import sys
 import types
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -132,6 +130,7 @@ from typing import Any
 
 import numpy as np
 
+from urdfpost._compiled import Kernels
 from urdfpost.errors import CLDataError
 from urdfpost.toolpath import Motion, Toolpath
 from urdfpost.units import MM_PER_INCH, other_units, units_doubt
@@ -581,25 +580,23 @@ reader or another compiled loop): then only the loop's own cached code is loaded
 s the first time)."""
 
 
-def _use_compiled(size: int) -> bool:
-    """Whether a text of ``size`` characters is read with the compiled loop
-    (:data:`COMPILED_FROM`, :data:`COMPILED_WARM_FROM`)."""
-    return size >= (COMPILED_WARM_FROM if "numba" in sys.modules else COMPILED_FROM)
+def _load_kernels() -> types.ModuleType:
+    from urdfpost.readers import _goto_kernel
 
-
-_KERNEL_FAILED: list[str] = []
-"""Why the compiled loop could not run in this process (then the numpy path runs)."""
-
-
-@functools.cache
-def _kernel() -> types.ModuleType | None:
-    """The compiled loops (:mod:`urdfpost.readers._goto_kernel`), or None without numba
-    (looked for once per process)."""
-    try:
-        from . import _goto_kernel
-    except ImportError:
-        return None
     return _goto_kernel
+
+
+KERNELS = Kernels(
+    _load_kernels,
+    "GOTO scan",
+    start=COMPILED_FROM,
+    warm_start=COMPILED_WARM_FROM,
+    stays=False,
+    logger=logger,
+)
+"""The compiled loops (:mod:`urdfpost.readers._goto_kernel`); a text of ``size`` characters
+is read with them where ``KERNELS.wanted(size)`` (:data:`COMPILED_FROM`,
+:data:`COMPILED_WARM_FROM`)."""
 
 
 def _compiled(loop: str, data: np.ndarray, *args: int) -> Any:
@@ -607,14 +604,13 @@ def _compiled(loop: str, data: np.ndarray, *args: int) -> Any:
     bytes of a text, :func:`_bytes_of`) and ``args``: what the loop returns; None without
     numba, or when it fails here (once: the warning "compiled GOTO scan unavailable (why); the
     numpy path runs", and no more tries)."""
-    kernel = None if _KERNEL_FAILED else _kernel()
+    kernel = KERNELS.load()
     if kernel is None:
         return None
     try:
         return getattr(kernel, loop)(data, *args)
     except Exception as e:  # numba could not compile or load it here: the numpy path
-        _KERNEL_FAILED.append(str(e))
-        logger.warning("compiled GOTO scan unavailable (%s); the numpy path runs", e)
+        KERNELS.fail(e)
         return None
 
 
@@ -633,7 +629,7 @@ def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int
     The odd lines of its runs (numbers with exponents, many digits, ``nan``...) are read here
     with :func:`_goto_values`, as the numpy path reads every line.
     """
-    if _KERNEL_FAILED or _kernel() is None:
+    if KERNELS.load() is None:
         return None
     data = _bytes_of(text)
     rooms = (64, 64)  # rows for runs and odd lines; more when the loop says so
@@ -735,7 +731,7 @@ def scan_text(text: str, source: str) -> _Scan:
     The records are those of ``scan_records(split_lines(text), source)``, except that runs of
     at least :data:`BULK_MIN_RECORDS` consecutive one-line ``GOTO`` records with plain numbers
     come as one :class:`GotoRun` each (found and read by the compiled loop from
-    :data:`COMPILED_FROM` characters on, see :func:`_use_compiled`).
+    :data:`COMPILED_FROM` characters on, see :data:`KERNELS`).
 
     Raises
     ------
@@ -743,7 +739,7 @@ def scan_text(text: str, source: str) -> _Scan:
         When the file ends inside a continued record.
     """
     scanner = _Scanner(source)
-    after = scan_piece(scanner, normalise_breaks(text), 1, compiled=_use_compiled(len(text)))
+    after = scan_piece(scanner, normalise_breaks(text), 1, compiled=KERNELS.wanted(len(text)))
     if after is not None:
         scanner.after_fini(after)
     return scanner.finish()
@@ -2171,7 +2167,7 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     in_feeds: tuple[str, int] | None = None
     nx: tuple[int, str] | None = None
     line = 1
-    compiled = _use_compiled(_file_size(source))
+    compiled = KERNELS.wanted(_file_size(source))
     for text in _apt_parts(source, size):
         count, plain = _plain_facts(text, compiled)
         if not (scanner.pending is None and plain):
@@ -2198,7 +2194,7 @@ def _plain_facts(text: str, compiled: bool) -> tuple[int, bool]:
     :func:`_only_plain_gotos` of them; by a compiled loop when ``compiled`` and numba is
     there (:func:`urdfpost.readers._goto_kernel.plain_goto_lines`)."""
     got = None
-    if compiled and not _KERNEL_FAILED and _kernel() is not None:
+    if compiled:
         got = _compiled("plain_goto_lines", _bytes_of(text))
     if got is not None:
         return int(got[0]), bool(got[1])
@@ -2295,7 +2291,7 @@ def read_apt_stream(
     )
     builder = interpreter.builder
     scanner = _Scanner(source)
-    compiled = _use_compiled(_file_size(source))
+    compiled = KERNELS.wanted(_file_size(source))
     multiaxis_from: int | None = None
     after, count_after = 0, 0  # first line after FINI to warn about, and how many
     line = 1
