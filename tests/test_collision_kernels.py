@@ -15,6 +15,7 @@ from types import ModuleType, SimpleNamespace
 import numpy as np
 import pytest
 import trimesh
+from conftest import StandIn, Unloaded
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -33,7 +34,7 @@ TOL = 1e-9  # mm: the kernels' figures are the numpy ones less 1e-10 mm, give or
 
 def _kernels() -> ModuleType:
     pytest.importorskip("numba")
-    module = world_module._kernel_module()
+    module = world_module.KERNELS.load()
     assert module is not None
     return module
 
@@ -172,11 +173,11 @@ def _compare_scans(world: CollisionWorld, q: np.ndarray, monkeypatch: pytest.Mon
     the same move ends and moves kept (or a superset within the slack). Returns the hits."""
     kernels = _kernels()
     with monkeypatch.context() as m:
-        m.setattr(world_module, "COMPILED_FROM", 10**12)
-        m.setattr(world_module, "_compiled", lambda n: None)
+        m.setattr(world_module.KERNELS, "forced", False)
         plain, plain_check = world.check_moves(q), world.check(q)
     with monkeypatch.context() as m:
-        m.setattr(world_module, "_compiled", lambda n: kernels)
+        m.setattr(world_module.KERNELS, "forced", True)
+        assert world_module.KERNELS.get(1) is kernels
         fast, fast_check = world.check_moves(q), world.check(q)
     assert fast.pairs == plain.pairs
     np.testing.assert_array_equal(fast.at, plain.at)
@@ -237,7 +238,7 @@ def test_grazing_the_thin_wall_compiled(
 
 
 def test_without_numba_the_numpy_path_runs(
-    thin_wall_world: CollisionWorld, monkeypatch: pytest.MonkeyPatch
+    thin_wall_world: CollisionWorld, monkeypatch: pytest.MonkeyPatch, unloaded: Unloaded
 ) -> None:
     """No numba (the module cannot be imported): no kernels, whatever the size, and the scans
     give what checking every pair at every sample (Pinocchio placements) gives."""
@@ -250,11 +251,11 @@ def test_without_numba_the_numpy_path_runs(
             raise ImportError("no numba here")
         return real_import(name, *args, **kwargs)  # type: ignore[arg-type]
 
-    world_module._kernel_module.cache_clear()
+    unloaded(world_module.KERNELS)
     monkeypatch.setattr(builtins, "__import__", no_kernels)
     try:
-        assert world_module._kernel_module() is None
-        assert world_module._compiled(10**9) is None
+        assert world_module.KERNELS.load() is None
+        assert world_module.KERNELS.get(10**9) is None
         tips = np.array([[0.0, -50.0, 0.0], [0.0, 50.0, 5.0], [5.0, 0.0, 40.0]])
         q = inverse(thin_wall_world.machine, tips, np.tile([0.0, 0.0, 1.0], (3, 1)), TOOL_LENGTH).q[
             :, 0
@@ -271,13 +272,13 @@ def test_without_numba_the_numpy_path_runs(
                 assert moves.at[mv] == hits[0] / c
     finally:
         monkeypatch.undo()
-        world_module._kernel_module.cache_clear()
 
 
 def test_a_kernel_that_fails_leaves_the_numpy_path_with_a_warning(
     thin_wall_world: CollisionWorld,
     monkeypatch: pytest.MonkeyPatch,
     caplog: pytest.LogCaptureFixture,
+    stand_in: StandIn,
 ) -> None:
     """numba present but unable to compile or load the kernels: one warning, then the numpy
     path for the rest of the process, the same results."""
@@ -289,36 +290,30 @@ def test_a_kernel_that_fails_leaves_the_numpy_path_with_a_warning(
     tips = np.array([[0.0, -50.0, 0.0], [0.0, 50.0, 5.0], [5.0, 0.0, 40.0]])
     axes = np.tile([0.0, 0.0, 1.0], (3, 1))
     q = inverse(thin_wall_world.machine, tips, axes, TOOL_LENGTH).q[:, 0]
-    monkeypatch.setattr(world_module, "_compiled", lambda n: None)
+    monkeypatch.setattr(world_module.KERNELS, "forced", False)
     expected = thin_wall_world.check_moves(q)
-    failed: list[str] = []
-    monkeypatch.setattr(world_module, "_KERNEL_FAILED", failed)
-    monkeypatch.setattr(world_module, "_compiled", lambda n: None if failed else fake)
+    monkeypatch.setattr(world_module.KERNELS, "forced", True)
+    stand_in(world_module.KERNELS, fake)
     with caplog.at_level(logging.WARNING, logger="urdfpost.collision.world"):
         got = thin_wall_world.check_moves(q)
-    assert failed == ["cannot compile here"]
-    assert [r.message for r in caplog.records if "numpy path runs" in r.message]
+    assert world_module.KERNELS.failed == "cannot compile here"
+    assert len([r.message for r in caplog.records if "numpy path runs" in r.message]) == 1
     assert got.pairs == expected.pairs and expected.hit[0]
     np.testing.assert_array_equal(got.at, expected.at)
-    # the real _compiled says no kernels once one failed
-    monkeypatch.undo()
-    monkeypatch.setattr(world_module, "_KERNEL_FAILED", ["cannot compile here"])
-    assert world_module._compiled(10**9) is None
+    # no kernels once one failed, whatever the size
+    monkeypatch.setattr(world_module.KERNELS, "forced", None)
+    assert world_module.KERNELS.get(10**9) is None
 
 
-def test_compiled_from_a_query_size_then_for_every_query(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_compiled_from_a_query_size_then_for_every_query(unloaded: Unloaded) -> None:
     """Before the kernels are loaded, small queries run numpy (no numba import for them);
     from ``COMPILED_FROM`` configurations on, and after ``warm_kernels``, every query runs
     compiled."""
     kernels = _kernels()
-    monkeypatch.setattr(world_module, "_KERNEL_FAILED", [])
-    world_module._kernel_module.cache_clear()
-    try:
-        assert world_module._compiled(world_module.COMPILED_FROM - 1) is None
-        assert world_module._compiled(world_module.COMPILED_FROM) is kernels
-        assert world_module._compiled(1) is kernels
-        world_module._kernel_module.cache_clear()
-        assert world_module.warm_kernels()
-        assert world_module._compiled(1) is kernels
-    finally:
-        world_module._kernel_module.cache_clear()
+    unloaded(world_module.KERNELS)
+    assert world_module.KERNELS.get(world_module.COMPILED_FROM - 1) is None
+    assert world_module.KERNELS.get(world_module.COMPILED_FROM) is kernels
+    assert world_module.KERNELS.get(1) is kernels
+    unloaded(world_module.KERNELS)
+    assert world_module.warm_kernels()
+    assert world_module.KERNELS.get(1) is kernels

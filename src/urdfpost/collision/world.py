@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from urdfpost._compiled import Kernels
 from urdfpost.collision.fcl_shapes import (
     MACHINE,
     STOCK,
@@ -309,28 +310,19 @@ KERNEL_SLACK_MM = 1e-10
 path keeps whatever the two round (sums of a few products of coordinates of at most metres:
 about 1e-12 mm); far below ``GAP_MM``."""
 
-_KERNEL_FAILED: list[str] = []
-"""Why the compiled culling could not run in this process (then the numpy path runs)."""
 
+def _load_kernels() -> ModuleType:
+    from urdfpost.collision import _kernels
 
-@functools.cache
-def _kernel_module() -> ModuleType | None:
-    """:mod:`urdfpost.collision._kernels`, or None without numba (looked for once)."""
-    try:
-        from urdfpost.collision import _kernels
-    except ImportError:
-        return None
     return _kernels
 
 
-def _compiled(n: int) -> ModuleType | None:
-    """The compiled culling for a query of ``n`` configurations, or None: the numpy path
-    (without numba, after it failed here, or below ``COMPILED_FROM`` before it was loaded)."""
-    if _KERNEL_FAILED:
-        return None
-    if n < COMPILED_FROM and _kernel_module.cache_info().currsize == 0:
-        return None
-    return _kernel_module()
+KERNELS = Kernels(
+    _load_kernels, "collision culling", start=COMPILED_FROM, logger=log, first_line=True
+)
+"""The compiled culling (:mod:`urdfpost.collision._kernels`): ``KERNELS.get(n)`` for a query of
+``n`` configurations, None for the numpy path (without numba, after it failed here, or below
+``COMPILED_FROM`` before it was loaded)."""
 
 
 def warm_kernels() -> bool:
@@ -342,8 +334,8 @@ def warm_kernels() -> bool:
     bool
         Whether it is available (numba installed, compiled or loaded from its cache here).
     """
-    kernels = _kernel_module()
-    if kernels is None or _KERNEL_FAILED:
+    kernels = KERNELS.load()
+    if kernels is None:
         return False
     n, b = 1, 2
     rot, center = np.tile(np.eye(3), (n, b, 1, 1)), np.zeros((n, b, 3))
@@ -357,17 +349,9 @@ def warm_kernels() -> bool:
         kernels.stock_separations(rot, center, half, one, *stock)
         kernels.cull_stock_pairs(np.ones((n, 1), bool), one, one, rot, center, half, *stock)
     except Exception as e:  # numba could not compile or load them here: numpy
-        _kernel_failed(e)
+        KERNELS.fail(e)
         return False
     return True
-
-
-def _kernel_failed(error: Exception) -> None:
-    """Note that the compiled culling failed (numba could not compile or load it here)."""
-    _KERNEL_FAILED.append(str(error))
-    first = (str(error).strip().splitlines() or [type(error).__name__])[0]
-    log.warning("compiled collision culling unavailable (%s); the numpy path runs", first)
-    log.debug("compiled collision culling failed", exc_info=error)
 
 
 def _rotation(axis: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -989,12 +973,12 @@ class CollisionWorld:
         the two oriented boxes along any of their six axes (a separating-axis test that
         measures the gap). Callers that ask whether a pair is within ``need`` get the answer
         of the oriented boxes everywhere. ``boxes``: :meth:`_boxes` of ``transforms``, if known.
-        ``kernels`` (:func:`_compiled`): computed by :func:`._kernels.pair_bounds`, every bound
+        ``kernels`` (:data:`KERNELS`): computed by :func:`._kernels.pair_bounds`, every bound
         lowered by ``KERNEL_SLACK_MM`` (so at most the numpy bound wherever that is within
         ``need``).
         """
         rot, center = self._boxes(transforms) if boxes is None else boxes
-        if kernels is not None and not _KERNEL_FAILED:
+        if kernels is not None and KERNELS.failed is None:
             n = len(rot)
             try:
                 out: np.ndarray = kernels.pair_bounds(
@@ -1010,7 +994,7 @@ class CollisionWorld:
                 )
                 return out
             except Exception as e:  # numba could not compile or load it here: numpy
-                _kernel_failed(e)
+                KERNELS.fail(e)
         ia, ib = pairs[:, 0], pairs[:, 1]
         extent = self._extents(rot)
         between = center[:, ib] - center[:, ia]  # (n, p, 3)
@@ -1054,7 +1038,7 @@ class CollisionWorld:
         """Where the pairs ``allowed`` (n, p) may come within ``need`` (mm): the test of
         :meth:`_lower_bounds` ``<= need``, made for those pairs only (False elsewhere)."""
         rot, center = boxes
-        if kernels is not None and not _KERNEL_FAILED:
+        if kernels is not None and KERNELS.failed is None:
             pairs = self._pairs
             try:
                 bounds = kernels.pair_bounds(
@@ -1070,7 +1054,7 @@ class CollisionWorld:
                 )
                 return np.asarray(bounds <= need)
             except Exception as e:  # numba could not compile or load it here: numpy
-                _kernel_failed(e)
+                KERNELS.fail(e)
         s_k, p_k = np.nonzero(allowed)
         ask = np.zeros(allowed.shape, dtype=bool)
         if not len(s_k):
@@ -1165,7 +1149,7 @@ class CollisionWorld:
         partner's box is more than that from every leaf box of the stock's tree, are clear.
         ``plain``: FCL on every pair, placements by Pinocchio (the reference of the tests).
         ``allowed`` (n, p): the pairs that can touch at all (the others are known clear).
-        ``kernels`` (:func:`_compiled`): the culling compiled (a few more pairs within
+        ``kernels`` (:data:`KERNELS`): the culling compiled (a few more pairs within
         ``KERNEL_SLACK_MM`` of a limit may be handed to FCL, none fewer).
         """
         pairs = self._pairs
@@ -1220,14 +1204,14 @@ class CollisionWorld:
     ) -> None:
         """Clear, in ``ask`` (n, p), the stock pairs whose partner's box keeps ``gap`` (mm; or
         one per configuration, shape (n,)) from every leaf box of the stock's tree (``boxes``:
-        :meth:`_boxes` of ``transforms``, if known; ``kernels``: :func:`_compiled`, the
+        :meth:`_boxes` of ``transforms``, if known; ``kernels``: :data:`KERNELS`, the
         descents compiled, within ``KERNEL_SLACK_MM``)."""
         gaps = np.broadcast_to(np.asarray(gap, dtype=float), (len(ask),))
         tree = self._stock_tree
         if tree is None or not ask[:, self._stock_pairs].any():
             return
         boxes = self._boxes(transforms) if boxes is None else boxes
-        if kernels is not None and not _KERNEL_FAILED:
+        if kernels is not None and KERNELS.failed is None:
             rot, center = boxes
             lo, hi = tree.flat
             r_inv, t_s = self._stock_frame()
@@ -1252,7 +1236,7 @@ class CollisionWorld:
                 ask[:] = work
                 return
             except Exception as e:  # numba could not compile or load it here: numpy
-                _kernel_failed(e)
+                KERNELS.fail(e)
         for p in self._stock_pairs:
             rows = np.flatnonzero(ask[:, p])
             if len(rows):
@@ -1293,11 +1277,11 @@ class CollisionWorld:
         """:meth:`_BoxTree.separation` of the partner of every stock pair from the stock's
         leaf boxes, up to ``most`` (n,) mm, shape (n, s) in the order of ``_stock_pairs``
         (``_cull_stock_pairs`` at gap g clears where it is more than g). ``kernels``
-        (:func:`_compiled`): by :func:`._kernels.stock_separations`, lowered by
+        (:data:`KERNELS`): by :func:`._kernels.stock_separations`, lowered by
         ``KERNEL_SLACK_MM`` (at most the numpy figure; -inf wherever that is)."""
         tree = self._stock_tree
         assert tree is not None  # asked with a stock only
-        if kernels is not None and not _KERNEL_FAILED:
+        if kernels is not None and KERNELS.failed is None:
             rot, center = boxes
             lo, hi = tree.flat
             r_inv, t_s = self._stock_frame()
@@ -1318,7 +1302,7 @@ class CollisionWorld:
                 )
                 return sep
             except Exception as e:  # numba could not compile or load it here: numpy
-                _kernel_failed(e)
+                KERNELS.fail(e)
         out = np.empty((len(transforms), len(self._stock_pairs)))
         for col, p in enumerate(self._stock_pairs):
             out[:, col] = tree.separation(*self._partner_box(boxes, slice(None), int(p)), most)
@@ -1374,7 +1358,7 @@ class CollisionWorld:
         dist = np.full(n, np.nan)
         nearest: list[tuple[int, int] | None] = [None] * n
         near_pairs = self._clearance_pairs(clearance_of) if clearance else self._pairs[:0]
-        first = self._first_pairs(q, kernels=_compiled(n))
+        first = self._first_pairs(q, kernels=KERNELS.get(n))
         hit = first[:, 0] >= 0
         for k in np.flatnonzero(hit).tolist():
             pairs[k] = (int(first[k, 0]), int(first[k, 1]))
@@ -1446,7 +1430,7 @@ class CollisionWorld:
         ``(b0 + b1 - s) / 2`` all along; a stock pair whose partner's box keeps ``GAP_MM + s``
         from every leaf box of the stock's tree at both ends cannot reach the stock's surface
         either (nor enter or leave it: whether a body is inside the stock is the same all
-        along, and is checked at the ends). ``kernels`` (:func:`_compiled`): the box gaps and
+        along, and is checked at the ends). ``kernels`` (:data:`KERNELS`): the box gaps and
         the tree's descents compiled, each lowered by ``KERNEL_SLACK_MM`` (a move or pair more
         may be kept, none fewer).
         """
@@ -1523,7 +1507,7 @@ class CollisionWorld:
         first = np.full((len(move) + 1, 2), -1)
         # the move ends (the configurations themselves), then the interior samples of the moves
         # on which a pair can touch at all, only for those pairs (:meth:`_ends_and_moves`)
-        kernels = _compiled(len(move) + 1)
+        kernels = KERNELS.get(len(move) + 1)
         ends, may = self._ends_and_moves(q, kernels)
         first[offsets] = ends[:-1]
         first[-1] = ends[-1]
