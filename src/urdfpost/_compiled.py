@@ -98,11 +98,11 @@ class Kernels:
         if self.failed is not None or self.forced is False:
             return None
         if self.module is None and not self._tried:
-            self._tried = True
-            try:
+            try:  # (a thread asking meanwhile imports it too: the import lock gives it the same)
                 self.module = self._load()
             except ImportError:
-                return None
+                pass
+            self._tried = True
         return self.module
 
     def loaded(self) -> ModuleType | None:
