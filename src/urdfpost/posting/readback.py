@@ -260,7 +260,10 @@ def verify_stream(
         The program text in pieces cut at line ends (default: read from ``program_path``).
     process : ProcessChecker, optional
         Is given every piece checked, with its CL data (the process of the program,
-        :mod:`urdfpost.verification.process`; the CL pieces are then the expected ones).
+        :mod:`urdfpost.verification.process`; the CL pieces are then the expected ones): each
+        piece is begun here (:meth:`~urdfpost.verification.process.ProcessChecker.begin`), its
+        rows compared where it is verified, and the findings taken in the pieces' order at the
+        end. Its machine is ``machine`` (where the rows are compared).
     table : mapping, optional
         A machine-coordinate program: the tool table (tool number to gauge length, mm). Each
         tool section (:mod:`urdfpost.posting.tools`) is checked with its tool's length: the
@@ -269,8 +272,8 @@ def verify_stream(
         How the control times the blocks: the tip feed of every piece is measured
         (:func:`urdfpost.verification.verify`); None: not measured.
     parallel : bool, optional
-        Verify the pieces in worker processes, one per core, each piece by the next worker in
-        turn, while the next ones are read and cut (and their process checked here); default
+        Verify the pieces (and compare the rows of their process) in worker processes, one per
+        core, each piece by the next worker in turn, while the next ones are read and cut; default
         on Linux when the machine has more than one core and the program more than one piece
         (as :func:`urdfpost.posting.stream.post_stream`).
 
@@ -305,9 +308,16 @@ def verify_stream(
     lengths: dict[int, float] = {}  # each tool's gauge length, mm
     checks: ReadChecks | None = None  # where the pieces are verified, in order
 
-    def check(head: Program, part: Toolpath, length: float, rules: FeedRules | None) -> None:
-        """Verify a piece (in the worker, when there is one), its result taken in order at
-        the end."""
+    def check(
+        head: Program,
+        part: Toolpath,
+        length: float,
+        rules: FeedRules | None,
+        ended: bool | None = None,
+    ) -> None:
+        """Verify a piece and compare its process (in a worker, when there are workers), its
+        results taken in order at the end; the piece begins a tool section when ``starts``
+        (``ended``: the last piece, whether the program text has its end)."""
         nonlocal checks
         if checks is None:
             cores = os.cpu_count() or 1
@@ -318,7 +328,11 @@ def verify_stream(
             checks = ReadChecks(
                 machine, controller, str(program_path), tol, head.units, use, workers=cores
             )
-        checks.submit(ReadPiece(head, part, length, pivot, rules))
+        fresh.append(starts)
+        start = None
+        if process is not None:
+            start = process.begin(head, part, ended=ended, fresh=starts, tool_length=length)
+        checks.submit(ReadPiece(head, part, length, pivot, rules, start))
 
     length = tool_length  # of the tool section being checked
     fresh: list[bool] = []  # per piece: it begins a tool section
@@ -364,21 +378,12 @@ def verify_stream(
                     head = cut_program[0][0]
                     program = replace(program, blocks=Blocks(program.parts[len(head.parts) :]))
                     end = sections[0].stop
-                    part_cl = toolpath_slice(cl, 0, end)
-                    check(head, part_cl, length, None)
-                    fresh.append(starts)
-                    if process is not None:
-                        process.add(head, part_cl, fresh=starts, tool_length=length)
+                    check(head, toolpath_slice(cl, 0, end), length, None)
                     cl = toolpath_slice(cl, end, len(cl))
                     length, starts = sections[1].length, True
                     continue
             if cl_ends and program_ends:
-                check(program, cl, length, feed_rules)
-                fresh.append(starts)
-                if process is not None:
-                    process.add(
-                        program, cl, ended=reader.builder.ended, fresh=starts, tool_length=length
-                    )
+                check(program, cl, length, feed_rules, ended=reader.builder.ended)
                 break
             cut = _verify_cut(program, machine, cl, tol, length, pivot, want, program_ends)
             if cut is None:  # nowhere to cut yet: a longer piece, and more rows
@@ -387,9 +392,6 @@ def verify_stream(
             c, r = cut
             head, program = _split_rows(program, r)
             check(head, toolpath_slice(cl, 0, c + 1), length, feed_rules)
-            fresh.append(starts)
-            if process is not None:
-                process.add(head, toolpath_slice(cl, 0, c + 1), fresh=starts, tool_length=length)
             starts = False
             cl = toolpath_slice(cl, c, len(cl), first_events=False)
             rows_done += r
@@ -398,8 +400,13 @@ def verify_stream(
             want = piece_points
             log.info("verified a piece: CL lines to %d, program rows to %d", cl.line[0], rows_done)
         assert header is not None and checks is not None
-        parts = [c for c, _ in checks.finish()]
+        results = checks.finish()
     finally:
         if checks is not None:
             checks.close()
+    if process is not None:
+        for _, found in results:
+            assert found is not None
+            process.take(found)
+    parts = [c for c, _ in results]
     return merge_verifications(parts, fresh), replace(header, blocks=Blocks(tuple(smoothing)))

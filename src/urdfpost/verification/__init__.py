@@ -34,6 +34,7 @@ from urdfpost.verification.measure import (
     rewind_note,
     verify,
     verify_checks,
+    verify_matched,
 )
 
 __all__ = [
@@ -48,4 +49,5 @@ __all__ = [
     "row_poses_at_tip",
     "verify",
     "verify_checks",
+    "verify_matched",
 ]
