@@ -25,12 +25,11 @@ from urdfpost.toolpath import Toolpath, joined, toolpath_slice
 from urdfpost.verification import (
     REACH,
     Verification,
-    at_pivot,
     match_points,
     missed_note,
     program_joints,
     rewind_note,
-    row_poses_at_tip,
+    row_points,
 )
 from urdfpost.verification.feeds import FeedCheck, FeedRules
 from urdfpost.verification.planes import PlaneFrames
@@ -201,8 +200,8 @@ def _verify_cut(
     n_rows, n_cl = len(values), len(cl)
     if n_rows < 3 or n_cl < 3:
         return None
-    rows = at_pivot(row_poses_at_tip(machine, values, program.tcp, tool_length), pivot)
-    match = match_points(cl.tip + pivot * cl.axis, cl.axis, rows.tip, rows.axis, tol)
+    point, axis = row_points(machine, values, program.tcp, tool_length, pivot)
+    match = match_points(cl.tip + pivot * cl.axis, cl.axis, point, axis, tol)
     aside = rapid | rewind_moves(program)
     j = np.arange(1, min(target, n_cl - 2) + 1)
     r = match[j]

@@ -76,7 +76,7 @@ from urdfpost.program import (
 )
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
-from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
+from urdfpost.verification.match import match_points, program_joints, row_points
 from urdfpost.verification.planes import PlaneFrames, in_own_frame
 
 if TYPE_CHECKING:
@@ -371,11 +371,9 @@ class PieceStart:
             return RowFindings()
         if match is None or run is not program:
             values, _ = program_joints(machine, run)
-            rows = at_pivot(
-                row_poses_at_tip(machine, values, run.tcp, self.tool_length), self.pivot
-            )
+            point, axis = row_points(machine, values, run.tcp, self.tool_length, self.pivot)
             cl_tip = expected.tip + self.pivot * expected.axis
-            match = match_points(cl_tip, expected.axis, rows.tip, rows.axis, self.tol)
+            match = match_points(cl_tip, expected.axis, point, axis, self.tol)
         # the moves made along an arc are one block of the program: counted as one, and a
         # fault on one is at that block (a motion block: a move or an arc)
         return _Rows(self, run, table, expected, _blocks_of_rows(program, run)).compare(match)
