@@ -383,7 +383,7 @@ def _cl_units_argument(p: argparse.ArgumentParser, *aliases: str) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for documentation and tests)."""
-    from urdfpost.analysis.view import COLOR_BY as VIEW_COLORS
+    from urdfpost.analysis import COLOR_BY as VIEW_COLORS
     from urdfpost.dialects import DIALECTS
     from urdfpost.readers import FORMATS
 
@@ -885,8 +885,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     table = None if args.tool_table is None else read_tool_table(args.tool_table, scale)
     pivot = 0.0
     if args.angle_tolerance > 0:
-        from urdfpost.posting.check import bent_tolerances
-        from urdfpost.posting.piece import ball_radius
+        from urdfpost.posting.check import ball_radius, bent_tolerances
 
         pivot = ball_radius(toolpath)  # (the first cutter: the first piece has it)
         tol = bent_tolerances(tol, args.angle_tolerance, pivot)
