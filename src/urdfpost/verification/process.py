@@ -533,6 +533,12 @@ class ProcessChecker:
     :func:`urdfpost.posting.readback.verify_stream` cuts them). :func:`check_process` is the
     check of a whole program.
 
+    :meth:`add` checks a piece in three steps, which a streamed verification takes apart: what
+    follows the pieces in order (tools, spindle states, where the piece's blocks start) is
+    :meth:`begin`, here; the comparison of the piece's rows (:meth:`PieceStart.compare`)
+    needs nothing else, and runs where the piece is verified; :meth:`take` adds its findings,
+    in the pieces' order.
+
     Parameters
     ----------
     machine : Machine
