@@ -840,7 +840,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from urdfpost.posting.process import SpindleState, checked_process
     from urdfpost.posting.report import Report
     from urdfpost.tolerances import Tolerances
-    from urdfpost.verification import verify
+    from urdfpost.verification import verify_matched
     from urdfpost.verification.process import (
         ProcessChecker,
         end_words,
@@ -962,19 +962,19 @@ def _cmd_verify(args: argparse.Namespace) -> int:
                 on = mcs_machine(machine, shifts[section.mcs])
                 cl = in_own_mcs(cl, shifts[section.mcs], transformed_mcs(cl_data))
             length = section.length
-            checks.append(
-                verify(
-                    part, on, cl, tool_length=length, tol=tol, pivot=pivot, feed_rules=feed_rules
-                )
+            verified, match = verify_matched(
+                part, on, cl, tool_length=length, tol=tol, pivot=pivot, feed_rules=feed_rules
             )
+            checks.append(verified)
             last = k == len(sections) - 1
-            process.add(
+            process.add(  # (the rows the verification matched)
                 part,
                 cl,
                 ended=ended if last else None,
                 fresh=k > 0,
                 tool_length=length,
                 machine=on,
+                match=match,
             )
         check = merge_verifications(checks, [k > 0 for k in range(len(checks))])
         process_check = process.result()

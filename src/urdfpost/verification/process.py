@@ -600,6 +600,7 @@ class ProcessChecker:
         fresh: bool = False,
         tool_length: float | None = None,
         machine: Machine | None = None,
+        match: np.ndarray | None = None,
     ) -> None:
         """Check the next piece.
 
@@ -621,13 +622,18 @@ class ProcessChecker:
         machine : Machine, optional
             The machine of the piece's rows, from this piece on: a section in another MCS,
             its program zero elsewhere (default: as before).
+        match : ndarray, optional
+            The row reaching each CL point as the verification of the piece matched them
+            with this checker's tolerances and pivot and the piece's tool length and machine
+            (:func:`urdfpost.verification.verify_matched`), as :meth:`PieceStart.compare`
+            takes it; None: matched here.
         """
         on = self.machine if machine is None else machine
         program = in_own_frame(program, on)  # (as many moves, in the program's frame)
         start = self.begin(
             program, expected, ended=ended, fresh=fresh, tool_length=tool_length, machine=machine
         )
-        self.take(start.compare(program, expected, on))
+        self.take(start.compare(program, expected, on, match))
 
     def begin(
         self,
