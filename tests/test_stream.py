@@ -501,16 +501,12 @@ def test_verify_in_pieces_compares_the_process_in_the_workers_as_here(
     kinds = []
     for text in (result.text, *_process_damaged(result.text, controller)):
         path.write_text(text, encoding="utf-8")
-
-        def checker() -> ProcessChecker:
-            return ProcessChecker(
+        got = {}
+        for parallel in (False, True):
+            process = ProcessChecker(
                 m, tol=tol, tool_length=length, rounding=rounding_of(dialect, "mm"),
                 end=end_words(dialect),
             )  # fmt: skip
-
-        got = {}
-        for parallel in (False, True):
-            process = checker()
             check, _ = verify_stream(
                 path, toolpath_pieces(expected, 500), m, controller, tol=tol, tool_length=length,
                 piece_points=300, process=process, parallel=parallel,
