@@ -863,11 +863,12 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     text = ""
     ended = False
     if pieces:  # the program's header (units) from its first piece of text
-        from urdfpost.posting.readback import program_texts
+        from urdfpost.posting.readback import CUT_MARGIN, program_texts
 
         head = next(program_texts(args.program, 1 << 16), "")
         program = dialect.read(head, path=args.program, rollover=machine.settings.rollover)
-        toolpath, chunks = _read_cl_pieces(args, machine, pieces)
+        # (one read per piece checked: verify_stream holds the points just past a piece)
+        toolpath, chunks = _read_cl_pieces(args, machine, pieces + CUT_MARGIN)
     else:
         try:
             text = Path(args.program).read_text(encoding="utf-8", errors="replace")

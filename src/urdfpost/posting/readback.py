@@ -110,6 +110,11 @@ def _excess(v: Verification) -> float:
 TEXT_PIECE = 8 << 20
 """Characters of program text read at a time by :func:`verify_stream`."""
 
+CUT_MARGIN = 2
+"""CL points past a piece's ``piece_points`` that :func:`verify_stream` holds before it cuts
+the piece (:func:`_verify_cut` matches the point after the cut too): CL data given in pieces of
+``piece_points + CUT_MARGIN`` points is read one piece per cut."""
+
 
 def program_texts(path: str | os.PathLike[str], size: int = TEXT_PIECE) -> Iterator[str]:
     """The text of a program file in pieces of about ``size`` characters, cut at line ends
@@ -203,7 +208,7 @@ def _verify_cut(
     point, axis = row_points(machine, values, program.tcp, tool_length, pivot)
     match = match_points(cl.tip + pivot * cl.axis, cl.axis, point, axis, tol)
     aside = rapid | rewind_moves(program)
-    j = np.arange(1, min(target, n_cl - 2) + 1)
+    j = np.arange(1, min(target, n_cl - CUT_MARGIN) + 1)  # (the point after j matched too)
     r = match[j]
     ok = (r >= 1) & (match[j + 1] > r) & (r + 1 < n_rows)
     if not program_ends:
@@ -245,7 +250,9 @@ def verify_stream(
     program_path : path
         The program file (for reading and messages).
     cl_pieces : iterable of Toolpath
-        Consecutive pieces of the CL data (:func:`urdfpost.readers.read_cl_chunks`).
+        Consecutive pieces of the CL data (:func:`urdfpost.readers.read_cl_chunks`), of any
+        size (the pieces checked are the same); of ``piece_points + CUT_MARGIN`` points
+        (:data:`CUT_MARGIN`), one is read per piece checked.
     machine : Machine
     controller : str
         Dialect of the program.
@@ -339,7 +346,7 @@ def verify_stream(
     more_text = False  # the program's next tool section is not read yet
     try:
         while True:
-            while not cl_ends and (cl is None or len(cl) < want + 2):
+            while not cl_ends and (cl is None or len(cl) < want + CUT_MARGIN):
                 more = next(cl_source, None)
                 if more is None:
                     cl_ends = True
