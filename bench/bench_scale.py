@@ -315,8 +315,7 @@ def measure_verify(path: str, control: str, pieces: bool) -> dict[str, Any]:
     from urdfpost import load_machine, read_cl
     from urdfpost.dialects import dialect_for
     from urdfpost.posting import PIECE_POINTS
-    from urdfpost.posting.check import bent_tolerances
-    from urdfpost.posting.piece import ball_radius
+    from urdfpost.posting.check import ball_radius, bent_tolerances
     from urdfpost.posting.readback import verify_stream
     from urdfpost.readers import read_cl_chunks
     from urdfpost.tolerances import Tolerances

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from jobs import TWO_TOOLS
 
 from urdfpost import load_machine
@@ -299,6 +301,54 @@ def test_checked_process_carries_the_spindle_across_pieces() -> None:
     # (the tool change is in the second piece: it stops the spindle, which starts again)
     assert [e.kind for e in second.events if e.kind in ("tool", "spindle")] == ["tool", "spindle"]
     assert more and "restarts at S9000" in more[0]
+
+
+@given(st.lists(st.sampled_from(["cut", "rapid", "tool", "on", "off"]), max_size=60))
+def test_checked_process_runs_the_spindle_at_every_cut(steps: list[str]) -> None:
+    """Whatever the tool changes and spindle records between the moves, the spindle runs at
+    every cutting move of the checked process, started again once where a cut finds it
+    stopped (by a tool change, SPINDL/OFF, or never started) and nowhere else."""
+    from urdfpost.toolpath import Event, Motion, Toolpath
+
+    moves: list[str] = []
+    events: list[Event] = []
+    for step in steps:
+        if step in ("cut", "rapid"):
+            moves.append(step)
+        elif step == "tool":
+            events.append(Event(index=len(moves), kind="tool", line=0, data={"number": 1}))
+        else:
+            data = {"rpm": 5000.0, "direction": "cw" if step == "on" else "off"}
+            events.append(Event(index=len(moves), kind="spindle", line=0, data=data))
+    n = len(moves)
+    toolpath = Toolpath(
+        tip=np.zeros((n, 3)),
+        axis=np.tile([0.0, 0.0, 1.0], (n, 1)),
+        feed=np.full(n, 500.0),
+        motion=np.array([int(Motion.FEED if m == "cut" else Motion.RAPID) for m in moves]),
+        line=np.arange(1, n + 1),
+        events=tuple(events),
+    )
+    checked, _, _ = checked_process(toolpath, feed=None, spindle=1000.0, units="mm")
+
+    def cuts_stopped(events: tuple[Event, ...], restart: bool) -> int:
+        """The cuts that find the spindle stopped, each then counted as starting it when
+        ``restart``."""
+        running, stopped = False, 0
+        for i, move in enumerate(moves):
+            for e in (e for e in events if e.index == i):
+                if e.kind == "tool":
+                    running = False
+                elif e.kind == "spindle":
+                    running = e.data["direction"] != "off"
+            if move == "cut" and not running:
+                stopped += 1
+                running = restart
+        return stopped
+
+    assert cuts_stopped(checked.events, restart=False) == 0
+    added = len(checked.events) - len(events)
+    assert added == cuts_stopped(toolpath.events, restart=True)
 
 
 def test_command_line_feed_and_spindle(tmp_path: Path, capsys) -> None:

@@ -516,10 +516,81 @@ def test_verify_in_pieces_in_a_worker_is_the_same_verify(
     def broken(*args: object, **kwargs: object) -> Verification:
         raise UrdfpostError("verification broke")
 
-    monkeypatch.setattr(worker, "verify", broken)
+    monkeypatch.setattr(worker, "verify_matched", broken)
     with pytest.raises(UrdfpostError, match="verification broke"):
         verify_stream(path, toolpath_pieces(job, 500), m, controller, tol=tol,
                       tool_length=length, piece_points=300, parallel=True)  # fmt: skip
+
+
+def _process_damaged(text: str, controller: str) -> list[str]:
+    """``text`` with a rapid move two thirds in (a feed fault) and, separately, with the
+    spindle stopped half way (a spindle fault at every cutting move after it)."""
+    lines = text.splitlines(keepends=True)
+    rapid = list(lines)
+    at = len(lines) * 2 // 3
+    if controller == "heidenhain":
+        rapid[at] = re.sub(r" F[\d.]+", " FMAX", rapid[at])  # (FMAX holds for its block)
+    else:
+        rapid[at], rapid[at + 1] = "G0 " + rapid[at], "G1 " + rapid[at + 1]
+    stopped = list(lines)
+    stopped.insert(len(lines) // 2, "1500 M5\n" if controller == "heidenhain" else "M5\n")
+    return ["".join(rapid), "".join(stopped)]
+
+
+@pytest.mark.parametrize("controller", ["fanuc", "heidenhain"])
+def test_verify_in_pieces_compares_the_process_in_the_workers_as_here(
+    tmp_path: Path, controller: str
+) -> None:
+    """The process check of a program verified in pieces compares each piece's feeds and
+    spindle where the piece is verified (in a worker, with the rows the verification matched),
+    the findings taken in the pieces' order: it is the check of comparing the pieces here,
+    and that of the whole program, with a fault in a later piece (the move it is at, the
+    message, the count) and without."""
+    import math
+
+    from urdfpost.dialects import dialect_for
+    from urdfpost.posting.process import checked_process
+    from urdfpost.posting.readback import verify_stream
+    from urdfpost.tolerances import Tolerances
+    from urdfpost.verification.process import (
+        ProcessChecker,
+        check_process,
+        end_words,
+        read_with_end,
+        rounding_of,
+    )
+
+    m = load_machine("gantry-ca")
+    job = _spiral()
+    result = post(job, m, PostOptions(controller=controller, tcp=False, strategy="recursive"))
+    expected, _, _ = checked_process(job, feed=math.nan, spindle=math.nan, units="mm")
+    dialect = dialect_for(controller)
+    tol = Tolerances.for_units("mm")
+    length = result.program.tool_length
+    path = tmp_path / f"spiral{dialect.extensions[0]}"
+    kinds = []
+    for text in (result.text, *_process_damaged(result.text, controller)):
+        path.write_text(text, encoding="utf-8")
+        got = {}
+        for parallel in (False, True):
+            process = ProcessChecker(
+                m, tol=tol, tool_length=length, rounding=rounding_of(dialect, "mm"),
+                end=end_words(dialect),
+            )  # fmt: skip
+            check, _ = verify_stream(
+                path, toolpath_pieces(expected, 500), m, controller, tol=tol, tool_length=length,
+                piece_points=300, process=process, parallel=parallel,
+            )  # fmt: skip
+            got[parallel] = (check, process.result())
+        assert got[True] == got[False]
+        program, ended = read_with_end(dialect, text, path=str(path))
+        whole = check_process(
+            program, m, expected, tol=tol, tool_length=length,
+            rounding=rounding_of(dialect, "mm"), ended=ended, end=end_words(dialect),
+        )  # fmt: skip
+        assert got[True][1] == whole
+        kinds.append([(f.kind, f.index > 1000) for f in whole.faults])
+    assert kinds == [[], [("feed", True)], [("spindle", True)]]
 
 
 def test_cli_verifies_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -29,12 +29,12 @@ from urdfpost.machine import Machine
 from urdfpost.posting.options import PostOptions, resolve
 from urdfpost.posting.piece import post_piece
 from urdfpost.posting.whole import PostResult, post
-from urdfpost.program import Move, Program, Tcp, ToolChange
+from urdfpost.program import Move, MoveTable, Program, Tcp, ToolChange
 from urdfpost.readers import read_cl
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verification import Verification, match_points, verify
-from urdfpost.verification.match import _row_poses
+from urdfpost.verification import Verification, match_points, program_joints, verify
+from urdfpost.verification.match import _row_poses, row_points
 from urdfpost.verification.measure import _Blocks, _Polyline
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -553,6 +553,44 @@ def _random_moves(
     _, axis = tip_and_axis(m, q, 0.0)
     cl_axis = axis + rng.normal(0.0, 0.2 * scale, axis.shape)
     return q, cl_axis / np.linalg.norm(cl_axis, axis=1, keepdims=True)
+
+
+@given(
+    st.lists(st.tuples(*[st.one_of(st.just(np.nan), st.floats(-400.0, 400.0))] * 2), max_size=30)
+)
+def test_program_joints_fill_each_axis_forward_from_home(rows: list[tuple[float, float]]) -> None:
+    """An axis not programmed yet stands at home, and then keeps its last programmed value,
+    whether its unknown values are only before its first one or also after it."""
+    m = machine("dmu50")
+    position = np.array(rows, dtype=float).reshape(-1, 2)
+    n = len(position)
+    table = MoveTable(position, np.zeros(n, bool), np.full(n, np.nan), np.full(n, -1))
+    program = Program("P", ("X", "C"), frozenset({"C"}), "mm", False, (table,))
+    values, _ = program_joints(m, program)
+    for j, name in enumerate(program.axes):
+        col = m.axis_names.index(name)
+        last = m.home[col]
+        for i, value in enumerate(position[:, j]):
+            if not np.isnan(value):
+                last = np.radians(value) if name == "C" else value
+            assert values[i, col] == last
+
+
+@pytest.mark.parametrize("name", ["dmu50", "dmu50-nutating", "gantry-ca", "vf2-4axis"])
+@pytest.mark.parametrize("tcp", [False, True])
+@pytest.mark.parametrize("pivot", [0.0, 3.0])
+def test_row_points_are_the_poses_the_matching_had(name: str, tcp: bool, pivot: float) -> None:
+    """The rows' points and axes without the reach and swing (what the streamed verifier's
+    cut and the process check match with) are bit for bit those of the rows' poses."""
+    m = machine(name)
+    q, _ = _random_moves(m, np.random.default_rng(5), 500, 0.5)
+    values = q.copy()
+    if tcp:
+        values[:, list(m.linear_columns)] = tip_and_axis(m, q, 100.0)[0]
+    poses = _row_poses(m, values, tcp, 100.0, pivot)
+    point, axis = row_points(m, values, tcp, 100.0, pivot)
+    np.testing.assert_array_equal(point, poses.tip)
+    np.testing.assert_array_equal(axis, poses.axis)
 
 
 @pytest.mark.parametrize("name", ["dmu50", "dmu50-nutating", "gantry-ca", "vf2-4axis"])

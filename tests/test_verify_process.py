@@ -7,6 +7,7 @@ geometry is still within tolerance (issue 23).
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -17,7 +18,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from jobs import two_tools
+from jobs import arc_job, drilling_job, two_tools
 
 import urdfpost.posting.whole as whole
 from urdfpost import load_machine
@@ -26,11 +27,14 @@ from urdfpost.dialects import DIALECTS
 from urdfpost.dialects.writer import ProgramWriter
 from urdfpost.errors import ToleranceError
 from urdfpost.posting.options import PostOptions
+from urdfpost.posting.process import checked_process
 from urdfpost.posting.stream import post_stream
 from urdfpost.program import Spindle
 from urdfpost.readers import read_cl, read_cl_text
+from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, toolpath_pieces
-from urdfpost.verification.process import distinct
+from urdfpost.verification import verify, verify_matched
+from urdfpost.verification.process import ProcessChecker, distinct
 
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "examples" / "dome.apt"
@@ -256,24 +260,27 @@ def test_verify_compares_the_process_with_the_cl_data(
     assert re.search(rf"^{re.escape(str(bad))}:{line}: {message}", out, re.M), out
 
 
+@pytest.mark.parametrize("single", [False, True], ids=["workers", "single-process"])
 @pytest.mark.parametrize("controller", ["heidenhain", "fanuc"])
 @pytest.mark.parametrize("damage", ["intact", *DAMAGES])
 def test_streamed_verify_compares_the_process_too(
     damage: str,
     controller: str,
+    single: bool,
     posted: Callable[[str, str], Posted],
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """Checked in pieces of a few CL points, the process gives the same findings, lines and
-    counts as checked whole."""
+    counts as checked whole: compared in the workers that verify the pieces, or here."""
     program = posted("dome", controller)
     path = program.path
     if damage != "intact":
         path = tmp_path / f"damaged{program.path.suffix}"
         path.write_text(DAMAGES[damage](program)[0])
     whole_code, whole_out = _verify(path, program.job, capsys)
-    code, out = _verify(path, program.job, capsys, "--piece-points", "40")
+    extra = ["--single-process"] if single else []
+    code, out = _verify(path, program.job, capsys, "--piece-points", "40", *extra)
     assert code == whole_code == (0 if damage == "intact" else 1)
 
     def process_lines(text: str) -> list[str]:
@@ -504,3 +511,33 @@ def test_distinct_counts_the_blocks_of_rows_in_order_and_not(
     """The count of blocks among a piece's rows: by its changes where in order, else sorted."""
     array = np.array(sorted(values) if order else values, dtype=np.int64)
     assert distinct(array) == np.unique(array).size
+
+
+@pytest.mark.parametrize(
+    ("job", "matched"), [("dome", True), ("arcs", False), ("cycles", False)], ids=str
+)
+def test_the_process_check_takes_the_rows_the_verification_matched(job: str, matched: bool) -> None:
+    """The verification gives the row reaching each CL point as it matched them where its rows
+    are the program's moves (``verify_matched``), and the process check of a piece takes them
+    instead of matching again (``urdfpost verify`` in pieces, in its workers): the same
+    findings, a fault included. With arcs (measured as moves along them) or canned cycles
+    (expanded) the verification's rows are others, and it gives none."""
+    machine = load_machine("dmu50")
+    text = {"dome": DOME.read_text(), "arcs": arc_job(), "cycles": drilling_job()}[job]
+    toolpath = read_cl_text(text, source=f"{job}.apt")
+    result = whole.post(toolpath, machine, PostOptions(controller="fanuc"))
+    program_text = result.text
+    if job == "dome":  # the first feed of 2000 mm/min written as 9999
+        program_text = _feed_word(2000).sub("F9999", program_text, count=1)
+        assert program_text != result.text
+    program = DIALECTS["fanuc"].read(program_text)
+    expected, _, _ = checked_process(toolpath, feed=math.nan, spindle=math.nan, units="mm")
+    tol = Tolerances.for_units("mm")
+    length = result.program.tool_length
+    check, match = verify_matched(program, machine, expected, tool_length=length, tol=tol)
+    assert check == verify(program, machine, expected, tool_length=length, tol=tol)
+    assert (match is not None) is matched
+    start = ProcessChecker(machine, tol=tol, tool_length=length).begin(program, expected)
+    found = start.compare(program, expected, machine, match)
+    assert found == start.compare(program, expected, machine)
+    assert [f.kind for f in found.faults] == (["feed"] if job == "dome" else [])

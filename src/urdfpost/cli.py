@@ -383,7 +383,7 @@ def _cl_units_argument(p: argparse.ArgumentParser, *aliases: str) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (exposed for documentation and tests)."""
-    from urdfpost.analysis.view import COLOR_BY as VIEW_COLORS
+    from urdfpost.analysis import COLOR_BY as VIEW_COLORS
     from urdfpost.dialects import DIALECTS
     from urdfpost.readers import FORMATS
 
@@ -840,7 +840,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     from urdfpost.posting.process import SpindleState, checked_process
     from urdfpost.posting.report import Report
     from urdfpost.tolerances import Tolerances
-    from urdfpost.verification import verify
+    from urdfpost.verification import verify_matched
     from urdfpost.verification.process import (
         ProcessChecker,
         end_words,
@@ -863,11 +863,12 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     text = ""
     ended = False
     if pieces:  # the program's header (units) from its first piece of text
-        from urdfpost.posting.readback import program_texts
+        from urdfpost.posting.readback import CUT_MARGIN, program_texts
 
         head = next(program_texts(args.program, 1 << 16), "")
         program = dialect.read(head, path=args.program, rollover=machine.settings.rollover)
-        toolpath, chunks = _read_cl_pieces(args, machine, pieces)
+        # (one read per piece checked: verify_stream holds the points just past a piece)
+        toolpath, chunks = _read_cl_pieces(args, machine, pieces + CUT_MARGIN)
     else:
         try:
             text = Path(args.program).read_text(encoding="utf-8", errors="replace")
@@ -885,8 +886,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     table = None if args.tool_table is None else read_tool_table(args.tool_table, scale)
     pivot = 0.0
     if args.angle_tolerance > 0:
-        from urdfpost.posting.check import bent_tolerances
-        from urdfpost.posting.piece import ball_radius
+        from urdfpost.posting.check import ball_radius, bent_tolerances
 
         pivot = ball_radius(toolpath)  # (the first cutter: the first piece has it)
         tol = bent_tolerances(tol, args.angle_tolerance, pivot)
@@ -963,19 +963,19 @@ def _cmd_verify(args: argparse.Namespace) -> int:
                 on = mcs_machine(machine, shifts[section.mcs])
                 cl = in_own_mcs(cl, shifts[section.mcs], transformed_mcs(cl_data))
             length = section.length
-            checks.append(
-                verify(
-                    part, on, cl, tool_length=length, tol=tol, pivot=pivot, feed_rules=feed_rules
-                )
+            verified, match = verify_matched(
+                part, on, cl, tool_length=length, tol=tol, pivot=pivot, feed_rules=feed_rules
             )
+            checks.append(verified)
             last = k == len(sections) - 1
-            process.add(
+            process.add(  # (the rows the verification matched)
                 part,
                 cl,
                 ended=ended if last else None,
                 fresh=k > 0,
                 tool_length=length,
                 machine=on,
+                match=match,
             )
         check = merge_verifications(checks, [k > 0 for k in range(len(checks))])
         process_check = process.result()

@@ -50,6 +50,7 @@ from typing import Any
 
 import numpy as np
 
+from urdfpost.analysis import COLOR_BY
 from urdfpost.collision.mesh import load_mesh
 from urdfpost.errors import UrdfpostError
 from urdfpost.kinematics.forward import tip_and_axis
@@ -93,9 +94,6 @@ BLOCK_SAMPLES = 32
 
 MAX_TEXT_LINES = 200_000
 """NC text lines the page carries at most (the lines of the sampled blocks)."""
-
-COLOR_BY = ("deviation", "speed")
-"""What ``color`` may colour the tool-tip trace by."""
 
 DEFAULT_CUTTER = 10.0
 """Tool diameter drawn when the CL data has none, mm."""

@@ -54,6 +54,19 @@ class CheckTarget:
     feed_rules: FeedRules | None = None
 
 
+def ball_radius(toolpath: Toolpath) -> float:
+    """Ball radius of the first cutter in the CL data when it is a ball-end tool, else 0 (mm):
+    the pivot of a strategy that bends the tool axis (:func:`bent_tolerances`)."""
+    for e in toolpath.events:
+        if e.kind in ("cutter", "tool") and e.data.get("diameter") is not None:
+            d = float(e.data["diameter"])
+            r = e.data.get("corner_radius")
+            if r is not None and d > 0 and abs(float(r) - 0.5 * d) <= 1e-6 * max(d, 1.0):
+                return 0.5 * d
+            return 0.0
+    return 0.0
+
+
 def bent_tolerances(tol: Tolerances, angle_tolerance_deg: float, pivot: float) -> Tolerances:
     """Tolerances against the CL data for a program whose strategy bent the tool axis.
 

@@ -33,7 +33,7 @@ from urdfpost.planning.strategies import (
 )
 from urdfpost.posting.arcs import arc_spans
 from urdfpost.posting.body import Rows, program_body, program_name
-from urdfpost.posting.check import CheckTarget
+from urdfpost.posting.check import CheckTarget, ball_radius
 from urdfpost.posting.feeds import timed_program
 from urdfpost.posting.options import Job
 from urdfpost.posting.planes import PlaneFigures, tilted_planes
@@ -111,18 +111,6 @@ def _rewind_figures(
             )
         )
     return tuple(out)
-
-
-def ball_radius(toolpath: Toolpath) -> float:
-    """Ball radius of the first cutter in the CL data when it is a ball-end tool, else 0 (mm)."""
-    for e in toolpath.events:
-        if e.kind in ("cutter", "tool") and e.data.get("diameter") is not None:
-            d = float(e.data["diameter"])
-            r = e.data.get("corner_radius")
-            if r is not None and d > 0 and abs(float(r) - 0.5 * d) <= 1e-6 * max(d, 1.0):
-                return 0.5 * d
-            return 0.0
-    return 0.0
 
 
 def make_problem(toolpath: Toolpath, job: Job) -> Problem:

@@ -170,7 +170,9 @@ def checked_process(
     k = 0  # next event
     since = 0  # index of the last event that stopped the spindle (tool change, SPINDL/OFF)
     pending_tool: Event | None = None  # the last tool change with no spindle start after it
-    for point in cuts.tolist():
+    at_cut = 0  # the next cut (of cuts)
+    while at_cut < len(cuts):
+        point = int(cuts[at_cut])
         # the events before this point
         while k < len(events) and events[k].index <= point:
             e = events[k]
@@ -190,7 +192,10 @@ def checked_process(
                 if on:
                     last_on = SpindleState(direction, rpm, True)
             k += 1
-        if running:
+        if running:  # nothing changes before the next event: on to its first cut
+            if k == len(events):
+                break
+            at_cut = int(np.searchsorted(cuts, events[k].index))
             continue
         line = int(toolpath.line[point])
         # the spindle starts where the CL data changed the tool or stopped it, else before the
@@ -225,6 +230,7 @@ def checked_process(
             )
         )
         running, last_on, pending_tool = True, restart, None
+        at_cut += 1
     # the events after the last cut set the state the next piece starts with
     for e in events[k:]:
         if e.kind == "tool":

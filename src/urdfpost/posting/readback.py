@@ -25,12 +25,11 @@ from urdfpost.toolpath import Toolpath, joined, toolpath_slice
 from urdfpost.verification import (
     REACH,
     Verification,
-    at_pivot,
     match_points,
     missed_note,
     program_joints,
     rewind_note,
-    row_poses_at_tip,
+    row_points,
 )
 from urdfpost.verification.feeds import FeedCheck, FeedRules
 from urdfpost.verification.planes import PlaneFrames
@@ -110,6 +109,11 @@ def _excess(v: Verification) -> float:
 
 TEXT_PIECE = 8 << 20
 """Characters of program text read at a time by :func:`verify_stream`."""
+
+CUT_MARGIN = 2
+"""CL points past a piece's ``piece_points`` that :func:`verify_stream` holds before it cuts
+the piece (:func:`_verify_cut` matches the point after the cut too): CL data given in pieces of
+``piece_points + CUT_MARGIN`` points is read one piece per cut."""
 
 
 def program_texts(path: str | os.PathLike[str], size: int = TEXT_PIECE) -> Iterator[str]:
@@ -201,10 +205,10 @@ def _verify_cut(
     n_rows, n_cl = len(values), len(cl)
     if n_rows < 3 or n_cl < 3:
         return None
-    rows = at_pivot(row_poses_at_tip(machine, values, program.tcp, tool_length), pivot)
-    match = match_points(cl.tip + pivot * cl.axis, cl.axis, rows.tip, rows.axis, tol)
+    point, axis = row_points(machine, values, program.tcp, tool_length, pivot)
+    match = match_points(cl.tip + pivot * cl.axis, cl.axis, point, axis, tol)
     aside = rapid | rewind_moves(program)
-    j = np.arange(1, min(target, n_cl - 2) + 1)
+    j = np.arange(1, min(target, n_cl - CUT_MARGIN) + 1)  # (the point after j matched too)
     r = match[j]
     ok = (r >= 1) & (match[j + 1] > r) & (r + 1 < n_rows)
     if not program_ends:
@@ -246,7 +250,9 @@ def verify_stream(
     program_path : path
         The program file (for reading and messages).
     cl_pieces : iterable of Toolpath
-        Consecutive pieces of the CL data (:func:`urdfpost.readers.read_cl_chunks`).
+        Consecutive pieces of the CL data (:func:`urdfpost.readers.read_cl_chunks`), of any
+        size (the pieces checked are the same); of ``piece_points + CUT_MARGIN`` points
+        (:data:`CUT_MARGIN`), one is read per piece checked.
     machine : Machine
     controller : str
         Dialect of the program.
@@ -260,7 +266,10 @@ def verify_stream(
         The program text in pieces cut at line ends (default: read from ``program_path``).
     process : ProcessChecker, optional
         Is given every piece checked, with its CL data (the process of the program,
-        :mod:`urdfpost.verification.process`; the CL pieces are then the expected ones).
+        :mod:`urdfpost.verification.process`; the CL pieces are then the expected ones): each
+        piece is begun here (:meth:`~urdfpost.verification.process.ProcessChecker.begin`), its
+        rows compared where it is verified, and the findings taken in the pieces' order at the
+        end. Its machine is ``machine`` (where the rows are compared).
     table : mapping, optional
         A machine-coordinate program: the tool table (tool number to gauge length, mm). Each
         tool section (:mod:`urdfpost.posting.tools`) is checked with its tool's length: the
@@ -269,8 +278,8 @@ def verify_stream(
         How the control times the blocks: the tip feed of every piece is measured
         (:func:`urdfpost.verification.verify`); None: not measured.
     parallel : bool, optional
-        Verify the pieces in worker processes, one per core, each piece by the next worker in
-        turn, while the next ones are read and cut (and their process checked here); default
+        Verify the pieces (and compare the rows of their process) in worker processes, one per
+        core, each piece by the next worker in turn, while the next ones are read and cut; default
         on Linux when the machine has more than one core and the program more than one piece
         (as :func:`urdfpost.posting.stream.post_stream`).
 
@@ -305,9 +314,16 @@ def verify_stream(
     lengths: dict[int, float] = {}  # each tool's gauge length, mm
     checks: ReadChecks | None = None  # where the pieces are verified, in order
 
-    def check(head: Program, part: Toolpath, length: float, rules: FeedRules | None) -> None:
-        """Verify a piece (in the worker, when there is one), its result taken in order at
-        the end."""
+    def check(
+        head: Program,
+        part: Toolpath,
+        length: float,
+        rules: FeedRules | None,
+        ended: bool | None = None,
+    ) -> None:
+        """Verify a piece and compare its process (in a worker, when there are workers), its
+        results taken in order at the end; the piece begins a tool section when ``starts``
+        (``ended``: the last piece, whether the program text has its end)."""
         nonlocal checks
         if checks is None:
             cores = os.cpu_count() or 1
@@ -318,7 +334,11 @@ def verify_stream(
             checks = ReadChecks(
                 machine, controller, str(program_path), tol, head.units, use, workers=cores
             )
-        checks.submit(ReadPiece(head, part, length, pivot, rules))
+        fresh.append(starts)
+        start = None
+        if process is not None:
+            start = process.begin(head, part, ended=ended, fresh=starts, tool_length=length)
+        checks.submit(ReadPiece(head, part, length, pivot, rules, start))
 
     length = tool_length  # of the tool section being checked
     fresh: list[bool] = []  # per piece: it begins a tool section
@@ -326,7 +346,7 @@ def verify_stream(
     more_text = False  # the program's next tool section is not read yet
     try:
         while True:
-            while not cl_ends and (cl is None or len(cl) < want + 2):
+            while not cl_ends and (cl is None or len(cl) < want + CUT_MARGIN):
                 more = next(cl_source, None)
                 if more is None:
                     cl_ends = True
@@ -364,21 +384,12 @@ def verify_stream(
                     head = cut_program[0][0]
                     program = replace(program, blocks=Blocks(program.parts[len(head.parts) :]))
                     end = sections[0].stop
-                    part_cl = toolpath_slice(cl, 0, end)
-                    check(head, part_cl, length, None)
-                    fresh.append(starts)
-                    if process is not None:
-                        process.add(head, part_cl, fresh=starts, tool_length=length)
+                    check(head, toolpath_slice(cl, 0, end), length, None)
                     cl = toolpath_slice(cl, end, len(cl))
                     length, starts = sections[1].length, True
                     continue
             if cl_ends and program_ends:
-                check(program, cl, length, feed_rules)
-                fresh.append(starts)
-                if process is not None:
-                    process.add(
-                        program, cl, ended=reader.builder.ended, fresh=starts, tool_length=length
-                    )
+                check(program, cl, length, feed_rules, ended=reader.builder.ended)
                 break
             cut = _verify_cut(program, machine, cl, tol, length, pivot, want, program_ends)
             if cut is None:  # nowhere to cut yet: a longer piece, and more rows
@@ -387,9 +398,6 @@ def verify_stream(
             c, r = cut
             head, program = _split_rows(program, r)
             check(head, toolpath_slice(cl, 0, c + 1), length, feed_rules)
-            fresh.append(starts)
-            if process is not None:
-                process.add(head, toolpath_slice(cl, 0, c + 1), fresh=starts, tool_length=length)
             starts = False
             cl = toolpath_slice(cl, c, len(cl), first_events=False)
             rows_done += r
@@ -398,8 +406,13 @@ def verify_stream(
             want = piece_points
             log.info("verified a piece: CL lines to %d, program rows to %d", cl.line[0], rows_done)
         assert header is not None and checks is not None
-        parts = [c for c, _ in checks.finish()]
+        results = checks.finish()
     finally:
         if checks is not None:
             checks.close()
+    if process is not None:
+        for _, found in results:
+            assert found is not None
+            process.take(found)
+    parts = [c for c, _ in results]
     return merge_verifications(parts, fresh), replace(header, blocks=Blocks(tuple(smoothing)))

@@ -10,7 +10,10 @@ piece's process (feeds, spindle, tools) is checked from the same read
 
 ``urdfpost verify`` in pieces reads and cuts the program itself and hands each piece read
 (:class:`ReadPiece`) to :class:`ReadChecks`: workers, one per core, each verifying the next
-piece in turn (a read piece carries no state to the next).
+piece in turn (a read piece carries no state to the next). With the piece comes what its
+process check takes from the pieces before it (:class:`~urdfpost.verification.process.PieceStart`):
+the worker compares the piece's feeds and spindle too, with the rows the verification matched
+to the CL points, and hands back what it found with the verification.
 
 The worker never outlives the post: it ignores Ctrl-C (the post stops it), takes the default
 action on ``SIGTERM`` (:meth:`Checks.close` terminates it) and leaves when the post's process is
@@ -46,10 +49,16 @@ from urdfpost.posting.check import CheckTarget, check_piece, tolerance_error
 from urdfpost.program import Blocks, Insert, MoveTable, Program, arcs_as_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
-from urdfpost.verification import Verification, verify
+from urdfpost.verification import Verification, verify_matched
 from urdfpost.verification.feeds import FeedRules
 from urdfpost.verification.planes import PlaneFrames
-from urdfpost.verification.process import PieceProcess, ProcessCheck, rounding_of
+from urdfpost.verification.process import (
+    PieceProcess,
+    PieceStart,
+    ProcessCheck,
+    RowFindings,
+    rounding_of,
+)
 
 if TYPE_CHECKING:
     from urdfpost.posting.piece import PostedPiece
@@ -114,17 +123,21 @@ class PieceJob:
 @dataclass(frozen=True)
 class ReadPiece:
     """A piece of a program read already (``urdfpost verify`` in pieces), to be verified
-    against its CL points with :func:`urdfpost.verification.verify`.
+    against its CL points with :func:`urdfpost.verification.verify`, and its process checked.
 
     Attributes
     ----------
     program : Program
-        The piece's rows, read back (its first row the last of the piece before).
+        The piece's rows, read back, in the program's frame (its first row the last of the
+        piece before).
     cl : Toolpath
-        Its CL points.
+        Its CL points (the expected ones when its process is checked).
     tool_length, pivot : float, mm
     feed_rules : FeedRules or None
         As :func:`urdfpost.verification.verify` takes them.
+    process : PieceStart or None
+        The start of the piece's process check
+        (:meth:`urdfpost.verification.process.ProcessChecker.begin`); None: not checked.
     """
 
     program: Program
@@ -132,6 +145,7 @@ class ReadPiece:
     tool_length: float
     pivot: float
     feed_rules: FeedRules | None = None
+    process: PieceStart | None = None
 
 
 class PieceVerifier:
@@ -165,29 +179,17 @@ class PieceVerifier:
         self.process: PieceProcess | None = None  # made with the first piece's tool length
 
     def check(
-        self, job: PieceJob | ReadPiece, machine: Machine | None = None
+        self, job: PieceJob, machine: Machine | None = None
     ) -> tuple[Verification, Verification | None]:
         """The piece's verifications against the CL data and against its strategy's path
         (on ``machine``: a section in another MCS, its program zero elsewhere; default the
-        verifier's). A :class:`ReadPiece` is verified as it is (the second is None), whatever
-        its figures.
+        verifier's).
 
         Raises
         ------
         ToleranceError
             Either misses its tolerance (a posted piece).
         """
-        if isinstance(job, ReadPiece):
-            check = verify(
-                job.program,
-                machine or self.machine,
-                job.cl,
-                tool_length=job.tool_length,
-                tol=self.tol,
-                pivot=job.pivot,
-                feed_rules=job.feed_rules,
-            )
-            return check, None
         self.reader.feed(job.text, job.inserts)
         read = self.frames.feed(self.reader.take())  # (the planes' moves in the program's)
         readback = read
@@ -204,6 +206,27 @@ class PieceVerifier:
         if len(table):
             self.previous = (readback.axes, np.asarray(table.position[-1]))
         return check, intent
+
+    def check_read(self, job: ReadPiece) -> tuple[Verification, RowFindings | None]:
+        """The verification of a piece read already, whatever its figures, and what its rows
+        show of its process (None: not asked for). The process check matches the rows to the
+        CL points as the verification did (:func:`urdfpost.verification.verify_matched`) where
+        it can (the same tool length, pivot and tolerances; no arc, no canned cycle)."""
+        check, match = verify_matched(
+            job.program,
+            self.machine,
+            job.cl,
+            tool_length=job.tool_length,
+            tol=self.tol,
+            pivot=job.pivot,
+            feed_rules=job.feed_rules,
+        )
+        start = job.process
+        if start is None:
+            return check, None
+        if (start.tol, start.pivot, start.tool_length) != (self.tol, job.pivot, job.tool_length):
+            match = None
+        return check, start.compare(job.program, job.cl, self.machine, match)
 
     def _process(self, job: PieceJob, read: Program, machine: Machine | None) -> None:
         """The process check of a piece read back (``read``: before the row of the piece
@@ -278,6 +301,14 @@ def _detach(post_end: Connection | None) -> bool:
     return parent is not None and parent.pid is not None and _die_with_parent(parent.pid)
 
 
+def _checked(verifier: PieceVerifier, job: PieceJob | ReadPiece) -> tuple[Verification, Any]:
+    """The check of ``job``: a posted piece's verifications (:meth:`PieceVerifier.check`) or
+    a read piece's verification and process findings (:meth:`PieceVerifier.check_read`)."""
+    if isinstance(job, ReadPiece):
+        return verifier.check_read(job)
+    return verifier.check(job)
+
+
 def _next_job(conn: Connection) -> PieceJob | ReadPiece | str | None:
     """The next job (or :data:`_PROCESS`), or None when the post says so or its process is
     gone."""
@@ -318,7 +349,7 @@ def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
             if isinstance(job, str):
                 answer: tuple[bool, Any] = (True, verifier.process_check())
             else:
-                answer = (True, verifier.check(job))
+                answer = (True, _checked(verifier, job))
         except Exception as exc:  # sent back to be raised where the post runs
             answer = (False, exc)
             try:
@@ -350,7 +381,9 @@ class Checks:
         parallel: bool,
         process: bool = False,
     ) -> None:
-        self.results: list[tuple[Verification, Verification | None]] = []
+        # per piece: its verification, and a posted piece's of its intended path or a read
+        # piece's process findings (:func:`_checked`)
+        self.results: list[tuple[Verification, Any]] = []
         self.local: PieceVerifier | None = None
         self.conn: Connection | None = None
         self.process: BaseProcess | None = None
@@ -387,7 +420,7 @@ class Checks:
         while the worker takes it in.
         """
         if self.local is not None:
-            self.results.append(self.local.check(job))
+            self.results.append(_checked(self.local, job))
             return
         self._collect()
         self.busy = True
@@ -401,8 +434,8 @@ class Checks:
         except OSError:  # a broken pipe: the worker is gone (reported by _collect)
             self.sent = False
 
-    def finish(self) -> list[tuple[Verification, Verification | None]]:
-        """Every piece's verifications, in order, once all are checked."""
+    def finish(self) -> list[tuple[Verification, Any]]:
+        """Every piece's verifications (:attr:`results`), in order, once all are checked."""
         self._collect()
         return self.results
 
@@ -509,8 +542,9 @@ class ReadChecks:
         self.members[self.count % len(self.members)].submit(job)
         self.count += 1
 
-    def finish(self) -> list[tuple[Verification, Verification | None]]:
-        """Every piece's verification, in the order submitted, once all are checked."""
+    def finish(self) -> list[tuple[Verification, RowFindings | None]]:
+        """Every piece's verification and process findings (:meth:`PieceVerifier.check_read`),
+        in the order submitted, once all are checked."""
         done = [member.finish() for member in self.members]
         k = len(self.members)
         return [done[i % k][i // k] for i in range(self.count)]

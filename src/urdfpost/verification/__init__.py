@@ -25,6 +25,7 @@ from urdfpost.verification.match import (
     at_pivot,
     match_points,
     program_joints,
+    row_points,
     row_poses_at_tip,
 )
 from urdfpost.verification.measure import (
@@ -34,6 +35,7 @@ from urdfpost.verification.measure import (
     rewind_note,
     verify,
     verify_checks,
+    verify_matched,
 )
 
 __all__ = [
@@ -45,7 +47,9 @@ __all__ = [
     "missed_note",
     "program_joints",
     "rewind_note",
+    "row_points",
     "row_poses_at_tip",
     "verify",
     "verify_checks",
+    "verify_matched",
 ]

@@ -5,7 +5,8 @@ it and the tool axis within the orientation tolerance of its axis. The rows are 
 order (:func:`match_points`): each CL point from the row the point before reached, at most
 :data:`REACH` rows on. The rows' joint values come from the program's move table
 (:func:`program_joints`) and their poses from the forward kinematics
-(:func:`row_poses_at_tip`, :func:`at_pivot`).
+(:func:`row_poses_at_tip`, :func:`at_pivot`; :func:`row_points` where only the matching needs
+them).
 
 The deviation between the rows (the blocks) is :mod:`urdfpost.verification.measure`; the streamed
 verifier (:func:`urdfpost.posting.readback.verify_stream`) cuts its pieces where this matching can
@@ -23,6 +24,7 @@ import numpy as np
 from urdfpost._compiled import Kernels
 from urdfpost.errors import DialectError
 from urdfpost.geometry import VecArrays, angle_between, coords
+from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.linearize import RowPoses
 from urdfpost.machine import Machine
 from urdfpost.program import Program
@@ -71,6 +73,10 @@ def program_joints(machine: Machine, program: Program) -> tuple[np.ndarray, np.n
             column = np.radians(column)
         # forward fill NaN (modal value not yet programmed), home before the first value
         ok = ~np.isnan(column)
+        first = int(ok.argmax()) if len(ok) else 0
+        if ok[first:].all():  # (the common case: NaN only before the first value)
+            values[first:, col] = column[first:]
+            continue
         idx = np.where(ok, np.arange(len(column)), -1)
         idx = np.maximum.accumulate(idx)
         filled = np.where(idx >= 0, column[np.maximum(idx, 0)], values[:, col])
@@ -114,11 +120,48 @@ def row_poses_at_tip(
     """
     if not tcp:
         return RowPoses.of(machine, values, tool_length)
+    poses = RowPoses.of(machine, _rotary_only(machine, values), 0.0)
+    return replace(poses, tip=values[:, list(machine.linear_columns)])
+
+
+def _rotary_only(machine: Machine, values: np.ndarray) -> np.ndarray:
+    """``values`` (N, m) with the linear axes at 0: the rotary axes of TCP rows, which alone
+    turn the tool axis (their linear values are the tip)."""
     q = values.copy()
-    lin = list(machine.linear_columns)
-    q[:, lin] = 0.0
-    poses = RowPoses.of(machine, q, 0.0)
-    return replace(poses, tip=values[:, lin])
+    q[:, list(machine.linear_columns)] = 0.0
+    return q
+
+
+def row_points(
+    machine: Machine, values: np.ndarray, tcp: bool, tool_length: float, pivot: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """The measured point and the tool axis of program rows: those of :func:`at_pivot` of
+    :func:`row_poses_at_tip`, the same values, without the reach and swing that only bound
+    the blocks (what :func:`match_points` needs, for less work).
+
+    Parameters
+    ----------
+    machine : Machine
+    values : ndarray, shape (N, m)
+        Joint values of the rows (:func:`program_joints`), mm / rad.
+    tcp : bool
+        The program is a TCP program (its linear values are the tool tip).
+    tool_length : float, mm
+        The tool length machine-coordinate positions include (not used in TCP programs).
+    pivot : float, mm
+        How far up the tool axis the measured point is (0: the tip).
+
+    Returns
+    -------
+    point, axis : ndarray, shape (N, 3)
+        Point in mm, in the workpiece frame; unit tool axis.
+    """
+    if tcp:
+        _, axis = tip_and_axis(machine, _rotary_only(machine, values), 0.0)
+        point = values[:, list(machine.linear_columns)]
+    else:
+        point, axis = tip_and_axis(machine, values, tool_length)
+    return (point if pivot == 0.0 else point + pivot * axis), axis
 
 
 def at_pivot(rows: RowPoses, pivot: float) -> RowPoses:

@@ -1077,11 +1077,51 @@ def verify(
     -------
     Verification
     """
+    return verify_matched(
+        program,
+        machine,
+        toolpath,
+        tool_length=tool_length,
+        tol=tol,
+        pivot=pivot,
+        feed_rules=feed_rules,
+    )[0]
+
+
+def verify_matched(
+    program: Program,
+    machine: Machine,
+    toolpath: Toolpath,
+    *,
+    tool_length: float | None = None,
+    tol: Tolerances | None = None,
+    pivot: float = 0.0,
+    feed_rules: FeedRules | None = None,
+) -> tuple[Verification, np.ndarray | None]:
+    """:func:`verify`, and the row of the program reaching each CL point as the verification
+    matched them (:func:`~urdfpost.verification.match.match_points`), for a check of the same
+    rows that needs the matching too (the process check of a piece:
+    :meth:`urdfpost.verification.process.PieceStart.compare`).
+
+    Parameters
+    ----------
+    program, machine, toolpath, tool_length, tol, pivot, feed_rules
+        As :func:`verify`.
+
+    Returns
+    -------
+    verification : Verification
+    match : ndarray, shape (len(toolpath),), int, or None
+        The index of the move of ``program`` (:meth:`Program.move_table`) reaching each CL
+        point, -1 where none does; None where the rows compared are not the program's moves
+        (an arc, measured as moves along it; canned cycles, expanded, whose holes are checked
+        on their own) or nothing was compared (no moves, no CL points).
+    """
     tol = tol or Tolerances.for_units(program.units)
-    (check,) = verify_checks(
+    (check,), matches = _verified(
         program, machine, [Check(toolpath, tol, pivot)], tool_length, feed_rules
     )
-    return check
+    return check, None if matches is None else matches[0]
 
 
 def verify_checks(
@@ -1111,6 +1151,18 @@ def verify_checks(
     list of Verification
         One per check, in order.
     """
+    return _verified(program, machine, checks, tool_length, feed_rules)[0]
+
+
+def _verified(
+    program: Program,
+    machine: Machine,
+    checks: list[Check],
+    tool_length: float | None,
+    feed_rules: FeedRules | None,
+) -> tuple[list[Verification], list[np.ndarray] | None]:
+    """:func:`verify_checks`, and per check the row reaching each CL point
+    (:func:`verify_matched`; None where the rows compared are not the program's moves)."""
     if program.tcp and program.cut_without_tcp is not None:
         # its X/Y/Z would be machine positions among tool tips: no program of one kind
         path, line = program.cut_without_tcp
@@ -1150,11 +1202,13 @@ def verify_checks(
         except ValueError as e:
             raise ProgramParseError(program.name, 0, str(e)) from None
         out = verify_checks(run, machine, checks, tool_length, feed_rules)
-        return [replace(v, blocks=written) for v in out]
+        return [replace(v, blocks=written) for v in out], None
     try:  # canned cycles as the motion the control runs
-        program = expand_cycles(program)
+        expanded = expand_cycles(program)
     except ValueError as e:
         raise DialectError(f"program {program.name}: {e}") from e
+    own_rows = expanded is program
+    program = expanded
     values, rapid = program_joints(machine, program)
     notes: list[str] = []
     # a rewind leaves the CL path on purpose (lift, turn, return): checked like a rapid, by
@@ -1175,18 +1229,13 @@ def verify_checks(
         ]
         rapid = rapid | cycle
         checks = [replace(c, toolpath=without_holes(c.toolpath)) for c in checks]
+        own_rows = False  # (the CL points matched are those off the holes)
+    out, matches = _verify_rows(
+        program, machine, checks, tool_length, values, rapid, notes, feed_rules
+    )
     if holes and any(h is not None for h in holes):
-        return [
-            _with_holes(v, h, program.units)
-            for v, h in zip(
-                _verify_rows(
-                    program, machine, checks, tool_length, values, rapid, notes, feed_rules
-                ),
-                holes,
-                strict=True,
-            )
-        ]
-    return _verify_rows(program, machine, checks, tool_length, values, rapid, notes, feed_rules)
+        out = [_with_holes(v, h, program.units) for v, h in zip(out, holes, strict=True)]
+    return out, matches if own_rows else None
 
 
 def _with_holes(verification: Verification, holes, units: str) -> Verification:
@@ -1215,14 +1264,16 @@ def _verify_rows(
     rapid: np.ndarray,
     notes: list[str],
     rules: FeedRules | None = None,
-) -> list[Verification]:
+) -> tuple[list[Verification], list[np.ndarray] | None]:
     """:func:`verify_checks` of the program's rows (``values``, ``rapid`` as compared;
-    ``rules``: the tip feed measured, as :func:`verify_checks` says)."""
+    ``rules``: the tip feed measured, as :func:`verify_checks` says), and per check the row
+    reaching each CL point (None: nothing compared)."""
     rewind = rewind_moves(program)
     if len(values) == 0 or not all(len(c.toolpath) for c in checks):
         if len(values) and len(checks) > 1:  # compare those with CL points on their own
-            return [verify_checks(program, machine, [c], tool_length, rules)[0] for c in checks]
-        return [_nothing_to_compare(program, values, c) for c in checks]
+            out = [verify_checks(program, machine, [c], tool_length, rules)[0] for c in checks]
+            return out, None
+        return [_nothing_to_compare(program, values, c) for c in checks], None
     rows = row_poses_at_tip(machine, values, program.tcp, tool_length)
     steps: dict[str, float] = {}
     for a in machine.rotary:
@@ -1257,8 +1308,9 @@ def _verify_rows(
         )
         for c, part, deviation in zip(checks, parts, deviations, strict=True)
     ]
+    matches = [part.match for part in parts]
     if rules is None:
-        return out
+        return out, matches
     q0, q1 = values[blocks - 1], values[blocks]
     known = deviations[0].tip_length
     tip = tip_lengths(machine, q0, q1, program.tcp, tool_length) if known is None else known
@@ -1283,7 +1335,7 @@ def _verify_rows(
             tip=tip,
         )
         measured.append(replace(v, feeds=check, ok=v.ok and check.ok))
-    return measured
+    return measured, matches
 
 
 def _nothing_to_compare(program: Program, values: np.ndarray, check: Check) -> Verification:
@@ -1365,6 +1417,8 @@ class _Comparison:
         At the check's pivot.
     polyline : _Polyline
         Of the CL points (at the pivot).
+    match : ndarray, shape (n_cl,), int
+        The row reaching each CL point, -1 where none does (:func:`match_points`).
     reached : ndarray, shape (n_cl,), bool
     before : ndarray, shape (N,), int
         Last CL index matched at or before each program row (-1 before the first).
@@ -1383,6 +1437,7 @@ class _Comparison:
 
     rows: RowPoses
     polyline: _Polyline
+    match: np.ndarray
     reached: np.ndarray
     before: np.ndarray
     ja: np.ndarray
@@ -1428,6 +1483,7 @@ class _Comparison:
         return cls(
             rows=rows,
             polyline=polyline,
+            match=match,
             reached=reached,
             before=before,
             ja=ja,

@@ -76,7 +76,7 @@ from urdfpost.program import (
 )
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath
-from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
+from urdfpost.verification.match import match_points, program_joints, row_points
 from urdfpost.verification.planes import PlaneFrames, in_own_frame
 
 if TYPE_CHECKING:
@@ -109,6 +109,12 @@ class Rounding:
     feed: float = 0.1
     feed_unit: float = 1.0
     speed: float = 1.0
+
+    def feed_words(self, feed: float) -> str:
+        """A feed (mm/min) as an F word of the program; "any feed" for NaN."""
+        if not math.isfinite(feed):
+            return "any feed (none in the CL data)"
+        return f"F{_fmt(feed / self.feed_unit)}"
 
 
 def rounding_of(dialect: Dialect, units: str) -> Rounding:
@@ -239,6 +245,286 @@ def _fmt(value: float) -> str:
     return f"{value:.6g}"
 
 
+def _spindle_state(part: Spindle) -> tuple[int, float]:
+    """The spindle state a program's :class:`~urdfpost.program.Spindle` block sets: direction
+    code and speed, rpm (0 when off)."""
+    code = _DIRECTIONS.get(part.direction, 0)
+    return code, float(part.rpm) if code else 0.0
+
+
+def _spindle_words(code: int, rpm: float) -> str:
+    """A spindle state as the messages say it: "off", "S9000 CW"."""
+    if code == 0:
+        return "off"
+    direction = "CW" if code == 1 else "CCW"
+    return f"S(any) {direction}" if math.isnan(rpm) else f"S{_fmt(rpm)} {direction}"
+
+
+def _cl_spindle_changes(
+    expected: Toolpath, start: tuple[int, float]
+) -> tuple[list[int], list[tuple[int, float]]]:
+    """Where the CL data's spindle state changes: the indices of the points of its tool loads
+    and spindle records, and the states (direction code, rpm; NaN: any speed), the first of
+    them ``start`` (before the first change), the last the one ``expected`` ends with."""
+    at: list[int] = []
+    states = [start]
+    state = start
+    for e in sorted(expected.events, key=lambda e: e.index):
+        if e.kind == "tool":
+            state = (0, 0.0)
+        elif e.kind == "spindle":
+            direction = str(e.data.get("direction", "cw"))
+            rpm = float(e.data.get("rpm", 0.0))
+            code = _DIRECTIONS.get(direction, 1)
+            on = code != 0 and not rpm <= 0  # NaN: a speed the CL data does not give
+            state = (code, rpm) if on else (0, 0.0)
+        else:
+            continue
+        at.append(e.index)
+        states.append(state)
+    return at, states
+
+
+@dataclass(frozen=True)
+class RowFindings:
+    """What the rows of one piece show of its process (:meth:`PieceStart.compare`).
+
+    Attributes
+    ----------
+    cutting : int
+        Motion blocks compared as cuts.
+    free_feed, free_speed : int
+        Of them, those where the CL data has no feed, no spindle speed.
+    faults : tuple of Fault
+        The piece's first feed fault and first spindle fault, if any, at their motion blocks
+        in the whole program, each counting the piece's blocks of its kind.
+    """
+
+    cutting: int = 0
+    free_feed: int = 0
+    free_speed: int = 0
+    faults: tuple[Fault, ...] = ()
+
+
+@dataclass(frozen=True)
+class PieceStart:
+    """What the row comparison of one piece (feeds and spindle at its cutting moves) takes from
+    the pieces before it (:meth:`ProcessChecker.begin`): with it the piece is compared on its
+    own, here or in a worker process (:meth:`compare`).
+
+    Attributes
+    ----------
+    row0 : int
+        Index of the piece's first motion block in the whole program.
+    continued : bool
+        The piece starts with the row and the CL point the piece before ended with.
+    spindle : tuple of (int, float)
+        The program's spindle at the piece's start: direction code and speed, rpm.
+    cl_spindle : tuple of (int, float)
+        The CL data's (speed NaN: any).
+    tool_length, pivot : float, mm
+    tol : Tolerances
+    rounding : Rounding
+        As :class:`ProcessChecker` has them for the piece.
+    """
+
+    row0: int
+    continued: bool
+    spindle: tuple[int, float]
+    cl_spindle: tuple[int, float]
+    tool_length: float
+    pivot: float
+    tol: Tolerances
+    rounding: Rounding
+
+    def compare(
+        self,
+        program: Program,
+        expected: Toolpath,
+        machine: Machine,
+        match: np.ndarray | None = None,
+    ) -> RowFindings:
+        """Compare the feeds and the spindle of the piece's cutting moves with the CL data's
+        (the module docstring).
+
+        Parameters
+        ----------
+        program : Program
+            The piece, in its own frame (as :meth:`ProcessChecker.begin` took it).
+        expected : Toolpath
+            Its expected CL data.
+        machine : Machine
+        match : ndarray, shape (len(expected),), int, optional
+            The row of ``program`` reaching each CL point, or -1, as
+            :func:`~urdfpost.verification.match_points` finds it on ``machine`` with this
+            piece's tool length, pivot and tolerances (the verification of the same piece:
+            :func:`urdfpost.verification.verify_matched`); used when the program has no arc,
+            whose moves the rows here are. None: matched here.
+
+        Returns
+        -------
+        RowFindings
+        """
+        run = _arcs_as_moves(program, self.tol)
+        table = run.move_table()
+        if not len(table) or not len(expected):
+            return RowFindings()
+        if match is None or run is not program:
+            values, _ = program_joints(machine, run)
+            point, axis = row_points(machine, values, run.tcp, self.tool_length, self.pivot)
+            cl_tip = expected.tip + self.pivot * expected.axis
+            match = match_points(cl_tip, expected.axis, point, axis, self.tol)
+        # the moves made along an arc are one block of the program: counted as one, and a
+        # fault on one is at that block (a motion block: a move or an arc)
+        return _Rows(self, run, table, expected, _blocks_of_rows(program, run)).compare(match)
+
+
+class _Rows:
+    """The row comparison of one piece (:meth:`PieceStart.compare`): its arrays, and the
+    findings as they are made."""
+
+    def __init__(
+        self,
+        start: PieceStart,
+        program: Program,
+        table: MoveTable,
+        expected: Toolpath,
+        block_of_row: np.ndarray,
+    ) -> None:
+        self.start, self.program, self.table, self.expected = start, program, table, expected
+        self.block_of_row = block_of_row
+        self.faults: list[Fault] = []
+
+    def compare(self, match: np.ndarray) -> RowFindings:
+        """The findings of the rows, ``match`` the row reaching each CL point (or -1)."""
+        program, table, expected = self.program, self.table, self.expected
+        continued, rounding = self.start.continued, self.start.rounding
+        n_rows, n_cl = len(table), len(expected)
+        directions, speeds = self._program_spindle()
+        cl_dir, cl_rpm = self._cl_spindle()
+        reached = np.flatnonzero(match >= 0)
+        # the CL point each row moves toward: the first reached at or after it
+        k = np.searchsorted(match[reached], np.arange(n_rows), side="left")
+        inside = k < len(reached)
+        owner = np.full(n_rows, -1)
+        owner[inside] = reached[k[inside]]
+        # compared where the point before the owner is reached too (its span is sure)
+        sure = np.ones(n_cl, dtype=bool)
+        sure[1:] = match[:-1] >= 0
+        if continued:
+            sure[0] = False  # the join point's row was the last of the piece before
+        owner[(owner >= 0) & ~sure[np.maximum(owner, 0)]] = -1
+        o = np.maximum(owner, 0)
+        feed_point = expected.motion == int(Motion.FEED)
+        aside = rewind_moves(program)
+        cutting = ~table.rapid & ~aside & (owner >= 0) & feed_point[o]
+        cut_blocks = self._blocks_in(np.flatnonzero(cutting))
+        lines = expected.line
+
+        # feeds: the cutting moves at their point's feed; no rapid arriving at a feed point
+        want = expected.feed[o]
+        got = table.feed
+        free = cutting & ~np.isfinite(want)
+        free_feed = self._blocks_in(np.flatnonzero(free))
+        slack = 0.5 * rounding.feed + 1e-9 * np.abs(np.where(np.isfinite(want), want, 0.0))
+        off = cutting & ~free & ~(np.abs(got - want) <= slack)  # (NaN: no feed programmed)
+        if program.tcp and program.feed_mode == FEED_PER_MINUTE:
+            # an F below the CL feed may be an axis limit's: the tip-feed measure of the
+            # verification judges it (:mod:`urdfpost.verification.feeds`)
+            off &= ~(got < want)
+        else:
+            # F words that are no tip feeds (inverse time, F per block): only a missing
+            # one here, their tip feed is the verification's
+            off &= ~np.isfinite(got)
+        j = np.flatnonzero((match >= 0) & feed_point & sure)
+        r = match[j]
+        previous = np.where(j > 0, match[np.maximum(j - 1, 0)], -1)
+        arrive = np.zeros(n_rows, dtype=bool)
+        arrive[r[(r != previous) & table.rapid[r] & ~aside[r]]] = True
+        bad = np.flatnonzero(off | arrive)
+        if bad.size:
+            row = int(bad[0])
+            point = int(owner[row]) if owner[row] >= 0 else int(j[np.searchsorted(r, row)])
+            cl_feed = rounding.feed_words(float(expected.feed[point]))
+            if arrive[row]:
+                message = (
+                    f"a rapid move where the CL has a cutting move at {cl_feed} (CL line "
+                    f"{int(lines[point])})"
+                )
+            elif not math.isfinite(float(got[row])):
+                message = (
+                    f"a cutting move with no feed where the CL has {cl_feed} (CL line "
+                    f"{int(lines[point])})"
+                )
+            else:
+                message = (
+                    f"feed {rounding.feed_words(float(got[row]))} where the CL has {cl_feed} "
+                    f"(CL line {int(lines[point])})"
+                )
+            self._found("feed", message, row, self._blocks_in(bad))
+
+        # spindle: running in the CL's direction at its speed at every cutting move
+        want_dir, want_rpm = cl_dir[o], cl_rpm[o]
+        any_speed = cutting & np.isnan(want_rpm)
+        free_speed = self._blocks_in(np.flatnonzero(any_speed))
+        speed_slack = 0.5 * rounding.speed + 1e-9 * np.nan_to_num(np.abs(want_rpm))
+        wrong = cutting & (
+            (directions != want_dir) | (~any_speed & ~(np.abs(speeds - want_rpm) <= speed_slack))
+        )
+        bad = np.flatnonzero(wrong)
+        if bad.size:
+            row = int(bad[0])
+            point = int(owner[row])
+            have = _spindle_words(int(directions[row]), float(speeds[row]))
+            need = _spindle_words(int(want_dir[row]), float(want_rpm[row]))
+            self._found(
+                "spindle",
+                f"spindle {have} where the CL has {need} (CL line {int(lines[point])})",
+                row,
+                self._blocks_in(bad),
+            )
+        return RowFindings(cut_blocks, free_feed, free_speed, tuple(self.faults))
+
+    def _program_spindle(self) -> tuple[np.ndarray, np.ndarray]:
+        """The program's spindle direction code and speed (rpm) at each row."""
+        sizes: list[int] = []
+        dirs: list[int] = []
+        rpms: list[float] = []
+        state = self.start.spindle
+        for part in self.program.parts:
+            if isinstance(part, MoveTable | Move):
+                sizes.append(len(part) if isinstance(part, MoveTable) else 1)
+                dirs.append(state[0])
+                rpms.append(state[1])
+            elif isinstance(part, Spindle):
+                state = _spindle_state(part)
+        count = np.array(sizes, dtype=np.int64)
+        return (
+            np.repeat(np.array(dirs, dtype=np.int64), count),
+            np.repeat(np.array(rpms, dtype=float), count),
+        )
+
+    def _cl_spindle(self) -> tuple[np.ndarray, np.ndarray]:
+        """The CL data's spindle direction code and speed (rpm, NaN: any) at each point."""
+        at, states = _cl_spindle_changes(self.expected, self.start.cl_spindle)
+        n = len(self.expected)
+        k = np.searchsorted(np.array(at, dtype=np.int64), np.arange(n), side="right") - 1
+        codes = np.array([s[0] for s in states], dtype=np.int64)
+        rpms = np.array([s[1] for s in states], dtype=float)
+        return codes[k + 1], rpms[k + 1]
+
+    def _blocks_in(self, rows: np.ndarray) -> int:
+        """How many motion blocks the piece's ``rows`` are (an arc's moves are one)."""
+        if len(self.block_of_row) == 0 or rows.size == 0:
+            return int(rows.size)
+        return distinct(self.block_of_row[rows])
+
+    def _found(self, kind: str, message: str, row: int, count: int) -> None:
+        """The piece's first fault of ``kind``, at ``row``, and how many blocks have one."""
+        block = int(self.block_of_row[row]) if row < len(self.block_of_row) else row
+        self.faults.append(Fault(kind, message, "move", self.start.row0 + block, count))
+
+
 class ProcessChecker:
     """Checks the process of a program given in consecutive pieces (a streamed verification).
 
@@ -246,6 +532,12 @@ class ProcessChecker:
     first starts with the row and the CL point the piece before ended with (as
     :func:`urdfpost.posting.readback.verify_stream` cuts them). :func:`check_process` is the
     check of a whole program.
+
+    :meth:`add` checks a piece in three steps, which a streamed verification takes apart: what
+    follows the pieces in order (tools, spindle states, where the piece's blocks start) is
+    :meth:`begin`, here; the comparison of the piece's rows (:meth:`PieceStart.compare`)
+    needs nothing else, and runs where the piece is verified; :meth:`take` adds its findings,
+    in the pieces' order.
 
     Parameters
     ----------
@@ -286,8 +578,7 @@ class ProcessChecker:
         self.rounding = rounding or Rounding()
         self.end = end
         self._pieces = 0
-        self._row0 = 0  # index of the piece's first motion block in the whole program
-        self._block_of_row = np.zeros(0, dtype=np.int64)  # of the piece's rows
+        self._row0 = 0  # index of the next piece's first motion block in the whole program
         self._program_spindle: tuple[int, float] = (0, 0.0)
         self._cl_spindle: tuple[int, float] = (0, 0.0)
         self._tools = _Tools()
@@ -309,6 +600,7 @@ class ProcessChecker:
         fresh: bool = False,
         tool_length: float | None = None,
         machine: Machine | None = None,
+        match: np.ndarray | None = None,
     ) -> None:
         """Check the next piece.
 
@@ -330,45 +622,100 @@ class ProcessChecker:
         machine : Machine, optional
             The machine of the piece's rows, from this piece on: a section in another MCS,
             its program zero elsewhere (default: as before).
+        match : ndarray, optional
+            The row reaching each CL point as the verification of the piece matched them
+            with this checker's tolerances and pivot and the piece's tool length and machine
+            (:func:`urdfpost.verification.verify_matched`), as :meth:`PieceStart.compare`
+            takes it; None: matched here.
+        """
+        on = self.machine if machine is None else machine
+        program = in_own_frame(program, on)  # (as many moves, in the program's frame)
+        start = self.begin(
+            program, expected, ended=ended, fresh=fresh, tool_length=tool_length, machine=machine
+        )
+        self.take(start.compare(program, expected, on, match))
+
+    def begin(
+        self,
+        program: Program,
+        expected: Toolpath,
+        *,
+        ended: bool | None = None,
+        fresh: bool = False,
+        tool_length: float | None = None,
+        machine: Machine | None = None,
+    ) -> PieceStart:
+        """The part of :meth:`add` that follows the pieces in order: the program's tool changes
+        and TCP switches, the CL data's tool loads, the spindle states the piece starts and ends
+        with, where its motion blocks start in the whole program. Its rows are compared with
+        the returned :meth:`PieceStart.compare` (here, or in a worker process with what the
+        verification of the piece matched), whose findings :meth:`take` adds, in the pieces'
+        order.
+
+        Parameters
+        ----------
+        program : Program
+            The piece of the program in its own frame (its tilted planes taken out:
+            :func:`~urdfpost.verification.planes.in_own_frame`).
+        expected, ended, fresh, tool_length, machine
+            As :meth:`add`.
+
+        Returns
+        -------
+        PieceStart
         """
         first = self._pieces == 0
         if machine is not None:
             self.machine = machine
-        continued = not first and not fresh
         if fresh and not first:
             self._row0 += 1  # the piece before's last row is not this piece's first
-        program = in_own_frame(program, self.machine)  # (as many moves, in the program's frame)
-        written = program
-        program = _arcs_as_moves(program, self.tol)
-        # the moves made along an arc are one block of the program: counted as one, and a
-        # fault on one is at that block (a motion block: a move or an arc)
-        self._block_of_row = _blocks_of_rows(written, program)
-        n_blocks = int(self._block_of_row[-1]) + 1 if len(self._block_of_row) else 0
         self._pieces += 1
         if tool_length is not None:
             self.tool_length = tool_length
         if ended is not None:
             self._ended = ended
-        table = program.move_table()
-        n_rows = len(table)
         if first:
             first_tool = min(
                 (e.index for e in expected.events if e.kind == "tool"), default=len(expected) + 1
             )
             self._tools.assumed = len(expected) > 0 and first_tool > 0
-        directions, speeds = self._program_state(program)
+        start = PieceStart(
+            row0=self._row0,
+            continued=not first and not fresh,
+            spindle=self._program_spindle,
+            cl_spindle=self._cl_spindle,
+            tool_length=self.tool_length,
+            pivot=self.pivot,
+            tol=self.tol,
+            rounding=self.rounding,
+        )
+        self._program_blocks(program)
         loads = [e for e in sorted(expected.events, key=lambda e: e.index) if e.kind == "tool"]
         self._tools.cl += [(int(e.data.get("number", 0)), e.line) for e in loads]
         self._tools.adjust += [
             None if e.data.get("adjust") is None else int(e.data["adjust"]) for e in loads
         ]
-        cl_dir, cl_rpm = self._expected_spindle(expected)
-        if n_rows and len(expected):
-            self._compare_rows(
-                program, table, expected, continued, directions, speeds, cl_dir, cl_rpm
-            )
-        if n_rows:
-            self._row0 += n_blocks - 1  # the next piece starts with this piece's last row
+        _, states = _cl_spindle_changes(expected, self._cl_spindle)
+        self._cl_spindle = states[-1]
+        # a move or an arc is one motion block (an arc is checked as the moves along it)
+        blocks = sum(
+            len(p) if isinstance(p, MoveTable) else 1
+            for p in program.parts
+            if isinstance(p, MoveTable | Move | Arc)
+        )
+        if blocks:
+            self._row0 += blocks - 1  # the next piece starts with this piece's last row
+        return start
+
+    def take(self, found: RowFindings) -> None:
+        """Add what the rows of the next piece show (:meth:`PieceStart.compare` of what
+        :meth:`begin` gave for it; the pieces taken in the order they were begun)."""
+        self._cutting += found.cutting
+        self._free_feed += found.free_feed
+        self._free_speed += found.free_speed
+        for fault in found.faults:
+            self._counts[fault.kind] = self._counts.get(fault.kind, 0) + fault.count
+            self._first.setdefault(fault.kind, fault)
 
     def result(self) -> ProcessCheck:
         """What the pieces added so far show."""
@@ -411,21 +758,13 @@ class ProcessChecker:
 
     # -- the parts of a piece ----------------------------------------------------------------
 
-    def _program_state(self, program: Program) -> tuple[np.ndarray, np.ndarray]:
-        """The program's spindle direction code and speed (rpm) at each move; its tool
-        changes recorded."""
-        sizes: list[int] = []
-        dirs: list[int] = []
-        rpms: list[float] = []
+    def _program_blocks(self, program: Program) -> None:
+        """Record the tool changes and TCP switches of ``program`` (the next piece) and the
+        spindle state it ends with."""
         state = self._program_spindle
         for part in program.parts:
-            if isinstance(part, MoveTable | Move):
-                sizes.append(len(part) if isinstance(part, MoveTable) else 1)
-                dirs.append(state[0])
-                rpms.append(state[1])
-            elif isinstance(part, Spindle):
-                code = _DIRECTIONS.get(part.direction, 0)
-                state = (code, float(part.rpm) if code else 0.0)
+            if isinstance(part, Spindle):
+                state = _spindle_state(part)
             elif isinstance(part, ToolChange):
                 if state[0] and self.stop_at_tool_change:
                     self._running_change(int(part.number), state)
@@ -435,148 +774,13 @@ class ProcessChecker:
                 tools.registers.append((tools.tcp_on, len(tools.program) - 1, part.offset))
                 tools.tcp_on += 1
         self._program_spindle = state
-        count = np.array(sizes, dtype=np.int64)
-        return (
-            np.repeat(np.array(dirs, dtype=np.int64), count),
-            np.repeat(np.array(rpms, dtype=float), count),
-        )
-
-    def _expected_spindle(self, expected: Toolpath) -> tuple[np.ndarray, np.ndarray]:
-        """The CL data's spindle direction code and speed (rpm, NaN: any) at each point."""
-        n = len(expected)
-        at: list[int] = []
-        states: list[tuple[int, float]] = []
-        state = self._cl_spindle
-        for e in sorted(expected.events, key=lambda e: e.index):
-            if e.kind == "tool":
-                state = (0, 0.0)
-            elif e.kind == "spindle":
-                direction = str(e.data.get("direction", "cw"))
-                rpm = float(e.data.get("rpm", 0.0))
-                code = _DIRECTIONS.get(direction, 1)
-                on = code != 0 and not rpm <= 0  # NaN: a speed the CL data does not give
-                state = (code, rpm) if on else (0, 0.0)
-            else:
-                continue
-            at.append(e.index)
-            states.append(state)
-        start = self._cl_spindle
-        self._cl_spindle = state
-        k = np.searchsorted(np.array(at, dtype=np.int64), np.arange(n), side="right") - 1
-        codes = np.array([start[0]] + [s[0] for s in states], dtype=np.int64)
-        rpms = np.array([start[1]] + [s[1] for s in states], dtype=float)
-        return codes[k + 1], rpms[k + 1]
-
-    def _match(self, program: Program, expected: Toolpath) -> np.ndarray:
-        """The row reaching each CL point, or -1 (:func:`match_points`)."""
-        values, _ = program_joints(self.machine, program)
-        rows = at_pivot(
-            row_poses_at_tip(self.machine, values, program.tcp, self.tool_length), self.pivot
-        )
-        cl_tip = expected.tip + self.pivot * expected.axis
-        return match_points(cl_tip, expected.axis, rows.tip, rows.axis, self.tol)
-
-    def _compare_rows(
-        self,
-        program: Program,
-        table: MoveTable,
-        expected: Toolpath,
-        continued: bool,
-        directions: np.ndarray,
-        speeds: np.ndarray,
-        cl_dir: np.ndarray,
-        cl_rpm: np.ndarray,
-    ) -> None:
-        n_rows, n_cl = len(table), len(expected)
-        match = self._match(program, expected)
-        reached = np.flatnonzero(match >= 0)
-        # the CL point each row moves toward: the first reached at or after it
-        k = np.searchsorted(match[reached], np.arange(n_rows), side="left")
-        inside = k < len(reached)
-        owner = np.full(n_rows, -1)
-        owner[inside] = reached[k[inside]]
-        # compared where the point before the owner is reached too (its span is sure)
-        sure = np.ones(n_cl, dtype=bool)
-        sure[1:] = match[:-1] >= 0
-        if continued:
-            sure[0] = False  # the join point's row was the last of the piece before
-        owner[(owner >= 0) & ~sure[np.maximum(owner, 0)]] = -1
-        o = np.maximum(owner, 0)
-        feed_point = expected.motion == int(Motion.FEED)
-        aside = rewind_moves(program)
-        cutting = ~table.rapid & ~aside & (owner >= 0) & feed_point[o]
-        self._cutting += self._blocks_in(np.flatnonzero(cutting))
-        lines = expected.line
-
-        # feeds: the cutting moves at their point's feed; no rapid arriving at a feed point
-        want = expected.feed[o]
-        got = table.feed
-        free = cutting & ~np.isfinite(want)
-        self._free_feed += self._blocks_in(np.flatnonzero(free))
-        slack = 0.5 * self.rounding.feed + 1e-9 * np.abs(np.where(np.isfinite(want), want, 0.0))
-        off = cutting & ~free & ~(np.abs(got - want) <= slack)  # (NaN: no feed programmed)
-        if program.tcp and program.feed_mode == FEED_PER_MINUTE:
-            # an F below the CL feed may be an axis limit's: the tip-feed measure of the
-            # verification judges it (:mod:`urdfpost.verification.feeds`)
-            off &= ~(got < want)
-        else:
-            # F words that are no tip feeds (inverse time, F per block): only a missing
-            # one here, their tip feed is the verification's
-            off &= ~np.isfinite(got)
-        j = np.flatnonzero((match >= 0) & feed_point & sure)
-        r = match[j]
-        previous = np.where(j > 0, match[np.maximum(j - 1, 0)], -1)
-        arrive = np.zeros(n_rows, dtype=bool)
-        arrive[r[(r != previous) & table.rapid[r] & ~aside[r]]] = True
-        bad = np.flatnonzero(off | arrive)
-        if bad.size:
-            row = int(bad[0])
-            point = int(owner[row]) if owner[row] >= 0 else int(j[np.searchsorted(r, row)])
-            cl_feed = self._feed_words(float(expected.feed[point]))
-            if arrive[row]:
-                message = (
-                    f"a rapid move where the CL has a cutting move at {cl_feed} (CL line "
-                    f"{int(lines[point])})"
-                )
-            elif not math.isfinite(float(got[row])):
-                message = (
-                    f"a cutting move with no feed where the CL has {cl_feed} (CL line "
-                    f"{int(lines[point])})"
-                )
-            else:
-                message = (
-                    f"feed {self._feed_words(float(got[row]))} where the CL has {cl_feed} "
-                    f"(CL line {int(lines[point])})"
-                )
-            self._found("feed", message, row, self._blocks_in(bad))
-
-        # spindle: running in the CL's direction at its speed at every cutting move
-        want_dir, want_rpm = cl_dir[o], cl_rpm[o]
-        any_speed = cutting & np.isnan(want_rpm)
-        self._free_speed += self._blocks_in(np.flatnonzero(any_speed))
-        speed_slack = 0.5 * self.rounding.speed + 1e-9 * np.nan_to_num(np.abs(want_rpm))
-        wrong = cutting & (
-            (directions != want_dir) | (~any_speed & ~(np.abs(speeds - want_rpm) <= speed_slack))
-        )
-        bad = np.flatnonzero(wrong)
-        if bad.size:
-            row = int(bad[0])
-            point = int(owner[row])
-            have = self._spindle_words(int(directions[row]), float(speeds[row]))
-            need = self._spindle_words(int(want_dir[row]), float(want_rpm[row]))
-            self._found(
-                "spindle",
-                f"spindle {have} where the CL has {need} (CL line {int(lines[point])})",
-                row,
-                self._blocks_in(bad),
-            )
 
     def _running_change(self, number: int, state: tuple[int, float]) -> None:
         """A tool change (the next of the program's) with the spindle running."""
         kind = "tool change"
         self._counts[kind] = self._counts.get(kind, 0) + 1
         if kind not in self._first:
-            running = self._spindle_words(*state)
+            running = _spindle_words(*state)
             self._first[kind] = Fault(
                 kind,
                 f"tool change to T{number} with the spindle running ({running}); expected it "
@@ -584,32 +788,6 @@ class ProcessChecker:
                 "tool",
                 len(self._tools.program),
             )
-
-    def _feed_words(self, feed: float) -> str:
-        """A feed (mm/min) as an F word of the program; "any feed" for NaN."""
-        if not math.isfinite(feed):
-            return "any feed (none in the CL data)"
-        return f"F{_fmt(feed / self.rounding.feed_unit)}"
-
-    @staticmethod
-    def _spindle_words(code: int, rpm: float) -> str:
-        """A spindle state as the messages say it: "off", "S9000 CW"."""
-        if code == 0:
-            return "off"
-        direction = "CW" if code == 1 else "CCW"
-        return f"S(any) {direction}" if math.isnan(rpm) else f"S{_fmt(rpm)} {direction}"
-
-    def _blocks_in(self, rows: np.ndarray) -> int:
-        """How many motion blocks the piece's ``rows`` are (an arc's moves are one)."""
-        if len(self._block_of_row) == 0 or rows.size == 0:
-            return int(rows.size)
-        return distinct(self._block_of_row[rows])
-
-    def _found(self, kind: str, message: str, row: int, count: int) -> None:
-        self._counts[kind] = self._counts.get(kind, 0) + count
-        if kind not in self._first:
-            block = int(self._block_of_row[row]) if row < len(self._block_of_row) else row
-            self._first[kind] = Fault(kind, message, "move", self._row0 + block)
 
     def _counted(self, kind: str) -> Fault:
         first = self._first[kind]
