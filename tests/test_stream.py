@@ -281,9 +281,9 @@ def test_a_piece_that_fails_to_post_fails_the_post_first(
 
 @pytest.mark.parametrize("parallel", [False, True])
 def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel: bool) -> None:
-    """A CL line the reader rejects in the fourth piece (read ahead in a thread with a
-    worker): the post raises the reader's error with its file and line, once the pieces
-    before it are posted, and writes nothing."""
+    """A CL line the reader rejects in the fourth piece (with a worker, while the pieces
+    before it are posted in the writing thread): the post raises the reader's error with its
+    file and line, once the pieces before it are posted, and writes nothing."""
     import urdfpost.posting.stream as stream
     from urdfpost.errors import CLDataError
     from urdfpost.readers import read_cl_chunks

@@ -54,7 +54,7 @@ from __future__ import annotations
 import logging
 import os
 import shutil
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -357,40 +357,6 @@ class _Writing:
             self.progress(piece.points)
 
 
-class _ReadAhead:
-    """Pieces of CL data read one ahead, in a thread of their own once :meth:`start` is called
-    (the reader's byte loops and numpy let the planning go on meanwhile); before that, read
-    when asked for. A piece's error is raised when the piece is asked for, as reading it then
-    would raise it. As a context manager: leaving it waits for the piece being read.
-    """
-
-    def __init__(self, source: Iterator[Toolpath]) -> None:
-        self._source = source
-        self._pool: ThreadPoolExecutor | None = None
-        self._ahead: Future[Toolpath | None] | None = None
-
-    def __enter__(self) -> _ReadAhead:
-        return self
-
-    def __exit__(self, *_: object) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-
-    def start(self) -> None:
-        """Read the next piece in a thread, and from now on each one as the one before is
-        taken."""
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="urdfpost-reading")
-        self._ahead = self._pool.submit(next, self._source, None)
-
-    def next(self) -> Toolpath | None:
-        """The next piece, None after the last."""
-        if self._pool is None or self._ahead is None:
-            return next(self._source, None)
-        piece = self._ahead.result()
-        self._ahead = None if piece is None else self._pool.submit(next, self._source, None)
-        return piece
-
-
 def post_stream(
     pieces: Iterable[Toolpath],
     machine: Machine,
@@ -486,13 +452,12 @@ def post_stream(
         with (
             os.fdopen(fd, "w", encoding="utf-8", newline="") as handle,
             _Writing(handle, job, progress) as writing,
-            _ReadAhead(source) as reading,
         ):
             want = piece_points  # CL points of the next piece (more where no cut was found)
             while True:
                 pending, have = [], len(buffer)
                 while not exhausted and have < want + lookahead:
-                    more = reading.next()
+                    more = next(source, None)
                     if more is None:
                         exhausted = True
                     else:
@@ -541,8 +506,6 @@ def post_stream(
                     # (after the fork of the worker: a fork carries no threads over) a
                     # thread of its own, but for a collision world (not shared by threads)
                     writing.begin(checks, threaded=bool(parallel) and base.collision is None)
-                    if parallel:
-                        reading.start()
                 problem = replace(base, toolpath=window, start=start)
                 plan = STRATEGIES[job.strategy](problem)
                 if last or boundary is not None:
