@@ -246,9 +246,8 @@ def test_piece_that_misses_its_tolerance_writes_nothing(
 def test_a_piece_that_fails_to_post_fails_the_post_first(
     tmp_path: Path, raster: Toolpath, monkeypatch: pytest.MonkeyPatch, parallel: bool
 ) -> None:
-    """The second piece fails to post (in the writing thread, with a worker) while the
-    third fails to plan: the post raises the second piece's error, as posting the pieces one
-    after the other does, and writes nothing."""
+    """The second piece fails to post, with the pieces verified in a worker or here: the post
+    raises its error before the third is planned, and writes nothing."""
     import urdfpost.posting.stream as stream
     from urdfpost.errors import CollisionError
 
@@ -274,16 +273,15 @@ def test_a_piece_that_fails_to_post_fails_the_post_first(
     with pytest.raises(CollisionError, match="the second piece collides"):
         post_stream(toolpath_pieces(raster, 500), load_machine("dmu50"), out, options,
                     piece_points=1000, lookahead=100, parallel=parallel)  # fmt: skip
-    # (a worker posts the second piece while the third is planned)
-    assert len(plans) == (3 if parallel else 2) and len(posts) == 2
+    assert len(plans) == 2 and len(posts) == 2
     assert not list(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize("parallel", [False, True])
 def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel: bool) -> None:
-    """A CL line the reader rejects in the fourth piece (with a worker, while the pieces
-    before it are posted in the writing thread): the post raises the reader's error with its
-    file and line, once the pieces before it are posted, and writes nothing."""
+    """A CL line the reader rejects in the fourth piece, with the pieces verified in a worker
+    or here: the post raises the reader's error with its file and line, once the pieces before
+    it are posted, and writes nothing."""
     import urdfpost.posting.stream as stream
     from urdfpost.errors import CLDataError
     from urdfpost.readers import read_cl_chunks
@@ -611,33 +609,6 @@ def test_cli_verifies_in_pieces(tmp_path: Path, capsys: pytest.CaptureFixture[st
     strip = re.compile(r"mean \d+\.\d+")
     assert strip.sub("mean", pieces) == strip.sub("mean", whole)
     # (a piece of one point is a usage error: test_cli_rejects_a_bad_piece_size_as_a_usage_error)
-
-
-@pytest.mark.parametrize(("machine", "tcp"), [("dmu50", False), ("dmu50", True), ("umc750", False)])
-def test_the_last_row_planned_is_the_last_row_posted(
-    raster: Toolpath, machine: str, tcp: bool
-) -> None:
-    """What the next piece is planned from (posting.piece.last_row, solved alone) is the row
-    the piece is posted with: the same rotary angles, the linear values to rounding; on slices
-    of the raster that end inside and outside the bent spans."""
-    from urdfpost.planning.strategies import STRATEGIES
-    from urdfpost.posting.options import resolve
-    from urdfpost.posting.piece import last_row, make_problem, post_piece
-
-    m = load_machine(machine)
-    job = resolve(PostOptions(controller="heidenhain", tcp=tcp), m, raster.units)
-    bent = 0
-    for end in (700, 1900, 2300, 3100, 4000):
-        piece = toolpath_slice(raster, 0, end)
-        problem = make_problem(piece, job)
-        plan = STRATEGIES[job.strategy](problem)
-        bent += bool(plan.bent)
-        planned = last_row(problem, plan)
-        posted = post_piece(piece, job, problem=problem, plan=plan).joints[-1]
-        rot = list(m.rotary_columns)
-        assert np.array_equal(planned[rot], posted[rot])
-        np.testing.assert_allclose(planned, posted, rtol=0.0, atol=1e-9)
-    assert bent  # (some of the plans bend the tool axis)
 
 
 def test_pieces_reassemble_the_toolpath(raster: Toolpath) -> None:

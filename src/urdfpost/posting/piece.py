@@ -20,7 +20,7 @@ import numpy as np
 from urdfpost.errors import CollisionError, UrdfpostError
 from urdfpost.linearize import subdivide
 from urdfpost.machine import Machine
-from urdfpost.planning.realise import solve_rows, with_rewinds
+from urdfpost.planning.realise import with_rewinds
 from urdfpost.planning.rewinds import CUT, LIFT
 from urdfpost.planning.singularity import joined_runs
 from urdfpost.planning.strategies import (
@@ -204,22 +204,6 @@ class Continuation:
     leave: bool = False
     offset: int | None = None
     keep_tool: bool = False
-
-
-def last_row(problem: Problem, plan: Plan) -> np.ndarray:
-    """The joint vector of the last row :func:`post_piece` posts ``plan`` with, solved alone,
-    shape (m,), mm and rad; the plan has rows.
-
-    Its rotary angles are the plan's last, as posted; its linear values agree with the posted
-    ones to rounding (the posted row is solved with the others). A streamed post plans the
-    next piece from it (where only the rotary angles count) while this one is posted.
-    """
-    k = slice(len(plan.param) - 1, None)
-    bent = np.zeros(1, dtype=bool)  # (as :func:`~urdfpost.planning.strategies.realise` has it)
-    if plan.curve is not None:
-        bent = np.isfinite(plan.curve(plan.param[k])).all(axis=1)
-    q, _, _ = solve_rows(problem, plan.toolpath, plan.param[k], plan.rotary[k], plan.lift[k], bent)
-    return q[0]
 
 
 @dataclass(frozen=True)

@@ -29,10 +29,7 @@ How the pieces join:
   like any other, and on jobs without such cases the text is the one :func:`post` writes.
 - **Writing** is one program: the control's writer keeps its modal state and block numbers
   from piece to piece, and the text goes to a temporary file beside the output, renamed into
-  place when the last piece is verified (nothing is left behind on an error). With a
-  verification worker, each piece is posted (subdivision, blocks, feeds) and written in a
-  thread of its own while the next piece is planned (:class:`_Writing`): the next plan starts
-  from the rotary angles of the piece's last row, which its plan gives before it is posted.
+  place when the last piece is verified (nothing is left behind on an error).
 - **Verification** reads back each piece's text with one reader (its modal state carries on
   too) and checks it against the piece's CL points, starting from the last row of the piece
   before: every block of the program is checked once. The figures are merged. On a machine
@@ -55,25 +52,22 @@ import logging
 import os
 import shutil
 from collections.abc import Callable, Iterable
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TextIO
 
 import numpy as np
 
 from urdfpost._files import give_mode, temp_file
 from urdfpost.dialects import Dialect
-from urdfpost.dialects.writer import ProgramWriter
 from urdfpost.errors import CLDataError, LinearTravelError, ToleranceError
 from urdfpost.geometry import angle_between
 from urdfpost.machine import Machine
-from urdfpost.planning.strategies import STRATEGIES, Plan, Problem, tool_axis_of
+from urdfpost.planning.strategies import STRATEGIES, Plan, tool_axis_of
 from urdfpost.posting import LOOKAHEAD, PIECE_POINTS
 from urdfpost.posting.body import coolant_after
 from urdfpost.posting.header import HeaderFigures, job_header, stock_box
 from urdfpost.posting.options import Job, PostOptions, resolve
-from urdfpost.posting.piece import Continuation, last_row, make_problem, post_piece
+from urdfpost.posting.piece import Continuation, make_problem, post_piece
 from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications, program_texts
 from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
@@ -204,159 +198,6 @@ def _kept(plan: Plan, point: int, at: int, *, settled: bool) -> _Cut:
     return _Cut(point=point, plan=kept, settled=settled)
 
 
-@dataclass(frozen=True)
-class _Piece:
-    """A planned piece, for :class:`_Writing` to post: the arguments of
-    :func:`~urdfpost.posting.piece.post_piece`, whether it begins a tool section (``fresh``),
-    the index of its first point along the pieces' plan paths joined (``offset``) and the CL
-    points it adds to the progress.
-
-    The continuation's start and entry say whether the piece goes on from the one before; the
-    row it goes on from, and the coolant, are the writing's (the row the piece before was
-    posted with; the planning's :func:`~urdfpost.posting.piece.last_row` has its rotary
-    angles, the only part a plan starts from, and its linear values to rounding)."""
-
-    toolpath: Toolpath
-    job: Job
-    problem: Problem
-    plan: Plan
-    continuation: Continuation
-    fresh: bool
-    offset: int
-    points: int
-
-
-class _Writing:
-    """The planned pieces posted, written and handed to the checks, in order.
-
-    Each piece is posted (:func:`~urdfpost.posting.piece.post_piece`: subdivision, blocks,
-    feeds), written by the control's writer (whose modal state and block numbers carry on from
-    piece to piece) and handed to the checks. With ``threaded`` this runs in a thread of its
-    own, one piece behind the planning: the next piece is planned meanwhile (it needs only
-    where this one ends, :func:`~urdfpost.posting.piece.realised`), and most of both runs in
-    numpy and compiled loops that let the other go on. Pieces are posted one at a time, in
-    the order given, by one thread: the text is the one posting them here writes.
-
-    As a context manager (inside the program file's): leaving it on an error waits for the
-    piece being posted, whose error, if it fails, is raised instead (as posting the pieces in
-    turn would have raised it first).
-
-    Attributes
-    ----------
-    figures : PieceFigures or None
-        The pieces' figures added up (None before the first).
-    collisions : list of Collisions
-        Each piece's collision check.
-    inserts : list of str
-        The texts of the program's inserted blocks, in order.
-    header : HeaderFigures or None
-        What the program's header says, from the pieces so far.
-    first_program : Program or None
-        The first piece's program (its writer writes the final header).
-    tool_length : float, mm
-        The first tool section's gauge length.
-    placeholder : int
-        Bytes of the program's opening, written with a placeholder header.
-    """
-
-    def __init__(
-        self, handle: TextIO, job: Job, progress: Callable[[int], None] | None = None
-    ) -> None:
-        self.handle, self.job, self.progress = handle, job, progress
-        self.figures: PieceFigures | None = None
-        self.collisions: list[Collisions] = []
-        self.inserts: list[str] = []
-        self.header: HeaderFigures | None = None
-        self.first_program: Program | None = None
-        self.tool_length = job.tool_length
-        self.placeholder = 0
-        self._writer: ProgramWriter | None = None
-        self._coolant: str | None = None  # on where the next piece starts
-        self._last: np.ndarray | None = None  # the last row posted, mm and rad
-        self._checks: Checks | None = None
-        self._pool: ThreadPoolExecutor | None = None
-        self._pending: Future[None] | None = None
-
-    def __enter__(self) -> _Writing:
-        return self
-
-    def __exit__(self, kind: type[BaseException] | None, *_: object) -> None:
-        try:
-            if kind is not None:
-                self.finish()
-        finally:
-            if self._pool is not None:
-                self._pool.shutdown(wait=True, cancel_futures=True)
-
-    def begin(self, checks: Checks, threaded: bool) -> None:
-        """Hand the pieces to ``checks``; post them in a thread of their own when
-        ``threaded``."""
-        self._checks = checks
-        if threaded:
-            self._pool = ThreadPoolExecutor(1, thread_name_prefix="urdfpost-writing")
-
-    def submit(self, piece: _Piece) -> None:
-        """Post and write ``piece``: in the thread, once the piece before is written (whose
-        error is raised here), else now."""
-        self.finish()
-        if self._pool is None:
-            self._post(piece)
-        else:
-            self._pending = self._pool.submit(self._post, piece)
-
-    def finish(self) -> None:
-        """Wait for the piece being posted; raise its error."""
-        pending, self._pending = self._pending, None
-        if pending is not None:
-            pending.result()
-
-    def _post(self, piece: _Piece) -> None:
-        assert self._checks is not None, "begin() first"
-        job = self.job
-        given = piece.continuation
-        continuation = replace(
-            given,
-            start=None if given.start is None else self._last,
-            entry=None if given.entry is None else self._last,
-            coolant=self._coolant,
-        )
-        posted = post_piece(
-            piece.toolpath, piece.job, problem=piece.problem, plan=piece.plan, piece=continuation
-        )
-        if len(posted.joints):
-            self._last = posted.joints[-1]
-        program = posted.program
-        leave = continuation.leave  # (it stops the coolant for the next section: its last block)
-        self._coolant = coolant_after(program.parts[:-1] if leave else program.parts, self._coolant)
-        if self.header is None:
-            self.tool_length = program.tool_length  # the first tool section's
-            self.header = HeaderFigures.empty(program)
-        self.header.add(program)
-        opening = ""
-        if self._writer is None:
-            # the header is known only at the end: a placeholder of as many lines now (the
-            # block numbers after it stay), the real one spliced in at the end
-            self.first_program = program
-            self._writer = job.dialect.writer(program, block_numbers=job.block_numbers)
-            header = job_header(job, HeaderFigures.empty(program), self.tool_length)
-            self._writer.open(header, stock_box(job))
-            opening = self._writer.take()
-            self.placeholder = len(opening.encode("utf-8"))
-        self._writer.write_body(program)
-        if continuation.last:
-            self._writer.close()
-        text = opening + self._writer.take()
-        self.handle.write(text)
-        piece_job = PieceJob.of(text, posted, fresh=piece.fresh)
-        self._checks.submit(piece_job)
-        self.inserts += piece_job.inserts
-        found = posted.figures
-        self.figures = found if self.figures is None else self.figures.joined(found, piece.offset)
-        self.collisions.append(posted.collisions)
-        if self.progress:
-            self.progress(piece.points)
-
-
 def post_stream(
     pieces: Iterable[Toolpath],
     machine: Machine,
@@ -386,9 +227,8 @@ def post_stream(
     progress : callable, optional
         Called with the number of CL points just posted.
     parallel : bool, optional
-        Verify each piece in a worker process, and post and write it in a thread (without a
-        collision world), while the next one is planned; default on Linux when the machine
-        has more than one core and the job more than one piece. On Linux the
+        Verify each piece in a worker process while the next one is planned; default on Linux
+        when the machine has more than one core and the job more than one piece. On Linux the
         worker is forked: from an application with other threads running (which a fork does
         not carry over, locks they hold included) pass False. Elsewhere it is spawned: the
         calling script needs the ``if __name__ == "__main__"`` guard of
@@ -421,6 +261,13 @@ def post_stream(
     job = resolve(options, machine, buffer.units)
     dialect, units, tol = job.dialect, job.units, job.tol
     base = None
+    writer = None
+    header: HeaderFigures | None = None  # the header's figures so far
+    first_program = None
+    blank = stock_box(job)  # the stock's box for the control's graphics (BLK FORM)
+    placeholder = 0  # bytes of the program's opening written with the placeholder header
+    figures: PieceFigures | None = None
+    collisions: list[Collisions] = []
     offset = 0  # index of the piece's first point in the joined plan paths
     start: np.ndarray | None = None
     last_piece: Toolpath | None = None
@@ -445,14 +292,14 @@ def post_stream(
     entry: np.ndarray | None = None  # a new tool section: where the one before left the path
     fresh: list[bool] = []  # per piece: it begins a tool section
     checks: Checks | None = None
+    inserts: list[str] = []  # the texts of the program's inserted blocks
     unsettled: list[int] = []  # CL lines of the joins whose branch choice rests on the lookahead
     count = 0
+    tool_length = job.tool_length
+    coolant: str | None = None  # on where the next piece starts
     fd, tmp = temp_file(out)  # (and the ones a killed post of ``out`` left, removed)
     try:
-        with (
-            os.fdopen(fd, "w", encoding="utf-8", newline="") as handle,
-            _Writing(handle, job, progress) as writing,
-        ):
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
             want = piece_points  # CL points of the next piece (more where no cut was found)
             while True:
                 pending, have = [], len(buffer)
@@ -503,9 +350,6 @@ def post_stream(
                     checks = Checks(
                         machine, dialect.name, str(out), tol, units, parallel, process=True
                     )
-                    # (after the fork of the worker: a fork carries no threads over) a
-                    # thread of its own, but for a collision world (not shared by threads)
-                    writing.begin(checks, threaded=bool(parallel) and base.collision is None)
                 problem = replace(base, toolpath=window, start=start)
                 plan = STRATEGIES[job.strategy](problem)
                 if last or boundary is not None:
@@ -525,40 +369,59 @@ def post_stream(
                     start=start,
                     tcp_on=start is not None and job.tcp,
                     last=last,
+                    coolant=coolant,
                     entry=entry,
                     leave=boundary is not None,
                 )
+                posted = post_piece(piece, section, problem=problem, plan=plan, piece=continuation)
+                program = posted.program
                 fresh.append(entry is not None)
-                writing.submit(
-                    _Piece(
-                        piece,
-                        section,
-                        problem,
-                        plan,
-                        continuation,
-                        fresh=fresh[-1],
-                        offset=offset,
-                        points=len(piece) - (0 if count == 0 or fresh[-1] else 1),
-                    )
-                )
                 entry = None
-                if len(plan.param):  # (to plan from: the posted one is the writing's)
-                    start = last_row(problem, plan)
+                # (a piece that leaves for the next section stops the coolant: its last block)
+                parts = program.parts[:-1] if boundary is not None else program.parts
+                coolant = coolant_after(parts, coolant)
+                if header is None:
+                    tool_length = program.tool_length  # the first tool section's
+                    header = HeaderFigures.empty(program)
+                header.add(program)
+                opening = ""
+                if writer is None:
+                    # the header is known only at the end: a placeholder of as many lines now
+                    # (the block numbers after it stay), the real one spliced in at the end
+                    first_program = program
+                    writer = dialect.writer(program, block_numbers=job.block_numbers)
+                    writer.open(job_header(job, HeaderFigures.empty(program), tool_length), blank)
+                    opening = writer.take()
+                    placeholder = len(opening.encode("utf-8"))
+                writer.write_body(program)
+                if last:
+                    writer.close()
+                text = opening + writer.take()
+                handle.write(text)
+                piece_job = PieceJob.of(text, posted, fresh=fresh[-1])
+                checks.submit(piece_job)
+                inserts += piece_job.inserts
+                found = posted.figures
+                figures = found if figures is None else figures.joined(found, offset)
+                collisions.append(posted.collisions)
+                if len(posted.joints):
+                    start = posted.joints[-1]
                 count += 1
+                if progress:
+                    progress(len(piece) - (0 if count == 1 or fresh[-1] else 1))
                 if last:
                     break
                 if boundary is not None:  # the next piece begins the next tool section
-                    offset += len(plan.toolpath)
+                    offset += len(posted.plan.toolpath)
                     buffer = toolpath_slice(buffer, boundary, len(buffer))
                     entry, start, base = start, None, None
                     section = replace(job, tool_length=next_length)
                     continue
-                offset += len(plan.toolpath) - 1
+                offset += len(posted.plan.toolpath) - 1
                 buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)
                 log.info(
                     "streamed piece %d: CL lines %d to %d", count, piece.line[0], piece.line[-1]
                 )
-            writing.finish()
         assert checks is not None
         results = checks.finish()
         # feeds, spindle, tools as a whole post checks them, from the same read
@@ -566,16 +429,13 @@ def post_stream(
         assert process_check is not None and last_piece is not None
         if not process_check.ok:  # as :func:`urdfpost.posting.whole.post` says it
             path = f"<{dialect.name} program>"
-            faults = located(
-                process_check, dialect, lambda: program_texts(tmp), path, writing.inserts
-            )
+            faults = located(process_check, dialect, lambda: program_texts(tmp), path, inserts)
             raise ToleranceError(
                 f"{last_piece.source}: the program's process differs from the CL data, nothing "
                 f"written: {'; '.join(faults)}"
             )
         verification = merge_verifications([check for check, _ in results], fresh)
         intents = [intent for _, intent in results if intent is not None]
-        figures = writing.figures
         assert figures is not None and last_piece is not None
         warnings = figures.warnings
         if unsettled:
@@ -598,10 +458,10 @@ def post_stream(
             tcp=job.tcp,
             units=units,
             verification=verification,
-            tool_length_mm=writing.tool_length,
+            tool_length_mm=tool_length,
             warnings=tuple(reader_warnings) + figures.warnings,
             figures=figures,
-            collisions=Collisions.merged(writing.collisions),
+            collisions=Collisions.merged(collisions),
             tool_lengths_mm=lengths,
             streamed=StreamFigures(
                 pieces=count,
@@ -612,7 +472,10 @@ def post_stream(
                 unsettled_joins=unsettled,
             ),
         )
-        final = _with_header(tmp, out, dialect, job, writing, lengths)
+        assert header is not None and first_program is not None
+        final = _with_header(
+            tmp, out, dialect, first_program, job, header, tool_length, placeholder, lengths
+        )
         tmp.unlink()
         tmp = final
         give_mode(tmp, out)
@@ -656,26 +519,28 @@ def _with_header(
     tmp: Path,
     out: Path,
     dialect: Dialect,
+    program: Program,
     job: Job,
-    writing: _Writing,
+    header: HeaderFigures,
+    tool_length: float,
+    placeholder: int,
     lengths: dict[int, float] | None = None,
 ) -> Path:
     """A copy of the streamed program ``tmp`` whose opening has the real header.
 
-    The opening is written again with the header of the whole program (``writing``'s
-    figures; as many lines as the placeholder's: the block numbers after it are unchanged)
-    and the rest of ``tmp`` after its first ``writing.placeholder`` bytes is copied behind
-    it, into a new temporary file beside ``out``, which is returned.
+    The opening is written again with the header of the whole program (as many lines as the
+    placeholder's: the block numbers after it are unchanged) and the rest of ``tmp`` after
+    its first ``placeholder`` bytes is copied behind it, into a new temporary file beside
+    ``out``, which is returned.
     """
-    assert writing.header is not None and writing.first_program is not None
-    writer = dialect.writer(writing.first_program, block_numbers=job.block_numbers)
-    writer.open(job_header(job, writing.header, writing.tool_length, lengths), stock_box(job))
+    writer = dialect.writer(program, block_numbers=job.block_numbers)
+    writer.open(job_header(job, header, tool_length, lengths), stock_box(job))
     opening = writer.take()
     fd, final = temp_file(out)
     try:
         with os.fdopen(fd, "wb") as dst, open(tmp, "rb") as src:
             dst.write(opening.encode("utf-8"))
-            src.seek(writing.placeholder)
+            src.seek(placeholder)
             shutil.copyfileobj(src, dst, 1 << 20)
     except BaseException:
         final.unlink(missing_ok=True)
