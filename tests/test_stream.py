@@ -172,6 +172,26 @@ def test_worker_and_serial_checks_agree(tmp_path: Path, raster: Toolpath) -> Non
     assert got[True][1].report.as_json()["streamed"]["pieces"] > 4
 
 
+def test_a_spawned_worker_writes_the_program_as_here(
+    tmp_path: Path, raster: Toolpath, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where workers are spawned, not forked (not Linux), the worker is sent how to write the
+    program (the control, whose tables are read-only mappings, pickled): the same program and
+    figures as posting here."""
+    import urdfpost.posting.worker as worker
+
+    options = PostOptions(controller="fanuc", tcp=False)
+    (tmp_path / "here").mkdir()
+    (tmp_path / "spawned").mkdir()
+    here = streamed_text(tmp_path / "here", raster, options, piece_points=900, parallel=False)
+    monkeypatch.setattr(worker, "FORK", False)
+    spawned = streamed_text(tmp_path / "spawned", raster, options, piece_points=900,
+                            parallel=True)  # fmt: skip
+    assert spawned[1].report.streamed.worker
+    assert_same_text(spawned[0], here[0])
+    assert spawned[1].verification == here[1].verification
+
+
 def test_joins_that_rest_on_the_lookahead_are_reported(tmp_path: Path) -> None:
     """Both branches within travel all along (tilt 20 deg on a B -35..120 machine): the first
     join's branch choice is not settled by its window (the whole job could take the other

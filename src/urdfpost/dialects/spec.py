@@ -62,7 +62,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from types import MappingProxyType
 from typing import Any, Protocol
 
@@ -592,6 +592,16 @@ class DialectSpec:
     plane_length_on: tuple[str, ...] = ()
     plane_length_off: tuple[str, ...] = ()
 
+    def __reduce__(self) -> tuple[Callable[..., DialectSpec], tuple[Any, ...]]:
+        """Pickle the read-only tables (:class:`types.MappingProxyType`, which does not
+        pickle) as plain mappings, read-only again when unpickled (a streamed post's
+        verification worker writes the program: a spawned one is sent the control)."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        tables = tuple(k for k, v in values.items() if isinstance(v, MappingProxyType))
+        for k in tables:
+            values[k] = dict(values[k])
+        return _unpickled_spec, (values, tables)
+
     def g_code_for(self, action: str) -> str:
         """The G-code (``"G21"``) the writer uses for ``action``."""
         for code, act in self.g_codes.items():
@@ -691,3 +701,10 @@ class DialectSpec:
     def format_comment(self, text: str) -> str:
         """A whole comment line."""
         return f"{self.comment_open}{self.comment_text(text)}{self.comment_close}"
+
+
+def _unpickled_spec(values: dict[str, Any], tables: tuple[str, ...]) -> DialectSpec:
+    """A :class:`DialectSpec` from its pickled field ``values``, the ``tables`` read-only
+    again (:meth:`DialectSpec.__reduce__`)."""
+    kw: dict[str, Any] = {k: MappingProxyType(v) if k in tables else v for k, v in values.items()}
+    return DialectSpec(**kw)

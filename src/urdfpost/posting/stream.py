@@ -29,16 +29,19 @@ How the pieces join:
   like any other, and on jobs without such cases the text is the one :func:`post` writes.
 - **Writing** is one program: the control's writer keeps its modal state and block numbers
   from piece to piece, and the text goes to a temporary file beside the output, renamed into
-  place when the last piece is verified (nothing is left behind on an error).
+  place when the last piece is verified (nothing is left behind on an error). The pieces are
+  written where they are verified (:class:`urdfpost.posting.worker.Writing`): the post hands
+  over each piece's program.
 - **Verification** reads back each piece's text with one reader (its modal state carries on
   too) and checks it against the piece's CL points, starting from the last row of the piece
   before: every block of the program is checked once. The figures are merged. On a machine
-  with more than one core this runs in a worker process, one piece behind the planning, so
-  the two share the work (a piece is handed over when the one before is checked: one piece
-  waits at most). A piece that misses its tolerance stops the post all the same. The process
-  (feeds, spindle, tools, length offsets) is checked there too, from the same read
-  (:class:`urdfpost.verification.process.PieceProcess`: the one read serves both checks, and
-  the planning keeps its core), and refused at the end with the message of a whole post.
+  with more than one core the writing and this run in a worker process, one piece behind the
+  planning, so the two share the work (a piece is handed over when the one before is
+  checked: one piece waits at most). A piece that misses its tolerance stops the post all
+  the same. The process (feeds, spindle, tools, length offsets) is checked there too, from
+  the same read (:class:`urdfpost.verification.process.PieceProcess`: the one read serves
+  both checks, and the planning keeps its core), and refused at the end with the message of
+  a whole post.
 
 The singular spans of the report are numbered along the pieces' plan paths joined (each join
 once), as :func:`post` numbers them along its plan's path. Figures that depend on the whole job
@@ -72,8 +75,8 @@ from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications, program_texts
 from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
 from urdfpost.posting.tools import gauge_lengths, tool_sections
-from urdfpost.posting.worker import FORK, Checks, PieceJob
-from urdfpost.program import Program
+from urdfpost.posting.worker import FORK, Checks, ProgramJob, Writing
+from urdfpost.program import Blocks, Program
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath, joined, toolpath_slice
 from urdfpost.verification import Verification
@@ -261,9 +264,8 @@ def post_stream(
     job = resolve(options, machine, buffer.units)
     dialect, units, tol = job.dialect, job.units, job.tol
     base = None
-    writer = None
     header: HeaderFigures | None = None  # the header's figures so far
-    first_program = None
+    first_program: Program | None = None  # (without its blocks)
     blank = stock_box(job)  # the stock's box for the control's graphics (BLK FORM)
     placeholder = 0  # bytes of the program's opening written with the placeholder header
     figures: PieceFigures | None = None
@@ -299,131 +301,125 @@ def post_stream(
     coolant: str | None = None  # on where the next piece starts
     fd, tmp = temp_file(out)  # (and the ones a killed post of ``out`` left, removed)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
-            want = piece_points  # CL points of the next piece (more where no cut was found)
-            while True:
-                pending, have = [], len(buffer)
-                while not exhausted and have < want + lookahead:
-                    more = next(source, None)
-                    if more is None:
-                        exhausted = True
-                    else:
-                        reader_warnings += more.warnings
-                        _refuse_cycles(more)
-                        more, spindle, notes = checked_process(
-                            replace(more, warnings=()),
-                            feed=job.feed,
-                            spindle=job.spindle,
-                            units=job.units,
-                            state=spindle,
-                            spec=dialect.spec,
-                            tcp=job.tcp,
+        os.close(fd)  # (written by the checks: :class:`~urdfpost.posting.worker.Writing`)
+        want = piece_points  # CL points of the next piece (more where no cut was found)
+        while True:
+            pending, have = [], len(buffer)
+            while not exhausted and have < want + lookahead:
+                more = next(source, None)
+                if more is None:
+                    exhausted = True
+                else:
+                    reader_warnings += more.warnings
+                    _refuse_cycles(more)
+                    more, spindle, notes = checked_process(
+                        replace(more, warnings=()),
+                        feed=job.feed,
+                        spindle=job.spindle,
+                        units=job.units,
+                        state=spindle,
+                        spec=dialect.spec,
+                        tcp=job.tcp,
+                    )
+                    reader_warnings += notes
+                    if not job.tcp:
+                        notes, tools = one_tool_length(
+                            more, job.tool_length, job.units, tools, job.tool_table
                         )
                         reader_warnings += notes
-                        if not job.tcp:
-                            notes, tools = one_tool_length(
-                                more, job.tool_length, job.units, tools, job.tool_table
-                            )
-                            reader_warnings += notes
-                            lengths |= gauge_lengths(more, job.tool_length, job.tool_table)
-                        pending.append(more)
-                        have += len(more)
-                if pending:
-                    buffer = joined(buffer, pending)
-                last = exhausted and len(buffer) <= want + lookahead
-                window = buffer if last else toolpath_slice(buffer, 0, want + lookahead)
-                boundary = None  # where the next tool section begins, in the window
-                if not job.tcp:
-                    cuts = tool_sections(
-                        window, job.tool_length, job.tool_table, length=section.tool_length
-                    )
-                    if cuts[0].length != section.tool_length:  # a tool change at the start
-                        section, base = replace(job, tool_length=cuts[0].length), None
-                    if len(cuts) > 1:
-                        boundary, next_length = cuts[1].start, cuts[1].length
-                        window, last = toolpath_slice(buffer, 0, boundary), False
-                if base is None:
-                    base = make_problem(window, section)
-                if checks is None:
-                    if parallel is None:
-                        parallel = FORK and not last and (os.cpu_count() or 1) > 1
-                    checks = Checks(
-                        machine, dialect.name, str(out), tol, units, parallel, process=True
-                    )
-                problem = replace(base, toolpath=window, start=start)
-                plan = STRATEGIES[job.strategy](problem)
-                if last or boundary is not None:
-                    piece, cut = window, len(window) - 1
-                else:
-                    c = _cut(window, plan, want, machine, tol)
-                    if c is None:  # nowhere to end a piece: a longer one
-                        want *= 2
-                        log.info("no place to end a streamed piece; trying %d points", want)
-                        continue
-                    cut, plan, want = c.point, c.plan, piece_points
-                    piece = toolpath_slice(window, 0, cut + 1)
-                    if not c.settled:
-                        unsettled.append(int(window.line[cut]))
-                last_piece = piece
-                continuation = Continuation(
-                    start=start,
-                    tcp_on=start is not None and job.tcp,
-                    last=last,
-                    coolant=coolant,
-                    entry=entry,
-                    leave=boundary is not None,
+                        lengths |= gauge_lengths(more, job.tool_length, job.tool_table)
+                    pending.append(more)
+                    have += len(more)
+            if pending:
+                buffer = joined(buffer, pending)
+            last = exhausted and len(buffer) <= want + lookahead
+            window = buffer if last else toolpath_slice(buffer, 0, want + lookahead)
+            boundary = None  # where the next tool section begins, in the window
+            if not job.tcp:
+                cuts = tool_sections(
+                    window, job.tool_length, job.tool_table, length=section.tool_length
                 )
-                posted = post_piece(piece, section, problem=problem, plan=plan, piece=continuation)
-                program = posted.program
-                fresh.append(entry is not None)
-                entry = None
-                # (a piece that leaves for the next section stops the coolant: its last block)
-                parts = program.parts[:-1] if boundary is not None else program.parts
-                coolant = coolant_after(parts, coolant)
-                if header is None:
-                    tool_length = program.tool_length  # the first tool section's
-                    header = HeaderFigures.empty(program)
-                header.add(program)
-                opening = ""
-                if writer is None:
-                    # the header is known only at the end: a placeholder of as many lines now
-                    # (the block numbers after it stay), the real one spliced in at the end
-                    first_program = program
-                    writer = dialect.writer(program, block_numbers=job.block_numbers)
-                    writer.open(job_header(job, HeaderFigures.empty(program), tool_length), blank)
-                    opening = writer.take()
-                    placeholder = len(opening.encode("utf-8"))
-                writer.write_body(program)
-                if last:
-                    writer.close()
-                text = opening + writer.take()
-                handle.write(text)
-                piece_job = PieceJob.of(text, posted, fresh=fresh[-1])
-                checks.submit(piece_job)
-                inserts += piece_job.inserts
-                found = posted.figures
-                figures = found if figures is None else figures.joined(found, offset)
-                collisions.append(posted.collisions)
-                if len(posted.joints):
-                    start = posted.joints[-1]
-                count += 1
-                if progress:
-                    progress(len(piece) - (0 if count == 1 or fresh[-1] else 1))
-                if last:
-                    break
-                if boundary is not None:  # the next piece begins the next tool section
-                    offset += len(posted.plan.toolpath)
-                    buffer = toolpath_slice(buffer, boundary, len(buffer))
-                    entry, start, base = start, None, None
-                    section = replace(job, tool_length=next_length)
+                if cuts[0].length != section.tool_length:  # a tool change at the start
+                    section, base = replace(job, tool_length=cuts[0].length), None
+                if len(cuts) > 1:
+                    boundary, next_length = cuts[1].start, cuts[1].length
+                    window, last = toolpath_slice(buffer, 0, boundary), False
+            if base is None:
+                base = make_problem(window, section)
+            if checks is None:
+                if parallel is None:
+                    parallel = FORK and not last and (os.cpu_count() or 1) > 1
+                writing = Writing(dialect, job.block_numbers, str(tmp), blank)
+                checks = Checks(
+                    machine, dialect.name, str(out), tol, units, parallel, True, writing
+                )
+            problem = replace(base, toolpath=window, start=start)
+            plan = STRATEGIES[job.strategy](problem)
+            if last or boundary is not None:
+                piece, cut = window, len(window) - 1
+            else:
+                c = _cut(window, plan, want, machine, tol)
+                if c is None:  # nowhere to end a piece: a longer one
+                    want *= 2
+                    log.info("no place to end a streamed piece; trying %d points", want)
                     continue
-                offset += len(posted.plan.toolpath) - 1
-                buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)
-                log.info(
-                    "streamed piece %d: CL lines %d to %d", count, piece.line[0], piece.line[-1]
-                )
+                cut, plan, want = c.point, c.plan, piece_points
+                piece = toolpath_slice(window, 0, cut + 1)
+                if not c.settled:
+                    unsettled.append(int(window.line[cut]))
+            last_piece = piece
+            continuation = Continuation(
+                start=start,
+                tcp_on=start is not None and job.tcp,
+                last=last,
+                coolant=coolant,
+                entry=entry,
+                leave=boundary is not None,
+            )
+            posted = post_piece(piece, section, problem=problem, plan=plan, piece=continuation)
+            program = posted.program
+            fresh.append(entry is not None)
+            entry = None
+            # (a piece that leaves for the next section stops the coolant: its last block)
+            parts = program.parts[:-1] if boundary is not None else program.parts
+            coolant = coolant_after(parts, coolant)
+            if header is None:
+                tool_length = program.tool_length  # the first tool section's
+                header = HeaderFigures.empty(program)
+            header.add(program)
+            opening = None
+            if first_program is None:
+                # the header is known only at the end: a placeholder of as many lines now (the
+                # block numbers after it stay), the real one spliced in at the end
+                first_program = replace(program, blocks=Blocks(()))
+                opening = job_header(job, HeaderFigures.empty(program), tool_length)
+                placeholder = len(_opening(dialect, program, job, opening).encode("utf-8"))
+            # written (and read back) by the checks: in a worker while the next piece is planned
+            piece_job = ProgramJob.of(posted, fresh=fresh[-1], last=last, header=opening)
+            checks.submit(piece_job)
+            inserts += piece_job.inserts
+            found = posted.figures
+            figures = found if figures is None else figures.joined(found, offset)
+            collisions.append(posted.collisions)
+            if len(posted.joints):
+                start = posted.joints[-1]
+            count += 1
+            if progress:
+                progress(len(piece) - (0 if count == 1 or fresh[-1] else 1))
+            if last:
+                break
+            if boundary is not None:  # the next piece begins the next tool section
+                offset += len(posted.plan.toolpath)
+                buffer = toolpath_slice(buffer, boundary, len(buffer))
+                entry, start, base = start, None, None
+                section = replace(job, tool_length=next_length)
+                continue
+            offset += len(posted.plan.toolpath) - 1
+            buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)
+            log.info("streamed piece %d: CL lines %d to %d", count, piece.line[0], piece.line[-1])
         assert checks is not None
         results = checks.finish()
+        checks.close_output()
         # feeds, spindle, tools as a whole post checks them, from the same read
         process_check = checks.process_check()
         assert process_check is not None and last_piece is not None
@@ -515,6 +511,13 @@ def _refuse_cycles(toolpath: Toolpath) -> None:
             )
 
 
+def _opening(dialect: Dialect, program: Program, job: Job, header: str) -> str:
+    """The text a streamed program opens with, with ``header``, up to its first piece."""
+    writer = dialect.writer(program, block_numbers=job.block_numbers)
+    writer.open(header, stock_box(job))
+    return writer.take()
+
+
 def _with_header(
     tmp: Path,
     out: Path,
@@ -533,9 +536,7 @@ def _with_header(
     its first ``placeholder`` bytes is copied behind it, into a new temporary file beside
     ``out``, which is returned.
     """
-    writer = dialect.writer(program, block_numbers=job.block_numbers)
-    writer.open(job_header(job, header, tool_length, lengths), stock_box(job))
-    opening = writer.take()
+    opening = _opening(dialect, program, job, job_header(job, header, tool_length, lengths))
     fd, final = temp_file(out)
     try:
         with os.fdopen(fd, "wb") as dst, open(tmp, "rb") as src:

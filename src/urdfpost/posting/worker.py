@@ -1,9 +1,11 @@
 """Verification of a streamed post's pieces, in a worker process or here.
 
-A streamed post hands each piece's text to :class:`Checks` as soon as it is written. On a
-machine with more than one core a worker process reads the texts back in order with one reader
-(its modal state carries on from piece to piece) and checks each against its CL points while
-the next piece is planned; otherwise the pieces are checked here, one after the other. Either
+A streamed post hands each piece's program to :class:`Checks` as soon as it is posted
+(:class:`ProgramJob`). On a machine with more than one core a worker process writes the
+pieces' text in order with one writer (:class:`Writing`: its modal state and block numbers
+carry on) and reads it back with one reader, and checks each piece against its CL points
+while the next piece is planned; otherwise the pieces are written and checked here, one after
+the other. (A whole post checks its pieces' texts, :class:`PieceJob`.) Either
 way the check is :func:`urdfpost.posting.check.check_piece`, the one of every post, and the
 piece's process (feeds, spindle, tools) is checked from the same read
 (:meth:`PieceVerifier.process_check`).
@@ -39,7 +41,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
@@ -61,6 +63,8 @@ from urdfpost.verification.process import (
 )
 
 if TYPE_CHECKING:
+    from urdfpost.dialects import Dialect
+    from urdfpost.dialects.writer import ProgramWriter
     from urdfpost.posting.piece import PostedPiece
 
 log = logging.getLogger(__name__)
@@ -76,6 +80,7 @@ connection open that would tell)."""
 
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 _PROCESS = "process check"  # what the post sends for the process check of the pieces checked
+_WRITTEN = "close the program"  # what it sends when all is written (:class:`Writing`)
 _STOPS = {signal.SIGINT, signal.SIGTERM}  # what stops a post (Ctrl-C, kill)
 
 
@@ -114,10 +119,71 @@ class PieceJob:
         section, and shares no row with the piece before)."""
         return cls(
             text=text,
-            inserts=[b.text for b in posted.program.parts if isinstance(b, Insert)],
+            inserts=ProgramJob.of(posted, fresh=fresh, last=False).inserts,
             target=posted.target,
             fresh=fresh,
         )
+
+
+@dataclass(frozen=True)
+class Writing:
+    """How a verifier writes the pieces handed to it as programs (:class:`ProgramJob`): a
+    streamed post's text is made where it is read back, so that the post's own process only
+    plans and posts.
+
+    Attributes
+    ----------
+    dialect : Dialect
+        The control's dialect the post writes with.
+    block_numbers : bool or None
+        Number the blocks; None: as the control does by default.
+    path : str
+        The (temporary) file the program text goes to, written from its start.
+    blank : ndarray or None, shape (2, 3)
+        The stock's box for the control's graphics (:func:`urdfpost.posting.header.stock_box`).
+    """
+
+    dialect: Dialect
+    block_numbers: bool | None
+    path: str
+    blank: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class ProgramJob:
+    """A posted piece handed over as its program: written (:class:`Writing`), then checked as
+    a :class:`PieceJob` of its text.
+
+    Attributes
+    ----------
+    program : Program
+        The piece's program.
+    target : CheckTarget
+    fresh : bool
+        As :attr:`PieceJob.fresh`.
+    last : bool
+        The piece ends the program (its end is written after it).
+    header : str or None
+        The first piece: the header the program opens with; None for the others.
+    """
+
+    program: Program
+    target: CheckTarget
+    fresh: bool
+    last: bool
+    header: str | None = None
+
+    @classmethod
+    def of(
+        cls, posted: PostedPiece, *, fresh: bool, last: bool, header: str | None = None
+    ) -> ProgramJob:
+        """The job of a posted piece."""
+        return cls(posted.program, posted.target, fresh, last, header)
+
+    @property
+    def inserts(self) -> list[str]:
+        """The texts of the piece's inserted blocks, in order."""
+        return [b.text for b in self.program.parts if isinstance(b, Insert)]
 
 
 @dataclass(frozen=True)
@@ -165,10 +231,14 @@ class PieceVerifier:
         tol: Tolerances,
         units: str,
         process: bool = False,
+        writing: Writing | None = None,
     ) -> None:
         from urdfpost.dialects import dialect_for
 
         self.machine, self.tol, self.units = machine, tol, units
+        self.writing = writing
+        self.writer: ProgramWriter | None = None  # (the first program job makes it)
+        self.out: TextIO | None = None  # the program file being written
         rollover = machine.settings.rollover
         self.dialect = dialect_for(controller).with_clamps(machine.settings.clamps)
         self.reader = self.dialect.reader(path=path, rollover=rollover)
@@ -206,6 +276,33 @@ class PieceVerifier:
         if len(table):
             self.previous = (readback.axes, np.asarray(table.position[-1]))
         return check, intent
+
+    def written(self, job: ProgramJob) -> PieceJob:
+        """The text of a piece handed over as its program, appended to the program file
+        (:class:`Writing`; the first piece opens it), as a job to check."""
+        if self.writing is None:
+            raise ValueError("a program job for a verifier that does not write")
+        opening = ""
+        if self.writer is None:
+            self.writer = self.writing.dialect.writer(
+                job.program, block_numbers=self.writing.block_numbers
+            )
+            self.writer.open(job.header, self.writing.blank)
+            opening = self.writer.take()
+            self.out = open(self.writing.path, "w", encoding="utf-8", newline="")
+        self.writer.write_body(job.program)
+        if job.last:
+            self.writer.close()
+        text = opening + self.writer.take()
+        assert self.out is not None
+        self.out.write(text)
+        return PieceJob(text, job.inserts, job.target, job.fresh)
+
+    def close_output(self) -> None:
+        """Close the program file (all written to it)."""
+        if self.out is not None:
+            self.out.close()
+            self.out = None
 
     def check_read(self, job: ReadPiece) -> tuple[Verification, RowFindings | None]:
         """The verification of a piece read already, whatever its figures, and what its rows
@@ -301,17 +398,22 @@ def _detach(post_end: Connection | None) -> bool:
     return parent is not None and parent.pid is not None and _die_with_parent(parent.pid)
 
 
-def _checked(verifier: PieceVerifier, job: PieceJob | ReadPiece) -> tuple[Verification, Any]:
-    """The check of ``job``: a posted piece's verifications (:meth:`PieceVerifier.check`) or
-    a read piece's verification and process findings (:meth:`PieceVerifier.check_read`)."""
+def _checked(
+    verifier: PieceVerifier, job: PieceJob | ProgramJob | ReadPiece
+) -> tuple[Verification, Any]:
+    """The check of ``job``: a posted piece's verifications (:meth:`PieceVerifier.check`; a
+    program job written first, :meth:`PieceVerifier.written`) or a read piece's verification
+    and process findings (:meth:`PieceVerifier.check_read`)."""
     if isinstance(job, ReadPiece):
         return verifier.check_read(job)
+    if isinstance(job, ProgramJob):
+        return verifier.check(verifier.written(job))
     return verifier.check(job)
 
 
-def _next_job(conn: Connection) -> PieceJob | ReadPiece | str | None:
-    """The next job (or :data:`_PROCESS`), or None when the post says so or its process is
-    gone."""
+def _next_job(conn: Connection) -> PieceJob | ProgramJob | ReadPiece | str | None:
+    """The next job (or :data:`_PROCESS`, :data:`_WRITTEN`), or None when the post says so or
+    its process is gone."""
     parent = multiprocessing.parent_process()
     assert parent is not None
     while True:
@@ -321,7 +423,7 @@ def _next_job(conn: Connection) -> PieceJob | ReadPiece | str | None:
             return None
         if ready:
             try:
-                job: PieceJob | ReadPiece | str | None = conn.recv()
+                job: PieceJob | ProgramJob | ReadPiece | str | None = conn.recv()
             except (EOFError, OSError):  # the post's end closed
                 return None
             return job
@@ -330,7 +432,8 @@ def _next_job(conn: Connection) -> PieceJob | ReadPiece | str | None:
 def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
     """A verification worker: checks the jobs it receives with one :class:`PieceVerifier` and
     sends back ``(True, result)`` or ``(False, exception)``, until it receives None or the post
-    is gone (module docstring); for :data:`_PROCESS`, ``(True, the process check)``.
+    is gone (module docstring); for :data:`_PROCESS`, ``(True, the process check)``, and for
+    :data:`_WRITTEN` ``(True, None)`` once the program file is closed.
 
     Parameters
     ----------
@@ -346,8 +449,11 @@ def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
     verifier = PieceVerifier(*args)
     while (job := _next_job(conn)) is not None:
         try:
-            if isinstance(job, str):
-                answer: tuple[bool, Any] = (True, verifier.process_check())
+            if job == _WRITTEN:
+                verifier.close_output()
+                answer: tuple[bool, Any] = (True, None)
+            elif isinstance(job, str):
+                answer = (True, verifier.process_check())
             else:
                 answer = (True, _checked(verifier, job))
         except Exception as exc:  # sent back to be raised where the post runs
@@ -380,6 +486,7 @@ class Checks:
         units: str,
         parallel: bool,
         process: bool = False,
+        writing: Writing | None = None,
     ) -> None:
         # per piece: its verification, and a posted piece's of its intended path or a read
         # piece's process findings (:func:`_checked`)
@@ -390,7 +497,7 @@ class Checks:
         self.busy = False  # a job was handed over and its result not taken yet
         self.sender: threading.Thread | None = None
         self.sent = True  # whether the last job reached the worker
-        args = (machine, controller, path, tol, units, process)
+        args = (machine, controller, path, tol, units, process, writing)
         if not parallel:
             self.local = PieceVerifier(*args)
             return
@@ -413,7 +520,7 @@ class Checks:
             child.close()
         log.info("streamed pieces are verified in worker process %d", self.process.pid)
 
-    def submit(self, job: PieceJob | ReadPiece) -> None:
+    def submit(self, job: PieceJob | ProgramJob | ReadPiece) -> None:
         """Check ``job`` (after the one before, which it waits for in the worker).
 
         The job is pickled and sent from a thread, so that planning the next piece goes on
@@ -427,7 +534,7 @@ class Checks:
         self.sender = threading.Thread(target=self._send, args=(job,), daemon=True)
         self.sender.start()
 
-    def _send(self, job: PieceJob | ReadPiece) -> None:
+    def _send(self, job: PieceJob | ProgramJob | ReadPiece) -> None:
         assert self.conn is not None
         try:
             self.conn.send(job)
@@ -444,16 +551,29 @@ class Checks:
         or no piece was."""
         if self.local is not None:
             return self.local.process_check()
+        value = self._ask(_PROCESS)
+        assert value is None or isinstance(value, ProcessCheck)
+        return value
+
+    def close_output(self) -> None:
+        """Close the program file the pieces were written to (:class:`Writing`), once every
+        piece is written."""
+        if self.local is not None:
+            self.local.close_output()
+        else:
+            self._ask(_WRITTEN)
+
+    def _ask(self, request: str) -> Any:
+        """The worker's answer to ``request``, once it has checked every piece."""
         self._collect()
         assert self.conn is not None
         try:
-            self.conn.send(_PROCESS)
+            self.conn.send(request)
             ok, value = self.conn.recv()
         except (EOFError, OSError):
             raise self._gone() from None
         if not ok:
             raise value
-        assert value is None or isinstance(value, ProcessCheck)
         return value
 
     def _collect(self) -> None:
@@ -491,7 +611,10 @@ class Checks:
                 sender.join()
 
     def close(self) -> None:
-        """Stop the worker (at once when a check is still running: the post has failed)."""
+        """Stop the worker (at once when a check is still running: the post has failed), or
+        close the program file here."""
+        if self.local is not None:
+            self.local.close_output()
         if self.process is None or self.conn is None:
             return
         if self.busy:
