@@ -28,14 +28,17 @@ fail the verification.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, replace
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 
+from urdfpost._compiled import COMPILED_FROM, Kernels
 from urdfpost.dialects.spec import DialectSpec
 from urdfpost.geometry import chunks
-from urdfpost.kinematics.forward import tip_and_axis_along
+from urdfpost.kinematics.forward import ChainArrays, chain_arrays, tip_and_axis_along
 from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
 from urdfpost.program import FEED_INVERSE_TIME, Program
@@ -57,6 +60,27 @@ _SPEED_SLACK = 1e-9
 
 _PER_MINUTE = 60.0
 """Seconds per minute (URDF velocities are per second, feeds per minute)."""
+
+log = logging.getLogger(__name__)
+
+
+def _load_kernels() -> ModuleType:
+    from urdfpost.verification import _feeds_kernel
+
+    return _feeds_kernel
+
+
+KERNELS = Kernels(
+    _load_kernels,
+    "tip lengths",
+    start=COMPILED_FROM,
+    warm_start=COMPILED_FROM // 10,
+    logger=log,
+    warning="compiled %s unavailable (%s); numpy runs",
+)
+"""The compiled tip path lengths (:mod:`urdfpost.verification._feeds_kernel`) of programs
+without TCP, used from :data:`~urdfpost._compiled.COMPILED_FROM` blocks on (a tenth of that
+once numba is imported in the process: then only their cached machine code is loaded)."""
 
 
 @dataclass(frozen=True)
@@ -143,14 +167,124 @@ def tip_lengths(
     if tcp:
         lin = list(machine.linear_columns)
         return np.linalg.norm(q1[:, lin] - q0[:, lin], axis=1)
+    kernels = KERNELS.get(n) if n else None
+    if kernels is not None:  # the compiled loop takes blocks as pairs of rows
+        values = np.empty((2 * n, q0.shape[1]))
+        values[0::2], values[1::2] = q0, q1
+        out = _tip_lengths_compiled(kernels, machine, values, np.arange(0, 2 * n, 2), tool_length)
+        if out is not None:
+            return out
+    return _tip_lengths_numpy(machine, q0, q1, tool_length)
+
+
+def _tip_lengths_numpy(
+    machine: Machine, q0: np.ndarray, q1: np.ndarray, tool_length: float
+) -> np.ndarray:
+    """:func:`tip_lengths` of a program without TCP, by numpy: the definition."""
+    n = len(q0)
     out = np.empty(n)
     t = np.linspace(0.0, 1.0, TIP_SAMPLES)
     for part in chunks(n, TIP_SAMPLES):
         tip, _ = tip_and_axis_along(machine, q0[part], q1[part], t, tool_length)
         assert tip is not None
         step = sum(np.diff(c, axis=0) ** 2 for c in tip)
-        out[part] = np.sqrt(step).sum(axis=0)
+        chords = np.sqrt(step)
+        # summed sample after sample, as numpy sums along the first axis of many blocks (of a
+        # chunk of one block it would sum them pairwise): the same bits whatever the chunks
+        total = chords[0]
+        for chord in chords[1:]:
+            total += chord
+        out[part] = total
     return out
+
+
+def tip_lengths_at(
+    machine: Machine, values: np.ndarray, start: np.ndarray, tcp: bool, tool_length: float
+) -> np.ndarray:
+    """:func:`tip_lengths` of the blocks from rows ``start`` of ``values`` to the next rows.
+
+    From :data:`KERNELS`' size on (with numba: the ``fast`` extra) compiled
+    (:func:`urdfpost.verification._feeds_kernel.tip_lengths`, the same numbers), else numpy.
+
+    Parameters
+    ----------
+    machine : Machine
+    values : ndarray, shape (N, m)
+        Program rows (mm, rad; in TCP programs X, Y, Z are the tip).
+    start : ndarray, shape (n,), int
+        The first row of each block, below ``N - 1``.
+    tcp : bool
+    tool_length : float, mm
+
+    Returns
+    -------
+    ndarray, shape (n,), mm
+    """
+    if tcp:
+        return tip_lengths(machine, values[start], values[start + 1], tcp, tool_length)
+    kernels = KERNELS.get(len(start)) if len(start) else None
+    if kernels is not None:
+        out = _tip_lengths_compiled(kernels, machine, values, start, tool_length)
+        if out is not None:
+            return out
+    return _tip_lengths_numpy(machine, values[start], values[start + 1], tool_length)
+
+
+def _tip_lengths_compiled(
+    kernels: ModuleType, machine: Machine, values: np.ndarray, start: np.ndarray, tool_length: float
+) -> np.ndarray | None:
+    """:func:`tip_lengths_at` of a program without TCP, compiled; None when the kernel failed
+    (then numpy runs from now on)."""
+    c = chain_arrays(machine, tool_length)
+    t = np.linspace(0.0, 1.0, TIP_SAMPLES)
+    values = np.ascontiguousarray(values, dtype=float)
+    start = np.ascontiguousarray(start, dtype=np.int64)
+    out = np.empty(len(start))
+    try:
+        kernels.tip_lengths(
+            c.column, c.rotary, c.direction, c.pivot, c.tool_point, c.home_axis, values, start,
+            block_trig(c, values, start, t), t, out,
+        )  # fmt: skip
+    except Exception as err:  # numba could not compile or cache it here
+        KERNELS.fail(err)
+        return None
+    return out
+
+
+def block_trig(
+    chain: ChainArrays, values: np.ndarray, start: np.ndarray, t: np.ndarray
+) -> np.ndarray:
+    """The cosines and sines the compiled loops sample blocks from by angle addition, as
+    :func:`urdfpost.kinematics.forward.cos_sin_along` works them out.
+
+    Parameters
+    ----------
+    chain : ChainArrays
+    values : ndarray, shape (N, m)
+        Program rows, mm / rad.
+    start : ndarray, shape (n,), int
+        The first row of each block (it runs to the next row).
+    t : ndarray, shape (s,)
+        Evenly spaced sample parameters, s >= 2.
+
+    Returns
+    -------
+    ndarray, shape (k, 4, n)
+        Per joint of the chain and block: the cosine and sine of the joint's angle at
+        ``t[0]`` and of its change from one sample to the next (zeros for a linear joint).
+    """
+    trig = np.zeros((len(chain.column), 4, len(start)))
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    for j in np.flatnonzero(chain.rotary):
+        theta0 = values[start, chain.column[j]]
+        step = values[start + 1, chain.column[j]] - theta0
+        first = theta0 + t[0] * step
+        np.cos(first, out=trig[j, 0])
+        np.sin(first, out=trig[j, 1])
+        hs = h * step
+        np.cos(hs, out=trig[j, 2])
+        np.sin(hs, out=trig[j, 3])
+    return trig
 
 
 def axis_lengths(
