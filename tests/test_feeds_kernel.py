@@ -1,5 +1,9 @@
 """The feed timing's compiled tip path lengths (:mod:`urdfpost.verification._feeds_kernel`)
-against the numpy path they stand for, bit for bit; the numpy path when they cannot run."""
+against the numpy path they stand for, bit for bit; the numpy path when they cannot run; and the
+column-by-column forms of the feed measures (:func:`urdfpost.verification.feeds.limit_times`,
+:func:`~urdfpost.verification.feeds.axis_lengths`, the fastest axis of
+:func:`~urdfpost.verification.feeds.measure_feeds`) against the whole-array numpy they replace,
+bit for bit too."""
 
 from __future__ import annotations
 
@@ -21,8 +25,13 @@ from urdfpost.posting.feeds import timed_program
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import post
 from urdfpost.readers import read_cl_text
+from urdfpost.units import mm_per_unit
 from urdfpost.verification.feeds import (
+    _PER_MINUTE,
+    _fastest,
     _tip_lengths_numpy,
+    axis_lengths,
+    limit_times,
     tip_lengths,
     tip_lengths_at,
 )
@@ -186,3 +195,92 @@ def test_sizes_the_kernels_are_used_from(unloaded: Unloaded) -> None:
     assert k.warm_start is not None and k.warm_start < k.start
     assert k.wanted(k.warm_start) == ("numba" in sys.modules)
     assert not k.wanted(k.warm_start - 1)
+
+
+# -- the column-by-column measures against the whole-array numpy they replace ----------------
+
+
+def _limit_times_rows(machine: Machine, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`limit_times` as it was written on whole rows."""
+    velocity = np.array([a.velocity for a in machine.axes], dtype=float) * _PER_MINUTE
+    finite = np.isfinite(velocity) & (velocity > 0.0)
+    need = np.zeros_like(dq)
+    need[:, finite] = np.abs(dq[:, finite]) / velocity[finite]
+    axis = np.argmax(need, axis=1) if dq.shape[1] else np.zeros(len(dq), dtype=int)
+    time = need[np.arange(len(dq)), axis] if dq.shape[1] else np.zeros(len(dq))
+    return time, np.where(time > 0.0, axis, -1)
+
+
+def _axis_lengths_rows(
+    machine: Machine, q0: np.ndarray, q1: np.ndarray, rule: str, units: str
+) -> np.ndarray:
+    """:func:`axis_lengths` as it was written on whole rows."""
+    lin, rot = list(machine.linear_columns), list(machine.rotary_columns)
+    linear = np.linalg.norm(q1[:, lin] - q0[:, lin], axis=1) / mm_per_unit(units)
+    rotary = np.degrees(np.linalg.norm(q1[:, rot] - q0[:, rot], axis=1))
+    if rule == "combined":
+        return np.hypot(linear, rotary)
+    return np.where(linear > 0.0, linear, rotary)
+
+
+def _fastest_rows(
+    dq: np.ndarray, time: np.ndarray, velocity: np.ndarray, timed: np.ndarray
+) -> tuple[int, int, float] | None:
+    """The fastest axis as :func:`measure_feeds` took it on whole rows (None: not reported)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(timed[:, None], np.abs(dq) / time[:, None] / velocity, 0.0)
+    share = np.nan_to_num(share, nan=0.0, posinf=np.inf)
+    if timed.any() and share.size:
+        row, col = divmod(int(np.argmax(share)), share.shape[1])
+        if share[row, col] > 0.0:
+            return row, col, float(share[row, col])
+    return None
+
+
+def _moves(rng: np.random.Generator, n: int, m: int) -> np.ndarray:
+    """Axis travel with zeros, ties, repeated rows, NaN and infinities in places."""
+    dq = rng.normal(size=(n, m)) * rng.choice([0.0, 1e-9, 1.0, 300.0], size=(n, m))
+    if n:
+        dq[rng.random(n) < 0.1] = dq[0]
+    tie = rng.random(n) < 0.1  # two axes alike in a block
+    dq[tie, -1] = -dq[tie, 0]
+    odd = rng.random((n, m)) < 0.01
+    dq[odd] = rng.choice([np.nan, np.inf, -np.inf], size=int(odd.sum()))
+    return dq
+
+
+@pytest.mark.parametrize("name", MACHINES)
+@pytest.mark.parametrize("seed", range(4))
+def test_column_measures_are_the_row_measures(name: str, seed: int) -> None:
+    """limit_times, axis_lengths and the fastest axis, column by column: the same bits as on
+    whole rows, ties, NaN and infinities included."""
+    m = machine(name)
+    rng = np.random.default_rng(seed)
+    for n in (0, 1, 7, 2000):
+        dq = _moves(rng, n, len(m.axes))
+        time, axis = limit_times(m, dq)
+        want_time, want_axis = _limit_times_rows(m, dq)
+        assert np.array_equal(time, want_time, equal_nan=True)
+        assert np.array_equal(axis, want_axis)
+        q0 = rng.normal(size=(n, len(m.axes))) * 100.0
+        q1 = q0 + dq
+        for rule in ("combined", "linear-first"):
+            for units in ("mm", "inch"):
+                got = axis_lengths(m, q0, q1, rule, units)
+                want = _axis_lengths_rows(m, q0, q1, rule, units)
+                assert np.array_equal(got, want, equal_nan=True)
+        velocity = np.array([a.velocity for a in m.axes], dtype=float) * _PER_MINUTE
+        block_time = np.abs(rng.normal(size=n)) * rng.choice([0.0, 1e-6, 1.0], size=n)
+        timed = rng.random(n) < 0.9
+        want_fast = _fastest_rows(dq, block_time, velocity, timed)
+        travel = [np.abs(dq[:, j]) for j in range(dq.shape[1])]
+        row, col, top = _fastest(travel, block_time, velocity, timed)
+        assert (None if not top > 0.0 else (row, col, top)) == want_fast
+
+
+def test_fastest_axis_on_a_tie_is_the_first_in_row_order() -> None:
+    """Two blocks at the same largest share: the first block, and in it the first axis."""
+    travel = [np.array([1.0, 2.0, 2.0]), np.array([2.0, 1.0, 2.0])]
+    time, velocity = np.ones(3), np.ones(2)
+    assert _fastest(travel, time, velocity, np.ones(3, dtype=bool)) == (0, 1, 2.0)
+    assert _fastest(travel, time, velocity, np.array([False, True, True])) == (1, 0, 2.0)

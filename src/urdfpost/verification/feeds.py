@@ -306,14 +306,25 @@ def axis_lengths(
     -------
     ndarray, shape (n,), program units (degrees counted as one)
     """
-    lin, rot = list(machine.linear_columns), list(machine.rotary_columns)
-    linear = np.linalg.norm(q1[:, lin] - q0[:, lin], axis=1) / mm_per_unit(units)
-    rotary = np.degrees(np.linalg.norm(q1[:, rot] - q0[:, rot], axis=1))
+    linear = _column_norm(q0, q1, machine.linear_columns) / mm_per_unit(units)
+    rotary = np.degrees(_column_norm(q0, q1, machine.rotary_columns))
     if rule == "combined":
         return np.hypot(linear, rotary)
     if rule == "linear-first":
         return np.where(linear > 0.0, linear, rotary)
     raise ValueError(f"axis feed rule {rule!r}: expected 'combined' or 'linear-first'")
+
+
+def _column_norm(q0: np.ndarray, q1: np.ndarray, columns: tuple[int, ...]) -> np.ndarray:
+    """``np.linalg.norm(q1[:, columns] - q0[:, columns], axis=1)`` column by column (the
+    squares summed in the order numpy sums a row of a few, so the same bits; numpy's sum along
+    a short axis is the slow one), shape (n,)."""
+    total = np.zeros(len(q0))
+    for k, j in enumerate(columns):
+        d = q1[:, j] - q0[:, j]
+        d *= d
+        total = d if k == 0 else np.add(total, d, out=total)
+    return np.sqrt(total, out=total)
 
 
 def limit_times(machine: Machine, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -333,11 +344,17 @@ def limit_times(machine: Machine, dq: np.ndarray) -> tuple[np.ndarray, np.ndarra
         The column of the axis that sets it (-1 where none moves).
     """
     velocity = np.array([a.velocity for a in machine.axes], dtype=float) * _PER_MINUTE
-    finite = np.isfinite(velocity) & (velocity > 0.0)
-    need = np.zeros_like(dq)
-    need[:, finite] = np.abs(dq[:, finite]) / velocity[finite]
-    axis = np.argmax(need, axis=1) if dq.shape[1] else np.zeros(len(dq), dtype=int)
-    time = need[np.arange(len(dq)), axis] if dq.shape[1] else np.zeros(len(dq))
+    finite = np.flatnonzero(np.isfinite(velocity) & (velocity > 0.0))
+    # column by column (numpy's argmax along a short axis is slow): the largest need, NaN if
+    # any is (as np.maximum carries it); then the first axis that needs it (the argmax: a row
+    # where no axis needs time, or one needs NaN, names none)
+    time = np.zeros(len(dq))
+    need = [np.abs(dq[:, j]) / velocity[j] for j in finite]
+    for column in need:
+        np.maximum(time, column, out=time)
+    axis = np.full(len(dq), -1)
+    for j, column in zip(finite[::-1], need[::-1], strict=True):
+        axis[column == time] = j
     return time, np.where(time > 0.0, axis, -1)
 
 
@@ -532,22 +549,21 @@ def measure_feeds(
     dq = m1 - m0
     axis_len = axis_lengths(machine, m0, m1, rules.axis_feed_rule, units)
     time = block_times(feed, feed_mode, tcp, tip, axis_len, units)
-    moving = np.abs(dq).max(axis=1, initial=0.0) > 0.0
-    timed = moving & np.isfinite(time) & (time > 0.0)
+    travel = [np.abs(dq[:, j]) for j in range(dq.shape[1])]
+    largest = np.zeros(len(dq))  # np.abs(dq).max(axis=1, initial=0.0), column by column
+    for column in travel:
+        np.maximum(largest, column, out=largest)
+    timed = (largest > 0.0) & np.isfinite(time) & (time > 0.0)
     # the axes' speeds over their limits
     velocity = np.array([a.velocity for a in machine.axes], dtype=float) * _PER_MINUTE
-    with np.errstate(divide="ignore", invalid="ignore"):
-        share = np.where(timed[:, None], np.abs(dq) / time[:, None] / velocity, 0.0)
-    share = np.nan_to_num(share, nan=0.0, posinf=np.inf)
     fields: dict[str, Any] = {}
-    if timed.any() and share.size:
-        row, col = divmod(int(np.argmax(share)), share.shape[1])
-        if share[row, col] > 0.0:
-            fields |= {
-                "max_axis_share": float(share[row, col]),
-                "max_axis": machine.axis_names[col],
-                "max_axis_cl_line": int(cl_line[row]),
-            }
+    row, col, top = _fastest(travel, time, velocity, timed)
+    if top > 0.0:
+        fields |= {
+            "max_axis_share": top,
+            "max_axis": machine.axis_names[col],
+            "max_axis_cl_line": int(cl_line[row]),
+        }
     # the tip feed against the CL feed, where the block is not at a limit
     limit, _ = limit_times(machine, dq)
     if feed_mode == FEED_INVERSE_TIME and rules.inverse_time_max:
@@ -584,6 +600,43 @@ def measure_feeds(
             "slowest_capped_cl_line": int(cl_line[k]),
         }
     return replace(out, **fields)
+
+
+def _fastest(
+    travel: list[np.ndarray], time: np.ndarray, velocity: np.ndarray, timed: np.ndarray
+) -> tuple[int, int, float]:
+    """The block and axis of the largest speed over its limit, and that share: the first in
+    row-major order of the largest of ``np.abs(dq) / time[:, None] / velocity`` over the
+    ``timed`` rows (NaN counted as 0, as ``np.nan_to_num`` counts it), worked out column by
+    column.
+
+    Parameters
+    ----------
+    travel : list of ndarray, shape (n,)
+        Every axis' ``|dq|``, mm or rad.
+    time : ndarray, shape (n,), minutes
+    velocity : ndarray, shape (m,)
+        Per minute.
+    timed : ndarray, shape (n,), bool
+
+    Returns
+    -------
+    row, col : int
+    share : float
+        0 (and any row and column) when no timed block moves an axis.
+    """
+    shares, tops = [], []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for j, column in enumerate(travel):
+            shares.append(np.where(timed, column / time / velocity[j], 0.0))
+            tops.append(float(np.fmax.reduce(shares[-1], initial=0.0)))  # (NaN left out)
+    top = max(tops, default=0.0)
+    if not top > 0.0:
+        return 0, 0, 0.0
+    n = len(time)
+    first = [int(np.argmax(s == top)) if t == top else n for s, t in zip(shares, tops, strict=True)]
+    row = min(first)
+    return row, first.index(row), top
 
 
 def tip_feeds(
