@@ -7,10 +7,11 @@ point carried through the chain's joints, the cosines and sines by angle additio
 samples from those numpy worked out, :func:`_angles_along`), and the polyline of the tip through
 them, summed in numpy's order. Nothing of size samples times blocks is made.
 
-Imported by :func:`urdfpost.verification.feeds.tip_lengths_at` when it first runs on enough
-blocks; the machine code is cached on disk beside this module (``__pycache__``). The numpy path
-stays the definition: the same operations in the same order on the same cosines and sines, so
-the lengths are numpy's bit for bit (``tests/test_feeds_kernel.py``).
+Imported by :data:`urdfpost.verification.feeds.KERNELS` when the tip lengths of a program
+without TCP are first asked for on enough blocks; the machine code is cached on disk beside this
+module (``__pycache__``). The numpy path stays the definition: the same operations in the same
+order on the same cosines and sines, so the lengths are numpy's bit for bit
+(``tests/test_feeds_kernel.py``).
 """
 
 from __future__ import annotations
