@@ -66,12 +66,27 @@ def solve_rows(
     """
     machine = problem.machine
     pivot = problem.pivot if bent is None else np.where(bent, problem.pivot, 0.0)
-    where = _on_segments(toolpath, param)
-    point = _cutting_point(toolpath, *where, 0.0)
-    centre = _cutting_point(toolpath, *where, problem.pivot)
+    i, j, t = _on_segments(toolpath, param)
     axis = tool_axis_of(machine, rotary)
-    pv = np.broadcast_to(pivot, (len(param),))[:, None]
-    tip = np.where(pv > 0, centre - pv * axis, point) + lift[:, None] * axis
+    pv = np.broadcast_to(pivot, (len(param),))
+    # the tip where the cutting point is, or the cutting point above it along the tool axis
+    # (pv > 0): each worked out in the rows that take it (the larger share whole, the other
+    # rows after), row by row the same numbers
+    pivoted = pv > 0
+    most = 2 * np.count_nonzero(pivoted) > len(pv)
+    if most:
+        tip = _cutting_point(toolpath, i, j, t, problem.pivot)
+        tip -= pv[:, None] * axis
+    else:
+        tip = _cutting_point(toolpath, i, j, t, 0.0)
+    rows = np.flatnonzero(~pivoted if most else pivoted)
+    if rows.size:
+        at = (i[rows], j[rows], t[rows])
+        if most:
+            tip[rows] = _cutting_point(toolpath, *at, 0.0)
+        else:
+            tip[rows] = _cutting_point(toolpath, *at, problem.pivot) - pv[rows, None] * axis[rows]
+    tip += lift[:, None] * axis
     lin = solve_linear(machine, rotary, tip, problem.tool_length)
     return assemble(machine, rotary, lin), tip, axis
 

@@ -46,7 +46,7 @@ from urdfpost.verification.feeds import (
     axis_lengths,
     limit_times,
     machine_joints,
-    tip_lengths,
+    tip_lengths_at,
 )
 from urdfpost.verification.match import program_joints
 
@@ -159,7 +159,7 @@ def timed_program(
     q0, q1 = rows[blocks], rows[blocks + 1]
     cl_feed = table.feed[blocks]
     tcp = program.tcp
-    tip = tip_lengths(machine, q0, q1, tcp, tool_length)
+    tip = tip_lengths_at(machine, rows, blocks, tcp, tool_length)
     m0 = machine_joints(machine, q0, tcp, tool_length)
     m1 = machine_joints(machine, q1, tcp, tool_length)
     dq = m1 - m0

@@ -242,6 +242,41 @@ def _sampled(
     return length
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _angles_along(
+    joint_rotary: np.ndarray,
+    trig: np.ndarray,
+    b: int,
+    s: int,
+    cos_j: np.ndarray,
+    sin_j: np.ndarray,
+) -> None:
+    """The cosine and sine of every rotary joint's angle at the ``s`` samples of block ``b``,
+    by angle addition from those at the first sample (as
+    :func:`urdfpost.kinematics.forward.cos_sin_along` adds them).
+
+    Parameters
+    ----------
+    joint_rotary : ndarray, shape (k,), bool
+    trig : ndarray, shape (k, 4, n)
+        Per rotary joint and block, the cosine and sine of its angle at the first sample and
+        of its change from one sample to the next (worked out by numpy).
+    b, s : int
+
+    Returns
+    -------
+    None
+        Written: ``cos_j``, ``sin_j``, shape (k, s) or wider (rows of linear joints left).
+    """
+    for j in range(joint_rotary.shape[0]):
+        if joint_rotary[j]:  # angle addition from the cosine and sine at t[0]
+            cos_j[j, 0], sin_j[j, 0] = trig[j, 0, b], trig[j, 1, b]
+            cd, sd = trig[j, 2, b], trig[j, 3, b]
+            for k in range(1, s):
+                cos_j[j, k] = cos_j[j, k - 1] * cd - sin_j[j, k - 1] * sd
+                sin_j[j, k] = sin_j[j, k - 1] * cd + cos_j[j, k - 1] * sd
+
+
 _FRAME = 18
 """Numbers per CL segment in the rows of :func:`_frames`."""
 
@@ -499,13 +534,7 @@ def block_deviation(
             continue  # (no tip path wanted: the control moves the tip on the chord)
         r0, r1 = start[b], start[b] + 1
         # -- the kinematics along the block (tip_and_axis_along) --
-        for j in range(n_joints):
-            if joint_rotary[j]:  # angle addition from the cosine and sine at t[0]
-                cos_j[j, 0], sin_j[j, 0] = trig[j, 0, b], trig[j, 1, b]
-                cd, sd = trig[j, 2, b], trig[j, 3, b]
-                for k in range(1, s):
-                    cos_j[j, k] = cos_j[j, k - 1] * cd - sin_j[j, k - 1] * sd
-                    sin_j[j, k] = sin_j[j, k - 1] * cd + cos_j[j, k - 1] * sd
+        _angles_along(joint_rotary, trig, b, s, cos_j, sin_j)
         length[b] = _sampled(
             joint_column,
             joint_rotary,

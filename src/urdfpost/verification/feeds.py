@@ -28,14 +28,17 @@ fail the verification.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, replace
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 
+from urdfpost._compiled import COMPILED_FROM, Kernels
 from urdfpost.dialects.spec import DialectSpec
 from urdfpost.geometry import chunks
-from urdfpost.kinematics.forward import tip_and_axis_along
+from urdfpost.kinematics.forward import ChainArrays, chain_arrays, tip_and_axis_along
 from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
 from urdfpost.program import FEED_INVERSE_TIME, Program
@@ -57,6 +60,27 @@ _SPEED_SLACK = 1e-9
 
 _PER_MINUTE = 60.0
 """Seconds per minute (URDF velocities are per second, feeds per minute)."""
+
+log = logging.getLogger(__name__)
+
+
+def _load_kernels() -> ModuleType:
+    from urdfpost.verification import _feeds_kernel
+
+    return _feeds_kernel
+
+
+KERNELS = Kernels(
+    _load_kernels,
+    "tip lengths",
+    start=COMPILED_FROM,
+    warm_start=COMPILED_FROM // 10,
+    logger=log,
+    warning="compiled %s unavailable (%s); numpy runs",
+)
+"""The compiled tip path lengths (:mod:`urdfpost.verification._feeds_kernel`) of programs
+without TCP, used from :data:`~urdfpost._compiled.COMPILED_FROM` blocks on (a tenth of that
+once numba is imported in the process: then only their cached machine code is loaded)."""
 
 
 @dataclass(frozen=True)
@@ -143,14 +167,124 @@ def tip_lengths(
     if tcp:
         lin = list(machine.linear_columns)
         return np.linalg.norm(q1[:, lin] - q0[:, lin], axis=1)
+    kernels = KERNELS.get(n) if n else None
+    if kernels is not None:  # the compiled loop takes blocks as pairs of rows
+        values = np.empty((2 * n, q0.shape[1]))
+        values[0::2], values[1::2] = q0, q1
+        out = _tip_lengths_compiled(kernels, machine, values, np.arange(0, 2 * n, 2), tool_length)
+        if out is not None:
+            return out
+    return _tip_lengths_numpy(machine, q0, q1, tool_length)
+
+
+def _tip_lengths_numpy(
+    machine: Machine, q0: np.ndarray, q1: np.ndarray, tool_length: float
+) -> np.ndarray:
+    """:func:`tip_lengths` of a program without TCP, by numpy: the definition."""
+    n = len(q0)
     out = np.empty(n)
     t = np.linspace(0.0, 1.0, TIP_SAMPLES)
     for part in chunks(n, TIP_SAMPLES):
         tip, _ = tip_and_axis_along(machine, q0[part], q1[part], t, tool_length)
         assert tip is not None
         step = sum(np.diff(c, axis=0) ** 2 for c in tip)
-        out[part] = np.sqrt(step).sum(axis=0)
+        chords = np.sqrt(step)
+        # summed sample after sample, as numpy sums along the first axis of many blocks (of a
+        # chunk of one block it would sum them pairwise): the same bits whatever the chunks
+        total = chords[0]
+        for chord in chords[1:]:
+            total += chord
+        out[part] = total
     return out
+
+
+def tip_lengths_at(
+    machine: Machine, values: np.ndarray, start: np.ndarray, tcp: bool, tool_length: float
+) -> np.ndarray:
+    """:func:`tip_lengths` of the blocks from rows ``start`` of ``values`` to the next rows.
+
+    From :data:`KERNELS`' size on (with numba: the ``fast`` extra) compiled
+    (:func:`urdfpost.verification._feeds_kernel.tip_lengths`, the same numbers), else numpy.
+
+    Parameters
+    ----------
+    machine : Machine
+    values : ndarray, shape (N, m)
+        Program rows (mm, rad; in TCP programs X, Y, Z are the tip).
+    start : ndarray, shape (n,), int
+        The first row of each block, below ``N - 1``.
+    tcp : bool
+    tool_length : float, mm
+
+    Returns
+    -------
+    ndarray, shape (n,), mm
+    """
+    if tcp:
+        return tip_lengths(machine, values[start], values[start + 1], tcp, tool_length)
+    kernels = KERNELS.get(len(start)) if len(start) else None
+    if kernels is not None:
+        out = _tip_lengths_compiled(kernels, machine, values, start, tool_length)
+        if out is not None:
+            return out
+    return _tip_lengths_numpy(machine, values[start], values[start + 1], tool_length)
+
+
+def _tip_lengths_compiled(
+    kernels: ModuleType, machine: Machine, values: np.ndarray, start: np.ndarray, tool_length: float
+) -> np.ndarray | None:
+    """:func:`tip_lengths_at` of a program without TCP, compiled; None when the kernel failed
+    (then numpy runs from now on)."""
+    c = chain_arrays(machine, tool_length)
+    t = np.linspace(0.0, 1.0, TIP_SAMPLES)
+    values = np.ascontiguousarray(values, dtype=float)
+    start = np.ascontiguousarray(start, dtype=np.int64)
+    out = np.empty(len(start))
+    try:
+        kernels.tip_lengths(
+            c.column, c.rotary, c.direction, c.pivot, c.tool_point, c.home_axis, values, start,
+            block_trig(c, values, start, t), t, out,
+        )  # fmt: skip
+    except Exception as err:  # numba could not compile or cache it here
+        KERNELS.fail(err)
+        return None
+    return out
+
+
+def block_trig(
+    chain: ChainArrays, values: np.ndarray, start: np.ndarray, t: np.ndarray
+) -> np.ndarray:
+    """The cosines and sines the compiled loops sample blocks from by angle addition, as
+    :func:`urdfpost.kinematics.forward.cos_sin_along` works them out.
+
+    Parameters
+    ----------
+    chain : ChainArrays
+    values : ndarray, shape (N, m)
+        Program rows, mm / rad.
+    start : ndarray, shape (n,), int
+        The first row of each block (it runs to the next row).
+    t : ndarray, shape (s,)
+        Evenly spaced sample parameters, s >= 2.
+
+    Returns
+    -------
+    ndarray, shape (k, 4, n)
+        Per joint of the chain and block: the cosine and sine of the joint's angle at
+        ``t[0]`` and of its change from one sample to the next (zeros for a linear joint).
+    """
+    trig = np.zeros((len(chain.column), 4, len(start)))
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    for j in np.flatnonzero(chain.rotary):
+        theta0 = values[start, chain.column[j]]
+        step = values[start + 1, chain.column[j]] - theta0
+        first = theta0 + t[0] * step
+        np.cos(first, out=trig[j, 0])
+        np.sin(first, out=trig[j, 1])
+        hs = h * step
+        np.cos(hs, out=trig[j, 2])
+        np.sin(hs, out=trig[j, 3])
+    return trig
 
 
 def axis_lengths(
@@ -172,14 +306,25 @@ def axis_lengths(
     -------
     ndarray, shape (n,), program units (degrees counted as one)
     """
-    lin, rot = list(machine.linear_columns), list(machine.rotary_columns)
-    linear = np.linalg.norm(q1[:, lin] - q0[:, lin], axis=1) / mm_per_unit(units)
-    rotary = np.degrees(np.linalg.norm(q1[:, rot] - q0[:, rot], axis=1))
+    linear = _column_norm(q0, q1, machine.linear_columns) / mm_per_unit(units)
+    rotary = np.degrees(_column_norm(q0, q1, machine.rotary_columns))
     if rule == "combined":
         return np.hypot(linear, rotary)
     if rule == "linear-first":
         return np.where(linear > 0.0, linear, rotary)
     raise ValueError(f"axis feed rule {rule!r}: expected 'combined' or 'linear-first'")
+
+
+def _column_norm(q0: np.ndarray, q1: np.ndarray, columns: tuple[int, ...]) -> np.ndarray:
+    """``np.linalg.norm(q1[:, columns] - q0[:, columns], axis=1)`` column by column (the
+    squares summed in the order numpy sums a row of a few, so the same bits; numpy's sum along
+    a short axis is the slow one), shape (n,)."""
+    total = np.zeros(len(q0))
+    for k, j in enumerate(columns):
+        d = q1[:, j] - q0[:, j]
+        d *= d
+        total = d if k == 0 else np.add(total, d, out=total)
+    return np.sqrt(total, out=total)
 
 
 def limit_times(machine: Machine, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -199,11 +344,17 @@ def limit_times(machine: Machine, dq: np.ndarray) -> tuple[np.ndarray, np.ndarra
         The column of the axis that sets it (-1 where none moves).
     """
     velocity = np.array([a.velocity for a in machine.axes], dtype=float) * _PER_MINUTE
-    finite = np.isfinite(velocity) & (velocity > 0.0)
-    need = np.zeros_like(dq)
-    need[:, finite] = np.abs(dq[:, finite]) / velocity[finite]
-    axis = np.argmax(need, axis=1) if dq.shape[1] else np.zeros(len(dq), dtype=int)
-    time = need[np.arange(len(dq)), axis] if dq.shape[1] else np.zeros(len(dq))
+    finite = np.flatnonzero(np.isfinite(velocity) & (velocity > 0.0))
+    # column by column (numpy's argmax along a short axis is slow): the largest need, NaN if
+    # any is (as np.maximum carries it); then the first axis that needs it (the argmax: a row
+    # where no axis needs time, or one needs NaN, names none)
+    time = np.zeros(len(dq))
+    need = [np.abs(dq[:, j]) / velocity[j] for j in finite]
+    for column in need:
+        np.maximum(time, column, out=time)
+    axis = np.full(len(dq), -1)
+    for j, column in zip(finite[::-1], need[::-1], strict=True):
+        axis[column == time] = j
     return time, np.where(time > 0.0, axis, -1)
 
 
@@ -398,22 +549,21 @@ def measure_feeds(
     dq = m1 - m0
     axis_len = axis_lengths(machine, m0, m1, rules.axis_feed_rule, units)
     time = block_times(feed, feed_mode, tcp, tip, axis_len, units)
-    moving = np.abs(dq).max(axis=1, initial=0.0) > 0.0
-    timed = moving & np.isfinite(time) & (time > 0.0)
+    travel = [np.abs(dq[:, j]) for j in range(dq.shape[1])]
+    largest = np.zeros(len(dq))  # np.abs(dq).max(axis=1, initial=0.0), column by column
+    for column in travel:
+        np.maximum(largest, column, out=largest)
+    timed = (largest > 0.0) & np.isfinite(time) & (time > 0.0)
     # the axes' speeds over their limits
     velocity = np.array([a.velocity for a in machine.axes], dtype=float) * _PER_MINUTE
-    with np.errstate(divide="ignore", invalid="ignore"):
-        share = np.where(timed[:, None], np.abs(dq) / time[:, None] / velocity, 0.0)
-    share = np.nan_to_num(share, nan=0.0, posinf=np.inf)
     fields: dict[str, Any] = {}
-    if timed.any() and share.size:
-        row, col = divmod(int(np.argmax(share)), share.shape[1])
-        if share[row, col] > 0.0:
-            fields |= {
-                "max_axis_share": float(share[row, col]),
-                "max_axis": machine.axis_names[col],
-                "max_axis_cl_line": int(cl_line[row]),
-            }
+    row, col, top = _fastest(travel, time, velocity, timed)
+    if top > 0.0:
+        fields |= {
+            "max_axis_share": top,
+            "max_axis": machine.axis_names[col],
+            "max_axis_cl_line": int(cl_line[row]),
+        }
     # the tip feed against the CL feed, where the block is not at a limit
     limit, _ = limit_times(machine, dq)
     if feed_mode == FEED_INVERSE_TIME and rules.inverse_time_max:
@@ -450,6 +600,43 @@ def measure_feeds(
             "slowest_capped_cl_line": int(cl_line[k]),
         }
     return replace(out, **fields)
+
+
+def _fastest(
+    travel: list[np.ndarray], time: np.ndarray, velocity: np.ndarray, timed: np.ndarray
+) -> tuple[int, int, float]:
+    """The block and axis of the largest speed over its limit, and that share: the first in
+    row-major order of the largest of ``np.abs(dq) / time[:, None] / velocity`` over the
+    ``timed`` rows (NaN counted as 0, as ``np.nan_to_num`` counts it), worked out column by
+    column.
+
+    Parameters
+    ----------
+    travel : list of ndarray, shape (n,)
+        Every axis' ``|dq|``, mm or rad.
+    time : ndarray, shape (n,), minutes
+    velocity : ndarray, shape (m,)
+        Per minute.
+    timed : ndarray, shape (n,), bool
+
+    Returns
+    -------
+    row, col : int
+    share : float
+        0 (and any row and column) when no timed block moves an axis.
+    """
+    shares, tops = [], []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for j, column in enumerate(travel):
+            shares.append(np.where(timed, column / time / velocity[j], 0.0))
+            tops.append(float(np.fmax.reduce(shares[-1], initial=0.0)))  # (NaN left out)
+    top = max(tops, default=0.0)
+    if not top > 0.0:
+        return 0, 0, 0.0
+    n = len(time)
+    first = [int(np.argmax(s == top)) if t == top else n for s, t in zip(shares, tops, strict=True)]
+    row = min(first)
+    return row, first.index(row), top
 
 
 def tip_feeds(

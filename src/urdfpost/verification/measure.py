@@ -59,6 +59,7 @@ from urdfpost.verification.feeds import (
     TIP_SAMPLES,
     FeedCheck,
     FeedRules,
+    block_trig,
     measure_feeds,
     tip_lengths,
 )
@@ -765,18 +766,7 @@ def _first_pass_compiled(
     worst, bound = np.empty((2, k), dtype=np.int64), np.empty((2, k))
     long, length = np.empty(k, dtype=np.bool_), np.empty(k)
     c = inputs.chain
-    trig = np.zeros((len(c.column), 4, k))
-    s0 = inputs.start[part]
-    h = (t[-1] - t[0]) / (s - 1)
-    for j in np.flatnonzero(c.rotary):  # as cos_sin_along: at t[0] and per step of t
-        theta0 = inputs.values[s0, c.column[j]]
-        step = inputs.values[s0 + 1, c.column[j]] - theta0
-        first = theta0 + t[0] * step
-        np.cos(first, out=trig[j, 0])
-        np.sin(first, out=trig[j, 1])
-        hs = h * step
-        np.cos(hs, out=trig[j, 2])
-        np.sin(hs, out=trig[j, 3])
+    trig = block_trig(c, inputs.values, inputs.start[part], t)  # as cos_sin_along
     (px, py, pz), (ax, ay, az) = feed.polyline.tip, feed.polyline.axis
     kernel(
         c.column,
