@@ -22,7 +22,7 @@ the verifier measures the same blocks.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -101,6 +101,38 @@ def _floored(value: np.ndarray, decimals: int, unit: float) -> np.ndarray:
     step = 10.0**-decimals
     written = np.floor(value / unit / step + 1e-9) * step
     return np.maximum(written, step) * unit
+
+
+@dataclass(frozen=True)
+class FeedTiming:
+    """How a program's feed blocks are to be timed (:func:`timed_program`), handed on with a
+    program whose feed moves still carry the CL feed: a streamed post times each piece where
+    it is written (:class:`urdfpost.posting.worker.ProgramJob`).
+
+    Attributes
+    ----------
+    mode : str
+        ``tip``, ``inverse-time`` or ``per-block`` (resolved).
+    spec : DialectSpec
+        The control.
+    tool_length : float, mm
+    before : ndarray or None, shape (m,)
+        As :func:`timed_program` takes them.
+    """
+
+    mode: str
+    spec: DialectSpec
+    tool_length: float
+    before: np.ndarray | None
+
+    @property
+    def feed_mode(self) -> str:
+        """The feed mode of the timed program (:attr:`urdfpost.program.Program.feed_mode`)."""
+        return FEED_INVERSE_TIME if self.mode == FEED_INVERSE else FEED_PER_MINUTE
+
+    def timed(self, program: Program, machine: Machine) -> tuple[Program, FeedFigures]:
+        """:func:`timed_program` of ``program`` on ``machine``."""
+        return timed_program(program, machine, self.mode, self.spec, self.tool_length, self.before)
 
 
 def timed_program(

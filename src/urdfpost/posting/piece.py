@@ -34,7 +34,7 @@ from urdfpost.planning.strategies import (
 from urdfpost.posting.arcs import arc_spans
 from urdfpost.posting.body import Rows, program_body, program_name
 from urdfpost.posting.check import CheckTarget, ball_radius
-from urdfpost.posting.feeds import timed_program
+from urdfpost.posting.feeds import FeedTiming
 from urdfpost.posting.options import Job
 from urdfpost.posting.planes import PlaneFigures, tilted_planes
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
@@ -228,6 +228,9 @@ class PostedPiece:
         continues another, which its program leaves out), machine units (mm, rad).
     joint_lines : ndarray, shape (N,), int
         The CL line each row belongs to.
+    timing : FeedTiming or None
+        How the program's feed blocks are still to be timed (``time_feeds`` False: its feed
+        moves carry the CL feed, and ``figures.feeds`` is None); None: they are timed.
     """
 
     program: Program
@@ -237,6 +240,7 @@ class PostedPiece:
     collisions: Collisions
     joints: np.ndarray
     joint_lines: np.ndarray
+    timing: FeedTiming | None = None
 
 
 def post_piece(
@@ -247,6 +251,7 @@ def post_piece(
     plan: Plan | None = None,
     piece: Continuation | None = None,
     progress: Callable[[int], None] | None = None,
+    time_feeds: bool = True,
 ) -> PostedPiece:
     """The program of a piece of CL data, its moves checked for collisions (no text yet).
 
@@ -267,6 +272,10 @@ def post_piece(
         CL point (the other's last), and only the last piece switches TCP off at its end.
     progress : callable, optional
         Called with the number of CL points just processed.
+    time_feeds : bool
+        Time the feed blocks here (:func:`urdfpost.posting.feeds.timed_program`); False: the
+        caller does, as :attr:`PostedPiece.timing` says (a piece with tilted working planes
+        is timed here all the same: the planes are made from the timed program).
 
     Returns
     -------
@@ -480,9 +489,12 @@ def post_piece(
         rollover=rollover,
     )
     spec = job.dialect.spec
-    program, feed_figures = timed_program(
-        program, machine, job.feed_mode, spec, tool_length, before
-    )
+    timing: FeedTiming | None = FeedTiming(job.feed_mode, spec, tool_length, before)
+    feed_figures = None
+    if time_feeds or planes:
+        assert timing is not None
+        program, feed_figures = timing.timed(program, machine)
+        timing = None
     plane_figures = PlaneFigures()
     if planes:
         plane_notes: list[str] = []
@@ -520,7 +532,7 @@ def post_piece(
     )
     collisions = check_collisions(problem.collision, moved, moved_lines, cl)
     check_transitions(problem.collision, transitions, cl)
-    return PostedPiece(program, plan, target, figures, collisions, joints, joint_lines)
+    return PostedPiece(program, plan, target, figures, collisions, joints, joint_lines, timing)
 
 
 def _work_offset(job: Job, piece: Continuation | None) -> int | None:

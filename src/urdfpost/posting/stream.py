@@ -73,7 +73,13 @@ from urdfpost.posting.options import Job, PostOptions, resolve
 from urdfpost.posting.piece import Continuation, make_problem, post_piece
 from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications, program_texts
-from urdfpost.posting.report import Collisions, PieceFigures, Report, StreamFigures
+from urdfpost.posting.report import (
+    Collisions,
+    FeedFigures,
+    PieceFigures,
+    Report,
+    StreamFigures,
+)
 from urdfpost.posting.tools import gauge_lengths, tool_sections
 from urdfpost.posting.worker import FORK, Checks, ProgramJob, Writing
 from urdfpost.program import Blocks, Program
@@ -295,6 +301,7 @@ def post_stream(
     fresh: list[bool] = []  # per piece: it begins a tool section
     checks: Checks | None = None
     inserts: list[str] = []  # the texts of the program's inserted blocks
+    piece_feeds: list[FeedFigures | None] = []  # per piece: its feed timing's figures, if done here
     unsettled: list[int] = []  # CL lines of the joins whose branch choice rests on the lookahead
     count = 0
     tool_length = job.tool_length
@@ -376,7 +383,10 @@ def post_stream(
                 entry=entry,
                 leave=boundary is not None,
             )
-            posted = post_piece(piece, section, problem=problem, plan=plan, piece=continuation)
+            # (its feeds timed where it is written: in the worker, while the next is planned)
+            posted = post_piece(
+                piece, section, problem=problem, plan=plan, piece=continuation, time_feeds=False
+            )
             program = posted.program
             fresh.append(entry is not None)
             entry = None
@@ -391,14 +401,16 @@ def post_stream(
             if first_program is None:
                 # the header is known only at the end: a placeholder of as many lines now (the
                 # block numbers after it stay), the real one spliced in at the end
-                first_program = replace(program, blocks=Blocks(()))
+                mode = program.feed_mode if posted.timing is None else posted.timing.feed_mode
+                first_program = replace(program, blocks=Blocks(()), feed_mode=mode)
                 opening = job_header(job, HeaderFigures.empty(program), tool_length)
-                placeholder = len(_opening(dialect, program, job, opening).encode("utf-8"))
+                placeholder = len(_opening(dialect, first_program, job, opening).encode("utf-8"))
             # written (and read back) by the checks: in a worker while the next piece is planned
             piece_job = ProgramJob.of(posted, fresh=fresh[-1], last=last, header=opening)
             checks.submit(piece_job)
             inserts += piece_job.inserts
             found = posted.figures
+            piece_feeds.append(found.feeds)
             figures = found if figures is None else figures.joined(found, offset)
             collisions.append(posted.collisions)
             if len(posted.joints):
@@ -420,6 +432,12 @@ def post_stream(
         assert checks is not None
         results = checks.finish()
         checks.close_output()
+        # the feed figures of the pieces in order, timed here or where they were written
+        feeds: FeedFigures | None = None
+        for here, there in zip(piece_feeds, checks.feed_figures(), strict=True):
+            timed = here if here is not None else there
+            if timed is not None:
+                feeds = timed if feeds is None else feeds.joined(timed)
         # feeds, spindle, tools as a whole post checks them, from the same read
         process_check = checks.process_check()
         assert process_check is not None and last_piece is not None
@@ -433,6 +451,7 @@ def post_stream(
         verification = merge_verifications([check for check, _ in results], fresh)
         intents = [intent for _, intent in results if intent is not None]
         assert figures is not None and last_piece is not None
+        figures = replace(figures, feeds=feeds)
         warnings = figures.warnings
         if unsettled:
             warnings += (

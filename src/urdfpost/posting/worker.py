@@ -65,7 +65,9 @@ from urdfpost.verification.process import (
 if TYPE_CHECKING:
     from urdfpost.dialects import Dialect
     from urdfpost.dialects.writer import ProgramWriter
+    from urdfpost.posting.feeds import FeedTiming
     from urdfpost.posting.piece import PostedPiece
+    from urdfpost.posting.report import FeedFigures
 
 log = logging.getLogger(__name__)
 
@@ -81,6 +83,7 @@ connection open that would tell)."""
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 _PROCESS = "process check"  # what the post sends for the process check of the pieces checked
 _WRITTEN = "close the program"  # what it sends when all is written (:class:`Writing`)
+_FEEDS = "feed figures"  # what it sends for the figures of the feeds timed in the worker
 _STOPS = {signal.SIGINT, signal.SIGTERM}  # what stops a post (Ctrl-C, kill)
 
 
@@ -138,7 +141,8 @@ class Writing:
     block_numbers : bool or None
         Number the blocks; None: as the control does by default.
     path : str
-        The (temporary) file the program text goes to, written from its start.
+        The (temporary) file the program text goes to, written from its start: made by the
+        post, and not made again when it is gone (the post has failed).
     blank : ndarray or None, shape (2, 3)
         The stock's box for the control's graphics (:func:`urdfpost.posting.header.stock_box`).
     """
@@ -165,6 +169,9 @@ class ProgramJob:
         The piece ends the program (its end is written after it).
     header : str or None
         The first piece: the header the program opens with; None for the others.
+    timing : FeedTiming or None
+        How the program's feed blocks are to be timed before it is written (its feed moves
+        carry the CL feed); None: they are timed.
     """
 
     program: Program
@@ -172,13 +179,14 @@ class ProgramJob:
     fresh: bool
     last: bool
     header: str | None = None
+    timing: FeedTiming | None = None
 
     @classmethod
     def of(
         cls, posted: PostedPiece, *, fresh: bool, last: bool, header: str | None = None
     ) -> ProgramJob:
         """The job of a posted piece."""
-        return cls(posted.program, posted.target, fresh, last, header)
+        return cls(posted.program, posted.target, fresh, last, header, posted.timing)
 
     @property
     def inserts(self) -> list[str]:
@@ -239,6 +247,8 @@ class PieceVerifier:
         self.writing = writing
         self.writer: ProgramWriter | None = None  # (the first program job makes it)
         self.out: TextIO | None = None  # the program file being written
+        # per program job: the figures of the feed timing done here (None: timed already)
+        self.feeds: list[FeedFigures | None] = []
         rollover = machine.settings.rollover
         self.dialect = dialect_for(controller).with_clamps(machine.settings.clamps)
         self.reader = self.dialect.reader(path=path, rollover=rollover)
@@ -278,19 +288,27 @@ class PieceVerifier:
         return check, intent
 
     def written(self, job: ProgramJob) -> PieceJob:
-        """The text of a piece handed over as its program, appended to the program file
-        (:class:`Writing`; the first piece opens it), as a job to check."""
+        """The text of a piece handed over as its program, its feeds timed first where the
+        job says so (:attr:`feeds`), appended to the program file (:class:`Writing`; the
+        first piece opens it), as a job to check."""
         if self.writing is None:
             raise ValueError("a program job for a verifier that does not write")
+        program, feeds = job.program, None
+        if job.timing is not None:
+            program, feeds = job.timing.timed(program, self.machine)
+        self.feeds.append(feeds)
         opening = ""
         if self.writer is None:
             self.writer = self.writing.dialect.writer(
-                job.program, block_numbers=self.writing.block_numbers
+                program, block_numbers=self.writing.block_numbers
             )
             self.writer.open(job.header, self.writing.blank)
             opening = self.writer.take()
-            self.out = open(self.writing.path, "w", encoding="utf-8", newline="")
-        self.writer.write_body(job.program)
+            # the file the post made (never made again here: a post that has failed and
+            # removed it leaves nothing behind)
+            fd = os.open(self.writing.path, os.O_WRONLY | os.O_TRUNC)
+            self.out = os.fdopen(fd, "w", encoding="utf-8", newline="")
+        self.writer.write_body(program)
         if job.last:
             self.writer.close()
         text = opening + self.writer.take()
@@ -412,8 +430,8 @@ def _checked(
 
 
 def _next_job(conn: Connection) -> PieceJob | ProgramJob | ReadPiece | str | None:
-    """The next job (or :data:`_PROCESS`, :data:`_WRITTEN`), or None when the post says so or
-    its process is gone."""
+    """The next job (or one of :data:`_PROCESS`, :data:`_WRITTEN`, :data:`_FEEDS`), or None
+    when the post says so or its process is gone."""
     parent = multiprocessing.parent_process()
     assert parent is not None
     while True:
@@ -432,8 +450,9 @@ def _next_job(conn: Connection) -> PieceJob | ProgramJob | ReadPiece | str | Non
 def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
     """A verification worker: checks the jobs it receives with one :class:`PieceVerifier` and
     sends back ``(True, result)`` or ``(False, exception)``, until it receives None or the post
-    is gone (module docstring); for :data:`_PROCESS`, ``(True, the process check)``, and for
-    :data:`_WRITTEN` ``(True, None)`` once the program file is closed.
+    is gone (module docstring); for :data:`_PROCESS`, ``(True, the process check)``, for
+    :data:`_WRITTEN` ``(True, None)`` once the program file is closed, and for :data:`_FEEDS`
+    ``(True, the figures of the feeds timed here)`` (:attr:`PieceVerifier.feeds`).
 
     Parameters
     ----------
@@ -452,6 +471,8 @@ def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
             if job == _WRITTEN:
                 verifier.close_output()
                 answer: tuple[bool, Any] = (True, None)
+            elif job == _FEEDS:
+                answer = (True, verifier.feeds)
             elif isinstance(job, str):
                 answer = (True, verifier.process_check())
             else:
@@ -553,6 +574,15 @@ class Checks:
             return self.local.process_check()
         value = self._ask(_PROCESS)
         assert value is None or isinstance(value, ProcessCheck)
+        return value
+
+    def feed_figures(self) -> list[FeedFigures | None]:
+        """Per program job, in order, once all are written: the figures of the feed timing
+        done where it was written (:attr:`ProgramJob.timing`), None where it came timed."""
+        if self.local is not None:
+            return self.local.feeds
+        value = self._ask(_FEEDS)
+        assert isinstance(value, list)
         return value
 
     def close_output(self) -> None:
