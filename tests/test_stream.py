@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 import os
 import re
+import sys
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -295,20 +297,37 @@ def test_a_piece_that_fails_to_post_fails_the_post_first(
     assert not list(tmp_path.iterdir())
 
 
-@pytest.mark.parametrize("parallel", [False, True])
-def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel: bool) -> None:
-    """A CL line the reader rejects in the fourth piece, with the pieces verified in a worker
-    or here: the post raises the reader's error with its file and line, once the pieces before
-    it are posted, and writes nothing."""
-    import urdfpost.posting.stream as stream
-    from urdfpost.errors import CLDataError
-    from urdfpost.readers import read_cl_chunks
-
-    path = write_hemisphere(4000, tmp_path / "bad.apt")
+def bad_late(tmp_path: Path, name: str = "bad.apt", points: int = 4000) -> tuple[Path, int]:
+    """A hemisphere job whose GOTO at file index 3300 or after (line ``bad``, in the
+    fourth piece of 800 points or later) the reader rejects; returns the file and the line."""
+    path = write_hemisphere(points, tmp_path / name)
     lines = path.read_text().splitlines(keepends=True)
     bad = next(k for k in range(3300, len(lines)) if lines[k].startswith("GOTO/"))
     lines[bad] = "GOTO/1.0,2.0,x3.0\n"
     path.write_text("".join(lines))
+    return path, bad + 1
+
+
+@pytest.mark.parametrize(
+    ("parallel", "ahead"),
+    [(False, False), (True, False), (True, True)],
+    ids=["here", "worker", "worker-and-reader"],
+)
+def test_a_bad_cl_line_late_in_the_file_stops_the_post(
+    tmp_path: Path, parallel: bool, ahead: bool
+) -> None:
+    """A CL line the reader rejects in the fourth piece, with the pieces verified in a worker
+    or here, and read in a process of their own or here: the post raises the reader's error
+    with its file and line, once the pieces before it are posted, writes nothing and leaves
+    no process."""
+    import multiprocessing
+
+    import urdfpost.posting.stream as stream
+    from urdfpost.errors import CLDataError
+    from urdfpost.posting.worker import ReadAhead
+    from urdfpost.readers import read_cl_chunks
+
+    path, bad = bad_late(tmp_path)
     posted = []
     real = stream.post_piece
 
@@ -317,15 +336,107 @@ def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel:
         return real(*args, **kw)
 
     out = tmp_path / "out.nc"
-    pieces = read_cl_chunks(path, max_points=800, units="mm")
-    with pytest.MonkeyPatch.context() as mp:
+    pieces = ReadAhead(read_cl_chunks(path, max_points=800, units="mm"), parallel=ahead)
+    with pytest.MonkeyPatch.context() as mp, pieces:
         mp.setattr(stream, "post_piece", post_piece)
         with pytest.raises(CLDataError) as err:
             post_stream(pieces, load_machine("dmu50"), out, PostOptions(controller="heidenhain"),
                         piece_points=900, lookahead=100, parallel=parallel)  # fmt: skip
-    assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad + 1)
+        assert (pieces.pid is not None) == (ahead and sys.platform.startswith("linux"))
+    assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad)
     assert len(posted) >= 2  # (the pieces before it were posted)
     assert [p.name for p in tmp_path.iterdir()] == ["bad.apt"]
+    assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize("ahead", [False, True], ids=["here", "reader"])
+def test_a_bad_cl_line_late_in_the_file_stops_the_verify(tmp_path: Path, ahead: bool) -> None:
+    """``verify`` in pieces of CL data with a line the reader rejects in the fourth piece, read
+    in a process of their own or here: the reader's error with its file and line, raised once
+    the pieces before it are taken (in order), and no process left."""
+    import multiprocessing
+
+    from urdfpost.errors import CLDataError
+    from urdfpost.posting.readback import CUT_MARGIN, verify_stream
+    from urdfpost.posting.worker import ReadAhead
+    from urdfpost.readers import read_cl_chunks
+    from urdfpost.tolerances import Tolerances
+
+    machine = load_machine("dmu50")
+    good = write_hemisphere(4000, tmp_path / "good.apt")
+    program = tmp_path / "good.h"
+    options = PostOptions(controller="heidenhain", tcp=False)
+    post_stream(read_cl_chunks(good, max_points=900, units="mm"), machine, program, options,
+                piece_points=900, lookahead=100, parallel=False)  # fmt: skip
+    path, bad = bad_late(tmp_path)
+    taken: list[int] = []  # the first CL line of each piece taken, in order
+
+    def counted(pieces: ReadAhead) -> Iterator[Toolpath]:
+        for piece in pieces:
+            taken.append(int(piece.line[0]))
+            yield piece
+
+    chunks = read_cl_chunks(path, max_points=800 + CUT_MARGIN, units="mm")
+    with ReadAhead(chunks, parallel=ahead) as pieces, pytest.raises(CLDataError) as err:
+        verify_stream(program, counted(pieces), machine, "heidenhain",
+                      tol=Tolerances.for_units("mm"), tool_length=machine.settings.tool_length,
+                      piece_points=800, parallel=ahead)  # fmt: skip
+    assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad)
+    assert len(taken) >= 3 and taken == sorted(taken)  # the pieces before it, in order
+    assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize("command", ["post", "verify"])
+def test_a_bad_cl_line_read_in_a_process_of_its_own_writes_nothing(
+    tmp_path: Path, command: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``urdfpost post`` and ``verify`` in pieces, the CL data read in a process of its own
+    (where there is one): a bad line late in the file is one message with its file and line,
+    exit 1, nothing written."""
+    from urdfpost.cli import main
+
+    good = write_hemisphere(4000, tmp_path / "good.apt")
+    program = tmp_path / "good.h"
+    common = ["-m", "dmu50", "--piece-points", "800", "--report", str(tmp_path / "r.json")]
+    if command == "verify":
+        argv = ["post", str(good), "-m", "dmu50", "-q", "-c", "heidenhain", "-o", str(program)]
+        assert main(argv) == 0
+    capsys.readouterr()
+    path, bad = bad_late(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    if command == "post":
+        argv = ["post", str(path), "-q", "-c", "heidenhain", "-o", str(tmp_path / "x.h")]
+    else:
+        argv = ["verify", str(program), "--cl", str(path)]
+    assert main(argv + common) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"urdfpost: {path}:{bad}: "), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a forked reader: Linux")
+def test_a_reader_process_that_dies_is_an_error(raster: Toolpath) -> None:
+    """The pieces come over from the reader process with their warnings; a reader process that
+    stops (here it exits after the second piece) is an error that says so."""
+    from urdfpost.errors import UrdfpostError
+    from urdfpost.posting.worker import ReadAhead
+
+    first, second = toolpath_slice(raster, 0, 10), toolpath_slice(raster, 9, 20)
+    second = replace(second, warnings=("a warning of the second piece",))
+
+    def dying() -> Iterator[Toolpath]:
+        yield first
+        yield second
+        os._exit(3)  # (in the reader process)
+
+    with ReadAhead(dying(), parallel=True) as pieces:
+        got = [next(pieces), next(pieces)]
+        with pytest.raises(UrdfpostError, match=r"the CL reader process \(process \d+\) "
+                           r"stopped with exit code 3 .*; nothing written"):  # fmt: skip
+            next(pieces)
+        assert list(pieces) == []
+    assert [p.line.tolist() for p in got] == [first.line.tolist(), second.line.tolist()]
+    assert np.array_equal(got[1].tip, second.tip) and got[1].warnings == second.warnings
 
 
 def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> None:
