@@ -493,8 +493,9 @@ def build_parser() -> argparse.ArgumentParser:
     po.add_argument(
         "--single-process",
         action="store_true",
-        help="with --piece-points: verify each piece in this process after it is planned (by "
-        "default a second process verifies it while the next is planned)",
+        help="with --piece-points: read the CL data and verify each piece in this process (by "
+        "default a second process verifies a piece while the next is planned, and a third "
+        "reads the CL data ahead)",
     )
     _planning_arguments(po)
     _job_arguments(po)
@@ -543,8 +544,9 @@ def build_parser() -> argparse.ArgumentParser:
     ve.add_argument(
         "--single-process",
         action="store_true",
-        help="with --piece-points: verify each piece in this process after it is read (by "
-        "default worker processes verify them while the next are read)",
+        help="with --piece-points: read the CL data and verify each piece in this process (by "
+        "default worker processes verify them while the next are read, and another process "
+        "reads the CL data ahead)",
     )
 
     vw = sub.add_parser(
