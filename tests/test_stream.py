@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import sys
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
@@ -308,23 +307,15 @@ def bad_late(tmp_path: Path, name: str = "bad.apt", points: int = 4000) -> tuple
     return path, bad + 1
 
 
-@pytest.mark.parametrize(
-    ("parallel", "ahead"),
-    [(False, False), (True, False), (True, True)],
-    ids=["here", "worker", "worker-and-reader"],
-)
-def test_a_bad_cl_line_late_in_the_file_stops_the_post(
-    tmp_path: Path, parallel: bool, ahead: bool
-) -> None:
+@pytest.mark.parametrize("parallel", [False, True], ids=["here", "worker"])
+def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel: bool) -> None:
     """A CL line the reader rejects in the fourth piece, with the pieces verified in a worker
-    or here, and read in a process of their own or here: the post raises the reader's error
-    with its file and line, once the pieces before it are posted, writes nothing and leaves
-    no process."""
+    or here: the post raises the reader's error with its file and line, once the pieces before
+    it are posted, writes nothing and leaves no process."""
     import multiprocessing
 
     import urdfpost.posting.stream as stream
     from urdfpost.errors import CLDataError
-    from urdfpost.posting.worker import ReadAhead
     from urdfpost.readers import read_cl_chunks
 
     path, bad = bad_late(tmp_path)
@@ -336,29 +327,27 @@ def test_a_bad_cl_line_late_in_the_file_stops_the_post(
         return real(*args, **kw)
 
     out = tmp_path / "out.nc"
-    pieces = ReadAhead(read_cl_chunks(path, max_points=800, units="mm"), parallel=ahead)
-    with pytest.MonkeyPatch.context() as mp, pieces:
+    pieces = read_cl_chunks(path, max_points=800, units="mm")
+    with pytest.MonkeyPatch.context() as mp:
         mp.setattr(stream, "post_piece", post_piece)
         with pytest.raises(CLDataError) as err:
             post_stream(pieces, load_machine("dmu50"), out, PostOptions(controller="heidenhain"),
                         piece_points=900, lookahead=100, parallel=parallel)  # fmt: skip
-        assert (pieces.pid is not None) == (ahead and sys.platform.startswith("linux"))
     assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad)
     assert len(posted) >= 2  # (the pieces before it were posted)
     assert [p.name for p in tmp_path.iterdir()] == ["bad.apt"]
     assert multiprocessing.active_children() == []
 
 
-@pytest.mark.parametrize("ahead", [False, True], ids=["here", "reader"])
-def test_a_bad_cl_line_late_in_the_file_stops_the_verify(tmp_path: Path, ahead: bool) -> None:
-    """``verify`` in pieces of CL data with a line the reader rejects in the fourth piece, read
-    in a process of their own or here: the reader's error with its file and line, raised once
+@pytest.mark.parametrize("parallel", [False, True], ids=["here", "workers"])
+def test_a_bad_cl_line_late_in_the_file_stops_the_verify(tmp_path: Path, parallel: bool) -> None:
+    """``verify`` in pieces of CL data with a line the reader rejects in the fourth piece, the
+    pieces verified in workers or here: the reader's error with its file and line, raised once
     the pieces before it are taken (in order), and no process left."""
     import multiprocessing
 
     from urdfpost.errors import CLDataError
     from urdfpost.posting.readback import CUT_MARGIN, verify_stream
-    from urdfpost.posting.worker import ReadAhead
     from urdfpost.readers import read_cl_chunks
     from urdfpost.tolerances import Tolerances
 
@@ -371,28 +360,27 @@ def test_a_bad_cl_line_late_in_the_file_stops_the_verify(tmp_path: Path, ahead: 
     path, bad = bad_late(tmp_path)
     taken: list[int] = []  # the first CL line of each piece taken, in order
 
-    def counted(pieces: ReadAhead) -> Iterator[Toolpath]:
+    def counted(pieces: Iterator[Toolpath]) -> Iterator[Toolpath]:
         for piece in pieces:
             taken.append(int(piece.line[0]))
             yield piece
 
     chunks = read_cl_chunks(path, max_points=800 + CUT_MARGIN, units="mm")
-    with ReadAhead(chunks, parallel=ahead) as pieces, pytest.raises(CLDataError) as err:
-        verify_stream(program, counted(pieces), machine, "heidenhain",
+    with pytest.raises(CLDataError) as err:
+        verify_stream(program, counted(chunks), machine, "heidenhain",
                       tol=Tolerances.for_units("mm"), tool_length=machine.settings.tool_length,
-                      piece_points=800, parallel=ahead)  # fmt: skip
+                      piece_points=800, parallel=parallel)  # fmt: skip
     assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad)
     assert len(taken) >= 3 and taken == sorted(taken)  # the pieces before it, in order
     assert multiprocessing.active_children() == []
 
 
 @pytest.mark.parametrize("command", ["post", "verify"])
-def test_a_bad_cl_line_read_in_a_process_of_its_own_writes_nothing(
+def test_a_bad_cl_line_of_a_command_in_pieces_writes_nothing(
     tmp_path: Path, command: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """``urdfpost post`` and ``verify`` in pieces, the CL data read in a process of its own
-    (where there is one): a bad line late in the file is one message with its file and line,
-    exit 1, nothing written."""
+    """``urdfpost post`` and ``verify`` in pieces: a bad line late in the file is one message
+    with its file and line, exit 1, nothing written."""
     from urdfpost.cli import main
 
     good = write_hemisphere(4000, tmp_path / "good.apt")
@@ -412,31 +400,6 @@ def test_a_bad_cl_line_read_in_a_process_of_its_own_writes_nothing(
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith(f"urdfpost: {path}:{bad}: "), err
     assert sorted(p.name for p in tmp_path.iterdir()) == before
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a forked reader: Linux")
-def test_a_reader_process_that_dies_is_an_error(raster: Toolpath) -> None:
-    """The pieces come over from the reader process with their warnings; a reader process that
-    stops (here it exits after the second piece) is an error that says so."""
-    from urdfpost.errors import UrdfpostError
-    from urdfpost.posting.worker import ReadAhead
-
-    first, second = toolpath_slice(raster, 0, 10), toolpath_slice(raster, 9, 20)
-    second = replace(second, warnings=("a warning of the second piece",))
-
-    def dying() -> Iterator[Toolpath]:
-        yield first
-        yield second
-        os._exit(3)  # (in the reader process)
-
-    with ReadAhead(dying(), parallel=True) as pieces:
-        got = [next(pieces), next(pieces)]
-        with pytest.raises(UrdfpostError, match=r"the CL reader process \(process \d+\) "
-                           r"stopped with exit code 3 .*; nothing written"):  # fmt: skip
-            next(pieces)
-        assert list(pieces) == []
-    assert [p.line.tolist() for p in got] == [first.line.tolist(), second.line.tolist()]
-    assert np.array_equal(got[1].tip, second.tip) and got[1].warnings == second.warnings
 
 
 def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> None:

@@ -32,7 +32,6 @@ from urdfpost.units import UNITS, mm_per_unit, program_units
 if TYPE_CHECKING:
     from urdfpost.posting.stream import StreamResult
     from urdfpost.posting.whole import PostResult
-    from urdfpost.posting.worker import ReadAhead
 
 log = logging.getLogger("urdfpost")
 
@@ -84,17 +83,14 @@ def _read_cl(args: argparse.Namespace, machine: Any) -> Any:
 
 def _read_cl_pieces(
     args: argparse.Namespace, machine: Any, points: int
-) -> tuple[Any, Iterator[Any], ReadAhead]:
+) -> tuple[Any, Iterator[Any]]:
     """The CL file as pieces of at most ``points`` points, read as they are needed.
 
-    Returns the first piece (for the units), an iterator over all of them, the first
-    included, and the reader of the pieces after the first (to be closed when done): in a
-    process of its own where the pieces are verified in a worker (:func:`_read_ahead`). As
-    :func:`_read_cl` for the units and the chord tolerance.
+    Returns the first piece (for the units) and an iterator over all of them, the first
+    included; as :func:`_read_cl` for the units and the chord tolerance.
     """
     import itertools
 
-    from urdfpost.posting.worker import ReadAhead
     from urdfpost.readers import read_cl_chunks
     from urdfpost.tolerances import Tolerances
 
@@ -112,16 +108,7 @@ def _read_cl_pieces(
     if units != guess:
         chunks = pieces(Tolerances.for_units(units, args.tolerance).chord)
         first = next(chunks)
-    # (the first piece read here: the reader process, forked when the second is asked for,
-    # comes with the compiled parsing)
-    rest = ReadAhead(chunks, parallel=_read_ahead(args))
-    return first, itertools.chain([first], rest), rest
-
-
-def _read_ahead(args: argparse.Namespace) -> bool:
-    """Whether a streamed command reads its CL pieces in a process of their own: where its
-    pieces are verified in a worker process (more than one core, no ``--single-process``)."""
-    return not args.single_process and (os.cpu_count() or 1) > 1
+    return first, itertools.chain([first], chunks)
 
 
 def _non_negative(value: str) -> float:
@@ -493,9 +480,8 @@ def build_parser() -> argparse.ArgumentParser:
     po.add_argument(
         "--single-process",
         action="store_true",
-        help="with --piece-points: read the CL data and verify each piece in this process (by "
-        "default a second process verifies a piece while the next is planned, and a third "
-        "reads the CL data ahead)",
+        help="with --piece-points: verify each piece in this process after it is planned (by "
+        "default a second process verifies it while the next is planned)",
     )
     _planning_arguments(po)
     _job_arguments(po)
@@ -544,9 +530,8 @@ def build_parser() -> argparse.ArgumentParser:
     ve.add_argument(
         "--single-process",
         action="store_true",
-        help="with --piece-points: read the CL data and verify each piece in this process (by "
-        "default worker processes verify them while the next are read, and another process "
-        "reads the CL data ahead)",
+        help="with --piece-points: verify each piece in this process after it is read (by "
+        "default worker processes verify them while the next are read)",
     )
 
     vw = sub.add_parser(
@@ -700,9 +685,8 @@ def _cmd_post(args: argparse.Namespace) -> int:
     if pieces is None:
         size = Path(args.cl).stat().st_size if Path(args.cl).is_file() else 0
         pieces = PIECE_POINTS if size > _STREAM_BYTES else 0
-    reading: ReadAhead | None = None  # the CL pieces' reader (streamed)
     if pieces:
-        toolpath, chunks, reading = _read_cl_pieces(args, machine, pieces)
+        toolpath, chunks = _read_cl_pieces(args, machine, pieces)
     else:
         toolpath, chunks = _read_cl(args, machine), None
     units = _program_units(args, machine, toolpath.units)
@@ -801,9 +785,6 @@ def _cmd_post(args: argparse.Namespace) -> int:
                 if isinstance(e, OSError):  # the disk filled up, the folder went away
                     raise UrdfpostError(f"{out}: cannot write: {e.strerror or e}") from e
                 raise
-            finally:
-                assert reading is not None
-                reading.close()
         else:
             whole = post(toolpath, machine, options, progress=bar.update)
             files[out] = whole.text
@@ -881,14 +862,13 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         pieces = PIECE_POINTS if max(sizes, default=0) > _STREAM_BYTES else 0
     text = ""
     ended = False
-    reading: ReadAhead | None = None  # the CL pieces' reader (in pieces)
     if pieces:  # the program's header (units) from its first piece of text
         from urdfpost.posting.readback import CUT_MARGIN, program_texts
 
         head = next(program_texts(args.program, 1 << 16), "")
         program = dialect.read(head, path=args.program, rollover=machine.settings.rollover)
         # (one read per piece checked: verify_stream holds the points just past a piece)
-        toolpath, chunks, reading = _read_cl_pieces(args, machine, pieces + CUT_MARGIN)
+        toolpath, chunks = _read_cl_pieces(args, machine, pieces + CUT_MARGIN)
     else:
         try:
             text = Path(args.program).read_text(encoding="utf-8", errors="replace")
@@ -946,22 +926,20 @@ def _cmd_verify(args: argparse.Namespace) -> int:
                 piece, state = expected(piece, state)
                 yield piece
 
-        assert reading is not None
-        with reading:  # (its process stopped, whatever happens)
-            check, program = verify_stream(
-                args.program,
-                collected(chunks),
-                machine,
-                dialect.name,
-                tol=tol,
-                tool_length=tool_length,
-                pivot=pivot,
-                piece_points=pieces,
-                process=process,
-                table=table,
-                feed_rules=feed_rules,
-                parallel=False if args.single_process else None,
-            )
+        check, program = verify_stream(
+            args.program,
+            collected(chunks),
+            machine,
+            dialect.name,
+            tol=tol,
+            tool_length=tool_length,
+            pivot=pivot,
+            piece_points=pieces,
+            process=process,
+            table=table,
+            feed_rules=feed_rules,
+            parallel=False if args.single_process else None,
+        )
         toolpath = replace(toolpath, warnings=tuple(warnings))
         process_check = process.result()
         faults = located(process_check, dialect, lambda: program_texts(args.program), args.program)

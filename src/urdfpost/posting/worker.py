@@ -17,10 +17,6 @@ process check takes from the pieces before it (:class:`~urdfpost.verification.pr
 the worker compares the piece's feeds and spindle too, with the rows the verification matched
 to the CL points, and hands back what it found with the verification.
 
-The CL data of a streamed post or verification can be read in a process of its own too
-(:class:`ReadAhead`): a forked reader takes the pieces from the CL reader's iterator and hands
-them over one at a time, reading the next while the one before is planned or cut.
-
 The worker never outlives the post: it ignores Ctrl-C (the post stops it), takes the default
 action on ``SIGTERM`` (:meth:`Checks.close` terminates it) and leaves when the post's process is
 gone, even killed outright: on Linux the kernel kills it then (``PR_SET_PDEATHSIG``); elsewhere
@@ -41,11 +37,10 @@ import pickle
 import signal
 import sys
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
-from types import TracebackType
 from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
@@ -452,16 +447,6 @@ def _next_job(conn: Connection) -> PieceJob | ProgramJob | ReadPiece | str | Non
             return job
 
 
-def _sendable(exc: Exception, what: str) -> Exception:
-    """``exc`` when it pickles (to be raised in the post's process), else an error that says
-    ``what`` failed and how."""
-    try:
-        pickle.dumps(exc)
-    except Exception:
-        return UrdfpostError(f"{what} failed: {exc!r}")
-    return exc
-
-
 def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
     """A verification worker: checks the jobs it receives with one :class:`PieceVerifier` and
     sends back ``(True, result)`` or ``(False, exception)``, until it receives None or the post
@@ -493,7 +478,11 @@ def _serve(conn: Connection, post_end: Connection | None, *args: Any) -> None:
             else:
                 answer = (True, _checked(verifier, job))
         except Exception as exc:  # sent back to be raised where the post runs
-            answer = (False, _sendable(exc, "verification"))
+            answer = (False, exc)
+            try:
+                pickle.dumps(exc)
+            except Exception:
+                answer = (False, UrdfpostError(f"verification failed: {exc!r}"))
         try:
             conn.send(answer)
         except OSError:  # the post is gone
@@ -717,148 +706,3 @@ class ReadChecks:
         """Stop the workers."""
         for member in self.members:
             member.close()
-
-
-def _read(conn: Connection, post_end: Connection, pieces: Iterator[Toolpath]) -> None:
-    """A CL reader process: sends ``(True, piece)`` for each piece of ``pieces`` in turn,
-    then ``(True, None)``; ``(False, exception)`` for an error of the reading, and stops there.
-    Each send waits until the post's process takes the piece (the pipe holds little of it):
-    one piece is read ahead.
-
-    Parameters
-    ----------
-    conn : Connection
-        The reader's end of the pipe.
-    post_end : Connection
-        The post's end, which the fork inherits and closes.
-    pieces : iterator of Toolpath
-        The CL reader's pieces (its state, as far as the post's process had taken it, comes
-        with the fork).
-    """
-    if not _detach(post_end):
-        return
-    while True:
-        try:
-            answer: tuple[bool, Toolpath | Exception | None] = (True, next(pieces, None))
-        except Exception as exc:  # raised where the pieces are taken, in their order
-            answer = (False, _sendable(exc, "reading the CL data"))
-        try:
-            conn.send(answer)
-        except OSError:  # the post is gone
-            return
-        if not answer[0] or answer[1] is None:
-            return
-
-
-class ReadAhead:
-    """The pieces of a CL reader (:func:`urdfpost.readers.read_cl_chunks`), read in a process
-    of their own while this one works on the ones before: an iterator of :class:`Toolpath`.
-
-    The reader process is forked (:data:`FORK`) when the first piece is asked for, and carries
-    the CL reader's state over as it is; from then on only it reads the file. It reads one
-    piece ahead and sends it pickled over a pipe, which takes the piece when it is asked for
-    here (memory stays bounded). A piece's reader warnings come with it; an error of the
-    reading (a :class:`~urdfpost.errors.CLDataError` of a bad line late in the file) is raised
-    here, with its file, line and message, once the pieces before it have been taken, as the
-    CL reader raises it. Without ``parallel``, or where processes are not forked, the pieces
-    are read here as they are asked for.
-
-    The reader never outlives the post, as the verification worker (module docstring): it
-    ignores Ctrl-C, takes the default action on ``SIGTERM`` (:meth:`close` terminates it) and
-    is killed with the post's process. Use it as a context manager, or call :meth:`close`.
-
-    Parameters
-    ----------
-    pieces : iterable of Toolpath
-        Consecutive pieces of the CL data; not iterated here once the reader has started.
-    parallel : bool
-        Read them in a process of their own (where processes are forked).
-    """
-
-    def __init__(self, pieces: Iterable[Toolpath], parallel: bool) -> None:
-        self.pieces = iter(pieces)
-        self.parallel = parallel and FORK
-        self.conn: Connection | None = None
-        self.process: BaseProcess | None = None
-        self.pid: int | None = None  # the reader process's, once started
-        self.done = False  # the pieces have ended (or failed): no more
-
-    def __iter__(self) -> ReadAhead:
-        return self
-
-    def __next__(self) -> Toolpath:
-        if self.done:
-            raise StopIteration
-        if not self.parallel:
-            return next(self.pieces)
-        if self.conn is None:
-            self._start()
-        assert self.conn is not None
-        try:
-            ok, value = self.conn.recv()
-        except (EOFError, OSError):
-            raise self._gone() from None
-        if not ok or value is None:  # (the reader has stopped)
-            self.close()
-            if not ok:
-                raise value
-            raise StopIteration
-        assert isinstance(value, Toolpath)
-        return value
-
-    def _start(self) -> None:
-        """Fork the reader process."""
-        context = multiprocessing.get_context("fork")
-        self.conn, child = context.Pipe(duplex=False)
-        self.process = context.Process(
-            target=_read, args=(child, self.conn, self.pieces), daemon=True
-        )
-        try:
-            with _stops_held():
-                self.process.start()
-        except BaseException:  # (a Ctrl-C held back while forking shows here)
-            if self.process.pid is not None:  # started: stopped again
-                self.close()
-            raise
-        finally:
-            child.close()
-        self.pieces = iter(())  # (read there from now on)
-        self.pid = self.process.pid
-        log.info("the CL data is read in process %d", self.pid)
-
-    def _gone(self) -> UrdfpostError:
-        """The error of a reader process that stopped (killed, out of memory)."""
-        assert self.process is not None
-        self.process.join(timeout=10)
-        code = self.process.exitcode
-        self.close()
-        return UrdfpostError(
-            f"the CL reader process (process {self.pid}) stopped with exit code {code} before the "
-            "CL data was read; nothing written"
-        )
-
-    def close(self) -> None:
-        """Stop the reader process (at once: the pieces it reads ahead are not wanted)."""
-        self.done = True
-        process, self.process = self.process, None
-        if process is None:
-            return
-        if process.is_alive():
-            process.terminate()
-        process.join(timeout=10)
-        if process.is_alive():
-            process.kill()
-            process.join()
-        if self.conn is not None:
-            self.conn.close()
-
-    def __enter__(self) -> ReadAhead:
-        return self
-
-    def __exit__(
-        self,
-        kind: type[BaseException] | None,
-        exc: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        self.close()
