@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -295,20 +296,29 @@ def test_a_piece_that_fails_to_post_fails_the_post_first(
     assert not list(tmp_path.iterdir())
 
 
-@pytest.mark.parametrize("parallel", [False, True])
-def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel: bool) -> None:
-    """A CL line the reader rejects in the fourth piece, with the pieces verified in a worker
-    or here: the post raises the reader's error with its file and line, once the pieces before
-    it are posted, and writes nothing."""
-    import urdfpost.posting.stream as stream
-    from urdfpost.errors import CLDataError
-    from urdfpost.readers import read_cl_chunks
-
-    path = write_hemisphere(4000, tmp_path / "bad.apt")
+def bad_late(tmp_path: Path, name: str = "bad.apt", points: int = 4000) -> tuple[Path, int]:
+    """A hemisphere job whose GOTO at file index 3300 or after (line ``bad``, in the
+    fourth piece of 800 points or later) the reader rejects; returns the file and the line."""
+    path = write_hemisphere(points, tmp_path / name)
     lines = path.read_text().splitlines(keepends=True)
     bad = next(k for k in range(3300, len(lines)) if lines[k].startswith("GOTO/"))
     lines[bad] = "GOTO/1.0,2.0,x3.0\n"
     path.write_text("".join(lines))
+    return path, bad + 1
+
+
+@pytest.mark.parametrize("parallel", [False, True], ids=["here", "worker"])
+def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel: bool) -> None:
+    """A CL line the reader rejects in the fourth piece, with the pieces verified in a worker
+    or here: the post raises the reader's error with its file and line, once the pieces before
+    it are posted, writes nothing and leaves no process."""
+    import multiprocessing
+
+    import urdfpost.posting.stream as stream
+    from urdfpost.errors import CLDataError
+    from urdfpost.readers import read_cl_chunks
+
+    path, bad = bad_late(tmp_path)
     posted = []
     real = stream.post_piece
 
@@ -323,9 +333,73 @@ def test_a_bad_cl_line_late_in_the_file_stops_the_post(tmp_path: Path, parallel:
         with pytest.raises(CLDataError) as err:
             post_stream(pieces, load_machine("dmu50"), out, PostOptions(controller="heidenhain"),
                         piece_points=900, lookahead=100, parallel=parallel)  # fmt: skip
-    assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad + 1)
+    assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad)
     assert len(posted) >= 2  # (the pieces before it were posted)
     assert [p.name for p in tmp_path.iterdir()] == ["bad.apt"]
+    assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize("parallel", [False, True], ids=["here", "workers"])
+def test_a_bad_cl_line_late_in_the_file_stops_the_verify(tmp_path: Path, parallel: bool) -> None:
+    """``verify`` in pieces of CL data with a line the reader rejects in the fourth piece, the
+    pieces verified in workers or here: the reader's error with its file and line, raised once
+    the pieces before it are taken (in order), and no process left."""
+    import multiprocessing
+
+    from urdfpost.errors import CLDataError
+    from urdfpost.posting.readback import CUT_MARGIN, verify_stream
+    from urdfpost.readers import read_cl_chunks
+    from urdfpost.tolerances import Tolerances
+
+    machine = load_machine("dmu50")
+    good = write_hemisphere(4000, tmp_path / "good.apt")
+    program = tmp_path / "good.h"
+    options = PostOptions(controller="heidenhain", tcp=False)
+    post_stream(read_cl_chunks(good, max_points=900, units="mm"), machine, program, options,
+                piece_points=900, lookahead=100, parallel=False)  # fmt: skip
+    path, bad = bad_late(tmp_path)
+    taken: list[int] = []  # the first CL line of each piece taken, in order
+
+    def counted(pieces: Iterator[Toolpath]) -> Iterator[Toolpath]:
+        for piece in pieces:
+            taken.append(int(piece.line[0]))
+            yield piece
+
+    chunks = read_cl_chunks(path, max_points=800 + CUT_MARGIN, units="mm")
+    with pytest.raises(CLDataError) as err:
+        verify_stream(program, counted(chunks), machine, "heidenhain",
+                      tol=Tolerances.for_units("mm"), tool_length=machine.settings.tool_length,
+                      piece_points=800, parallel=parallel)  # fmt: skip
+    assert (Path(err.value.path).name, err.value.line) == ("bad.apt", bad)
+    assert len(taken) >= 3 and taken == sorted(taken)  # the pieces before it, in order
+    assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize("command", ["post", "verify"])
+def test_a_bad_cl_line_of_a_command_in_pieces_writes_nothing(
+    tmp_path: Path, command: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``urdfpost post`` and ``verify`` in pieces: a bad line late in the file is one message
+    with its file and line, exit 1, nothing written."""
+    from urdfpost.cli import main
+
+    good = write_hemisphere(4000, tmp_path / "good.apt")
+    program = tmp_path / "good.h"
+    common = ["-m", "dmu50", "--piece-points", "800", "--report", str(tmp_path / "r.json")]
+    if command == "verify":
+        argv = ["post", str(good), "-m", "dmu50", "-q", "-c", "heidenhain", "-o", str(program)]
+        assert main(argv) == 0
+    capsys.readouterr()
+    path, bad = bad_late(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    if command == "post":
+        argv = ["post", str(path), "-q", "-c", "heidenhain", "-o", str(tmp_path / "x.h")]
+    else:
+        argv = ["verify", str(program), "--cl", str(path)]
+    assert main(argv + common) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"urdfpost: {path}:{bad}: "), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
 def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> None:
