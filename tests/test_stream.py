@@ -402,22 +402,26 @@ def test_a_bad_cl_line_of_a_command_in_pieces_writes_nothing(
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
-def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path) -> None:
+@pytest.mark.parametrize("depth", [1, 2])
+def test_worker_errors_come_back_with_their_file_and_line(tmp_path: Path, depth: int) -> None:
     """An error in the verification worker (here a program line the reader rejects) is raised
-    where the post runs, as the same error with its file and line."""
+    where the post runs, as the same error with its file and line; with two pieces handed over
+    at once, the first piece's error, not the second's (the line after it)."""
     from urdfpost.errors import ProgramParseError
     from urdfpost.posting.check import CheckTarget
     from urdfpost.posting.worker import Checks, PieceJob
     from urdfpost.tolerances import Tolerances
 
     checks = Checks(
-        load_machine("dmu50"), "heidenhain", "prog.h", Tolerances.for_units("mm"), "mm", True
-    )
+        load_machine("dmu50"), "heidenhain", "prog.h", Tolerances.for_units("mm"), "mm", True,
+        depth=depth,
+    )  # fmt: skip
     try:
         piece = toolpath_slice(read_cl(ROOT / "examples/dome.apt"), 0, 2)
         target = CheckTarget(piece, None, 0, 0.0, 2.0, 0.0)
         checks.submit(PieceJob(text="0 BEGIN PGM X MM\nL X1 Y\n", inserts=[], target=target))
-        with pytest.raises(ProgramParseError) as err:
+        with pytest.raises(ProgramParseError) as err:  # (taken before the next is handed over)
+            checks.submit(PieceJob(text="L X2 Z\n", inserts=[], target=target))
             checks.finish()
         assert (err.value.path, err.value.line) == ("prog.h", 2)
     finally:

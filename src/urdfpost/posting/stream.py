@@ -35,13 +35,13 @@ How the pieces join:
 - **Verification** reads back each piece's text with one reader (its modal state carries on
   too) and checks it against the piece's CL points, starting from the last row of the piece
   before: every block of the program is checked once. The figures are merged. On a machine
-  with more than one core the writing and this run in a worker process, one piece behind the
-  planning, so the two share the work (a piece is handed over when the one before is
-  checked: one piece waits at most). A piece that misses its tolerance stops the post all
-  the same. The process (feeds, spindle, tools, length offsets) is checked there too, from
-  the same read (:class:`urdfpost.verification.process.PieceProcess`: the one read serves
-  both checks, and the planning keeps its core), and refused at the end with the message of
-  a whole post.
+  with more than one core the writing and this run in a worker process, behind the
+  planning, so the two share the work (a piece is handed over when the one two before it is
+  checked: one piece waits at most, :data:`~urdfpost.posting.worker.POST_DEPTH`). A piece
+  that misses its tolerance stops the post all the same. The process (feeds, spindle, tools,
+  length offsets) is checked there too, from the same read
+  (:class:`urdfpost.verification.process.PieceProcess`: the one read serves both checks, and
+  the planning keeps its core), and refused at the end with the message of a whole post.
 
 The singular spans of the report are numbered along the pieces' plan paths joined (each join
 once), as :func:`post` numbers them along its plan's path. Figures that depend on the whole job
@@ -81,7 +81,7 @@ from urdfpost.posting.report import (
     StreamFigures,
 )
 from urdfpost.posting.tools import gauge_lengths, tool_sections
-from urdfpost.posting.worker import FORK, Checks, ProgramJob, Writing
+from urdfpost.posting.worker import FORK, POST_DEPTH, Checks, ProgramJob, Writing
 from urdfpost.program import Blocks, Program
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Motion, Toolpath, joined, toolpath_slice
@@ -358,7 +358,15 @@ def post_stream(
                     parallel = FORK and not last and (os.cpu_count() or 1) > 1
                 writing = Writing(dialect, job.block_numbers, str(tmp), blank)
                 checks = Checks(
-                    machine, dialect.name, str(out), tol, units, parallel, True, writing
+                    machine,
+                    dialect.name,
+                    str(out),
+                    tol,
+                    units,
+                    parallel,
+                    True,
+                    writing,
+                    depth=POST_DEPTH,
                 )
             problem = replace(base, toolpath=window, start=start)
             plan = STRATEGIES[job.strategy](problem)

@@ -80,6 +80,11 @@ PARENT_POLL = 1.0
 kernel does not stop the worker with it, and a fork of the post keeps the end of the
 connection open that would tell)."""
 
+POST_DEPTH = 2
+"""Pieces a streamed post hands to its worker at once (:class:`Checks`): the one checked and
+the next, so that neither the planning nor the worker waits for the other on a piece that
+takes one of them longer (one piece more in memory)."""
+
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 _PROCESS = "process check"  # what the post sends for the process check of the pieces checked
 _WRITTEN = "close the program"  # what it sends when all is written (:class:`Writing`)
@@ -493,9 +498,11 @@ class Checks:
     """The pieces' checks, in order: in a worker process while the next piece is planned (the
     two cores of a small machine share the work), or here one after the other.
 
-    One piece is checked at a time; the next is handed over when the one before has been
-    checked, so at most one piece waits (memory stays bounded). With ``process``, the pieces'
-    process is checked there too, from the same read (:meth:`process_check`).
+    One piece is checked at a time. Up to ``depth`` pieces are handed over at once: the one
+    checked and ``depth - 1`` waiting in turn (memory stays bounded); the next is handed over
+    when the oldest has been checked. With two, neither process waits for the other on a
+    piece that takes it longer than the one before (:data:`POST_DEPTH`). With ``process``, the
+    pieces' process is checked there too, from the same read (:meth:`process_check`).
     """
 
     def __init__(
@@ -508,6 +515,7 @@ class Checks:
         parallel: bool,
         process: bool = False,
         writing: Writing | None = None,
+        depth: int = 1,
     ) -> None:
         # per piece: its verification, and a posted piece's of its intended path or a read
         # piece's process findings (:func:`_checked`)
@@ -515,7 +523,8 @@ class Checks:
         self.local: PieceVerifier | None = None
         self.conn: Connection | None = None
         self.process: BaseProcess | None = None
-        self.busy = False  # a job was handed over and its result not taken yet
+        self.depth = max(1, depth)
+        self.waiting = 0  # jobs handed over whose results are not taken yet
         self.sender: threading.Thread | None = None
         self.sent = True  # whether the last job reached the worker
         args = (machine, controller, path, tol, units, process, writing)
@@ -542,7 +551,8 @@ class Checks:
         log.info("streamed pieces are verified in worker process %d", self.process.pid)
 
     def submit(self, job: PieceJob | ProgramJob | ReadPiece) -> None:
-        """Check ``job`` (after the one before, which it waits for in the worker).
+        """Check ``job`` (after those before it, which it waits for in the worker; first the
+        oldest result is taken when ``depth`` jobs are handed over already).
 
         The job is pickled and sent from a thread, so that planning the next piece goes on
         while the worker takes it in.
@@ -550,8 +560,10 @@ class Checks:
         if self.local is not None:
             self.results.append(_checked(self.local, job))
             return
-        self._collect()
-        self.busy = True
+        while self.waiting >= self.depth:
+            self._take_one()
+        self._join_sender()  # (one job is sent at a time, in order)
+        self.waiting += 1
         self.sender = threading.Thread(target=self._send, args=(job,), daemon=True)
         self.sender.start()
 
@@ -607,17 +619,21 @@ class Checks:
         return value
 
     def _collect(self) -> None:
-        if not self.busy:
-            return
-        assert self.conn is not None and self.process is not None
+        """Take the results of every job handed over."""
         self._join_sender()
+        while self.waiting:
+            self._take_one()
+
+    def _take_one(self) -> None:
+        """Take the result of the oldest job handed over (the worker answers in order)."""
+        assert self.conn is not None and self.process is not None
         try:
             if not self.sent:
                 raise OSError("not sent")
             ok, value = self.conn.recv()
         except (EOFError, OSError):
             raise self._gone() from None
-        self.busy = False
+        self.waiting -= 1
         if not ok:
             raise value
         self.results.append(value)
@@ -626,7 +642,7 @@ class Checks:
         """The error of a worker that stopped (killed, out of memory), nothing written."""
         assert self.process is not None
         self.process.join(timeout=10)
-        self.busy = False
+        self.waiting = 0
         return UrdfpostError(
             f"the verification worker (process {self.process.pid}) stopped with exit code "
             f"{self.process.exitcode} before the program was verified; nothing written"
@@ -647,7 +663,7 @@ class Checks:
             self.local.close_output()
         if self.process is None or self.conn is None:
             return
-        if self.busy:
+        if self.waiting:
             self.process.terminate()
             self._join_sender()  # its write fails once the worker is gone
         else:
