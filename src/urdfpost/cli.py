@@ -480,8 +480,8 @@ def build_parser() -> argparse.ArgumentParser:
     po.add_argument(
         "--single-process",
         action="store_true",
-        help="with --piece-points: verify each piece in this process after it is planned (by "
-        "default a second process verifies it while the next is planned)",
+        help="with --piece-points: time, write and verify each piece in this process after it "
+        "is planned (by default a second process does while the next is planned)",
     )
     _planning_arguments(po)
     _job_arguments(po)
