@@ -71,7 +71,7 @@ from urdfpost.posting.body import coolant_after
 from urdfpost.posting.header import HeaderFigures, job_header, stock_box
 from urdfpost.posting.options import Job, PostOptions, resolve
 from urdfpost.posting.piece import Continuation, make_problem, post_piece
-from urdfpost.posting.process import checked_process, one_tool_length
+from urdfpost.posting.process import SpindleState, checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications, program_texts
 from urdfpost.posting.report import (
     Collisions,
@@ -279,23 +279,35 @@ def post_stream(
     offset = 0  # index of the piece's first point in the joined plan paths
     start: np.ndarray | None = None
     last_piece: Toolpath | None = None
-    reader_warnings = list(buffer.warnings)  # the job's, in order
-    _refuse_cycles(buffer)
-    buffer, spindle, notes = checked_process(
-        replace(buffer, warnings=()),
-        feed=job.feed,
-        spindle=job.spindle,
-        units=job.units,
-        spec=dialect.spec,
-        tcp=job.tcp,
-    )
-    reader_warnings += notes
+    reader_warnings: list[str] = []  # the job's, in order
+    spindle: SpindleState | None = None  # where the pieces read so far leave the spindle
     tools: frozenset[int] = frozenset()  # tool numbers seen
     lengths: dict[int, float] = {}  # machine coordinates: each tool's gauge length, mm
-    if not job.tcp:
-        notes, tools = one_tool_length(buffer, job.tool_length, job.units, table=job.tool_table)
-        reader_warnings += notes
-        lengths |= gauge_lengths(buffer, job.tool_length, job.tool_table)
+
+    def taken_in(read: Toolpath) -> Toolpath:
+        """A piece as read, its process checked and filled in (:func:`checked_process`, from
+        where the pieces before left it), its warnings added to the job's and its tools'
+        gauge lengths noted."""
+        nonlocal spindle, tools
+        reader_warnings.extend(read.warnings)
+        _refuse_cycles(read)
+        read, spindle, notes = checked_process(
+            replace(read, warnings=()),
+            feed=job.feed,
+            spindle=job.spindle,
+            units=job.units,
+            state=spindle,
+            spec=dialect.spec,
+            tcp=job.tcp,
+        )
+        reader_warnings.extend(notes)
+        if not job.tcp:
+            notes, tools = one_tool_length(read, job.tool_length, job.units, tools, job.tool_table)
+            reader_warnings.extend(notes)
+            lengths.update(gauge_lengths(read, job.tool_length, job.tool_table))
+        return read
+
+    buffer = taken_in(buffer)
     section = job  # the job with the gauge length of the tool section being posted
     entry: np.ndarray | None = None  # a new tool section: where the one before left the path
     fresh: list[bool] = []  # per piece: it begins a tool section
@@ -317,25 +329,7 @@ def post_stream(
                 if more is None:
                     exhausted = True
                 else:
-                    reader_warnings += more.warnings
-                    _refuse_cycles(more)
-                    more, spindle, notes = checked_process(
-                        replace(more, warnings=()),
-                        feed=job.feed,
-                        spindle=job.spindle,
-                        units=job.units,
-                        state=spindle,
-                        spec=dialect.spec,
-                        tcp=job.tcp,
-                    )
-                    reader_warnings += notes
-                    if not job.tcp:
-                        notes, tools = one_tool_length(
-                            more, job.tool_length, job.units, tools, job.tool_table
-                        )
-                        reader_warnings += notes
-                        lengths |= gauge_lengths(more, job.tool_length, job.tool_table)
-                    pending.append(more)
+                    pending.append(taken_in(more))
                     have += len(more)
             if pending:
                 buffer = joined(buffer, pending)
