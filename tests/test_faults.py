@@ -36,8 +36,9 @@ linux = pytest.mark.skipif(
 
 @pytest.fixture(scope="module")
 def long_cl(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The benchmark's hemisphere raster, 6000 points: a streamed post of a few seconds."""
-    return write_hemisphere(6000, tmp_path_factory.mktemp("cl") / "hemisphere.apt")
+    """The benchmark's hemisphere raster, 40000 points: a streamed post (in pieces of 50
+    points) of several seconds, still running when the tests stop it."""
+    return write_hemisphere(40000, tmp_path_factory.mktemp("cl") / "hemisphere.apt")
 
 
 def session(sid: int) -> list[tuple[int, str]]:

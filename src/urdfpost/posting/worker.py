@@ -17,9 +17,10 @@ process check takes from the pieces before it (:class:`~urdfpost.verification.pr
 the worker compares the piece's feeds and spindle too, with the rows the verification matched
 to the CL points, and hands back what it found with the verification.
 
-The worker never outlives the post: it ignores Ctrl-C (the post stops it), takes the default
-action on ``SIGTERM`` (:meth:`Checks.close` terminates it) and leaves when the post's process is
-gone, even killed outright: on Linux the kernel kills it then (``PR_SET_PDEATHSIG``); elsewhere
+The worker never outlives the post: it ignores Ctrl-C and ``SIGTERM`` (the post stops it:
+a ``SIGTERM`` sent to the whole process group is the post's to report, not a worker's death;
+:meth:`Checks.close` kills it) and leaves when the post's process is gone, even killed
+outright: on Linux the kernel kills it then (``PR_SET_PDEATHSIG``); elsewhere
 it sees the post's end of the connection close, or its parent change, within
 :data:`PARENT_POLL` seconds of the piece it checks. It holds the caller's standard output and
 error no longer than that.
@@ -411,8 +412,10 @@ def _detach(post_end: Connection | None) -> bool:
     """What a worker does first: its own signal handling, the post's end of the connection
     closed (a fork inherits it: the worker would never see the end of the connection), death
     with the post's process. Returns whether that process still runs."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the post, which stops us
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    # Ctrl-C and SIGTERM reach the post, which stops us (a SIGTERM to the process group that
+    # ended us first would be told as a worker's death instead of the post's stop)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # held while forking (_stops_held)
     if post_end is not None:
@@ -664,7 +667,7 @@ class Checks:
         if self.process is None or self.conn is None:
             return
         if self.waiting:
-            self.process.terminate()
+            self.process.kill()  # (it ignores SIGTERM)
             self._join_sender()  # its write fails once the worker is gone
         else:
             with contextlib.suppress(OSError):
