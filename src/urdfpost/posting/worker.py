@@ -128,7 +128,7 @@ class PieceJob:
         section, and shares no row with the piece before)."""
         return cls(
             text=text,
-            inserts=ProgramJob.of(posted, fresh=fresh, last=False).inserts,
+            inserts=_inserts(posted.program),
             target=posted.target,
             fresh=fresh,
         )
@@ -197,7 +197,12 @@ class ProgramJob:
     @property
     def inserts(self) -> list[str]:
         """The texts of the piece's inserted blocks, in order."""
-        return [b.text for b in self.program.parts if isinstance(b, Insert)]
+        return _inserts(self.program)
+
+
+def _inserts(program: Program) -> list[str]:
+    """The texts of ``program``'s inserted blocks, in order (what its reader is given)."""
+    return [b.text for b in program.parts if isinstance(b, Insert)]
 
 
 @dataclass(frozen=True)
