@@ -8,7 +8,7 @@ misses its tolerance. The measuring itself is :mod:`urdfpost.verification`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -82,7 +82,11 @@ def bent_tolerances(tol: Tolerances, angle_tolerance_deg: float, pivot: float) -
 
 
 def check_piece(
-    program: Program, machine: Machine, target: CheckTarget, tol: Tolerances
+    program: Program,
+    machine: Machine,
+    target: CheckTarget,
+    tol: Tolerances,
+    floors: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[Verification, Verification | None]:
     """A piece's program, read back, against the CL data and against its strategy's path.
 
@@ -100,6 +104,10 @@ def check_piece(
     machine : Machine
     target : CheckTarget
     tol : Tolerances
+    floors : (float, float), rad
+        The orientation deviations the program is known to reach against the CL data and
+        against the intended path in the pieces checked before (:class:`PieceLevels`): no
+        block is refined for less (:attr:`urdfpost.verification.Check.orientation_floor`).
 
     Returns
     -------
@@ -111,11 +119,20 @@ def check_piece(
     length = target.tool_length
     if target.intended is None:
         return verify(
-            program, machine, target.cl, tool_length=length, tol=tol, feed_rules=target.feed_rules
+            program,
+            machine,
+            target.cl,
+            tool_length=length,
+            tol=tol,
+            feed_rules=target.feed_rules,
+            orientation_floor=floors[0],
         ), None
     pivot = target.pivot_mm
     loose = bent_tolerances(tol, target.angle_tolerance_deg, pivot)
-    checks = [Check(target.intended, tol), Check(target.cl, loose, pivot)]
+    checks = [
+        Check(target.intended, tol, orientation_floor=floors[1]),
+        Check(target.cl, loose, pivot, orientation_floor=floors[0]),
+    ]
     intended, cl = verify_checks(program, machine, checks, length, feed_rules=target.feed_rules)
     if target.lifts:
         cl = replace(
@@ -127,6 +144,67 @@ def check_piece(
             ],
         )
     return cl, intended
+
+
+@dataclass
+class PieceLevels:
+    """What the pieces of a streamed program checked so far reached, against the CL data and
+    against the paths their strategies intended: the orientation deviation below which the
+    next piece's blocks need no refining (:func:`check_piece`'s ``floors``).
+
+    The merged verification of the pieces
+    (:func:`urdfpost.posting.readback.merge_verifications`) reports the largest orientation
+    deviation of any piece, the largest share of its tolerances any piece takes and that
+    piece's worst CL line. A piece whose blocks stay below the largest
+    orientation deviation reported before it, below its own orientation tolerance times the
+    largest share reported before it, and below its tolerance, changes none of these, nor
+    whether it is within its tolerance; so its blocks below the smallest of the three need no
+    refining. The first piece that reaches the program's largest deviation or share (its
+    maximum with every block refined) reaches these levels and is refined as before, and so
+    reports the same figures. Pieces are taken in order (a later piece never beats an earlier
+    one with the same share).
+
+    Attributes
+    ----------
+    orientation : list of float, rad
+        The largest orientation deviation reported, against the CL data and the intended path.
+    share : list of float
+        The largest share of its tolerances (tip or orientation) a piece took, likewise.
+    """
+
+    orientation: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    share: list[float] = field(default_factory=lambda: [0.0, 0.0])
+
+    def floors(self, tol: Tolerances, target: CheckTarget) -> tuple[float, float]:
+        """The floors for a piece checked with ``tol`` (rad; against the CL data and the intended
+        path), a little below the levels so that their rounding refines no less."""
+        cl_tol = tol
+        if target.intended is not None:
+            cl_tol = bent_tolerances(tol, target.angle_tolerance_deg, target.pivot_mm)
+        out = []
+        for i, t in enumerate((cl_tol, tol)):
+            level = min(self.orientation[i], self.share[i] * t.orientation)
+            out.append(level * (1.0 - _FLOOR_MARGIN))
+        return out[0], out[1]
+
+    def add(self, checks: tuple[Verification, Verification | None]) -> None:
+        """Take in a piece's verifications (of :func:`check_piece`)."""
+        for i, v in enumerate(checks):
+            if v is None:
+                continue
+            self.orientation[i] = max(
+                self.orientation[i], float(np.radians(v.max_orientation_deviation_deg))
+            )
+            share = max(
+                v.max_tip_deviation / v.tip_tolerance,
+                v.max_orientation_deviation_deg / v.orientation_tolerance_deg,
+            )
+            self.share[i] = max(self.share[i], share)
+
+
+_FLOOR_MARGIN = 1e-9
+"""Relative margin below the levels of :class:`PieceLevels` (their conversions from degrees
+and back round)."""
 
 
 def tolerance_error(

@@ -48,7 +48,7 @@ import numpy as np
 
 from urdfpost.errors import UrdfpostError
 from urdfpost.machine import Machine
-from urdfpost.posting.check import CheckTarget, check_piece, tolerance_error
+from urdfpost.posting.check import CheckTarget, PieceLevels, check_piece, tolerance_error
 from urdfpost.program import Blocks, Insert, MoveTable, Program, arcs_as_moves
 from urdfpost.tolerances import Tolerances
 from urdfpost.toolpath import Toolpath
@@ -268,6 +268,7 @@ class PieceVerifier:
         self.path = path
         self.with_process = process
         self.process: PieceProcess | None = None  # made with the first piece's tool length
+        self.levels = PieceLevels()  # what the pieces checked reached (no refining below)
 
     def check(
         self, job: PieceJob, machine: Machine | None = None
@@ -286,10 +287,15 @@ class PieceVerifier:
         readback = read
         if self.previous is not None and not job.fresh:
             readback = _prepended(readback, *self.previous)
-        checks = check_piece(readback, machine or self.machine, job.target, self.tol)
+        floors = self.levels.floors(self.tol, job.target)
+        checks = check_piece(readback, machine or self.machine, job.target, self.tol, floors)
         error = tolerance_error(job.target.cl, checks, self.units, piece=True)
         if error is not None:
+            if any(floors):  # the figures of the message, each block refined
+                checks = check_piece(readback, machine or self.machine, job.target, self.tol)
+                error = tolerance_error(job.target.cl, checks, self.units, piece=True) or error
             raise error
+        self.levels.add(checks)
         if self.with_process:
             self._process(job, read, machine)
         check, intent = checks

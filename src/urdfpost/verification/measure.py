@@ -1026,11 +1026,19 @@ class Check:
     tol : Tolerances
     pivot : float, mm
         The point measured, this far up the tool axis from the tip.
+    orientation_floor : float, rad
+        An orientation deviation the program is known to reach elsewhere (in the pieces of a
+        streamed program checked before this one): no block is refined for an orientation
+        deviation below it, nor below the tolerance. The verification's maximum orientation
+        deviation (and the block it names) is then exact where it reaches the smaller of the
+        two, and below it otherwise; whether it is within the tolerance is always exact.
+        0 (the default): every block that can reach the check's own maximum is refined.
     """
 
     toolpath: Toolpath
     tol: Tolerances
     pivot: float = 0.0
+    orientation_floor: float = 0.0
 
 
 def verify(
@@ -1042,6 +1050,7 @@ def verify(
     tol: Tolerances | None = None,
     pivot: float = 0.0,
     feed_rules: FeedRules | None = None,
+    orientation_floor: float = 0.0,
 ) -> Verification:
     """Run a program through the machine and compare it with the CL data.
 
@@ -1062,6 +1071,8 @@ def verify(
     feed_rules : FeedRules, optional
         How the program's control times its blocks: the tip feed of every feed block is
         measured against the CL feed (:attr:`Verification.feeds`). None: not measured.
+    orientation_floor : float, rad
+        An orientation deviation the program reaches elsewhere (:attr:`Check.orientation_floor`).
 
     Returns
     -------
@@ -1075,6 +1086,7 @@ def verify(
         tol=tol,
         pivot=pivot,
         feed_rules=feed_rules,
+        orientation_floor=orientation_floor,
     )[0]
 
 
@@ -1087,6 +1099,7 @@ def verify_matched(
     tol: Tolerances | None = None,
     pivot: float = 0.0,
     feed_rules: FeedRules | None = None,
+    orientation_floor: float = 0.0,
 ) -> tuple[Verification, np.ndarray | None]:
     """:func:`verify`, and the row of the program reaching each CL point as the verification
     matched them (:func:`~urdfpost.verification.match.match_points`), for a check of the same
@@ -1095,7 +1108,7 @@ def verify_matched(
 
     Parameters
     ----------
-    program, machine, toolpath, tool_length, tol, pivot, feed_rules
+    program, machine, toolpath, tool_length, tol, pivot, feed_rules, orientation_floor
         As :func:`verify`.
 
     Returns
@@ -1109,7 +1122,7 @@ def verify_matched(
     """
     tol = tol or Tolerances.for_units(program.units)
     (check,), matches = _verified(
-        program, machine, [Check(toolpath, tol, pivot)], tool_length, feed_rules
+        program, machine, [Check(toolpath, tol, pivot, orientation_floor)], tool_length, feed_rules
     )
     return check, None if matches is None else matches[0]
 
@@ -1289,7 +1302,7 @@ def _verify_rows(
         for c, part in zip(checks, parts, strict=True)
     ]
     deviations = _block_deviation(
-        feeds, [part.levels(c.tol) for c, part in zip(checks, parts, strict=True)]
+        feeds, [part.levels(c) for c, part in zip(checks, parts, strict=True)]
     )
     out = [
         replace(
@@ -1484,13 +1497,14 @@ class _Comparison:
             row_span=ja_pt[feed_pts],
         )
 
-    def levels(self, tol: Tolerances) -> tuple[float, float]:
+    def levels(self, check: Check) -> tuple[float, float]:
         """What no block needs refining for: the largest deviation at a program row, or (when
-        there is next to none) a billionth of the tolerance (tip mm, squared chord)."""
+        there is next to none) a billionth of the tolerance; for the orientation, at least the
+        check's :attr:`~Check.orientation_floor` within the tolerance (tip mm, squared chord)."""
+        tol = check.tol
         tip_level = max(self.row_tip.max(initial=0.0), _NEGLIGIBLE * tol.tip)
-        chord2_level = max(
-            self.row_chord2.max(initial=0.0), (2.0 * np.sin(_NEGLIGIBLE * tol.orientation / 2)) ** 2
-        )
+        floor = max(min(check.orientation_floor, tol.orientation), _NEGLIGIBLE * tol.orientation)
+        chord2_level = max(self.row_chord2.max(initial=0.0), (2.0 * np.sin(floor / 2)) ** 2)
         return float(tip_level), float(chord2_level)
 
     def _worst_line(
