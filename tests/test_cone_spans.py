@@ -218,3 +218,36 @@ def test_rounds_on_windows_give_the_plan_of_rounds_on_the_whole_path(
         dense = name in ("raster 0.05 mm", "raster 0.5 mm" if margin == 8 else "")
         if machine_name == "dmu50" and dense:
             assert oracle_rounds > 2 and len(full) == 2 and windows, (name, full, oracle_rounds)
+
+
+@pytest.mark.parametrize(
+    ("machine_name", "turns"),
+    [("dmu50", True), ("gantry-ca", False), ("monoblock", True), ("dmu50-nutating", True)],
+)
+def test_the_curve_says_where_it_is_defined_as_evaluating_it_does(
+    machine_name: str, turns: bool
+) -> None:
+    """``realise`` takes where the cone's curve is defined (every position but its turns in
+    place on the pole) from the curve, without evaluating it: the same rows as evaluating it,
+    at the rows and between them, on paths with and without turns in place."""
+    from urdfpost.analysis.testpaths import PATHS
+    from urdfpost.errors import UrdfpostError
+    from urdfpost.planning.problem import curve_defined
+
+    machine = load_machine(machine_name)
+    paths = {**jobs(), **{name: make() for name, make in PATHS.items()}}
+    turning = 0
+    for label, tp in paths.items():
+        problem = Problem(machine, tp, tool_length=machine.settings.tool_length, tol=Tolerances())
+        try:
+            plan = cone.strategy_cone(problem)
+        except UrdfpostError:  # (a test path beyond this machine's travel)
+            continue
+        if plan.curve is None:
+            continue
+        between = (plan.param[:-1, None] + np.linspace(0.0, 1.0, 5)[None, :-1]).ravel()
+        for x in (plan.param, between, plan.param[1:][plan.param[1:] == plan.param[:-1]]):
+            want = np.isfinite(plan.curve(x)).all(axis=1)
+            assert np.array_equal(curve_defined(plan.curve, x), want), label
+        turning += int((~curve_defined(plan.curve, plan.param)).sum())
+    assert bool(turning) == turns, "the paths turn in place on the pole (or do not)"

@@ -129,6 +129,16 @@ class Plan:
         return int(np.sum(up[1:] & ~up[:-1]) + (1 if up.size and up[0] else 0))
 
 
+def curve_defined(curve: Callable[[np.ndarray], np.ndarray], param: np.ndarray) -> np.ndarray:
+    """Where a plan's curve is defined (finite rotary angles) at positions ``param`` (k,),
+    shape (k,) bool: the curve's own ``defined(param)`` where it has one (the same answer
+    without working out the angles), else the curve evaluated."""
+    defined = getattr(curve, "defined", None)
+    if defined is not None:
+        return np.asarray(defined(param), dtype=bool)
+    return np.isfinite(curve(param)).all(axis=1)
+
+
 Strategy = Callable[[Problem], Plan]
 """What every strategy is: ``strategy(problem) -> plan``; ``problem`` is never mutated."""
 

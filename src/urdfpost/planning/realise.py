@@ -24,6 +24,7 @@ from urdfpost.planning.problem import (
     _cutting_point,
     _on_segments,
     at_param,
+    curve_defined,
     tool_axis_of,
 )
 from urdfpost.planning.rewinds import LIFT, RETURN, TURN, rewind_rows
@@ -46,7 +47,7 @@ def realise(problem: Problem, plan: Plan) -> tuple[np.ndarray, np.ndarray, np.nd
     """
     bent = np.zeros(len(plan.param), dtype=bool)
     if plan.curve is not None:
-        bent = np.isfinite(plan.curve(plan.param)).all(axis=1)
+        bent = curve_defined(plan.curve, plan.param)
     return solve_rows(problem, plan.toolpath, plan.param, plan.rotary, plan.lift, bent=bent)
 
 

@@ -172,7 +172,7 @@ class _Round:
     bent: np.ndarray | None
     param: np.ndarray
     rot: np.ndarray
-    curve: Callable[[np.ndarray], np.ndarray] | None
+    curve: _ConeCurve | None
     over: np.ndarray
     solved: PointMemo
 
@@ -429,25 +429,50 @@ def _in_cone(
     return cand
 
 
-def _curve(
-    machine: Machine, tp: Toolpath, param: np.ndarray, rot: np.ndarray
-) -> Callable[[np.ndarray], np.ndarray]:
+def _curve(machine: Machine, tp: Toolpath, param: np.ndarray, rot: np.ndarray) -> _ConeCurve:
+    """The cone's joint curve through its rows (:class:`_ConeCurve`)."""
+    return _ConeCurve(machine, tp, param, rot, param[1:][param[1:] == param[:-1]])
+
+
+@dataclass(frozen=True)
+class _ConeCurve:
     """The cone's joint curve through its rows: the first rotary angle linear in the position,
     the tilt closest to the programmed axis; NaN at a turn in place on the pole (the exact
-    solution between its two rows)."""
-    turns = param[1:][param[1:] == param[:-1]]
-    lo2, hi2 = machine.rotary[1].lower, machine.rotary[1].upper
+    solution between its two rows).
 
-    def curve(x: np.ndarray) -> np.ndarray:
+    Attributes
+    ----------
+    machine : Machine
+    tp : Toolpath
+    param, rot : ndarray, shapes (N,) and (N, 2)
+        The rows (finite).
+    turns : ndarray, shape (k,)
+        The positions of the turns in place (two rows at one position).
+    """
+
+    machine: Machine
+    tp: Toolpath
+    param: np.ndarray
+    rot: np.ndarray
+    turns: np.ndarray
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """The rotary angles at positions ``x`` (k,), shape (k, 2) rad."""
+        machine, param, rot = self.machine, self.param, self.rot
         t1 = np.interp(x, param, rot[:, 0])
         ref = np.interp(x, param, rot[:, 1])
-        _, ax = at_param(tp, x, 0.0)
+        _, ax = at_param(self.tp, x, 0.0)
+        lo2, hi2 = machine.rotary[1].lower, machine.rotary[1].upper
         t2 = np.clip(best_tilt(machine, ax, t1, ref), lo2, hi2)
         out = np.stack([t1, t2], axis=1)
-        out[np.isin(x, turns)] = np.nan
+        out[~self.defined(x)] = np.nan
         return out
 
-    return curve
+    def defined(self, x: np.ndarray) -> np.ndarray:
+        """Where the curve is defined (finite) at positions ``x`` (k,) on the path, shape (k,)
+        bool, without evaluating it: every position but the turns in place (the rows, the CL
+        points and the interpolation between them are finite)."""
+        return ~np.isin(x, self.turns)
 
 
 def _beyond(
