@@ -23,6 +23,51 @@ COMPILED_FROM = 50_000
 are loaded (the fixed cost of numba's import is then a small share)."""
 
 
+_BLAS_PROBE = "scipy.linalg"
+"""What numba imports, the first time its CPU target is made ready in a process, to learn
+whether a BLAS is there for its array functions (:func:`start_numba`)."""
+
+_started = False
+
+
+def start_numba() -> None:
+    """Import numba and make its CPU target ready, without the import of :mod:`scipy.linalg`
+    it makes on the way.
+
+    The first kernel a process calls makes numba's CPU target ready: it imports numba's
+    implementations of the numpy functions, one of which (``numba.np.arraymath``) imports
+    ``scipy.linalg`` only to learn whether a BLAS is there for ``np.dot`` and the like (about a
+    quarter of a second per process, on the critical path of a post and of a verification).
+    No kernel of urdfpost calls a BLAS function, so the target is made ready here with that
+    import failing at once (a ``None`` in :data:`sys.modules` for the moment, taken out again
+    afterwards: ``scipy.linalg`` imports as ever later on); numba then notes that it has no
+    BLAS, which changes only how a kernel that called ``np.dot`` on arrays would be compiled
+    (a loop of its own). Where numba or scipy.linalg is imported already, or numba is missing
+    (the ImportError is the caller's), nothing else is done. Once per process.
+
+    Raises
+    ------
+    ImportError
+        numba is not installed.
+    """
+    global _started
+    if _started:
+        return
+    import numba  # noqa: F401  (ImportError: numba is missing)
+
+    _started = True
+    if _BLAS_PROBE in sys.modules or "numba.np.arraymath" in sys.modules:
+        return
+    from numba.core.registry import cpu_target
+
+    sys.modules[_BLAS_PROBE] = None  # type: ignore[assignment]
+    try:
+        cpu_target.target_context.refresh()
+    finally:
+        if sys.modules.get(_BLAS_PROBE, ...) is None:
+            del sys.modules[_BLAS_PROBE]
+
+
 class Kernels:
     """A module of compiled kernels, imported on first use by a large enough task.
 
@@ -99,6 +144,7 @@ class Kernels:
             return None
         if self.module is None and not self._tried:
             try:  # (a thread asking meanwhile imports it too: the import lock gives it the same)
+                start_numba()
                 self.module = self._load()
             except ImportError:
                 pass
