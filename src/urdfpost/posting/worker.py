@@ -32,11 +32,13 @@ import contextlib
 import ctypes
 import logging
 import math
+import mmap
 import multiprocessing
 import os
 import pickle
 import signal
 import sys
+import tempfile
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -198,6 +200,103 @@ class ProgramJob:
     def inserts(self) -> list[str]:
         """The texts of the piece's inserted blocks, in order."""
         return _inserts(self.program)
+
+
+SHARED_DIR = "/dev/shm"
+"""Where the large arrays of a job travel to the worker, in a file (memory, not disk: tmpfs)
+rather than through the pipe (:class:`_Shared`); jobs go through the pipe where it is not a
+directory."""
+
+SHARED_FROM = 1 << 20
+"""Bytes of arrays from which a job's arrays travel in a file of :data:`SHARED_DIR`."""
+
+_SHARED_PREFIX = "urdfpost-job-"
+
+
+@dataclass(frozen=True)
+class _Shared:
+    """A job pickled with its arrays out of band, written to a file of :data:`SHARED_DIR`
+    (:func:`_share`): the worker maps the file and takes the arrays in as they are
+    (:func:`_taken`), where the pipe would copy them four times (pickled, written, read,
+    unpickled).
+
+    Attributes
+    ----------
+    data : bytes
+        The pickle, without the arrays' bytes.
+    path : str
+        The file of the arrays' bytes, one after the other (the worker removes it).
+    sizes : list of int
+        Bytes of each array, in order.
+    """
+
+    data: bytes
+    path: str
+    sizes: list[int]
+
+
+def _share(job: object) -> _Shared | None:
+    """``job`` with its arrays in a file of :data:`SHARED_DIR`, or None where they are fewer
+    than :data:`SHARED_FROM` bytes or there is no such directory (the job goes whole)."""
+    if not os.path.isdir(SHARED_DIR):
+        return None
+    buffers: list[pickle.PickleBuffer] = []
+    data = pickle.dumps(job, protocol=5, buffer_callback=buffers.append)
+    raws = [b.raw() for b in buffers]
+    if sum(r.nbytes for r in raws) < SHARED_FROM:
+        return None
+    fd, path = tempfile.mkstemp(prefix=f"{_SHARED_PREFIX}{os.getpid()}-", dir=SHARED_DIR)
+    try:
+        with os.fdopen(fd, "wb") as out:
+            for raw in raws:
+                out.write(raw)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+        raise
+    return _Shared(data, path, [r.nbytes for r in raws])
+
+
+def _taken(shared: _Shared) -> Any:
+    """The job of :func:`_share`, its arrays on the file's pages (mapped copy-on-write: the
+    job may write to them), the file removed."""
+    try:
+        with open(shared.path, "rb") as f:
+            mapped = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_COPY) if shared.sizes else None
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(shared.path)
+    views = []
+    if mapped is not None:
+        whole, at = memoryview(mapped), 0
+        for size in shared.sizes:
+            views.append(whole[at : at + size])
+            at += size
+    return pickle.loads(shared.data, buffers=views)
+
+
+def _stale_shared() -> None:
+    """Remove the files of :func:`_share` that posts which are gone left (killed before their
+    worker took the job in)."""
+    with contextlib.suppress(OSError):
+        for name in os.listdir(SHARED_DIR):
+            if not name.startswith(_SHARED_PREFIX):
+                continue
+            pid = name[len(_SHARED_PREFIX) :].split("-", 1)[0]
+            if pid.isdigit() and not _alive(int(pid)):
+                with contextlib.suppress(OSError):
+                    os.unlink(os.path.join(SHARED_DIR, name))
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (or may: one of another user's)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def _inserts(program: Program) -> list[str]:
@@ -460,9 +559,12 @@ def _next_job(conn: Connection) -> PieceJob | ProgramJob | ReadPiece | str | Non
             return None
         if ready:
             try:
-                job: PieceJob | ProgramJob | ReadPiece | str | None = conn.recv()
+                job: PieceJob | ProgramJob | ReadPiece | _Shared | str | None = conn.recv()
             except (EOFError, OSError):  # the post's end closed
                 return None
+            if isinstance(job, _Shared):
+                taken: PieceJob | ProgramJob | ReadPiece = _taken(job)
+                return taken
             return job
 
 
@@ -541,6 +643,7 @@ class Checks:
         self.waiting = 0  # jobs handed over whose results are not taken yet
         self.sender: threading.Thread | None = None
         self.sent = True  # whether the last job reached the worker
+        self.shared: list[str] = []  # the files of the jobs' arrays (:func:`_share`)
         args = (machine, controller, path, tol, units, process, writing)
         if not parallel:
             self.local = PieceVerifier(*args)
@@ -550,6 +653,7 @@ class Checks:
         context = (
             multiprocessing.get_context("fork") if FORK else multiprocessing.get_context("spawn")
         )
+        _stale_shared()
         self.conn, child = context.Pipe()
         post_end = self.conn if FORK else None  # for a forked worker to close
         self.process = context.Process(target=_serve, args=(child, post_end, *args), daemon=True)
@@ -584,7 +688,12 @@ class Checks:
     def _send(self, job: PieceJob | ProgramJob | ReadPiece) -> None:
         assert self.conn is not None
         try:
-            self.conn.send(job)
+            shared = None
+            with contextlib.suppress(OSError):  # (no room there: through the pipe)
+                shared = _share(job)  # its arrays in a file, where they are many
+            if shared is not None:
+                self.shared.append(shared.path)
+            self.conn.send(job if shared is None else shared)
         except OSError:  # a broken pipe: the worker is gone (reported by _collect)
             self.sent = False
 
@@ -689,6 +798,10 @@ class Checks:
             self.process.join()
         self.conn.close()
         self.process = None
+        for path in self.shared:  # (those of jobs the worker did not take in)
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+        self.shared.clear()
 
 
 class ReadChecks:
