@@ -29,6 +29,9 @@ _SCRIPT = textwrap.dedent(
     import numba.np.arraymath
 
     assert numba.np.arraymath._HAVE_BLAS is False  # what start_numba changes, and only that
+    import numba.np.linalg
+
+    assert numba.np.linalg.ensure_blas.__name__ == "ensure_blas"  # the probe put back
     import scipy.linalg
 
     assert scipy.linalg.norm([3.0, 4.0]) == 5.0

@@ -39,11 +39,12 @@ def start_numba() -> None:
     ``scipy.linalg`` only to learn whether a BLAS is there for ``np.dot`` and the like (about a
     quarter of a second per process, on the critical path of a post and of a verification).
     No kernel of urdfpost calls a BLAS function, so the target is made ready here with that
-    import failing at once (a ``None`` in :data:`sys.modules` for the moment, taken out again
-    afterwards: ``scipy.linalg`` imports as ever later on); numba then notes that it has no
-    BLAS, which changes only how a kernel that called ``np.dot`` on arrays would be compiled
-    (a loop of its own). Where numba or scipy.linalg is imported already, or numba is missing
-    (the ImportError is the caller's), nothing else is done. Once per process.
+    probe (``numba.np.linalg.ensure_blas``, which ``numba.np.arraymath`` takes in as it is
+    imported) failing at once; it is put back right after, so numba's linear algebra and
+    ``scipy.linalg`` work as ever later on. numba then notes that it has no BLAS, which
+    changes only how a kernel that called ``np.dot`` on arrays would be compiled (a loop of its
+    own). Where numba or scipy.linalg is imported already, or numba is missing (the ImportError
+    is the caller's), nothing else is done. Once per process.
 
     Raises
     ------
@@ -58,14 +59,18 @@ def start_numba() -> None:
     _started = True
     if _BLAS_PROBE in sys.modules or "numba.np.arraymath" in sys.modules:
         return
+    import numba.np.linalg as linalg
     from numba.core.registry import cpu_target
 
-    sys.modules[_BLAS_PROBE] = None  # type: ignore[assignment]
+    def no_probe() -> None:
+        raise ImportError("no BLAS probe (urdfpost._compiled.start_numba)")
+
+    probe = linalg.ensure_blas
+    linalg.ensure_blas = no_probe  # what numba.np.arraymath takes for its probe
     try:
         cpu_target.target_context.refresh()
     finally:
-        if sys.modules.get(_BLAS_PROBE, ...) is None:
-            del sys.modules[_BLAS_PROBE]
+        linalg.ensure_blas = probe
 
 
 class Kernels:
