@@ -104,6 +104,24 @@ def byte_compiled() -> Path:
     return folder
 
 
+WARM_POINTS = 100_000
+"""CL points of the post and verify run before the measured ones (:func:`warm_up`)."""
+
+
+def warm_up(exe: list[str], folder: Path) -> int:
+    """Run a post and a verify of the :data:`WARM_POINTS` job once, unmeasured: numba's cache
+    of compiled kernels is kept per source file, so the first commands of a tree not run
+    before (a fresh ``git archive`` of another revision) compile every kernel, about 15 s that
+    an install pays once. Returns the points."""
+    path = ensure_file(WARM_POINTS)
+    program = folder / "warm.h"
+    post = [*exe, "post", str(path), "-m", MACHINE, "-c", CONTROL, "--no-tcp", "-q"]
+    subprocess.run([*post, "-o", str(program)], capture_output=True, check=True)
+    verify = [*exe, "verify", str(program), "-m", MACHINE, "--cl", str(path)]
+    subprocess.run([*verify, "--angle-tolerance", "2.5"], capture_output=True, check=True)
+    return WARM_POINTS
+
+
 def sha256(path: Path) -> str:
     digest = hashlib.sha256()
     with open(path, "rb") as handle:
@@ -127,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"byte-compiled {byte_compiled()} (as an install does)")
     medians: dict[str, dict[int, float]] = {"post": {}, "verify": {}}
     with tempfile.TemporaryDirectory() as tmp:
+        warmed = warm_up(exe, Path(tmp))
+        print(f"numba's cache warmed (a post and a verify of {warmed} points, not measured)")
         for n in sizes:
             path = ensure_file(n)
             floor = floor_seconds(path)
