@@ -195,11 +195,17 @@ class PieceLevels:
             self.orientation[i] = max(
                 self.orientation[i], float(np.radians(v.max_orientation_deviation_deg))
             )
-            share = max(
-                v.max_tip_deviation / v.tip_tolerance,
-                v.max_orientation_deviation_deg / v.orientation_tolerance_deg,
-            )
-            self.share[i] = max(self.share[i], share)
+            self.share[i] = max(self.share[i], tolerance_share(v))
+
+
+def tolerance_share(v: Verification) -> float:
+    """The larger share of its tolerance a verification's tip or orientation deviation takes
+    (the piece whose :attr:`~Verification.worst_cl_line` a merged verification names:
+    :func:`urdfpost.posting.readback.merge_verifications`)."""
+    return max(
+        v.max_tip_deviation / v.tip_tolerance,
+        v.max_orientation_deviation_deg / v.orientation_tolerance_deg,
+    )
 
 
 _FLOOR_MARGIN = 1e-9

@@ -16,6 +16,7 @@ from urdfpost.dialects import dialect_for
 from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting import PIECE_POINTS
+from urdfpost.posting.check import tolerance_share
 from urdfpost.posting.tools import Section, gauge_lengths, program_sections, tool_sections
 from urdfpost.posting.worker import FORK, ReadChecks, ReadPiece
 from urdfpost.program import Blocks, Move, MoveTable, Program, Smoothing, rewind_moves
@@ -85,7 +86,7 @@ def merge_verifications(parts: list[Verification], fresh: Sequence[bool] = ()) -
         mean_tip_deviation=float(mean),
         max_orientation_deviation_deg=max(v.max_orientation_deviation_deg for v in parts),
         max_rotary_step_deg=steps,
-        worst_cl_line=max(parts, key=_excess).worst_cl_line,
+        worst_cl_line=max(parts, key=tolerance_share).worst_cl_line,
         # each piece is within its own: a piece whose strategy bent the tool axis was checked
         # with the bent tolerances (as a whole post checks the whole program), the others with
         # the plain ones; the figures name the loosest, which every piece met
@@ -95,15 +96,6 @@ def merge_verifications(parts: list[Verification], fresh: Sequence[bool] = ()) -
         compared=compared,
         rewind_moves=rewinds,
         feeds=FeedCheck.merged([v.feeds for v in parts if v.feeds is not None]),
-    )
-
-
-def _excess(v: Verification) -> float:
-    """The larger share of its tolerance a verification's tip or orientation deviation takes
-    (the piece whose :attr:`~Verification.worst_cl_line` a merged verification names)."""
-    return max(
-        v.max_tip_deviation / v.tip_tolerance,
-        v.max_orientation_deviation_deg / v.orientation_tolerance_deg,
     )
 
 
