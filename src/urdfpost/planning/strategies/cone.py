@@ -8,10 +8,11 @@
     non-orthogonal machine deviates more than the small-angle formula predicts, the band is
     halved there (up to four times, then the point is exact), and where the curve between two
     rows leaves it, a point is inserted on that CL segment and the cone planned again
-    (:data:`ROUNDS`): the rounds after the first on windows around what it bent, then the
-    whole path once more (:func:`_inserted`). Without a programmed feed there is no time to
-    rate the axis by: it is bent only inside the singular spans, to the least turn per unit
-    path the cone allows.
+    (:data:`ROUNDS`): the rounds after the first on windows around what it bent
+    (:func:`_inserted`), then the last round spliced from the first and the windows' where
+    they converged (:func:`_spliced`), else planned on the whole path once more. Without a
+    programmed feed there is no time to rate the axis by: it is bent only inside the singular
+    spans, to the least turn per unit path the cone allows.
 """
 
 from __future__ import annotations
@@ -72,6 +73,17 @@ WINDOW_MARGIN = 256
 """CL points a window of the rounds after the first reaches beyond what the cone bent, its
 spans and its inserted points (:func:`_inserted`)."""
 
+SPLICE = True
+"""Whether the last round is spliced from round 1 and its windows' last rounds where they
+converged (:func:`_spliced`) instead of planned on the whole path again; False: always the
+whole path (the tests compare the two)."""
+
+SPLICE_BOUND = 1e-9
+"""Largest difference (rad) between a window's last round and round 1 at the points they
+share (their branch choice, and the bent angles at the window's ends) for the two to be
+spliced (:func:`_spliced`): the same angles but for the rounding of the running sums (the
+unwrapped angles, the tube's forward pass), which reaches about 1e-12 rad."""
+
 GEOMETRIC_SHARE = 1e-3
 """Without a feed, the step limits the tube starts from, as a share of the exact path's peak
 turn per unit path measure (the tube raises them to the least that fits the cone)."""
@@ -98,9 +110,10 @@ def strategy_cone(problem: Problem) -> Plan:
     orientation turns faster in the first rotary angle mid-segment than at the ends), a point
     is inserted on the segment where it leaves it most, and the cone is planned again, up to
     :data:`ROUNDS` times. The rounds after the first are planned on windows around what the
-    cone bent (:func:`_inserted`); the plan is always made on the whole path. Each round takes
-    the inverse kinematics of the points it shares with the round before over from it
-    (:func:`_solved`).
+    cone bent (:func:`_inserted`); where those converged, the last round is spliced from the
+    first and the windows' last rounds (:func:`_spliced`), else planned on the whole path
+    again. Each round takes the inverse kinematics of the points it shares with the round
+    before over from it (:func:`_solved`).
 
     A cutting move with no feed has no time to rate the first rotary axis by: in a feed run
     with such a move, the axis is bent only inside the singular spans, to the least peak turn
@@ -115,15 +128,17 @@ def strategy_cone(problem: Problem) -> Plan:
         return _plain(problem, tp, sel, _spans(problem, tp, sel))
     done = 0  # rounds of points inserted
     solved = _solved(problem, len(tp))
+    splice: _Splice | None = None
     while True:
-        r = _planned(problem, tp, solved)
+        spliced = None if splice is None else _spliced(problem, tp, solved, splice)
+        r = _planned(problem, tp, solved) if spliced is None else spliced
         if r.bent is None:
             _say(r.notes)
             plain = _plain(problem, r.tp, r.sel, r.spans)
             return replace(plain, notes=[*r.sel.notes, *r.notes])
         if not r.over.size or done == ROUNDS:
             break
-        tp, rounds, solved = _inserted(problem, r, ROUNDS - done)
+        tp, rounds, solved, splice = _inserted(problem, r, ROUNDS - done)
         log.debug("cone: %d rounds of points inserted where the curve leaves the cone", rounds)
         done += rounds
     assert r.curve is not None
@@ -216,20 +231,24 @@ def _planned(problem: Problem, tp: Toolpath, solved: PointMemo) -> _Round:
     return _Round(tp, sel, spans, notes, bent, param, rot, curve, over, solved)
 
 
-def _inserted(problem: Problem, r: _Round, left: int) -> tuple[Toolpath, int, PointMemo]:
+def _inserted(
+    problem: Problem, r: _Round, left: int
+) -> tuple[Toolpath, int, PointMemo, _Splice | None]:
     """The toolpath of round ``r`` with the points it asks for inserted, and with those the
     next rounds would insert, found on windows of the path; how many rounds of points that is
-    (1 to ``left``); and the inverse kinematics ``r`` computed, on that toolpath.
+    (1 to ``left``); the inverse kinematics ``r`` computed, on that toolpath; and, where the
+    windows' rounds converged (the last asked for no points), ``r`` with the windows' last
+    rounds (:func:`_spliced`), else None.
 
     A round changes the plan only where the cone bends, on the spans and where points are
     inserted: each stretch of ``r`` that has any of these gets a window reaching
     :data:`WINDOW_MARGIN` points beyond them (within the stretch, whose ends the cone keeps
     exact). The next round is planned on each window alone (starting from the angles ``r``
     chose at its first point), and its points inserted; and so on while the windows' branch
-    choice is that of ``r`` and they ask for points. The caller plans the whole path again
-    afterwards: where the windows' rounds are those of the whole path, the toolpath, and so
-    the plan, are the same as after as many rounds on the whole path; where they are not, the
-    whole path's next round inserts what is still missing.
+    choice is that of ``r`` and they ask for points. Where the windows' rounds are those of
+    the whole path, the toolpath is the same as after as many rounds on the whole path; the
+    caller splices the last round, or plans the whole path again, whose next round inserts
+    what is still missing.
     """
     tp, old, _ = insert_points(r.tp, r.over, problem.pivot)
     solved = r.solved.moved(old, len(tp))
@@ -237,14 +256,150 @@ def _inserted(problem: Problem, r: _Round, left: int) -> tuple[Toolpath, int, Po
     pos = old  # index in ``tp`` of each point of ``r.tp``
     rounds = 1
     while rounds < left and windows:
-        over = _window_round(problem, r, tp, pos, windows, solved)
-        if over is None or not over.size:
+        found = _window_round(problem, r, tp, pos, windows, solved)
+        if found is None:
             break
+        over, local = found
+        if not over.size:
+            return tp, rounds, solved, _Splice(r, pos, local)
         tp, old, _ = insert_points(tp, over, problem.pivot)
         solved = solved.moved(old, len(tp))
         pos = old[pos]
         rounds += 1
-    return tp, rounds, solved
+    return tp, rounds, solved, None
+
+
+@dataclass(frozen=True)
+class _Splice:
+    """Round ``first`` on the whole path and the last rounds on its windows, which asked for
+    no points (:func:`_inserted`), on the toolpath they made (:func:`_spliced`).
+
+    Attributes
+    ----------
+    first : _Round
+        The round on the whole path the windows were cut from.
+    pos : ndarray, shape (m,), int
+        The index of each point of ``first.tp`` in the toolpath.
+    local : list of tuple (int, int, _Round)
+        Each window's first and last point in the toolpath, and its last round (on the window
+        alone, its points those of the toolpath from the first to the last).
+    """
+
+    first: _Round
+    pos: np.ndarray
+    local: list[tuple[int, int, _Round]]
+
+
+def _spliced(problem: Problem, tp: Toolpath, solved: PointMemo, s: _Splice) -> _Round | None:
+    """The last round of the cone on ``tp``, spliced from round 1 (``s.first``) outside the
+    windows and from the windows' last rounds inside them; None where they may not be spliced
+    (the caller plans the whole path then).
+
+    Outside the windows nothing changed from round 1: the same points, whose inverse
+    kinematics is a row function (:func:`_solved`); no span, no bent angle and no point
+    inserted (a window reaches :data:`WINDOW_MARGIN` points beyond each); the first round's
+    curve was within the angle tolerance. Inside, each window's last round is the cone planned
+    on the window alone from round 1's angles at its first point, and it asked for no points.
+    They are spliced where:
+
+    - round 1 and every window's last round bent only fed stretches (no notes) and passed over
+      no candidate (no selection notes), and the windows' rows are one per point;
+    - each window's branch choice is round 1's at the points they share (leaving joints but at
+      the window's end, arriving ones but at its start, within :data:`SPLICE_BOUND`; the same
+      rewinds), and its bent angles at its two ends are round 1's there (exact both, but for
+      the tube's rounding);
+    - every span of round 1 lies inside a window, no window's span touches its ends, and round
+      1's settled point (:attr:`urdfpost.planning.branches.Selection.settled`) is outside the
+      windows.
+
+    The tube of a stretch (:func:`_tube`) bends it only where the exact angles turn faster
+    than the steps allow: its forward pass's intervals bind nowhere near a window's ends, where
+    round 1 kept the angles exact, so the whole path's tube bends each window as the window's
+    own does. The branch choice is round 1's at every point it had and the window's at the
+    inserted ones. ``tests/test_cone_splice.py`` compares this round with planning the whole
+    path again, on every machine family.
+    """
+    r = s.first
+    if not SPLICE or r.bent is None or r.notes or r.sel.notes:
+        return None
+    machine = problem.machine
+    cols = list(machine.rotary_columns)
+    n = len(tp)
+    sel = r.sel
+    q = np.empty((n, sel.q.shape[1]))
+    arrive = np.empty_like(q)
+    branch = np.empty(n, dtype=sel.branch.dtype)
+    status = np.empty(n, dtype=sel.status.dtype)
+    rewind = np.zeros(n, dtype=bool)
+    bend = np.empty((n, len(cols)))  # the bent angles less the exact ones
+    covered = np.zeros(n, dtype=bool)
+    q[s.pos], arrive[s.pos], branch[s.pos] = sel.q, sel.arrive, sel.branch
+    status[s.pos], rewind[s.pos], covered[s.pos] = sel.status, sel.rewind, True
+    bend[s.pos] = r.bent - sel.q[:, cols]
+    inside = np.zeros(n, dtype=bool)  # strictly inside a window
+    spans = []
+    for a, b, local in s.local:
+        loc = local.sel
+        if local.bent is None or local.notes or loc.notes or len(local.tp) != b - a + 1:
+            return None
+        own = loc.q[:, cols]
+        ends = local.bent[[0, -1]] - own[[0, -1]]
+        if not _near(ends, bend[[a, b]]):
+            log.debug("cone: the ends of window %d-%d are not round 1's; not spliced", a, b)
+            return None
+        old = covered[a : b + 1]  # round 1's points in the window
+        leave, arrive_at = old.copy(), old.copy()
+        leave[-1] = arrive_at[0] = False  # (the window's own end and start)
+        if not (
+            _near(loc.q[leave], q[a : b + 1][leave])
+            and _near(loc.arrive[arrive_at], arrive[a : b + 1][arrive_at])
+            and np.array_equal(loc.rewind[old], rewind[a : b + 1][old])
+        ):
+            log.debug("cone: window %d-%d chose otherwise than round 1; not spliced", a, b)
+            return None
+        if any(sp.first <= 0 or sp.last >= b - a for sp in local.spans):
+            return None
+        # leaving angles but at the window's end, arriving ones but at its start
+        q[a:b], arrive[a + 1 : b + 1] = loc.q[:-1], loc.arrive[1:]
+        branch[a + 1 : b], status[a + 1 : b] = loc.branch[1:-1], loc.status[1:-1]
+        rewind[a + 1 : b] = loc.rewind[1:-1]
+        bend[a + 1 : b] = local.bent[1:-1] - own[1:-1]
+        covered[a : b + 1] = True
+        inside[a + 1 : b] = True
+        spans += [replace(sp, first=sp.first + a, last=sp.last + a) for sp in local.spans]
+    if not covered.all():
+        return None
+    for sp in r.spans:  # each inside a window (replaced by its own)
+        if not inside[s.pos[sp.first] : s.pos[sp.last] + 1].all():
+            return None
+    settled = sel.settled
+    if settled is not None and settled >= 0:
+        if inside[s.pos[settled]]:
+            return None
+        settled = int(s.pos[settled])
+    sel = replace(
+        sel,
+        q=q,
+        branch=branch,
+        status=status,
+        arrive=arrive,
+        rewind=rewind,
+        notes=[],
+        settled=settled,
+    )
+    spans.sort(key=lambda sp: sp.first)
+    bent = q[:, cols] + bend  # (where nothing was bent, exact to the bit)
+    joints = q.copy()
+    joints[:, cols] = bent
+    param, rot = _turn_at_poles(machine, replace(sel, q=joints), tp)
+    curve = _curve(machine, tp, param, rot)
+    log.debug("cone: the last round spliced from round 1 and %d windows", len(s.local))
+    return _Round(tp, sel, spans, [], bent, param, rot, curve, np.zeros(0), solved)
+
+
+def _near(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether ``a`` and ``b`` differ by at most :data:`SPLICE_BOUND` everywhere."""
+    return bool(np.abs(a - b).max(initial=0.0) <= SPLICE_BOUND)
 
 
 def _windows(machine: Machine, r: _Round) -> list[tuple[int, int]]:
@@ -277,13 +432,15 @@ def _window_round(
     pos: np.ndarray,
     windows: list[tuple[int, int]],
     solved: PointMemo,
-) -> np.ndarray | None:
+) -> tuple[np.ndarray, list[tuple[int, int, _Round]]] | None:
     """The positions on ``tp`` where the next round, planned on each window alone, inserts
-    points, shape (k,); None where a window's branch choice is not that of ``r`` (at the
+    points, shape (k,), and each window's first and last point on ``tp`` with that round; None
+    where a window's branch choice is not that of ``r`` (at the
     points of ``r.tp``, ``pos`` their indices in ``tp``) or it bends nothing. ``solved``: the
     inverse kinematics ``r`` computed, on ``tp``."""
     cols = list(problem.machine.rotary_columns)
     found = []
+    rounds = []
     for ra, rb in windows:
         a, b = int(pos[ra]), int(pos[rb])
         sub = toolpath_slice(tp, a, b + 1)
@@ -302,7 +459,8 @@ def _window_round(
             log.debug("cone: the branch choice of window %d-%d is not the whole path's", a, b)
             return None
         found.append(local.over + a)
-    return np.concatenate(found) if found else np.zeros(0)
+        rounds.append((a, b, local))
+    return (np.concatenate(found) if found else np.zeros(0)), rounds
 
 
 def _say(notes: list[str]) -> None:
