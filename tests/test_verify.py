@@ -377,7 +377,8 @@ def test_cl_points_closer_than_the_tolerance() -> None:
 def _match_sequential(
     cl_tip: np.ndarray, cl_axis: np.ndarray, tip: np.ndarray, axis: np.ndarray, tol: Tolerances
 ) -> np.ndarray:
-    """The definition, one CL point after the other (verify's loop before it was vectorised)."""
+    """The definition, one CL point after the other (verify's loop before it was vectorised;
+    the first row reaching a point moved on to the nearest of the run of rows reaching it)."""
     n_cl, n = len(cl_tip), len(tip)
     out = np.full(n_cl, -1)
     ptr = 0
@@ -400,14 +401,21 @@ def _match_sequential(
                     a = float(np.arcsin(np.array([min(0.5 * chord, 1.0)]))[0])
                     return max(d, a * (2.0 / tol.orientation))
 
-                dist = near(k)
-                while k + 1 < n:
-                    nxt = near(k + 1)
-                    if nxt >= dist:
-                        break
-                    k, dist = k + 1, nxt
-                out[j] = k
-                ptr = k
+                def reaches(r: int, j: int = j) -> bool:
+                    """Tip and axis within their tolerances of point j."""
+                    d = float(np.linalg.norm(tip[r] - cl_tip[j], axis=-1))
+                    a = float(angle_between(axis[r : r + 1], cl_axis[j])[0])
+                    return d <= tol.tip and a <= tol.orientation
+
+                # the nearest row of the run of rows reaching the point (the first of equals)
+                best, dist = k, near(k)
+                r = k + 1
+                while r < n and reaches(r):
+                    if near(r) < dist:
+                        best, dist = r, near(r)
+                    r += 1
+                out[j] = best
+                ptr = best
                 break
             if width >= 4096:
                 break
@@ -807,3 +815,30 @@ def test_matching_falls_back_to_numpy_when_the_compiled_loop_fails(
     assert "compiled matching unavailable (cannot cache function" in caplog.text
     assert match.KERNELS.failed
     np.testing.assert_array_equal(match.match_points(cl_tip, cl_axis, tip, axis, tol), want)
+
+
+def test_a_blip_in_the_nearness_along_a_run_does_not_stop_the_match_early() -> None:
+    """CL points closer together than the tip tolerance, and rows every quarter of a CL segment
+    on the line but the one before each CL point, 2 um off it and so a little farther from the
+    point than the row before (what the read-back's rounding gives near the pole):
+    each CL point is matched to its own row, the nearest of the run reaching it, by the numpy
+    rounds and the compiled loop alike (the first row after which the next was not nearer
+    used to stop at the blip, a CL segment early)."""
+    from urdfpost.verification._match_kernel import match_rows
+    from urdfpost.verification.match import REACH, match_points_numpy
+
+    tol = Tolerances()
+    n_cl, per = 6, 4
+    cl_tip = np.zeros((n_cl, 3))
+    cl_tip[:, 0] = 0.004 * np.arange(n_cl)  # 0.4 of the tip tolerance apart
+    cl_axis = np.tile([0.0, 0.0, 1.0], (n_cl, 1))
+    x = 0.004 * np.arange((n_cl - 1) * per + 1) / per
+    tip = np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1)
+    for j in range(1, n_cl):  # the blip: the row before each point farther than the one before
+        tip[j * per - 1, 1] = 0.002  # (0.00224 mm from the point, against 0.002)
+    axis = np.tile([0.0, 0.0, 1.0], (len(x), 1))
+    want = np.arange(n_cl) * per
+    np.testing.assert_array_equal(match_points_numpy(cl_tip, cl_axis, tip, axis, tol), want)
+    compiled = match_rows(cl_tip, cl_axis, tip, axis, tol.tip, tol.orientation, REACH)
+    np.testing.assert_array_equal(compiled, want)
+    np.testing.assert_array_equal(_match_sequential(cl_tip, cl_axis, tip, axis, tol), want)

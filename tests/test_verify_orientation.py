@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from urdfpost import load_machine
@@ -218,6 +218,9 @@ def _cl_rows(text: str, program: Program, address: str) -> list[tuple[int, float
 
 
 @settings(max_examples=6, deadline=None)
+# the read-back's rounding made the nearness of the rows to a CL point blip along their run, and
+# the matching stopped there, a CL segment early (0.0108 mm against 0.01 at scale 10)
+@example(tilt=[1.0] * 5, turn=[5.0, 5.0, 5.0, 17.375], way=1.0, step=(0, 1, 0), sign=1.0)
 @given(
     tilt=st.lists(st.floats(0.5, 3.0), min_size=5, max_size=5),
     turn=st.lists(st.floats(5.0, 25.0), min_size=4, max_size=4),

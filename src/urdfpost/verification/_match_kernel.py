@@ -57,8 +57,9 @@ def match_rows(
     tol_orientation: float,
     reach: int,
 ) -> np.ndarray:
-    """For each CL point, the first row in ``[ptr, ptr + reach)`` that reaches it, walked on
-    while the next row is strictly nearer, or -1 (``ptr``: the last row matched).
+    """For each CL point, the first row in ``[ptr, ptr + reach)`` that reaches it, moved on to
+    the nearest row of the run of rows from there that reach it, or -1 (``ptr``: the last row
+    matched).
 
     Parameters
     ----------
@@ -93,13 +94,19 @@ def match_rows(
                 break
         if found < 0:
             continue
+        # the nearest row of the run of rows from there that reach the point (first of equals)
         near = _nearness(tip, axis, found, cl_tip, cl_axis, j, tol_tip, scale)
-        while found + 1 < n:
-            after = _nearness(tip, axis, found + 1, cl_tip, cl_axis, j, tol_tip, scale)
-            if not after < near:
+        best = found
+        for r in range(found + 1, n):
+            if _norm(tip[r, 0] - cx, tip[r, 1] - cy, tip[r, 2] - cz) > tol_tip:
                 break
-            found += 1
-            near = after
-        out[j] = found
-        ptr = found
+            across = _norm(axis[r, 0] - ax, axis[r, 1] - ay, axis[r, 2] - az)
+            along = _norm(axis[r, 0] + ax, axis[r, 1] + ay, axis[r, 2] + az)
+            if not 2.0 * np.arctan2(across, along) <= tol_orientation:
+                break
+            after = _nearness(tip, axis, r, cl_tip, cl_axis, j, tol_tip, scale)
+            if after < near:
+                best, near = r, after
+        out[j] = best
+        ptr = best
     return out

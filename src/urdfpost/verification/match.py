@@ -326,31 +326,64 @@ def _nearness(
 
 
 def _walk(
-    cl_tip: VecArrays,
-    tip: VecArrays,
-    cl_axis: VecArrays,
-    axis: VecArrays,
+    cl_xyz: VecArrays,
+    xyz: VecArrays,
+    cl_ijk: VecArrays,
+    ijk: VecArrays,
+    cl_axis: np.ndarray,
+    axis: np.ndarray,
     tol: Tolerances,
     js: np.ndarray,
     k: np.ndarray,
 ) -> np.ndarray:
-    """Rows ``k`` moved on while the next row is strictly nearer to CL points ``js``
-    (:func:`_nearness`), a few rows at a time and then more."""
-    n = len(tip[0])
-    k = k.copy()
-    active = np.arange(len(k))
+    """Rows ``k``, each reaching its CL point of ``js``, moved to the nearest row
+    (:func:`_nearness`, the first of equals) of the run of rows from there that reach it (tip
+    within tolerance, axis within the orientation tolerance, as :func:`_first_reaching` tests
+    them), looked at a few rows at a time and then more.
+
+    The nearest of the whole run, not the first row after which the next is not nearer: where
+    CL points lie closer together than the tip tolerance, the rounding of the written words
+    makes the nearness along the run go up and down by about a thousandth of the tolerance,
+    and the first such blip would stop the walk rows before the one at the point (a
+    micro-step path near the pole: a match a CL segment early, and the blocks after it
+    compared with the wrong segment).
+
+    Parameters
+    ----------
+    cl_xyz, xyz, cl_ijk, ijk : VecArrays
+        Coordinate arrays of the CL points' and the rows' tips (mm) and unit tool axes.
+    cl_axis, axis : ndarray, shapes (n_cl, 3) and (N, 3)
+        The same axes as rows.
+    tol : Tolerances
+    js, k : ndarray, shape (m,), int
+    """
+    n = len(xyz[0])
+    best = k.copy()
+    best_near = _nearness(xyz, cl_xyz, ijk, cl_ijk, tol, k[:, None], js[:, None])[:, 0]
+    nxt = k + 1  # the next row to look at
+    active = np.flatnonzero(nxt < n)
     width = 4
     while active.size:
-        rows = k[active, None] + np.arange(width)
+        rows = nxt[active, None] + np.arange(width)
         safe = np.minimum(rows, n - 1)
-        dist = _nearness(tip, cl_tip, axis, cl_axis, tol, safe, js[active, None])
-        dist[rows >= n] = np.inf  # past the end: not nearer
-        stop = ~(dist[:, 1:] < dist[:, :-1])
-        stops = stop.any(axis=1)
-        k[active] += np.where(stops, np.argmax(stop, axis=1), width - 1)
-        active = active[~stops]
+        j = js[active, None]
+        reach = (_distance(xyz, cl_xyz, safe, j) <= tol.tip) & (rows < n)
+        near = np.nonzero(reach)
+        reach[near] = angle_between(axis[safe[near]], cl_axis[j[near[0], 0]]) <= tol.orientation
+        ends = ~reach
+        stops = ends.any(axis=1)
+        run = np.where(stops, np.argmax(ends, axis=1), width)  # the run's rows in the window
+        dist = _nearness(xyz, cl_xyz, ijk, cl_ijk, tol, safe, j)
+        dist[np.arange(width)[None, :] >= run[:, None]] = np.inf
+        w = np.argmin(dist, axis=1)  # (the first of equals)
+        d = dist[np.arange(len(active)), w]
+        better = d < best_near[active]
+        best[active[better]] = rows[better, w[better]]
+        best_near[active[better]] = d[better]
+        nxt[active] += width
+        active = active[~stops & (nxt[active] < n)]
         width = min(8 * width, 4096)
-    return k
+    return best
 
 
 def _starts(m: np.ndarray, ptr: int) -> np.ndarray:
@@ -434,9 +467,10 @@ def match_points_numpy(
     shares of the tolerances, :func:`_nearness`), or -1.
 
     The definition is sequential: with ``ptr = 0``, for each CL point j in turn, ``m_j`` is the
-    first row in ``[ptr, ptr + REACH)`` that reaches it, walked on while the next row is
-    strictly nearer (CL points closer together than the tolerance, or the rows of a
-    reorientation in place); ``ptr = m_j`` when there is one, else ``ptr`` stays. So ``m_j =
+    first row in ``[ptr, ptr + REACH)`` that reaches it, moved on to the nearest row of the
+    run of rows from there that reach it (CL points closer together than the tolerance, or
+    the rows of a reorientation in place: :func:`_walk`); ``ptr = m_j`` when there is one,
+    else ``ptr`` stays. So ``m_j =
     F_j(ptr_j)``, a function of the start alone, and ``ptr_{j+1}`` is the last match up to j.
 
     It is computed for runs of CL points at once as a fixed point. Guess every start (one row
@@ -478,11 +512,12 @@ def match_points_numpy(
     cl_ijk, ijk = coords(cl_axis), coords(axis)
 
     def evaluate(i: np.ndarray, start: np.ndarray, windows: tuple[int, ...]) -> None:
-        """Results of points i from the given starts: first row reaching, and walked on."""
+        """Results of points i from the given starts: first row reaching, and the nearest of
+        the run from there (:func:`_walk`)."""
         hit = _first_reaching(cl_xyz, cl_axis, xyz, axis, tol, js[i], start, windows)
         first[i], done_for[i] = hit, start
         ok = hit >= 0
-        hit[ok] = _walk(cl_xyz, xyz, cl_ijk, ijk, tol, js[i][ok], hit[ok])
+        hit[ok] = _walk(cl_xyz, xyz, cl_ijk, ijk, cl_axis, axis, tol, js[i][ok], hit[ok])
         m[i] = hit
 
     def holds(i: np.ndarray | int, start: np.ndarray | int) -> np.ndarray | bool:
