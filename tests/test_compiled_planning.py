@@ -361,6 +361,37 @@ def test_the_compiled_deviation_bound_is_numpys(machine_name: str) -> None:
         assert np.array_equal(bits(got), bits(want)), name
 
 
+def test_the_compiled_axis_deviation_is_numpys() -> None:
+    """The angle between the tool axis of rotary angles and given axes (``cone._axis_deviation``)
+    on every shipped machine with rotary axes: random angles over several turns, NaN rows, and
+    axes at the rows' own tool axes (angle 0) and opposite them (pi): the same numbers as
+    numpy's ``angle_between(tool_axis_of(...))`` to the bit."""
+    from urdfpost.machine import list_machines
+    from urdfpost.planning.problem import tool_axis_of
+
+    rng = np.random.default_rng(21)
+    tried = 0
+    for name in sorted(list_machines()):
+        m = load_machine(name)
+        if not m.rotary:
+            continue
+        k, r = 4000, len(m.rotary)
+        rotary = rng.uniform(-3 * np.pi, 3 * np.pi, size=(k, r))
+        rotary[::97] = np.nan
+        axis = rng.normal(size=(k, 3))
+        axis /= np.linalg.norm(axis, axis=1)[:, None]
+        own = tool_axis_of(m, rotary)
+        axis[1::5], axis[2::5] = own[1::5], -own[2::5]
+        use(cone.KERNELS, True)
+        got = cone._axis_deviation(m, rotary, axis)
+        use(cone.KERNELS, False)
+        want = cone._axis_deviation(m, rotary, axis)
+        assert np.array_equal(bits(got), bits(want)), name
+        assert cone.KERNELS.failed is None
+        tried += 1
+    assert tried >= 4
+
+
 # -- without numba, or where it fails -------------------------------------------------------
 
 

@@ -327,3 +327,59 @@ def deviation_bound(
         b1 = _maximum(_maximum(t1 - hi2, lo2 - t1), 0.0)
         out[j] = 0.5 * (dev[first] + dev[last] + turn + alpha[j]) + _maximum(b0, b1)
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def axis_deviation(
+    direction: np.ndarray,
+    home: np.ndarray,
+    cos: np.ndarray,
+    sin: np.ndarray,
+    axis: np.ndarray,
+    across: np.ndarray,
+    along: np.ndarray,
+) -> None:
+    """For the angle between the tool axis of rotary angles and a given axis, row by row
+    (:func:`urdfpost.planning.strategies.cone._axis_deviation`): the home tool axis turned
+    about each rotary joint's direction from the last to the first (Rodrigues, as
+    :func:`urdfpost.kinematics.forward.rotate` turns it: ``((v c + (k x v) s) + (k (k . v))
+    (1 - c))``), then ``|u - v|`` and ``|u + v|`` (:func:`urdfpost.geometry.angle_between`
+    takes ``2 atan2`` of them: numpy's, whose last bit differs from the C library's that numba
+    calls), in numpy's order of operations.
+
+    Parameters
+    ----------
+    direction : ndarray, shape (r, 3)
+        The rotary joints' unit directions, in chain order.
+    home : ndarray, shape (3,)
+        The tool axis at home.
+    cos, sin : ndarray, shape (k, r)
+        The cosine and sine of every angle (worked out by numpy).
+    axis : ndarray, shape (k, 3)
+        The axes to compare with.
+
+    Returns
+    -------
+    None
+        Written: ``across`` and ``along``, shape (k,).
+    """
+    r = direction.shape[0]
+    for i in range(cos.shape[0]):
+        x0, x1, x2 = home[0], home[1], home[2]
+        for j in range(r - 1, -1, -1):
+            k0, k1, k2 = direction[j, 0], direction[j, 1], direction[j, 2]
+            c, s = cos[i, j], sin[i, j]
+            kv = k0 * x0 + k1 * x1 + k2 * x2
+            rest = 1.0 - c
+            c0 = k1 * x2 - k2 * x1
+            c1 = k2 * x0 - k0 * x2
+            c2 = k0 * x1 - k1 * x0
+            x0, x1, x2 = (
+                x0 * c + c0 * s + k0 * kv * rest,
+                x1 * c + c1 * s + k1 * kv * rest,
+                x2 * c + c2 * s + k2 * kv * rest,
+            )
+        d0, d1, d2 = x0 - axis[i, 0], x1 - axis[i, 1], x2 - axis[i, 2]
+        e0, e1, e2 = x0 + axis[i, 0], x1 + axis[i, 1], x2 + axis[i, 2]
+        across[i] = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        along[i] = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)

@@ -402,6 +402,33 @@ def _near(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.abs(a - b).max(initial=0.0) <= SPLICE_BOUND)
 
 
+def _axis_deviation(machine: Machine, rotary: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """The angle between the tool axis of rotary angles ``rotary`` (k, r) rad and ``axis`` (k,
+    3), shape (k,) rad: ``angle_between(tool_axis_of(machine, rotary), axis)``, compiled where
+    the kernels are loaded (:data:`KERNELS`; the cosines, sines and ``arctan2`` by numpy, the
+    rest in numpy's order of operations: the same numbers,
+    :func:`urdfpost.planning.strategies._cone_kernel.axis_deviation`)."""
+    kernel = KERNELS.loaded()
+    if kernel is not None and len(rotary) and machine.rotary:
+        cols = range(rotary.shape[1])
+        try:
+            across, along = np.empty(len(rotary)), np.empty(len(rotary))
+            kernel.axis_deviation(
+                np.array([a.direction for a in machine.rotary], dtype=float),
+                np.ascontiguousarray(machine.home_tool_axis, dtype=float),
+                np.stack([np.cos(rotary[:, j]) for j in cols], axis=1),
+                np.stack([np.sin(rotary[:, j]) for j in cols], axis=1),
+                np.ascontiguousarray(axis, dtype=float),
+                across,
+                along,
+            )
+            out: np.ndarray = 2.0 * np.arctan2(across, along)
+            return out
+        except Exception as err:  # numba could not compile or cache it here
+            KERNELS.fail(err)
+    return angle_between(tool_axis_of(machine, rotary), axis)
+
+
 def _windows(machine: Machine, r: _Round) -> list[tuple[int, int]]:
     """Windows [a, b] (indices of ``r.tp``) around what round ``r`` bent, its spans and the
     points it inserts, one per stretch that has any of them (:func:`_inserted`); none where
@@ -578,7 +605,7 @@ def _in_cone(
         t2 = best_tilt(machine, axis, theta, tilt)
         t2 = np.clip(t2, machine.rotary[1].lower, machine.rotary[1].upper)
         cand = np.stack([theta, t2], axis=1)
-        dev = angle_between(tool_axis_of(machine, cand), axis)
+        dev = _axis_deviation(machine, cand, axis)
         over = dev > problem.angle_tolerance * (1 + 1e-9)
         if not over.any():
             break
@@ -662,7 +689,7 @@ def _beyond(
     _, prog = at_param(tp, x, 0.0)
     dev = np.zeros(len(x))
     ok = np.isfinite(on_curve).all(axis=1)
-    dev[ok] = angle_between(tool_axis_of(problem.machine, on_curve[ok]), prog[ok])
+    dev[ok] = _axis_deviation(problem.machine, on_curve[ok], prog[ok])
     per_segment = dev.reshape(len(feed), len(frac))
     worst = np.argmax(per_segment, axis=1)
     bad = per_segment[np.arange(len(feed)), worst] > problem.angle_tolerance * (1 + 1e-9)
@@ -707,7 +734,7 @@ def _deviation_bound(
     compiled (:func:`urdfpost.planning.strategies._cone_kernel.deviation_bound`, the same
     numbers).
     """
-    dev = angle_between(tool_axis_of(machine, rot), tp.axis[param.astype(int)])
+    dev = _axis_deviation(machine, rot, tp.axis[param.astype(int)])
     alpha = angle_between(tp.axis[seg], tp.axis[seg + 1])
     tilt, lo2, hi2 = rot[:, 1], machine.rotary[1].lower, machine.rotary[1].upper
     kernel = KERNELS.loaded()
