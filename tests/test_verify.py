@@ -378,7 +378,8 @@ def _match_sequential(
     cl_tip: np.ndarray, cl_axis: np.ndarray, tip: np.ndarray, axis: np.ndarray, tol: Tolerances
 ) -> np.ndarray:
     """The definition, one CL point after the other (verify's loop before it was vectorised;
-    the first row reaching a point moved on to the nearest of the run of rows reaching it)."""
+    the first row reaching a point moved on to the nearest of the run of rows within both
+    tolerances from there)."""
     n_cl, n = len(cl_tip), len(tip)
     out = np.full(n_cl, -1)
     ptr = 0
@@ -401,16 +402,11 @@ def _match_sequential(
                     a = float(np.arcsin(np.array([min(0.5 * chord, 1.0)]))[0])
                     return max(d, a * (2.0 / tol.orientation))
 
-                def reaches(r: int, j: int = j) -> bool:
-                    """Tip and axis within their tolerances of point j."""
-                    d = float(np.linalg.norm(tip[r] - cl_tip[j], axis=-1))
-                    a = float(angle_between(axis[r : r + 1], cl_axis[j])[0])
-                    return d <= tol.tip and a <= tol.orientation
-
-                # the nearest row of the run of rows reaching the point (the first of equals)
+                # the nearest row of the run of rows within both tolerances (nearness at most
+                # 1; the first of equals)
                 best, dist = k, near(k)
                 r = k + 1
-                while r < n and reaches(r):
+                while r < n and near(r) <= 1.0:
                     if near(r) < dist:
                         best, dist = r, near(r)
                     r += 1

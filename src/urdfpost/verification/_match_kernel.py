@@ -58,8 +58,8 @@ def match_rows(
     reach: int,
 ) -> np.ndarray:
     """For each CL point, the first row in ``[ptr, ptr + reach)`` that reaches it, moved on to
-    the nearest row of the run of rows from there that reach it, or -1 (``ptr``: the last row
-    matched).
+    the nearest row of the run of rows from there whose nearness is at most 1, or -1 (``ptr``:
+    the last row matched).
 
     Parameters
     ----------
@@ -94,17 +94,14 @@ def match_rows(
                 break
         if found < 0:
             continue
-        # the nearest row of the run of rows from there that reach the point (first of equals)
+        # the nearest row of the run of rows from there whose nearness is at most 1 (the
+        # first of equals)
         near = _nearness(tip, axis, found, cl_tip, cl_axis, j, tol_tip, scale)
         best = found
         for r in range(found + 1, n):
-            if _norm(tip[r, 0] - cx, tip[r, 1] - cy, tip[r, 2] - cz) > tol_tip:
-                break
-            across = _norm(axis[r, 0] - ax, axis[r, 1] - ay, axis[r, 2] - az)
-            along = _norm(axis[r, 0] + ax, axis[r, 1] + ay, axis[r, 2] + az)
-            if not 2.0 * np.arctan2(across, along) <= tol_orientation:
-                break
             after = _nearness(tip, axis, r, cl_tip, cl_axis, j, tol_tip, scale)
+            if not after <= 1.0:
+                break
             if after < near:
                 best, near = r, after
         out[j] = best

@@ -330,16 +330,13 @@ def _walk(
     xyz: VecArrays,
     cl_ijk: VecArrays,
     ijk: VecArrays,
-    cl_axis: np.ndarray,
-    axis: np.ndarray,
     tol: Tolerances,
     js: np.ndarray,
     k: np.ndarray,
 ) -> np.ndarray:
     """Rows ``k``, each reaching its CL point of ``js``, moved to the nearest row
-    (:func:`_nearness`, the first of equals) of the run of rows from there that reach it (tip
-    within tolerance, axis within the orientation tolerance, as :func:`_first_reaching` tests
-    them), looked at a few rows at a time and then more.
+    (:func:`_nearness`, the first of equals) of the run of rows from there whose nearness is
+    at most 1 (within both tolerances), looked at a few rows at a time and then more.
 
     The nearest of the whole run, not the first row after which the next is not nearer: where
     CL points lie closer together than the tip tolerance, the rounding of the written words
@@ -352,28 +349,24 @@ def _walk(
     ----------
     cl_xyz, xyz, cl_ijk, ijk : VecArrays
         Coordinate arrays of the CL points' and the rows' tips (mm) and unit tool axes.
-    cl_axis, axis : ndarray, shapes (n_cl, 3) and (N, 3)
-        The same axes as rows.
     tol : Tolerances
     js, k : ndarray, shape (m,), int
     """
     n = len(xyz[0])
     best = k.copy()
-    best_near = _nearness(xyz, cl_xyz, ijk, cl_ijk, tol, k[:, None], js[:, None])[:, 0]
-    nxt = k + 1  # the next row to look at
-    active = np.flatnonzero(nxt < n)
+    best_near = np.full(len(k), np.inf)
+    nxt = k.copy()  # the next row to look at
+    active = np.arange(len(k))
     width = 4
     while active.size:
         rows = nxt[active, None] + np.arange(width)
         safe = np.minimum(rows, n - 1)
-        j = js[active, None]
-        reach = (_distance(xyz, cl_xyz, safe, j) <= tol.tip) & (rows < n)
-        near = np.nonzero(reach)
-        reach[near] = angle_between(axis[safe[near]], cl_axis[j[near[0], 0]]) <= tol.orientation
-        ends = ~reach
+        dist = _nearness(xyz, cl_xyz, ijk, cl_ijk, tol, safe, js[active, None])
+        ends = ~(dist <= 1.0) | (rows >= n)
+        if width == 4:  # (the first window: its first row is the one found, which reaches)
+            ends[:, 0] = False
         stops = ends.any(axis=1)
         run = np.where(stops, np.argmax(ends, axis=1), width)  # the run's rows in the window
-        dist = _nearness(xyz, cl_xyz, ijk, cl_ijk, tol, safe, j)
         dist[np.arange(width)[None, :] >= run[:, None]] = np.inf
         w = np.argmin(dist, axis=1)  # (the first of equals)
         d = dist[np.arange(len(active)), w]
@@ -468,10 +461,10 @@ def match_points_numpy(
 
     The definition is sequential: with ``ptr = 0``, for each CL point j in turn, ``m_j`` is the
     first row in ``[ptr, ptr + REACH)`` that reaches it, moved on to the nearest row of the
-    run of rows from there that reach it (CL points closer together than the tolerance, or
-    the rows of a reorientation in place: :func:`_walk`); ``ptr = m_j`` when there is one,
-    else ``ptr`` stays. So ``m_j =
-    F_j(ptr_j)``, a function of the start alone, and ``ptr_{j+1}`` is the last match up to j.
+    run of rows from there whose nearness is at most 1 (CL points closer together than the
+    tolerance, or the rows of a reorientation in place: :func:`_walk`); ``ptr = m_j`` when
+    there is one, else ``ptr`` stays. So ``m_j = F_j(ptr_j)``, a function of the start alone,
+    and ``ptr_{j+1}`` is the last match up to j.
 
     It is computed for runs of CL points at once as a fixed point. Guess every start (one row
     per CL point after the last match known), evaluate ``F_j`` there over the first rows only
@@ -517,7 +510,7 @@ def match_points_numpy(
         hit = _first_reaching(cl_xyz, cl_axis, xyz, axis, tol, js[i], start, windows)
         first[i], done_for[i] = hit, start
         ok = hit >= 0
-        hit[ok] = _walk(cl_xyz, xyz, cl_ijk, ijk, cl_axis, axis, tol, js[i][ok], hit[ok])
+        hit[ok] = _walk(cl_xyz, xyz, cl_ijk, ijk, tol, js[i][ok], hit[ok])
         m[i] = hit
 
     def holds(i: np.ndarray | int, start: np.ndarray | int) -> np.ndarray | bool:
