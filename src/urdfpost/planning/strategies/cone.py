@@ -222,11 +222,7 @@ def _planned(problem: Problem, tp: Toolpath, solved: PointMemo) -> _Round:
     if bent is None:
         none = np.zeros(0)
         return _Round(tp, sel, spans, notes, None, none, none.reshape(0, 2), None, none, solved)
-    q = sel.q.copy()
-    q[:, list(machine.rotary_columns)] = bent
-    # rows are the CL points, with a turn in place where a row stands on the pole
-    param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
-    curve = _curve(machine, tp, param, rot)
+    param, rot, curve = _rows(machine, tp, sel, bent)
     over = _beyond(problem, tp, curve, param, rot)
     return _Round(tp, sel, spans, notes, bent, param, rot, curve, over, solved)
 
@@ -389,10 +385,7 @@ def _spliced(problem: Problem, tp: Toolpath, solved: PointMemo, s: _Splice) -> _
     )
     spans.sort(key=lambda sp: sp.first)
     bent = q[:, cols] + bend  # (where nothing was bent, exact to the bit)
-    joints = q.copy()
-    joints[:, cols] = bent
-    param, rot = _turn_at_poles(machine, replace(sel, q=joints), tp)
-    curve = _curve(machine, tp, param, rot)
+    param, rot, curve = _rows(machine, tp, sel, bent)
     log.debug("cone: the last round spliced from round 1 and %d windows", len(s.local))
     return _Round(tp, sel, spans, [], bent, param, rot, curve, np.zeros(0), solved)
 
@@ -612,6 +605,18 @@ def _in_cone(
         # halved where the orientation left the cone; after HALVINGS, exact there
         scale = np.where(over, 0.0 if attempt == HALVINGS - 1 else scale * 0.5, scale)
     return cand
+
+
+def _rows(
+    machine: Machine, tp: Toolpath, sel: Selection, bent: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, _ConeCurve]:
+    """The cone's rows for the bent angles ``bent`` (n, r) rad at the CL points of ``tp``
+    (branch choice ``sel``): one per CL point, with a turn in place where a row stands on the
+    pole (:func:`_turn_at_poles`), as ``param`` (N,) and ``rot`` (N, r); and their curve."""
+    q = sel.q.copy()
+    q[:, list(machine.rotary_columns)] = bent
+    param, rot = _turn_at_poles(machine, replace(sel, q=q), tp)
+    return param, rot, _curve(machine, tp, param, rot)
 
 
 def _curve(machine: Machine, tp: Toolpath, param: np.ndarray, rot: np.ndarray) -> _ConeCurve:
