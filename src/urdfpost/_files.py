@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from urdfpost import _stops
 from urdfpost.errors import UrdfpostError
 
 log = logging.getLogger(__name__)
@@ -287,6 +288,7 @@ def write_texts(
                     f.write(text)
             except OSError as e:
                 raise UrdfpostError(f"{path}: cannot write: {e.strerror or e}") from e
+        _stops.check()  # a stop lost on the way: nothing is replaced
         # devices and FIFOs next (what cannot be taken back, before any file is replaced)
         for path, tmp in temps.items():
             if not targets[path].regular:

@@ -20,9 +20,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from urdfpost import __version__
+from urdfpost import __version__, _stops
 from urdfpost._files import check_distinct, output_target, temp_file, write_texts
 from urdfpost._memory import keep_freed_memory
+from urdfpost._stops import Terminated
 from urdfpost.errors import UrdfpostError
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.posting.tools import read_tool_table
@@ -1336,9 +1337,10 @@ def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     restore = _setup_logging(args.verbose)
-    signals = _stop_on_sigterm()
+    signals = _stops.install()  # Ctrl-C and SIGTERM: raised, and remembered (_stops.check)
     try:
         code = COMMANDS[args.command](args)
+        _stops.check()  # (one lost after the last place that checks)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return code
     except UsageError as e:
@@ -1357,37 +1359,6 @@ def _run(argv: Sequence[str] | None) -> int:
     finally:
         signals()
         restore()
-
-
-class Terminated(KeyboardInterrupt):
-    """``SIGTERM`` received: raised in the main thread so that the run stops as at Ctrl-C,
-    temporary files removed and the verification worker stopped (exit 143)."""
-
-
-def _stop_on_sigterm() -> Callable[[], None]:
-    """Make ``SIGTERM`` raise :class:`Terminated` (once) in the main thread; returns what
-    restores the handlers of ``SIGTERM`` and ``SIGINT`` as they were. Nothing changes when
-    :func:`main` runs in another thread (only the main thread may handle signals) or when
-    ``SIGTERM`` is not at its default (ignored by whoever started us, or a caller's handler),
-    as Python leaves an ignored ``SIGINT`` alone. (The handlers are put back also after
-    :func:`_ignore_stops`.)"""
-    if threading.current_thread() is not threading.main_thread():
-        return lambda: None
-    saved = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGINT)}
-
-    def terminated(signum: int, frame: object) -> None:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once: the cleanup is not cut short
-        raise Terminated
-
-    if saved[signal.SIGTERM] is signal.SIG_DFL:
-        signal.signal(signal.SIGTERM, terminated)
-
-    def restore() -> None:
-        for s, handler in saved.items():
-            if handler is not None:  # (None: set outside Python, cannot be put back)
-                signal.signal(s, handler)
-
-    return restore
 
 
 def _ignore_stops() -> None:

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from urdfpost import _stops
 from urdfpost.errors import CollisionError, UrdfpostError
 from urdfpost.linearize import subdivide
 from urdfpost.machine import Machine
@@ -370,6 +371,7 @@ def post_piece(
             parts_src += [np.arange(done, s), np.where(lin.source >= 0, lin.source + s, -1)]
             done = e + 1
             inserted_blocks += int(np.sum(lin.source < 0))
+            _stops.check()  # (a stop lost on the way, raised between the runs)
             if progress:
                 progress(int(owner[e] - owner[s]))
         parts_q.append(q[done:])

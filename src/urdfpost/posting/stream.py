@@ -60,6 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
+from urdfpost import _stops
 from urdfpost._files import give_mode, temp_file
 from urdfpost.dialects import Dialect
 from urdfpost.errors import CLDataError, LinearTravelError, ToleranceError
@@ -496,6 +497,7 @@ def post_stream(
         tmp.unlink()
         tmp = final
         give_mode(tmp, out)
+        _stops.check()  # (a stop lost on the way: the old program stays)
         os.replace(tmp, out)
     except LinearTravelError as e:
         tmp.unlink(missing_ok=True)

@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
+from urdfpost import _stops
 from urdfpost.errors import UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting.check import CheckTarget, PieceLevels, check_piece, tolerance_error
@@ -526,6 +527,7 @@ def _detach(post_end: Connection | None) -> bool:
     # ended us first would be told as a worker's death instead of the post's stop)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    _stops.forget()  # (one the post received before the fork is the post's)
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)  # held while forking (_stops_held)
     if post_end is not None:
@@ -670,11 +672,14 @@ class Checks:
 
     def submit(self, job: PieceJob | ProgramJob | ReadPiece) -> None:
         """Check ``job`` (after those before it, which it waits for in the worker; first the
-        oldest result is taken when ``depth`` jobs are handed over already).
+        oldest result is taken when ``depth`` jobs are handed over already). A stop received
+        and lost on the way here is raised first (:func:`urdfpost._stops.check`): every piece
+        passes here.
 
         The job is pickled and sent from a thread, so that planning the next piece goes on
         while the worker takes it in.
         """
+        _stops.check()
         if self.local is not None:
             self.results.append(_checked(self.local, job))
             return
