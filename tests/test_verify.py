@@ -379,11 +379,25 @@ def _match_sequential(
 ) -> np.ndarray:
     """The definition, one CL point after the other (verify's loop before it was vectorised;
     the first row reaching a point moved on to the nearest of the run of rows within both
-    tolerances from there)."""
+    tolerances from there; a point repeating the point before, matched, at the next row or the
+    same one where they reach it)."""
     n_cl, n = len(cl_tip), len(tip)
     out = np.full(n_cl, -1)
     ptr = 0
+
+    def reaches(r: int, j: int) -> bool:
+        d = float(np.linalg.norm(tip[r : r + 1] - cl_tip[j], axis=1)[0])
+        return d <= tol.tip and float(angle_between(axis[r], cl_axis[j])) <= tol.orientation
+
     for j in range(n_cl):
+        repeat = (
+            j > 0 and (cl_tip[j] == cl_tip[j - 1]).all() and (cl_axis[j] == cl_axis[j - 1]).all()
+        )
+        if repeat and out[j - 1] >= 0:  # a dwell: the next row, or the same one, if they reach
+            told = [r for r in (ptr + 1, ptr) if r < n and reaches(r, j)]
+            if told:
+                out[j] = ptr = told[0]
+                continue
         start, width = ptr, 64
         while start < n:
             stop = min(n, start + width)
@@ -406,9 +420,9 @@ def _match_sequential(
                 # 1; the first of equals)
                 best, dist = k, near(k)
                 r = k + 1
-                while r < n and near(r) <= 1.0:
-                    if near(r) < dist:
-                        best, dist = r, near(r)
+                while r < n and (here := near(r)) <= 1.0:
+                    if here < dist:
+                        best, dist = r, here
                     r += 1
                 out[j] = best
                 ptr = best
@@ -429,12 +443,18 @@ def _cl_and_program(
     """A CL path and the points of a program for it, with what real programs have: leading
     moves elsewhere, points inserted on the segments (a few, or runs longer than the first
     search window, or longer than the whole search), points turning in place, CL points
-    closer together than the tolerance or repeated, points moved off (missed) or left out."""
+    closer together than the tolerance or repeated (the tip; with ``p["dwell"]`` the whole
+    point, up to 20 times: a dwell), points moved off (missed) or left out."""
     step = rng.choice(
         [0.0, 0.004, 0.3], size=n_cl, p=[p["repeat"], p["dense"], 1 - p["repeat"] - p["dense"]]
     )
     cl_tip = np.cumsum(_unit(rng.normal(size=(n_cl, 3))) * step[:, None], axis=0)
     cl_axis = _unit(np.array([0.0, 0.0, 1.0]) + np.cumsum(rng.normal(0, 0.003, (n_cl, 3)), axis=0))
+    if p.get("dwell", 0.0):
+        dwell = rng.random(n_cl) < p["dwell"]
+        times = np.where(dwell, rng.choice([2, 5, 20], size=n_cl), 1)
+        cl_tip, cl_axis = np.repeat(cl_tip, times, axis=0), np.repeat(cl_axis, times, axis=0)
+        n_cl = len(cl_tip)
     tips, axes = [rng.normal(0, 50, (3, 3))], [np.tile([0.0, 0.0, 1.0], (3, 1))]
     for j in range(n_cl):
         if j:
@@ -475,6 +495,7 @@ def _cl_and_program(
     drop=st.sampled_from([0.0, 0.02, 0.3]),
     off=st.sampled_from([0.0, 0.02]),
     turn=st.sampled_from([0.0, 0.05]),
+    dwell=st.sampled_from([0.0, 0.03]),
 )
 def test_matching_is_the_sequential_search(
     seed: int,
@@ -485,13 +506,16 @@ def test_matching_is_the_sequential_search(
     drop: float,
     off: float,
     turn: float,
+    dwell: float,
 ) -> None:
     """The numpy rounds and the compiled loop (numba, what ``match_points`` runs from
-    ``COMPILED_FROM`` points on) both find the rows of the sequential definition."""
+    ``COMPILED_FROM`` points on) both find the rows of the sequential definition (with a
+    dwell too: the repeated points take the row before without a search)."""
     from urdfpost.verification._match_kernel import match_rows
     from urdfpost.verification.match import REACH, match_points_numpy
 
     p = {"repeat": repeat, "dense": dense, "insert": insert, "drop": drop, "off": off, "turn": turn}
+    p["dwell"] = dwell
     cl_tip, cl_axis, tip, axis = _cl_and_program(np.random.default_rng(seed), n_cl, p)
     tol = Tolerances()
     want = _match_sequential(cl_tip, cl_axis, tip, axis, tol)
@@ -834,6 +858,35 @@ def test_a_blip_in_the_nearness_along_a_run_does_not_stop_the_match_early() -> N
         tip[j * per - 1, 1] = 0.002  # (0.00224 mm from the point, against 0.002)
     axis = np.tile([0.0, 0.0, 1.0], (len(x), 1))
     want = np.arange(n_cl) * per
+    np.testing.assert_array_equal(match_points_numpy(cl_tip, cl_axis, tip, axis, tol), want)
+    compiled = match_rows(cl_tip, cl_axis, tip, axis, tol.tip, tol.orientation, REACH)
+    np.testing.assert_array_equal(compiled, want)
+    np.testing.assert_array_equal(_match_sequential(cl_tip, cl_axis, tip, axis, tol), want)
+
+
+@pytest.mark.parametrize("rows_per_point", [1, 0], ids=["a-block-each", "one-block"])
+def test_a_dwell_longer_than_the_search_keeps_the_path_after_it(rows_per_point: int) -> None:
+    """A CL point repeated more times than the search looks rows ahead (``REACH``), written
+    as one block per CL point: the repeated points take the dwell's blocks one by one, so the
+    path after the dwell is found (it used to be missed from the dwell's first block on, the
+    nearest of the equal rows), by the numpy rounds, the compiled loop and the definition
+    alike. Written as one block for the whole dwell, every repeat takes that block."""
+    from urdfpost.verification._match_kernel import match_rows
+    from urdfpost.verification.match import REACH, match_points_numpy
+
+    tol = Tolerances()
+    dwell = REACH + 500
+    line = np.zeros((40, 3))
+    line[:, 0] = 0.5 * np.arange(40)
+    cl_tip = np.concatenate([line[:20], np.repeat(line[20:21], dwell, axis=0), line[21:]])
+    cl_axis = np.tile([0.0, 0.0, 1.0], (len(cl_tip), 1))
+    off = np.array([0.0, 0.0005, 0.0])  # (the rows 0.5 um beside the CL points)
+    if rows_per_point:
+        tip, want = cl_tip + off, np.arange(len(cl_tip))
+    else:
+        tip = line + off
+        want = np.concatenate([np.arange(20), np.full(dwell, 20), np.arange(21, 40)])
+    axis = np.tile([0.0, 0.0, 1.0], (len(tip), 1))
     np.testing.assert_array_equal(match_points_numpy(cl_tip, cl_axis, tip, axis, tol), want)
     compiled = match_rows(cl_tip, cl_axis, tip, axis, tol.tip, tol.orientation, REACH)
     np.testing.assert_array_equal(compiled, want)

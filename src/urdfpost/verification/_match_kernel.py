@@ -48,6 +48,39 @@ def _nearness(
 
 
 @njit(cache=True, nogil=True)
+def _reaches(
+    tip: np.ndarray,
+    axis: np.ndarray,
+    r: int,
+    cx: float,
+    cy: float,
+    cz: float,
+    ax: float,
+    ay: float,
+    az: float,
+    tol_tip: float,
+    tol_orientation: float,
+) -> bool:
+    """Whether row r reaches the CL point (cx, cy, cz) with axis (ax, ay, az)."""
+    if _norm(tip[r, 0] - cx, tip[r, 1] - cy, tip[r, 2] - cz) > tol_tip:
+        return False
+    across = _norm(axis[r, 0] - ax, axis[r, 1] - ay, axis[r, 2] - az)
+    along = _norm(axis[r, 0] + ax, axis[r, 1] + ay, axis[r, 2] + az)
+    return bool(2.0 * np.arctan2(across, along) <= tol_orientation)
+
+
+@njit(cache=True, nogil=True)
+def _repeats(cl_tip: np.ndarray, cl_axis: np.ndarray, j: int) -> bool:
+    """Whether CL point j is CL point j - 1 again (tip and axis, to the bit)."""
+    if j == 0:
+        return False
+    for c in range(3):
+        if cl_tip[j, c] != cl_tip[j - 1, c] or cl_axis[j, c] != cl_axis[j - 1, c]:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
 def match_rows(
     cl_tip: np.ndarray,
     cl_axis: np.ndarray,
@@ -59,7 +92,8 @@ def match_rows(
 ) -> np.ndarray:
     """For each CL point, the first row in ``[ptr, ptr + reach)`` that reaches it, moved on to
     the nearest row of the run of rows from there whose nearness is at most 1, or -1 (``ptr``:
-    the last row matched).
+    the last row matched); a CL point that repeats the point before it, matched, takes row
+    ``ptr + 1`` or ``ptr`` where they reach it (:func:`urdfpost.verification.match._repeat_rows`).
 
     Parameters
     ----------
@@ -83,13 +117,20 @@ def match_rows(
     for j in range(n_cl):
         cx, cy, cz = cl_tip[j, 0], cl_tip[j, 1], cl_tip[j, 2]
         ax, ay, az = cl_axis[j, 0], cl_axis[j, 1], cl_axis[j, 2]
+        if _repeats(cl_tip, cl_axis, j):  # a dwell (match._repeat_rows)
+            if out[j - 1] < 0:  # (the same search from the same row: missed again)
+                continue
+            if ptr + 1 < n and _reaches(
+                tip, axis, ptr + 1, cx, cy, cz, ax, ay, az, tol_tip, tol_orientation
+            ):
+                out[j] = ptr = ptr + 1
+                continue
+            if _reaches(tip, axis, ptr, cx, cy, cz, ax, ay, az, tol_tip, tol_orientation):
+                out[j] = ptr
+                continue
         found = -1
         for r in range(ptr, min(ptr + reach, n)):
-            if _norm(tip[r, 0] - cx, tip[r, 1] - cy, tip[r, 2] - cz) > tol_tip:
-                continue
-            across = _norm(axis[r, 0] - ax, axis[r, 1] - ay, axis[r, 2] - az)
-            along = _norm(axis[r, 0] + ax, axis[r, 1] + ay, axis[r, 2] + az)
-            if 2.0 * np.arctan2(across, along) <= tol_orientation:
+            if _reaches(tip, axis, r, cx, cy, cz, ax, ay, az, tol_tip, tol_orientation):
                 found = r
                 break
         if found < 0:

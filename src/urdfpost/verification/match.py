@@ -379,6 +379,57 @@ def _walk(
     return best
 
 
+def _repeats(cl_tip: np.ndarray, cl_axis: np.ndarray) -> np.ndarray:
+    """Which CL points repeat the point before them (tip and axis, to the bit): a dwell.
+
+    Returns
+    -------
+    ndarray, shape (n_cl,), bool
+    """
+    same = np.zeros(len(cl_tip), dtype=bool)
+    if len(cl_tip) > 1:
+        tips = (cl_tip[1:] == cl_tip[:-1]).all(axis=1)
+        same[1:] = tips & (cl_axis[1:] == cl_axis[:-1]).all(axis=1)
+    return same
+
+
+def _repeat_rows(
+    cl_xyz: VecArrays,
+    cl_axis: np.ndarray,
+    xyz: VecArrays,
+    axis: np.ndarray,
+    tol: Tolerances,
+    js: np.ndarray,
+    start: np.ndarray,
+) -> np.ndarray:
+    """The rows of CL points ``js`` that repeat the point before them, searched from
+    ``start`` (the row of the point before, where it was matched): the row after it where
+    that reaches the point, else the row itself where that does; -1 where neither does (the
+    point is searched as any other).
+
+    A dwell written as one block per CL point thus takes its blocks one by one, so the point
+    after it is searched from the dwell's last block (not from its first, which the nearest
+    of a run of equal rows is: every point of a dwell longer than :data:`REACH` rows after it
+    was missed), and each repeated point costs two tests, not the run of the dwell's rows.
+    Where the point before was missed no row at or after the start reaches this one either
+    (the same point, the same start): -1, and the search misses it too.
+
+    Returns
+    -------
+    ndarray, shape (k,), int
+    """
+    n = len(xyz[0])
+    out = np.full(len(js), -1)
+    for step in (1, 0):  # the row after the start, then the start
+        rows = start + step
+        todo = np.flatnonzero((out < 0) & (rows < n))
+        r, j = rows[todo], js[todo]
+        near = _distance(xyz, cl_xyz, r[:, None], j[:, None])[:, 0] <= tol.tip
+        reach = near & (angle_between(axis[r], cl_axis[j]) <= tol.orientation)
+        out[todo[reach]] = r[reach]
+    return out
+
+
 def _starts(m: np.ndarray, ptr: int) -> np.ndarray:
     """Where the search for each point of a run starts, given the results known so far.
 
@@ -463,8 +514,10 @@ def match_points_numpy(
     first row in ``[ptr, ptr + REACH)`` that reaches it, moved on to the nearest row of the
     run of rows from there whose nearness is at most 1 (CL points closer together than the
     tolerance, or the rows of a reorientation in place: :func:`_walk`); ``ptr = m_j`` when
-    there is one, else ``ptr`` stays. So ``m_j = F_j(ptr_j)``, a function of the start alone,
-    and ``ptr_{j+1}`` is the last match up to j.
+    there is one, else ``ptr`` stays. A CL point that repeats the point before it (a dwell)
+    takes the next row, or the same one, where they reach it (:func:`_repeat_rows`). So
+    ``m_j = F_j(ptr_j)``, a function of the start alone, and ``ptr_{j+1}`` is the last match
+    up to j.
 
     It is computed for runs of CL points at once as a fixed point. Guess every start (one row
     per CL point after the last match known), evaluate ``F_j`` there over the first rows only
@@ -503,12 +556,24 @@ def match_points_numpy(
     ptr, j0, size = 0, 0, 1024
     cl_xyz, xyz = coords(cl_tip), coords(tip)
     cl_ijk, ijk = coords(cl_axis), coords(axis)
+    repeats = _repeats(cl_tip, cl_axis)
 
     def evaluate(i: np.ndarray, start: np.ndarray, windows: tuple[int, ...]) -> None:
         """Results of points i from the given starts: first row reaching, and the nearest of
-        the run from there (:func:`_walk`)."""
+        the run from there (:func:`_walk`); a repeated point's by :func:`_repeat_rows` where
+        it tells."""
+        done_for[i] = start
+        again = repeats[js[i]]
+        if again.any():
+            rows = _repeat_rows(cl_xyz, cl_axis, xyz, axis, tol, js[i[again]], start[again])
+            m[i[again]] = rows
+            first[i[again]] = -1  # (its result holds for its start alone)
+            told = np.flatnonzero(again)[rows >= 0]
+            keep = np.ones(len(i), dtype=bool)
+            keep[told] = False
+            i, start = i[keep], start[keep]
         hit = _first_reaching(cl_xyz, cl_axis, xyz, axis, tol, js[i], start, windows)
-        first[i], done_for[i] = hit, start
+        first[i] = np.where(repeats[js[i]], -1, hit)
         ok = hit >= 0
         hit[ok] = _walk(cl_xyz, xyz, cl_ijk, ijk, tol, js[i][ok], hit[ok])
         m[i] = hit
