@@ -298,15 +298,19 @@ def test_orientation_path_chord2_is_the_dense_minimum(
     np.testing.assert_allclose(np.sqrt(at), exact, rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize(("seed", "window"), [(0, 0.036), (1, 2.0), (2, 0.036)])
+@pytest.mark.parametrize(
+    ("seed", "window", "dwell"),
+    [(0, 0.036, False), (1, 2.0, False), (2, 0.036, False), (3, 0.036, True), (4, 2.0, True)],
+)
 def test_long_spans_are_searched_with_bounds_to_the_same_result(
-    seed: int, window: float, monkeypatch: pytest.MonkeyPatch
+    seed: int, window: float, dwell: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Blocks compared with long CL spans (a program that left its path: a run of CL points
     missed) have their far segments ruled out by bounds; the nearest segment (the first of
     equals), its chord and the best chord within the window are those of taking every segment
     in turn, to the bit: on a helix with a run of repeated points (zero-length segments),
-    samples on CL points (ties), near the path and tens of millimetres away."""
+    samples on CL points (ties), near the path and tens of millimetres away. With a dwell (a
+    run of whole CL points repeated, which the search passes over) too."""
     from urdfpost.verification import measure
 
     rng = np.random.default_rng(seed)
@@ -317,12 +321,16 @@ def test_long_spans_are_searched_with_bounds_to_the_same_result(
     tip[500:520] = tip[500]
     axis = rng.standard_normal((n, 3)) * 0.1 + [0.0, 0.0, 1.0]
     axis /= np.linalg.norm(axis, axis=1)[:, None]
+    if dwell:
+        tip[700:1200], axis[700:1200] = tip[700], axis[700]
     polyline = measure._Polyline.of(tip, axis)
+    assert len(polyline.live(1)[0]) == (n - 498 if dwell else n)  # (segments 701..1198 skipped)
     ja = rng.integers(0, n - 1, k)
     jb = np.minimum(ja + rng.integers(0, 1000, k), n - 1)
     jb[:40] = np.minimum(ja[:40] + rng.integers(0, 40, 40), n - 1)
     at = tip[ja][None] + rng.standard_normal((s, k, 3)) * rng.choice([0.01, 1.0, 30.0], (s, k, 1))
     at[0, :20] = tip[np.minimum(ja[:20] + 1, n - 1)]  # on a CL point: equal distances
+    at[1, :20] = tip[700] + 0.01 * rng.standard_normal((20, 3))  # (near the dwell)
     ax = rng.standard_normal((s, k, 3)) * 0.1 + [0.0, 0.0, 1.0]
     ax /= np.linalg.norm(ax, axis=2)[..., None]
     points = (at[..., 0], at[..., 1], at[..., 2])

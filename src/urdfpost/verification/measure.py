@@ -214,6 +214,9 @@ class _Polyline:
         default_factory=dict, compare=False, repr=False
     )
     _omega: list[np.ndarray] = field(default_factory=list, compare=False, repr=False)
+    _live: dict[int, tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     @classmethod
     def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
@@ -247,6 +250,34 @@ class _Polyline:
             ax, ay, az = self.axis
             self._omega.append(Arcs.of_coords(self.axis, (ax[nxt], ay[nxt], az[nxt])).omega)
         return self._omega[0]
+
+    def live(self, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """The groups of ``size`` segments (``size g .. size (g + 1) - 1``) that hold a segment
+        other than the one before it, and how many of them come before each group.
+
+        A segment equal to the one before it (both endpoints and axes to the bit: three CL
+        points in a row at one place, a dwell) is as near any sample as that one is and comes
+        after it, so it is never the nearest (the first of equals), nor another chord within
+        the window: the search passes over it (:func:`_far_segments`), and over a group of
+        such segments only. Made once per size.
+
+        Returns
+        -------
+        groups : ndarray, shape (k,), int
+            Those groups, in order.
+        before : ndarray, shape (ceil(n / size) + 1,), int
+            ``before[g]``: how many of them are less than g.
+        """
+        if size not in self._live:
+            n = len(self)
+            same = np.zeros(n, dtype=bool)  # CL point i is point i - 1 again
+            if n > 1:
+                same[1:] = np.logical_and.reduce([c[1:] == c[:-1] for c in (*self.tip, *self.axis)])
+            repeat = same & np.append(same[1:], True)  # segment i is segment i - 1 again
+            count = np.add.reduceat(~repeat, np.arange(0, n, size)) if n else np.zeros(0, int)
+            groups = np.flatnonzero(count > 0)
+            self._live[size] = (groups, np.searchsorted(groups, np.arange(len(count) + 1)))
+        return self._live[size]
 
     def take(self, index: np.ndarray) -> tuple[Segments, Arcs]:
         """The segments of the tips (mm) and the arcs of the axes (slerp) from CL points
@@ -388,7 +419,9 @@ def _far_segments(
     fine) holds neither the nearest segment nor one within the window, and is not looked into;
     nor is a segment farther than that by its own bound (distance to its midpoint less half its
     length). The bounds get a relative and absolute slack of 1e-9 (mm) against rounding; more
-    segments evaluated change nothing.
+    segments evaluated change nothing. Nor is a segment that is the one before it again, or a
+    group of such segments only (:meth:`_Polyline.live`: a dwell, whose span would otherwise
+    cost its length for every sample of every block over it).
 
     Parameters
     ----------
@@ -406,10 +439,9 @@ def _far_segments(
     ub = np.sqrt(dist2[:, cols]).ravel()  # per key = sample * m + block, from the first segment
     # (key, group) pairs of the coarsest groups, each key's groups over its span
     size = _GROUPS[0]
-    g0, g1 = first // size, (stop - 1) // size
-    count = np.tile(g1 - g0 + 1, s)
-    key = np.repeat(np.arange(s * m), count)
-    grp = _ranges(np.tile(g0, s), count)
+    key, grp = _live_ranges(
+        polyline, size, np.arange(s * m), np.tile(first // size, s), np.tile((stop - 1) // size, s)
+    )
 
     def distance(key: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
         """Distance of each key's sample from the point (x, y, z), mm."""
@@ -443,7 +475,7 @@ def _far_segments(
         finer = _GROUPS[level + 1] if level + 1 < len(_GROUPS) else 1
         lo = np.maximum(grp * size, first[col]) // finer
         hi = (np.minimum(grp * size + size, stop[col]) - 1) // finer
-        key, grp = np.repeat(key, hi - lo + 1), _ranges(lo, hi - lo + 1)
+        key, grp = _live_ranges(polyline, finer, key, lo, hi)
     if not key.size:
         return
     sample, block, index = key // m, cols[key % m], grp
@@ -461,6 +493,18 @@ def _far_segments(
     best = np.full(s * m, np.inf)
     np.minimum.at(best, key, np.where(d2 <= window * window, c2, np.inf))
     within[:, cols] = np.minimum(within[:, cols], best.reshape(s, m))
+
+
+def _live_ranges(
+    polyline: _Polyline, size: int, key: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The (key, group) pairs of every key's groups of ``size`` segments from ``lo`` to ``hi``
+    (inclusive) that hold a segment other than the one before it (:meth:`_Polyline.live`),
+    in order."""
+    groups, before = polyline.live(size)
+    a = before[lo]
+    count = before[hi + 1] - a
+    return np.repeat(key, count), groups[_ranges(a, count)]
 
 
 def _ranges(start: np.ndarray, count: np.ndarray) -> np.ndarray:
