@@ -10,6 +10,13 @@ from dataclasses import dataclass
 
 from urdfpost.units import mm_per_unit
 
+IN_PLACE = 1e-6
+"""Tip path below which (mm) a block turns the tool in place: it has no tip feed to keep or
+compare (a turn at a pole, a reorientation with the tip held); its time is its axes' limit or,
+without one, its axis-space length at the CL feed (:mod:`urdfpost.verification.feeds`), and
+the cone does not limit its first rotary axis' step there
+(:func:`urdfpost.planning.strategies.cone._bend`)."""
+
 
 @dataclass(frozen=True)
 class Tolerances:

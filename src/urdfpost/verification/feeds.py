@@ -42,18 +42,13 @@ from urdfpost.kinematics.forward import ChainArrays, chain_arrays, tip_and_axis_
 from urdfpost.kinematics.inverse import solve_linear
 from urdfpost.machine import Machine
 from urdfpost.program import FEED_INVERSE_TIME, Program
-from urdfpost.tolerances import Tolerances
+from urdfpost.tolerances import IN_PLACE, Tolerances
 from urdfpost.toolpath import Toolpath
 from urdfpost.units import mm_per_unit
 from urdfpost.verification.match import match_points, program_joints, row_poses_at_tip
 
 TIP_SAMPLES = 10
 """Tool tip positions per block (its ends included) whose polyline is the block's tip path."""
-
-IN_PLACE = 1e-6
-"""Tip path below which (mm) a block turns the tool in place: it has no tip feed to compare
-(a turn at a pole; its time is its axes' limit or, without one, its axis-space length at the
-CL feed)."""
 
 _SPEED_SLACK = 1e-9
 """Share by which an axis may exceed its limit (the floating point of the times)."""

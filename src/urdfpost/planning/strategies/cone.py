@@ -52,6 +52,7 @@ from urdfpost.planning.strategies._common import (
 )
 from urdfpost.planning.strategies._pointwise import PointMemo
 from urdfpost.planning.strategies._registry import strategy
+from urdfpost.tolerances import IN_PLACE
 from urdfpost.toolpath import Motion, Toolpath, toolpath_slice
 
 log = logging.getLogger(__name__)
@@ -505,6 +506,10 @@ def _bend(
     with np.errstate(divide="ignore", invalid="ignore"):
         dt = np.where(feed > 0, length / feed, 0.0)
     step_max = 0.95 * vmax * dt
+    # a turn in place (the tip held) has no tip feed to keep: the control takes the time its
+    # axes need, so its step is not limited (a whole turn). Limited by its zero time, such a
+    # turn left the tube no room (every interval closed: quadratic) and bent the whole stretch
+    step_max[(feed > 0) & (length < IN_PLACE)] = 2.0 * np.pi
     measure: np.ndarray | None = None  # path measure of each step, for a run with no feed
     inside = np.zeros(len(tp), dtype=bool)  # strictly inside a span (its ends stay exact)
     for sp in spans:
