@@ -891,3 +891,43 @@ def test_a_dwell_longer_than_the_search_keeps_the_path_after_it(rows_per_point: 
     compiled = match_rows(cl_tip, cl_axis, tip, axis, tol.tip, tol.orientation, REACH)
     np.testing.assert_array_equal(compiled, want)
     np.testing.assert_array_equal(_match_sequential(cl_tip, cl_axis, tip, axis, tol), want)
+
+
+@pytest.mark.parametrize(("seed", "noise"), [(0, 0.0), (1, 1e-4), (2, 3e-3)])
+def test_a_path_back_and_forth_within_the_tolerance_is_matched_as_defined(
+    seed: int, noise: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """CL points alternating between two places 0.001 mm apart (within the tip tolerance of
+    each other), rows at them with or without noise: every point's run is the rest of the
+    program. The compiled loop keeps a memo of the long runs of a point seen before
+    (``_match_kernel._run_memo``), and the numpy rounds hand such a job to it
+    (``_LongRuns``): the rows of the definition either way, in linear time (a 32k-point job
+    took 84 s, now 2 s)."""
+    from urdfpost.verification import match
+    from urdfpost.verification._match_kernel import MEMO_FROM, match_rows
+    from urdfpost.verification.match import REACH, match_points_numpy
+
+    tol = Tolerances()
+    rng = np.random.default_rng(seed)
+    n = 600
+    there = np.where((np.arange(n) % 2 == 0)[:, None], [0.0, 0.0, 5.0], [0.001, 0.0, 5.0])
+    cl_tip = np.concatenate([[[-5.0, 0.0, 5.0]], there, [[5.0, 0.0, 5.0]]])
+    cl_axis = np.tile([0.0, 0.0, 1.0], (len(cl_tip), 1))
+    tip = cl_tip + (rng.normal(0.0, noise, cl_tip.shape) if noise else 0.0)
+    axis = cl_axis.copy()
+    want = _match_sequential(cl_tip, cl_axis, tip, axis, tol)
+    assert (want >= 0).all()
+    if not noise:  # (equal rows: each point its own)
+        np.testing.assert_array_equal(want, np.arange(len(cl_tip)))
+    assert n > MEMO_FROM  # (the runs are memos)
+    compiled = match_rows(cl_tip, cl_axis, tip, axis, tol.tip, tol.orientation, REACH)
+    np.testing.assert_array_equal(compiled, want)
+    np.testing.assert_array_equal(match_points_numpy(cl_tip, cl_axis, tip, axis, tol), want)
+    # the numpy rounds stop at a long run (not with rows 3 um off: short runs), and the
+    # compiled loop takes the job
+    monkeypatch.setattr(match, "_LONG_RUN", 64)
+    if noise < 1e-3:
+        with pytest.raises(match._LongRuns):
+            match_points_numpy(cl_tip, cl_axis, tip, axis, tol, handoff=True)
+    monkeypatch.setattr(match.KERNELS, "start", 10**9)
+    np.testing.assert_array_equal(match.match_points(cl_tip, cl_axis, tip, axis, tol), want)

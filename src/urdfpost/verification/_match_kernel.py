@@ -114,6 +114,11 @@ def match_rows(
     out = np.full(n_cl, -1, dtype=np.int64)
     scale = 2.0 / tol_orientation
     ptr = 0
+    # the memos of the last two long runs (_run_memo): their CL points, rows and matches
+    memo_key = np.full((2, 6), np.nan)
+    memo_lo, memo_hi = np.full(2, -1, dtype=np.int64), np.full(2, -2, dtype=np.int64)
+    memo_0, memo_1 = np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
+    slot = 0
     for j in range(n_cl):
         cx, cy, cz = cl_tip[j, 0], cl_tip[j, 1], cl_tip[j, 2]
         ax, ay, az = cl_axis[j, 0], cl_axis[j, 1], cl_axis[j, 2]
@@ -136,15 +141,91 @@ def match_rows(
         if found < 0:
             continue
         # the nearest row of the run of rows from there whose nearness is at most 1 (the
-        # first of equals)
+        # first of equals); from a long run of a CL point seen before, its memo
+        hit = -1
+        for k in range(2):
+            if memo_lo[k] <= found <= memo_hi[k] and _same(memo_key, k, cl_tip, cl_axis, j):
+                hit = k
+        if hit >= 0:
+            best = (memo_0 if hit == 0 else memo_1)[found - memo_lo[hit]]
+            out[j] = ptr = best
+            continue
         near = _nearness(tip, axis, found, cl_tip, cl_axis, j, tol_tip, scale)
-        best = found
+        best, end = found, n - 1
         for r in range(found + 1, n):
             after = _nearness(tip, axis, r, cl_tip, cl_axis, j, tol_tip, scale)
             if not after <= 1.0:
+                end = r - 1
                 break
             if after < near:
                 best, near = r, after
         out[j] = best
         ptr = best
+        if end - found >= MEMO_FROM:
+            memo = _run_memo(tip, axis, found, end, cl_tip, cl_axis, j, tol_tip, scale)
+            k = slot
+            slot = 1 - slot
+            memo_lo[k], memo_hi[k] = found, end
+            for c in range(3):
+                memo_key[k, c], memo_key[k, 3 + c] = cl_tip[j, c], cl_axis[j, c]
+            if k == 0:
+                memo_0 = memo
+            else:
+                memo_1 = memo
     return out
+
+
+MEMO_FROM = 256
+"""Rows of a run from which :func:`match_rows` keeps its memo (:func:`_run_memo`): only CL
+points within the tolerance of many rows (a path back and forth within the tolerance) have such
+runs, and each point of them would otherwise scan its run again (quadratic)."""
+
+
+@njit(cache=True, nogil=True)
+def _same(key: np.ndarray, k: int, cl_tip: np.ndarray, cl_axis: np.ndarray, j: int) -> bool:
+    """Whether CL point j is the point of memo k (tip and axis, to the bit)."""
+    for c in range(3):
+        if key[k, c] != cl_tip[j, c] or key[k, 3 + c] != cl_axis[j, c]:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _run_memo(
+    tip: np.ndarray,
+    axis: np.ndarray,
+    lo: int,
+    hi: int,
+    cl_tip: np.ndarray,
+    cl_axis: np.ndarray,
+    j: int,
+    tol_tip: float,
+    scale: float,
+) -> np.ndarray:
+    """For every row f of the run ``lo .. hi`` of CL point j (found at ``lo``; every row after
+    it has a nearness of at most 1), the row its scan from f gives: the first of the nearest of
+    ``f .. hi`` (from ``lo`` itself, a row nearer than ``lo`` only).
+
+    The same CL point found again at a row f of the run has the same run from there (its rows
+    after f are the run's; the row after the run is not within 1), so its match is this
+    memo's at f, without the scan.
+
+    Returns
+    -------
+    ndarray, shape (hi - lo + 1,), int64
+        Rows.
+    """
+    m = hi - lo + 1
+    near = np.empty(m)
+    for i in range(m):
+        near[i] = _nearness(tip, axis, lo + i, cl_tip, cl_axis, j, tol_tip, scale)
+    memo = np.empty(m, dtype=np.int64)
+    b = m - 1
+    for i in range(m - 1, 0, -1):
+        if near[i] <= near[b]:  # (the first of equals)
+            b = i
+        memo[i] = lo + b
+    memo[0] = lo
+    if m > 1 and near[memo[1] - lo] < near[0]:  # (strictly nearer than the row found)
+        memo[0] = memo[1]
+    return memo

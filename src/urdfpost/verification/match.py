@@ -333,6 +333,7 @@ def _walk(
     tol: Tolerances,
     js: np.ndarray,
     k: np.ndarray,
+    handoff: bool = False,
 ) -> np.ndarray:
     """Rows ``k``, each reaching its CL point of ``js``, moved to the nearest row
     (:func:`_nearness`, the first of equals) of the run of rows from there whose nearness is
@@ -351,6 +352,8 @@ def _walk(
         Coordinate arrays of the CL points' and the rows' tips (mm) and unit tool axes.
     tol : Tolerances
     js, k : ndarray, shape (m,), int
+    handoff : bool
+        Raise :class:`_LongRuns` at a run longer than :data:`_LONG_RUN` rows.
     """
     n = len(xyz[0])
     best = k.copy()
@@ -375,8 +378,22 @@ def _walk(
         best_near[active[better]] = d[better]
         nxt[active] += width
         active = active[~stops & (nxt[active] < n)]
+        if handoff and active.size and (nxt[active] - k[active]).max() > _LONG_RUN:
+            raise _LongRuns
         width = min(8 * width, 4096)
     return best
+
+
+_LONG_RUN = 2048
+"""Rows of a run beyond which :func:`match_points` leaves the numpy rounds for the compiled
+loop (:class:`_LongRuns`)."""
+
+
+class _LongRuns(Exception):
+    """A CL point within the tolerance of more than :data:`_LONG_RUN` rows (a path back and
+    forth within the tolerance): the numpy rounds would look at that run again for every point
+    of it (quadratic), the compiled loop keeps its memo
+    (:func:`urdfpost.verification._match_kernel._run_memo`)."""
 
 
 def _repeats(cl_tip: np.ndarray, cl_axis: np.ndarray) -> np.ndarray:
@@ -490,7 +507,12 @@ def match_points(
     """
     kernel = KERNELS.get(len(cl_tip))
     if kernel is None:
-        return match_points_numpy(cl_tip, cl_axis, tip, axis, tol)
+        try:
+            return match_points_numpy(cl_tip, cl_axis, tip, axis, tol, handoff=True)
+        except _LongRuns:  # (quadratic in numpy: the compiled loop, if it can be had)
+            kernel = KERNELS.load()
+            if kernel is None:
+                return match_points_numpy(cl_tip, cl_axis, tip, axis, tol)
     arrays = [np.ascontiguousarray(a, dtype=float) for a in (cl_tip, cl_axis, tip, axis)]
     try:
         return kernel.match_rows(*arrays, float(tol.tip), float(tol.orientation), REACH)
@@ -505,6 +527,7 @@ def match_points_numpy(
     tip: np.ndarray,
     axis: np.ndarray,
     tol: Tolerances,
+    handoff: bool = False,
 ) -> np.ndarray:
     """For each CL point, the program point at or after the previous match that reaches it (tip
     within tolerance, axis within orientation tolerance; the nearest of a run of such points in
@@ -544,6 +567,9 @@ def match_points_numpy(
         Their unit tool axes.
     tol : Tolerances
         ``tol.tip`` (mm) and ``tol.orientation`` (rad) decide what reaches a point.
+    handoff : bool
+        Stop with :class:`_LongRuns` at a run of more than :data:`_LONG_RUN` rows (the caller
+        runs the compiled loop instead).
 
     Returns
     -------
@@ -575,7 +601,7 @@ def match_points_numpy(
         hit = _first_reaching(cl_xyz, cl_axis, xyz, axis, tol, js[i], start, windows)
         first[i] = np.where(repeats[js[i]], -1, hit)
         ok = hit >= 0
-        hit[ok] = _walk(cl_xyz, xyz, cl_ijk, ijk, tol, js[i][ok], hit[ok])
+        hit[ok] = _walk(cl_xyz, xyz, cl_ijk, ijk, tol, js[i][ok], hit[ok], handoff)
         m[i] = hit
 
     def holds(i: np.ndarray | int, start: np.ndarray | int) -> np.ndarray | bool:
