@@ -558,6 +558,25 @@ def test_crlf_and_cr_line_endings():
         assert other.warnings == lf.warnings
 
 
+@pytest.mark.parametrize("size", [1 << 23, 7])
+def test_a_file_with_cr_line_ends_is_detected_as_apt(tmp_path, size):
+    """CR line ends (no LF) and a first line that is no APT record (``PARTNO`` has no slash):
+    the file is recognised as APT by its later lines, whole and in pieces that end at a CR,
+    and read as with LF (it was read as plain text: "line 1: expected 3 or 6 values")."""
+    from urdfpost.readers import detect_file_format
+
+    text = "PARTNO CR ONLY\nUNITS/MM\nMULTAX/ON\nGOTO/1,2,3,0,0,1\nGOTO/4,5,6,0,0,1\nFINI\n"
+    lf, cr = tmp_path / "lf.apt", tmp_path / "cr.apt"
+    lf.write_bytes(text.encode())
+    cr.write_bytes(text.replace("\n", "\r").encode())
+    assert detect_file_format(str(cr), size) == "apt"
+    want, got = read_cl(lf), read_cl(cr)
+    np.testing.assert_array_equal(got.tip, want.tip)
+    np.testing.assert_array_equal(got.line, want.line)
+    (piece,) = read_cl_chunks(cr, max_points=10, _text_piece=size)
+    np.testing.assert_array_equal(piece.tip, want.tip)
+
+
 def test_crlf_file(tmp_path):
     path = tmp_path / "crlf.cls"
     path.write_bytes(b"UNITS/MM\r\nGOTO/1,2,3\r\nGOTO/4,5,$\r\n6\r\nFINI")

@@ -687,13 +687,14 @@ def test_text_pieces(tmp_path, size):
 def test_format_detected_on_the_whole_file(tmp_path):
     late, cr_only = tmp_path / "late.cl", tmp_path / "cr.cl"
     late.write_text("1 2 3\n" * 30 + "$$ an APT comment\n")
-    cr_only.write_text("1 2 3\rGOTO/1,2,3\r")  # no line start after CR: read as plain
+    cr_only.write_text("1 2 3\rGOTO/1,2,3\r")  # a CR starts a line: APT, as the reader splits
     # APT (a $$ comment), so 30 unknown records and no motion: refused, whole and in pieces
     assert check_file(late, 4, 16) is None
     with pytest.raises(CLDataError, match=r"late.cl:1: not a CL file: no motion record, and 30 of"):
         read_cl(late)
-    for text_piece in (1, 6, 7, 64):
-        assert check_file(cr_only, 4, text_piece) is None  # plain: "GOTO/1" is not a number
+    for text_piece in (1, 6, 7, 64):  # (one GOTO, line 1 an unknown record: the same in pieces)
+        (piece,) = check_file(cr_only, 4, text_piece)
+        assert list(piece.line) == [2]
 
 
 # -- memory and the fast path ---------------------------------------------------------------

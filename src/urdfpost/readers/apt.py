@@ -218,8 +218,11 @@ _WORD_RECORD = re.compile(
 )
 #: A line that looks like an APT/CLSF record (``WORD/...``) or an APT comment.
 APT_LINE = re.compile(
-    r"^[ \t]*(?:[A-Za-z][A-Za-z0-9_-]*(?:[ \t]+[A-Za-z][A-Za-z0-9_-]*)*[ \t]*/|\$\$)", re.M
+    r"(?:^|(?<=\r))[ \t]*(?:[A-Za-z][A-Za-z0-9_-]*(?:[ \t]+[A-Za-z][A-Za-z0-9_-]*)*[ \t]*/|\$\$)",
+    re.M,
 )
+"""A line that looks like an APT/CLSF record, at the start of a line: after LF, or after a
+lone CR (a file with CR line ends, which the reader reads as such)."""
 _KEYWORD = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 _NOT_KEYWORDS = frozenset({"NAN", "INF", "INFINITY"})
 
@@ -809,10 +812,10 @@ def scan_piece(
 def detect_apt(text: str, line_start: bool = True) -> bool:
     """Whether any line of ``text`` looks like an APT/CLSF record (``WORD/...`` or ``$$``).
 
-    ``line_start`` False: ``text`` is a piece of a file that follows a lone CR, where the whole
-    text's ``^`` does not match (see :class:`~urdfpost.readers._format.Detector`).
+    :data:`APT_LINE` finds lines after a lone CR too, so a piece that follows one starts a
+    line (``line_start`` False, :class:`~urdfpost.readers._format.Detector`) as any other.
     """
-    return APT_LINE.search(text, 0 if line_start else 1) is not None
+    return APT_LINE.search(text) is not None
 
 
 def _file_units(records: Sequence[Record | GotoRun]) -> tuple[str, int] | None:
