@@ -51,7 +51,7 @@ def _verify(program: Path, cl: Path) -> subprocess.CompletedProcess[str]:
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
 
-    args = ["verify", str(program), "-m", "dmu50", "--cl", str(cl), "--angle-tolerance", "2.5"]
+    args = ["verify", str(program), "-m", "dmu50", "--cl", str(cl), "--angle-tolerance", "2.0"]
     return subprocess.run(
         [sys.executable, "-m", "urdfpost", *args],
         capture_output=True,
