@@ -11,6 +11,12 @@ Every comparison is made as the numpy path makes it, in the same order of operat
 the tip distance ``sqrt((dx^2 + dy^2) + dz^2)`` against the tip tolerance, the axis angle
 ``2 atan2(|u - v|, |u + v|)`` against the orientation tolerance, and the nearness of
 :func:`urdfpost.verification.match._nearness`.
+
+A CL point that repeats the point before it (a dwell) takes the next row or the same one
+without a search, as in the numpy rounds. Only this loop keeps a long run of rows within the
+tolerance of a CL point (a path back and forth within it) as a memo (:func:`_run_memo`), which
+the same point found again inside the run answers from, for the same rows; the numpy rounds
+hand a job with such runs to this loop (``match._LongRuns``).
 """
 
 from __future__ import annotations
