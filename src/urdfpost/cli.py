@@ -514,8 +514,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.0,
         metavar="DEG",
         help="tool-axis bending the program's strategy was allowed, degrees (default 0: the "
-        "program must follow the CL tool axis); when given, a ball-end tool is measured at "
-        "its ball centre, as the post checks it",
+        "program must follow the CL tool axis; a post's program: the --angle-tolerance it was "
+        "posted with, 2 by default); when given, a ball-end tool is measured at its ball "
+        "centre, as the post checks a program it bent (against the straight line between the "
+        "CL centres: a block whose tool axis turns by tens of degrees leaves it by up to "
+        "r(1 - cos(turn/2)))",
     )
     ve.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     ve.add_argument("--report", help="write a JSON report here")
