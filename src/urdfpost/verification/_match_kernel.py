@@ -76,12 +76,10 @@ def _reaches(
 
 
 @njit(cache=True, nogil=True)
-def _repeats(cl_tip: np.ndarray, cl_axis: np.ndarray, j: int) -> bool:
-    """Whether CL point j is CL point j - 1 again (tip and axis, to the bit)."""
-    if j == 0:
-        return False
+def _same(cl_tip: np.ndarray, cl_axis: np.ndarray, i: int, j: int) -> bool:
+    """Whether CL points i and j are the same (tip and axis, to the bit)."""
     for c in range(3):
-        if cl_tip[j, c] != cl_tip[j - 1, c] or cl_axis[j, c] != cl_axis[j - 1, c]:
+        if cl_tip[j, c] != cl_tip[i, c] or cl_axis[j, c] != cl_axis[i, c]:
             return False
     return True
 
@@ -121,14 +119,14 @@ def match_rows(
     scale = 2.0 / tol_orientation
     ptr = 0
     # the memos of the last two long runs (_run_memo): their CL points, rows and matches
-    memo_key = np.full((2, 6), np.nan)
+    memo_point = np.full(2, -1, dtype=np.int64)
     memo_lo, memo_hi = np.full(2, -1, dtype=np.int64), np.full(2, -2, dtype=np.int64)
     memo_0, memo_1 = np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
     slot = 0
     for j in range(n_cl):
         cx, cy, cz = cl_tip[j, 0], cl_tip[j, 1], cl_tip[j, 2]
         ax, ay, az = cl_axis[j, 0], cl_axis[j, 1], cl_axis[j, 2]
-        if _repeats(cl_tip, cl_axis, j):  # a dwell (match._repeat_rows)
+        if j > 0 and _same(cl_tip, cl_axis, j - 1, j):  # a dwell (match._repeat_rows)
             if out[j - 1] < 0:  # (the same search from the same row: missed again)
                 continue
             if ptr + 1 < n and _reaches(
@@ -150,7 +148,7 @@ def match_rows(
         # first of equals); from a long run of a CL point seen before, its memo
         hit = -1
         for k in range(2):
-            if memo_lo[k] <= found <= memo_hi[k] and _same(memo_key, k, cl_tip, cl_axis, j):
+            if memo_lo[k] <= found <= memo_hi[k] and _same(cl_tip, cl_axis, memo_point[k], j):
                 hit = k
         if hit >= 0:
             best = (memo_0 if hit == 0 else memo_1)[found - memo_lo[hit]]
@@ -172,8 +170,7 @@ def match_rows(
             k = slot
             slot = 1 - slot
             memo_lo[k], memo_hi[k] = found, end
-            for c in range(3):
-                memo_key[k, c], memo_key[k, 3 + c] = cl_tip[j, c], cl_axis[j, c]
+            memo_point[k] = j
             if k == 0:
                 memo_0 = memo
             else:
@@ -185,15 +182,6 @@ MEMO_FROM = 256
 """Rows of a run from which :func:`match_rows` keeps its memo (:func:`_run_memo`): only CL
 points within the tolerance of many rows (a path back and forth within the tolerance) have such
 runs, and each point of them would otherwise scan its run again (quadratic)."""
-
-
-@njit(cache=True, nogil=True)
-def _same(key: np.ndarray, k: int, cl_tip: np.ndarray, cl_axis: np.ndarray, j: int) -> bool:
-    """Whether CL point j is the point of memo k (tip and axis, to the bit)."""
-    for c in range(3):
-        if key[k, c] != cl_tip[j, c] or key[k, 3 + c] != cl_axis[j, c]:
-            return False
-    return True
 
 
 @njit(cache=True, nogil=True)
