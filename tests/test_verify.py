@@ -653,10 +653,9 @@ def test_verify_block_bounds_hold(
             start=np.arange(len(q) - 1),
             ja=np.arange(len(q) - 1),
             jb=np.arange(1, len(q)),
-            polyline=_Polyline.of(cl_tip, cl_axis),
+            polyline=_Polyline.of(cl_tip, cl_axis, pivot),
             tcp=tcp,
             tool_length=100.0,
-            pivot=pivot,
             window=0.01,
         )
         blocks = np.arange(len(q) - 1)

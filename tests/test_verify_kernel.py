@@ -26,6 +26,7 @@ from urdfpost.geometry import chunks, refine_max
 from urdfpost.kinematics.forward import tip_and_axis
 from urdfpost.linearize import RowPoses
 from urdfpost.machine import Machine
+from urdfpost.posting.check import bent_tolerances
 from urdfpost.posting.options import PostOptions
 from urdfpost.posting.whole import post
 from urdfpost.readers import read_cl
@@ -84,10 +85,9 @@ def _feed(
         start=np.arange(blocks),
         ja=ja,
         jb=jb,
-        polyline=_Polyline.of(cl_tip, cl_axis),
+        polyline=_Polyline.of(cl_tip, cl_axis, pivot),
         tcp=tcp,
         tool_length=100.0,
-        pivot=pivot,
         window=0.01,
         valid=rng.random(blocks) > 0.05,
     )
@@ -133,8 +133,11 @@ def _compare(feed: _Blocks) -> None:
         )
         want_dist2, want_chord2, tip_bound, chord_bound = _numpy_pass(feed, part)
         _agree(dist2, want_dist2)
-        # the same operations on the same cosines and sines: the same numbers
-        assert np.array_equal(dist2, want_dist2)
+        # the same operations on the same cosines and sines: the same numbers (at a pivot the
+        # curve's cosines and sines are the C library's there and numpy's here, which may
+        # differ in the last bit where numpy's are vectorised: within AGREE, above)
+        if not feed.pivot:
+            assert np.array_equal(dist2, want_dist2)
         cols = np.arange(part.stop - part.start)
         for i, want in enumerate((want_dist2, want_chord2)):
             _agree(best[i], want.max(axis=0))
@@ -180,7 +183,7 @@ def test_compiled_pass_is_the_numpy_pass_anywhere(
     (px, py, pz), axes = feed.polyline.tip, feed.polyline.axis
     tips = np.column_stack([px, py, pz])
     tips = tips[0] + squeeze * (tips - tips[0])
-    _compare(replace(feed, polyline=_Polyline.of(tips, np.column_stack(axes))))
+    _compare(replace(feed, polyline=_Polyline.of(tips, np.column_stack(axes), pivot)))
 
 
 @pytest.mark.parametrize("name", MACHINES)
@@ -281,7 +284,7 @@ def _kernel_errors(feed: _Blocks, inputs: measure._KernelInputs, blocks: np.ndar
     c = inputs.chain
     kinds = np.array([_deviation_kernel._kind(*w) for w in c.direction], dtype=np.int64)
     u, dist2, chord2 = np.empty(1), np.empty(1), np.empty(1)
-    work, trig = np.empty((9, 1)), np.empty((2, len(c.column), 1))
+    work, trig = np.empty((10, 1)), np.empty((2, len(c.column), 1))
     frames = np.empty((measure._LONG, _deviation_kernel._FRAME))
 
     def errors(idx: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -291,7 +294,7 @@ def _kernel_errors(feed: _Blocks, inputs: measure._KernelInputs, blocks: np.ndar
             span = max(inputs.jb[b] - inputs.ja[b], 1)
             _deviation_kernel._frames(
                 inputs.ja[b], span, *feed.polyline.tip, *feed.polyline.axis, inputs.omega,
-                feed.window, frames,
+                feed.window, feed.pivot, frames,
             )  # fmt: skip
             u[0] = x
             _deviation_kernel.deviation_at(
@@ -363,22 +366,23 @@ def _posted(tcp: bool) -> tuple[str, float]:
 def test_compiled_verification_is_the_numpy_verification(
     tcp: bool, damage: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A posted program read back (and the same with a stretch of its Y words 0.02 mm off,
+    """A posted program read back (and the same with a stretch of its Y words 0.05 mm off,
     beyond the tolerance between its CL points): verified with the compiled first pass, the
-    same verification as with numpy, at the tip and at a pivot; the damaged one fails."""
+    same verification as with numpy, at the tip and at a pivot (with the tolerance the
+    command line gives a pivot, :func:`bent_tolerances`); the damaged one fails."""
     text, tool_length = _posted(tcp)
     if damage:
         lines = text.splitlines(keepends=True)
         a, b = len(lines) // 3, len(lines) // 3 + 40
-        lines[a:b] = [re.sub(r"Y(-?[0-9.]+)", lambda w: f"Y{float(w[1]) + 0.02:.4f}", x)
+        lines[a:b] = [re.sub(r"Y(-?[0-9.]+)", lambda w: f"Y{float(w[1]) + 0.05:.4f}", x)
                       for x in lines[a:b]]  # fmt: skip
         text = "".join(lines)
     program = dialect_for("fanuc").read(text, path="prog.nc")
     m = machine("dmu50")
     job = read_cl(DOME)
-    tol = Tolerances.for_units("mm")
     rules = FeedRules.of(dialect_for("fanuc").spec, "mm")
     for pivot in (0.0, 3.0):
+        tol = bent_tolerances(Tolerances.for_units("mm"), 0.0, pivot)
         kwargs = {"tol": tol, "pivot": pivot, "tool_length": tool_length, "feed_rules": rules}
         monkeypatch.setattr(measure.KERNELS, "start", 10**12)
         want = verify(program, m, job, **kwargs)  # type: ignore[arg-type]

@@ -516,9 +516,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="tool-axis bending the program's strategy was allowed, degrees (default 0: the "
         "program must follow the CL tool axis; a post's program: the --angle-tolerance it was "
         "posted with, 2 by default); when given, a ball-end tool is measured at its ball "
-        "centre, as the post checks a program it bent (against the straight line between the "
-        "CL centres: a block whose tool axis turns by tens of degrees leaves it by up to "
-        "r(1 - cos(turn/2)))",
+        "centre, as the post checks a program it bent, against the curve the CL data moves "
+        "the ball centre on (the tip straight, the tool axis on its slerp)",
     )
     ve.add_argument("--format", choices=list(FORMATS), help="CL format (default: detected)")
     ve.add_argument("--report", help="write a JSON report here")

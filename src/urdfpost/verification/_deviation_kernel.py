@@ -6,8 +6,9 @@ axis carried through the chain's joints, as :func:`urdfpost.kinematics.forward.t
 carries them, the cosines and sines by angle addition along the samples), the measured point
 (the pivot up the tool axis; in TCP programs the straight line plus the pivot), its deviation
 from the block's short CL span (:func:`urdfpost.verification.measure._span_deviation`: the
-squared distance from the nearest segment and the squared chord to the CL orientation in the
-window), the largest of each and the sample it is at, and the bounds over the whole block of
+squared distance from the nearest segment, or with a pivot from the nearest segment's curve,
+and the squared chord to the CL orientation in the window), the largest of each and the
+sample it is at, and the bounds over the whole block of
 :meth:`urdfpost.verification.measure._Blocks.bounds` (with
 :func:`urdfpost.kinematics.forward.interpolation_bounds`). Nothing of size samples times
 blocks is made but the squared distances the mean is summed from.
@@ -20,7 +21,9 @@ itself as numpy takes them there.
 Imported by ``_block_deviation`` when it first runs on enough blocks (numba's import takes a
 third of a second); the machine code is cached on disk beside this module (``__pycache__``).
 The numpy path stays the definition: the operations are those of the numpy path in the same
-order, so the squared distances come out the same bit for bit where the cosines and sines do;
+order, so the squared distances come out the same bit for bit where the cosines and sines do
+(at a pivot, the curve's are the C library's here and numpy's there: the same on x86-64 with
+numpy 2.4, within :data:`AGREE` where numpy's vectorised ones differ);
 the chords differ by the last bits of ``arctan2`` (numpy's vectorised one is not libm's) and of
 the Taylor polynomial of :func:`urdfpost.linearize._turn_chord2` (all its terms here, as many as
 the largest turn of a chunk needs there). ``tests/test_verify_kernel.py`` holds the two to
@@ -277,8 +280,15 @@ def _angles_along(
                 sin_j[j, k] = sin_j[j, k - 1] * cd + cos_j[j, k - 1] * sd
 
 
-_FRAME = 18
+_FRAME = 21
 """Numbers per CL segment in the rows of :func:`_frames`."""
+
+_NEWTON = 8
+"""Newton steps to the nearest point of a CL segment's curve
+(:data:`urdfpost.verification.measure._NEWTON`)."""
+
+_SETTLED = 1e-12
+""":data:`urdfpost.verification.measure._SETTLED`."""
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -293,14 +303,18 @@ def _frames(
     az: np.ndarray,
     omega_of: np.ndarray,
     window: float,
+    pivot: float,
     frames: np.ndarray,
 ) -> None:
     """The CL segments ``first .. first + span - 1`` and their arcs as :func:`_span` compares
     samples with them, one row of ``frames`` (shape (span, :data:`_FRAME`) or larger) each:
     the start (mm) and the step to the next CL point (mm), the inverse squared length (0 for a
-    point, 1/mm^2), the half window in the segment's parameter (inf for a point), the arc's
-    frame (its start, the unit direction it turns towards and their cross product,
-    :func:`urdfpost.linearize._frame`) and its angle (rad)."""
+    point, 1/mm^2), the half window in the segment's parameter (inf for a point; with a pivot,
+    of the window grown by the curve's sag, as
+    :func:`urdfpost.verification.measure._segment_errors` grows it), the arc's frame (its
+    start, the unit direction it turns towards and their cross product,
+    :func:`urdfpost.linearize._frame`), its angle (rad), the pivot (mm) and the cosine and
+    sine of the angle (the CL segment's curve, :func:`_curve`)."""
     last = px.shape[0] - 1
     for off in range(span):
         a = min(first + off, last)
@@ -309,7 +323,12 @@ def _frames(
         dx, dy, dz = px[nxt] - sx, py[nxt] - sy, pz[nxt] - sz
         dd = dx * dx + dy * dy + dz * dz
         inv_dd = 1.0 / dd if dd > 0 else 0.0
-        half = window * np.sqrt(inv_dd) if inv_dd > 0 else np.inf
+        omega = omega_of[a]
+        reach = window
+        if pivot != 0.0:  # measure._sag
+            quarter = np.sin(0.25 * omega)
+            reach = window + 2.0 * abs(pivot) * (quarter * quarter)
+        half = reach * np.sqrt(inv_dd) if inv_dd > 0 else np.inf
         # the arc (Arcs.of_coords) and its frame (linearize._frame)
         u0, u1, u2 = ax[a], ay[a], az[a]
         dot = u0 * ax[nxt] + u1 * ay[nxt] + u2 * az[nxt]
@@ -337,7 +356,61 @@ def _frames(
         f[0], f[1], f[2], f[3], f[4], f[5] = sx, sy, sz, dx, dy, dz
         f[6], f[7], f[8], f[9], f[10] = inv_dd, half, u0, u1, u2
         f[11], f[12], f[13], f[14], f[15], f[16] = m0, m1, m2, k0, k1, k2
-        f[17] = omega_of[a]
+        f[17] = omega
+        f[18], f[19], f[20] = pivot, np.cos(omega), np.sin(omega)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _curve(
+    w0: float,
+    w1: float,
+    w2: float,
+    u: float,
+    f: np.ndarray,
+) -> tuple[float, float]:
+    """:func:`urdfpost.verification.measure._curve_distance2` of one point: the squared
+    distance from the curve of the CL segment of the frame ``f`` (:func:`_frames`) of the
+    point ``w`` from the segment's start (mm), from the chord's projection parameter ``u``,
+    and the parameter it is measured at; the same operations in the same order."""
+    dx, dy, dz = f[3], f[4], f[5]
+    v0, v1, v2, n0, n1, n2 = f[8], f[9], f[10], f[11], f[12], f[13]
+    omega, pivot, cos_w, sin_w = f[17], f[18], f[19], f[20]
+    best, best_u = np.inf, u
+    for step in range(_NEWTON + 1):
+        angle = u * omega
+        cos_a, sin_a = np.cos(angle), np.sin(angle)
+        alpha = (cos_a - 1.0) + u * (1.0 - cos_w)
+        beta = sin_a - u * sin_w
+        ra, rb = pivot * alpha, pivot * beta
+        e0 = w0 - u * dx - (ra * v0 + rb * n0)
+        e1 = w1 - u * dy - (ra * v1 + rb * n1)
+        e2 = w2 - u * dz - (ra * v2 + rb * n2)
+        d2 = e0 * e0 + e1 * e1 + e2 * e2
+        if step == 0 or d2 < best:
+            best, best_u = d2, u
+        if step == _NEWTON:
+            break
+        da = (1.0 - cos_w) - omega * sin_a
+        db = omega * cos_a - sin_w
+        c0 = dx + pivot * (da * v0 + db * n0)
+        c1 = dy + pivot * (da * v1 + db * n1)
+        c2 = dz + pivot * (da * v2 + db * n2)
+        bend = pivot * (omega * omega)
+        b0 = bend * (cos_a * v0 + sin_a * n0)
+        b1 = bend * (cos_a * v1 + sin_a * n1)
+        b2 = bend * (cos_a * v2 + sin_a * n2)
+        grad = e0 * c0 + e1 * c1 + e2 * c2
+        speed2 = c0 * c0 + c1 * c1 + c2 * c2
+        curv = speed2 + (e0 * b0 + e1 * b1 + e2 * b2)
+        den = curv if curv > 0.0 else speed2
+        move = grad / den if den > 0.0 else 0.0
+        if not abs(move) > _SETTLED:  # settled: the steps left would repeat this one
+            break
+        nxt = _clip(u + move, 0.0, 1.0)
+        if nxt == u:
+            break
+        u = nxt
+    return best, best_u
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -357,6 +430,7 @@ def _span(
     within: np.ndarray,
     outside0: np.ndarray,
     at0: np.ndarray,
+    par0: np.ndarray,
 ) -> None:
     """:func:`urdfpost.verification.measure._span_deviation` of the first ``s`` points ``q``
     (mm) and unit axes ``v`` against the ``span`` CL segments of ``frames`` (:func:`_frames`).
@@ -365,7 +439,8 @@ def _span(
     ``dist2``, the squared chord to the CL orientation in the window (that of the nearest
     segment where no segment is within the window) into ``chord2``, and, of the first
     segment, how far the projection parameter falls outside [0, 1] and the chord at it into
-    ``outside0`` and ``at0`` (``within``: scratch); all shape (s,) or longer.
+    ``outside0`` and ``at0``, and with a pivot, the parameter on its curve the distance is
+    measured at into ``par0`` (``within``: scratch); all shape (s,) or longer.
     """
     window2 = window * window
     for off in range(span):
@@ -382,6 +457,10 @@ def _span(
             out = abs(raw - par)
             e0, e1, e2 = w0 - par * dx, w1 - par * dy, w2 - par * dz
             d2 = e0 * e0 + e1 * e1 + e2 * e2
+            if f[18] != 0.0:  # with a pivot: from the curve
+                d2, on = _curve(w0, w1, w2, par, f)
+                if off == 0:
+                    par0[k] = on
             u = 1.0 + out if par >= 1.0 else par - out  # not clipped
             # orientation_path_chord2
             x = vx[k] * u0 + vy[k] * u1 + vz[k] * u2
@@ -488,6 +567,8 @@ def block_deviation(
         Evenly spaced sample parameters, ends included.
     tcp : bool
     pivot, window : float, mm
+        The measured point's height up the tool axis (and that of the CL points, whose
+        segments are then curves, :func:`_curve`); the window of the axis comparison.
     long_span : int
         Blocks compared with more CL segments than this are flagged in ``long`` and not
         measured.
@@ -518,6 +599,7 @@ def block_deviation(
     within = np.empty(s)
     outside0 = np.empty(s)
     at0 = np.empty(s)
+    par0 = np.empty(s)
     reach_j, swing_j = np.empty(n_joints), np.empty(n_joints)
     frames = np.empty((max(long_span, 1), _FRAME))
     for b in range(n):
@@ -562,8 +644,11 @@ def block_deviation(
         if not valid[b] or long[b]:
             continue
         # -- the deviation from the CL span (_span_deviation, _segment_errors) --
-        _frames(ja[b], span, px, py, pz, ax, ay, az, omega_of, window, frames)
-        _span(qx, qy, qz, vx, vy, vz, s, span, frames, window, d2s, chord2, within, outside0, at0)
+        _frames(ja[b], span, px, py, pz, ax, ay, az, omega_of, window, pivot, frames)
+        _span(
+            qx, qy, qz, vx, vy, vz, s, span, frames, window, d2s, chord2, within, outside0, at0,
+            par0,
+        )  # fmt: skip
         inv_dd0, omega0 = frames[0, 6], frames[0, 17]
         for k in range(s):
             dist2[k, b] = d2s[k]
@@ -605,6 +690,12 @@ def block_deviation(
         inv_length = np.sqrt(inv_dd0)
         spin = omega0 * tip_speed * inv_length
         bound[0, b] = np.sqrt(best[0, b]) + tip_curv * room
+        if pivot != 0.0:  # the curve's bend between the parameters measured to
+            du2 = 0.0
+            for k in range(1, s):
+                du = par0[k] - par0[k - 1]
+                du2 = max(du2, du * du)
+            bound[0, b] = bound[0, b] + abs(pivot) * (omega0 * omega0) * du2 / 8.0
         pair = g_max = out_max = -np.inf
         g_prev = 0.0
         for k in range(s):
@@ -639,6 +730,7 @@ def point_deviation(
     ay: np.ndarray,
     az: np.ndarray,
     omega_of: np.ndarray,
+    pivot: float,
     window: float,
     long_span: int,
     dist2: np.ndarray,
@@ -654,8 +746,8 @@ def point_deviation(
         The points (mm) and their unit tool axes.
     ja, jb : ndarray, shape (N,), int64
         CL span of each.
-    px, py, pz, ax, ay, az, omega_of, window, long_span
-        As :func:`block_deviation`.
+    px, py, pz, ax, ay, az, omega_of, pivot, window, long_span
+        As :func:`block_deviation` (the points are at the pivot).
 
     Returns
     -------
@@ -663,17 +755,24 @@ def point_deviation(
         Written: ``dist2`` and ``chord2`` (N,), mm^2 and squared chord; ``long`` (N,), bool,
         the points of spans longer than ``long_span`` (not measured).
     """
-    d2, c2, within, outside, at = np.empty(1), np.empty(1), np.empty(1), np.empty(1), np.empty(1)
+    d2, c2, within, outside, at, par = (
+        np.empty(1),
+        np.empty(1),
+        np.empty(1),
+        np.empty(1),
+        np.empty(1),
+        np.empty(1),
+    )
     frames = np.empty((max(long_span, 1), _FRAME))
     for r in range(tx.shape[0]):
         span = max(jb[r] - ja[r], 1)
         long[r] = span > long_span
         if long[r]:
             continue
-        _frames(ja[r], span, px, py, pz, ax, ay, az, omega_of, window, frames)
+        _frames(ja[r], span, px, py, pz, ax, ay, az, omega_of, window, pivot, frames)
         _span(
             tx[r : r + 1], ty[r : r + 1], tz[r : r + 1], vx[r : r + 1], vy[r : r + 1],
-            vz[r : r + 1], 1, span, frames, window, d2, c2, within, outside, at,
+            vz[r : r + 1], 1, span, frames, window, d2, c2, within, outside, at, par,
         )  # fmt: skip
         dist2[r], chord2[r] = d2[0], c2[0]
 
@@ -727,7 +826,7 @@ def deviation_at(
     u : ndarray, shape (s,) or longer
         The parameters, in [0, 1].
     s : int
-    work : ndarray, shape (9, s) or wider
+    work : ndarray, shape (10, s) or wider
         Scratch.
     trig : ndarray, shape (2, k, s) or wider
         Scratch for the cosines and sines.
@@ -752,7 +851,7 @@ def deviation_at(
     )  # fmt: skip
     _span(
         work[0], work[1], work[2], work[3], work[4], work[5], s, span, frames, window, dist2,
-        chord2, work[6], work[7], work[8],
+        chord2, work[6], work[7], work[8], work[9],
     )  # fmt: skip
 
 
@@ -823,7 +922,7 @@ def refine_deviation(
     for j in range(n_joints):
         kinds[j] = _kind(joint_direction[j, 0], joint_direction[j, 1], joint_direction[j, 2])
     h = t[1] - t[0] if t.shape[0] > 1 else 0.5
-    u, work, trig = np.empty(2), np.empty((9, 2)), np.empty((2, n_joints, 2))
+    u, work, trig = np.empty(2), np.empty((10, 2)), np.empty((2, n_joints, 2))
     dist2, chord2 = np.empty(2), np.empty(2)
     most = 1
     for b in range(start.shape[0]):
@@ -832,7 +931,7 @@ def refine_deviation(
     for b in range(start.shape[0]):
         span = max(jb[b] - ja[b], 1)
         if wanted[0, b] or wanted[1, b]:
-            _frames(ja[b], span, px, py, pz, ax, ay, az, omega_of, window, frames)
+            _frames(ja[b], span, px, py, pz, ax, ay, az, omega_of, window, pivot, frames)
         for i in range(2):
             if not wanted[i, b]:
                 continue

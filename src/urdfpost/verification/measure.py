@@ -200,16 +200,27 @@ class _Polyline:
     The segments and arcs are made for the CL indices asked for (:meth:`take`), not kept for
     the whole path.
 
+    With a pivot r (the measured point r up the tool axis from the tip: a ball centre), the
+    CL points are those points, and the path between two of them is not their chord but the
+    curve the CL segment moves that point on, the tip straight and the axis on its slerp:
+    ``c(u) = A + u d + r g(u)``, with the chord from A to A + d and ``g(u) = slerp(u) -
+    lerp(u)`` of the axes (:func:`_curve_distance2`). It leaves the chord by at most ``r (1 -
+    cos(omega / 2))`` (:meth:`sag`), omega the angle the axis turns through.
+
     Attributes
     ----------
     tip : VecArrays
-        Coordinate arrays of the CL points, shape (n,), mm.
+        Coordinate arrays of the CL points (at the pivot), shape (n,), mm.
     axis : VecArrays
         Of the CL tool axes (unit).
+    pivot : float, mm
+        How far up the tool axis from the tip the points are (0: the tip; the chords are the
+        path).
     """
 
     tip: VecArrays
     axis: VecArrays
+    pivot: float = 0.0
     _spheres: dict[int, tuple[VecArrays, np.ndarray]] = field(
         default_factory=dict, compare=False, repr=False
     )
@@ -219,16 +230,17 @@ class _Polyline:
     )
 
     @classmethod
-    def of(cls, tip: np.ndarray, axis: np.ndarray) -> _Polyline:
-        """The polyline of CL points ``tip`` and axes ``axis``, shape (n, 3)."""
-        return cls(coords(tip), coords(axis))
+    def of(cls, tip: np.ndarray, axis: np.ndarray, pivot: float = 0.0) -> _Polyline:
+        """The polyline of CL points ``tip`` (at the pivot) and axes ``axis``, shape (n, 3)."""
+        return cls(coords(tip), coords(axis), float(pivot))
 
     def __len__(self) -> int:
         return len(self.tip[0])
 
     def spheres(self, size: int) -> tuple[VecArrays, np.ndarray]:
         """Bounding spheres of the CL points ``size g .. size (g + 1)``, and so of the segments
-        ``size g .. size (g + 1) - 1``: centres (coordinate arrays, mm) and radii (mm), shape
+        ``size g .. size (g + 1) - 1`` (with a pivot, of their curves: the radius grows by the
+        largest :meth:`sag` of them): centres (coordinate arrays, mm) and radii (mm), shape
         (ceil(n / size),). Made once per size."""
         if size not in self._spheres:
             n = len(self)
@@ -238,8 +250,20 @@ class _Polyline:
             pts = [c[index] for c in self.tip]
             centre = [p.mean(axis=1) for p in pts]
             r2 = sum((p - c[:, None]) ** 2 for p, c in zip(pts, centre, strict=True))
-            self._spheres[size] = ((centre[0], centre[1], centre[2]), np.sqrt(np.max(r2, axis=1)))
+            radius = np.sqrt(np.max(r2, axis=1))
+            if self.pivot and n:
+                radius += np.maximum.reduceat(self.sag(), np.arange(0, n, size))
+            self._spheres[size] = ((centre[0], centre[1], centre[2]), radius)
         return self._spheres[size]
+
+    def sag(self, index: np.ndarray | None = None) -> np.ndarray:
+        """How far the curve of each CL segment (of ``index``; None: all) leaves its chord
+        at most: ``|r| (1 - cos(omega / 2)) = 2 |r| sin^2(omega / 4)`` (mm; 0 without a pivot).
+
+        ``|slerp(u) - lerp(u)|`` of two unit vectors an angle omega apart is largest halfway,
+        where it is ``1 - cos(omega / 2)`` (``tests/test_verify_curve.py`` checks it)."""
+        omega = self.omega() if index is None else self.omega()[index]
+        return _sag(omega, self.pivot)
 
     def omega(self) -> np.ndarray:
         """Angle of the arc of the axes from every CL point to the next (0 for the last),
@@ -291,32 +315,142 @@ class _Polyline:
         return segments, arcs
 
 
+def _sag(omega: np.ndarray, pivot: float) -> np.ndarray:
+    """``2 |pivot| sin^2(omega / 4)``: :meth:`_Polyline.sag` of arcs of angle omega (rad)."""
+    quarter = np.sin(0.25 * omega)
+    return 2.0 * abs(pivot) * (quarter * quarter)
+
+
+_NEWTON = 8
+"""Newton steps from the chord's projection to the nearest point of a CL segment's curve
+(:func:`_curve_distance2`)."""
+
+_SETTLED = 1e-12
+"""A Newton step of the curve's parameter no larger than this ends the steps of a point: the
+distance there is that of the nearest point to far below a nanometre (its error is of second
+order in the step)."""
+
+
+def _curve_distance2(
+    seg: Segments, arc: Arcs, points: VecArrays, s: np.ndarray, pivot: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Squared distance of points from the curves of CL segments with a pivot, and where on
+    the curve it is measured.
+
+    The curve (:class:`_Polyline`) is ``c(u) = A + u d + r g(u)``, u in [0, 1], with
+    ``g(u) = alpha(u) v0 + beta(u) n`` in the arc's frame (v0 and the unit normal towards its
+    end, :func:`urdfpost.linearize._frame`), ``alpha = cos(u omega) - 1 + u (1 - cos omega)``
+    and ``beta = sin(u omega) - u sin omega``: the slerp less the straight line between the
+    axes, 0 at both ends. From the chord's projection parameter, :data:`_NEWTON` Newton steps
+    on ``|p - c(u)|^2 / 2`` (where its second derivative is not positive, Gauss-Newton's),
+    each clipped to [0, 1] (a point's steps end once its step is at most :data:`_SETTLED`); the
+    smallest squared distance of the parameters met is taken.
+    That is the distance to a point of the curve: never less than the distance from the
+    curve, and equal to it once the steps converge (quadratically: the curve's curvature is
+    at most ``r omega^2 / |c'|^2``, and a program within tolerance is within a fraction of a
+    millimetre of it).
+
+    Parameters
+    ----------
+    seg : Segments
+        The chords (between the CL points at the pivot), shape (n,).
+    arc : Arcs
+        The arcs of the CL axes, shape (n,).
+    points : VecArrays
+        Coordinate arrays of shape (s, n) or (n,), mm.
+    s : ndarray, shape of ``points[0]``
+        The projection parameters on the chords, in [0, 1].
+    pivot : float, mm
+
+    Returns
+    -------
+    dist2 : ndarray, shape of ``s``, mm^2
+    u : ndarray, shape of ``s``
+        The parameter of the point of the curve measured to, in [0, 1].
+    """
+    from urdfpost.linearize import _frame
+
+    _, normal, _ = _frame(arc)
+    a, d, v0, omega = seg.a, seg.d, arc.v0, arc.omega
+    cos_w, sin_w = np.cos(omega), np.sin(omega)
+    w0 = [points[i] - a[i] for i in range(3)]
+    u, best, best_u = s, np.zeros(0), s
+    for step in range(_NEWTON + 1):
+        angle = u * omega
+        cos_a, sin_a = np.cos(angle), np.sin(angle)
+        alpha = (cos_a - 1.0) + u * (1.0 - cos_w)
+        beta = sin_a - u * sin_w
+        ra, rb = pivot * alpha, pivot * beta
+        w = [w0[i] - u * d[i] - (ra * v0[i] + rb * normal[i]) for i in range(3)]
+        d2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+        if step == 0:
+            best, best_u = d2, u
+        else:
+            better = d2 < best
+            best, best_u = np.where(better, d2, best), np.where(better, u, best_u)
+        if step == _NEWTON:
+            break
+        da = (1.0 - cos_w) - omega * sin_a
+        db = omega * cos_a - sin_w
+        c1 = [d[i] + pivot * (da * v0[i] + db * normal[i]) for i in range(3)]
+        bend = pivot * (omega * omega)
+        c2 = [bend * (cos_a * v0[i] + sin_a * normal[i]) for i in range(3)]  # -c''(u)
+        grad = w[0] * c1[0] + w[1] * c1[1] + w[2] * c1[2]
+        speed2 = c1[0] * c1[0] + c1[1] * c1[1] + c1[2] * c1[2]
+        curv = speed2 + (w[0] * c2[0] + w[1] * c2[1] + w[2] * c2[2])
+        den = np.where(curv > 0.0, curv, speed2)
+        move = np.divide(
+            grad, den, out=np.zeros(np.broadcast_shapes(grad.shape, den.shape)), where=den > 0.0
+        )
+        # settled where the step is below _SETTLED (or clipped to nothing): the kernel stops
+        # there, and the steps left would repeat this one
+        nxt = np.where(np.abs(move) > _SETTLED, np.clip(u + move, 0.0, 1.0), u)
+        if np.array_equal(nxt, u):
+            break
+        u = nxt
+    return best, best_u
+
+
 @dataclass(frozen=True)
 class _FirstSpan:
     """The first CL segment and arc of the spans of blocks, how far the projection parameter
     of samples on that segment falls outside [0, 1] (shape (s, n); 0 inside), and the
     squared chord from their tool axes to the CL axis at that parameter (clipped; shape
-    (s, n)), which bounds the deviation measured (:func:`orientation_path_chord2`)."""
+    (s, n)), which bounds the deviation measured (:func:`orientation_path_chord2`); with a
+    pivot, the parameter of the point of the segment's curve the samples are measured to
+    (:func:`_curve_distance2`; None without)."""
 
     segments: Segments
     arcs: Arcs
     outside: np.ndarray
     at: np.ndarray
+    par: np.ndarray | None = None
 
 
 def _segment_errors(
-    seg: Segments, arc: Arcs, points: VecArrays, axes: VecArrays, window: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    seg: Segments, arc: Arcs, points: VecArrays, axes: VecArrays, window: float, pivot: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """Squared tip distance and axis chord of samples from one CL segment and arc each
     (:func:`_span_deviation`'s measure), how far the projection parameter falls outside [0, 1],
     and the chord at the clipped parameter (:func:`orientation_path_chord2`), all of the
-    samples' shape."""
+    samples' shape; and with a pivot, the parameter on the segment's curve the distance is
+    measured at (None without).
+
+    With a pivot the distance is from the segment's curve (:func:`_curve_distance2`), and the
+    window of the axis grows by the curve's :meth:`_Polyline.sag`: the chord's projection
+    parameter, about which the window is, is then within the window of the curve's nearest
+    point for any sample within ``window`` of the curve."""
     outside: list[np.ndarray] = []
     d2, s = seg.distance2(points, outside)
     u = np.where(s >= 1.0, 1.0 + outside[0], s - outside[0])  # not clipped
-    half = np.where(seg.inv_dd > 0, window * np.sqrt(seg.inv_dd), np.inf)  # window / |d|
+    reach: float | np.ndarray = window
+    par = None
+    if pivot:
+        d2, par = _curve_distance2(seg, arc, points, s, pivot)
+        reach = window + _sag(arc.omega, pivot)
+    half = np.where(seg.inv_dd > 0, reach * np.sqrt(seg.inv_dd), np.inf)  # window / |d|
     at, c2 = orientation_path_chord2(arc, axes, u, half)
-    return d2, c2, outside[0], at
+    return d2, c2, outside[0], at, par
 
 
 def _span_deviation(
@@ -376,10 +510,10 @@ def _span_deviation(
         pts = points if off == 0 else (points[0][:, cols], points[1][:, cols], points[2][:, cols])
         axs = axes if off == 0 else (axes[0][:, cols], axes[1][:, cols], axes[2][:, cols])
         seg, arc = polyline.take(a)
-        d2, c2, outside, at = _segment_errors(seg, arc, pts, axs, window)
+        d2, c2, outside, at, par = _segment_errors(seg, arc, pts, axs, window, polyline.pivot)
         if off == 0:
             if first is not None:
-                first.append(_FirstSpan(seg, arc, outside, at))
+                first.append(_FirstSpan(seg, arc, outside, at, par))
             dist2, chord2 = d2, c2
             within = np.where(d2 <= window2, c2, np.inf)  # best chord of the segments near
             continue
@@ -467,6 +601,8 @@ def _far_segments(
             half_size = 0.5 * np.sqrt(
                 (px[nxt] - px[grp]) ** 2 + (py[nxt] - py[grp]) ** 2 + (pz[nxt] - pz[grp]) ** 2
             )
+            if polyline.pivot:  # the curve, within its sag of the chord
+                half_size = half_size + polyline.sag(grp)
         threshold = np.maximum(ub, window) * (1.0 + 1e-9) + 1e-9
         keep = distance(key, *centre) - half_size <= threshold[key]
         key, grp, col = key[keep], grp[keep], col[keep]
@@ -482,7 +618,7 @@ def _far_segments(
     seg, arc = polyline.take(index)
     pts = (points[0][sample, block], points[1][sample, block], points[2][sample, block])
     axs = (axes[0][sample, block], axes[1][sample, block], axes[2][sample, block])
-    d2, c2, _, _ = _segment_errors(seg, arc, pts, axs, window)
+    d2, c2, _, _, _ = _segment_errors(seg, arc, pts, axs, window, polyline.pivot)
     # per key: the nearest segment, the first of equals (the smallest index)
     order = np.lexsort((index, d2, key))
     head = order[np.r_[True, key[order][1:] != key[order][:-1]]]
@@ -518,7 +654,8 @@ class _Blocks:
 
     Block i moves from program row ``start[i]`` to ``start[i] + 1`` and is compared with the CL
     span ``ja[i] .. jb[i]``, where ``valid[i]`` (None: every block); ``window`` (mm) is the
-    window of :func:`_span_deviation`.
+    window of :func:`_span_deviation`. The point measured is the polyline's pivot up the tool
+    axis (:attr:`pivot`).
     """
 
     machine: Machine
@@ -530,9 +667,14 @@ class _Blocks:
     polyline: _Polyline
     tcp: bool
     tool_length: float
-    pivot: float
     window: float
     valid: np.ndarray | None = None
+
+    @property
+    def pivot(self) -> float:
+        """How far up the tool axis from the tip the point measured is (mm): that of the CL
+        points of the polyline."""
+        return self.polyline.pivot
 
     def along(self, blocks: np.ndarray, t: np.ndarray) -> tuple[VecArrays | None, VecArrays]:
         """Tool tip (None in TCP programs) and axis along blocks at parameters t, the
@@ -607,7 +749,12 @@ class _Blocks:
         - the tip deviation is the distance of p(t) from the segment, a convex and 1-Lipschitz
           function of p: it is at most the largest sample plus ``M h^2 / 8`` (p stays that
           close to the chord between two samples, and on the chord the distance is at most the
-          larger of theirs);
+          larger of theirs). With a pivot r it is the distance from the segment's curve c
+          (:func:`_curve_distance2`), measured at the samples k to the points ``c(u_k)``: it is
+          at most ``|p(t) - c(u(t))|`` with u linear between the samples' u_k, a function whose
+          second derivative is at most ``M + r omega^2 (u_{k+1} - u_k)^2 / h^2`` (c is straight
+          but for r times the slerp, of acceleration omega^2), so the bound gains ``r omega^2
+          max (u_{k+1} - u_k)^2 / 8``;
         - the axis deviation (the chord to the nearest CL axis of the window about u, ``u =
           (p - A).d / |d|^2``, :func:`_span_deviation`) is at most the chord ``|a(t) -
           e(s(t))|`` to the CL slerp e (angle omega, speed omega) at the clipped projection
@@ -660,6 +807,9 @@ class _Blocks:
         g = np.sqrt(span.at)
         room = h * h / 8.0
         tip_bound = np.sqrt(dist2.max(axis=0)) + tip_curv * room
+        if span.par is not None:  # the curve's bend between the parameters measured to
+            du = span.par[1:] - span.par[:-1]
+            tip_bound = tip_bound + abs(self.pivot) * (omega * omega) * (du * du).max(axis=0) / 8.0
         first = 0.5 * (g[1:] + g[:-1]).max(axis=0) + (axis_speed + spin) * (h / 2.0)
         curv = axis_curv + spin * spin + 2.0 * omega * tip_curv * inv_length
         second = g.max(axis=0) + 2.0 * omega * span.outside.max(axis=0) + curv * room
@@ -1339,7 +1489,6 @@ def _verify_rows(
             polyline=part.polyline,
             tcp=program.tcp,
             tool_length=tool_length,
-            pivot=c.pivot,
             window=c.tol.tip,
             valid=part.valid,
         )
@@ -1435,6 +1584,7 @@ def _row_deviation(
                 *polyline.tip,
                 *polyline.axis,
                 polyline.omega(),
+                polyline.pivot,
                 float(window),
                 _LONG,
                 dp2,
@@ -1514,7 +1664,7 @@ class _Comparison:
         # the block ends themselves (rapids included) against their CL span
         ja_pt = np.maximum(before, 0)
         jb_pt = np.maximum(np.where(after < n_cl, after, n_cl - 1), ja_pt)
-        polyline = _Polyline.of(cl_tip, toolpath.axis)
+        polyline = _Polyline.of(cl_tip, toolpath.axis, check.pivot)
         dp2, op2 = _row_deviation(rows, polyline, ja_pt, jb_pt, check.tol.tip)
         feed_pts = ~rapid | (owner >= 0)
 
