@@ -888,10 +888,12 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     )
     table = None if args.tool_table is None else read_tool_table(args.tool_table, scale)
     pivot = 0.0
+    plain_tol = tol
     if args.angle_tolerance > 0:
-        from urdfpost.posting.check import ball_radius, bent_tolerances
+        from urdfpost.posting.check import bent_tolerances
+        from urdfpost.posting.tools import cutting_points
 
-        pivot = ball_radius(toolpath)  # (the first cutter: the first piece has it)
+        pivot = cutting_points(toolpath)[0]  # (at the first CL point: the first piece has it)
         tol = bent_tolerances(tol, args.angle_tolerance, pivot)
     # the process the post makes of the CL data; NaN where the CL data has no feed or speed
     # (a post fills those from --feed and --spindle, which the program says nothing of)
@@ -934,9 +936,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             collected(chunks),
             machine,
             dialect.name,
-            tol=tol,
+            tol=plain_tol if args.angle_tolerance > 0 else tol,
             tool_length=tool_length,
             pivot=pivot,
+            bent=args.angle_tolerance if args.angle_tolerance > 0 else None,
             piece_points=pieces,
             process=process,
             table=table,
@@ -959,15 +962,28 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         checks = []
         cl_data = expected(toolpath)[0]
         shifts = mcs_shifts(cl_data) if args.mcs_offsets else {}
-        sections = paired_sections(program, cl_data, tool_length, table, by_mcs=args.mcs_offsets)
+        bent = args.angle_tolerance > 0  # measured at each tool's cutting point
+        sections = paired_sections(
+            program, cl_data, tool_length, table, by_mcs=args.mcs_offsets, by_pivot=bent
+        )
         for k, (part, cl, section) in enumerate(sections):
             on = machine
             if section.mcs in shifts:  # its points as its MCS has them, on that machine
                 on = mcs_machine(machine, shifts[section.mcs])
                 cl = in_own_mcs(cl, shifts[section.mcs], transformed_mcs(cl_data))
             length = section.length
+            point, section_tol = pivot, tol
+            if bent:
+                point = section.pivot
+                section_tol = bent_tolerances(plain_tol, args.angle_tolerance, point)
             verified, match = verify_matched(
-                part, on, cl, tool_length=length, tol=tol, pivot=pivot, feed_rules=feed_rules
+                part,
+                on,
+                cl,
+                tool_length=length,
+                tol=section_tol,
+                pivot=point,
+                feed_rules=feed_rules,
             )
             checks.append(verified)
             last = k == len(sections) - 1

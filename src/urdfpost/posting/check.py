@@ -55,16 +55,12 @@ class CheckTarget:
 
 
 def ball_radius(toolpath: Toolpath) -> float:
-    """Ball radius of the first cutter in the CL data when it is a ball-end tool, else 0 (mm):
-    the pivot of a strategy that bends the tool axis (:func:`bent_tolerances`)."""
-    for e in toolpath.events:
-        if e.kind in ("cutter", "tool") and e.data.get("diameter") is not None:
-            d = float(e.data["diameter"])
-            r = e.data.get("corner_radius")
-            if r is not None and d > 0 and abs(float(r) - 0.5 * d) <= 1e-6 * max(d, 1.0):
-                return 0.5 * d
-            return 0.0
-    return 0.0
+    """Ball radius of the cutter at the first CL point when it is a ball-end tool, else 0
+    (mm): the pivot of a strategy that bends the tool axis (:func:`bent_tolerances`), of the
+    tool section the toolpath begins (:func:`urdfpost.posting.tools.cutting_points`)."""
+    from urdfpost.posting.tools import cutting_points
+
+    return cutting_points(toolpath)[0]
 
 
 def bent_tolerances(tol: Tolerances, angle_tolerance_deg: float, pivot: float) -> Tolerances:

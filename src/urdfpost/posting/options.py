@@ -217,6 +217,10 @@ class Job:
     tilted_planes : bool
         Write operations at a fixed tilt in tilted planes (:attr:`PostOptions.tilted_planes`
         resolved with the machine file's setting).
+    pivot : float or None
+        The cutting point of the tool section being posted, mm up the tool axis from the tip
+        (:func:`urdfpost.posting.tools.cutting_points`); None: the first cutter's of the CL
+        data posted.
     """
 
     machine: Machine
@@ -250,6 +254,7 @@ class Job:
     feed_mode: str = FEED_TIP
     arcs: bool = True
     tilted_planes: bool = True
+    pivot: float | None = None
 
 
 def feed_mode_name(name: str | None, tcp: bool, dialect: Dialect) -> str:

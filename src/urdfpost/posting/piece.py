@@ -122,7 +122,7 @@ def make_problem(toolpath: Toolpath, job: Job) -> Problem:
         tool_length=job.tool_length,
         tol=job.tol,
         angle_tolerance=float(np.radians(job.angle_tolerance_deg)),
-        pivot=ball_radius(toolpath),
+        pivot=ball_radius(toolpath) if job.pivot is None else job.pivot,
         prefer=job.prefer,
         planner=job.planner,
         lift=job.lift,

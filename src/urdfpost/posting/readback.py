@@ -17,7 +17,13 @@ from urdfpost.errors import CLDataError, UrdfpostError
 from urdfpost.machine import Machine
 from urdfpost.posting import PIECE_POINTS
 from urdfpost.posting.check import tolerance_share
-from urdfpost.posting.tools import Section, gauge_lengths, program_sections, tool_sections
+from urdfpost.posting.tools import (
+    Section,
+    cutting_points,
+    gauge_lengths,
+    program_sections,
+    tool_sections,
+)
 from urdfpost.posting.worker import FORK, ReadChecks, ReadPiece
 from urdfpost.program import Blocks, Move, MoveTable, Program, Smoothing, rewind_moves
 from urdfpost.readers._stream import text_pieces
@@ -228,6 +234,7 @@ def verify_stream(
     table: Mapping[int, float] | None = None,
     feed_rules: FeedRules | None = None,
     parallel: bool | None = None,
+    bent: float | None = None,
 ) -> tuple[Verification, Program]:
     """:func:`urdfpost.verification.verify` of a program file against CL data given in pieces, in
     bounded memory: the program is read and checked a piece at a time.
@@ -274,6 +281,11 @@ def verify_stream(
         core, each piece by the next worker in turn, while the next ones are read and cut; default
         on Linux when the machine has more than one core and the program more than one piece
         (as :func:`urdfpost.posting.stream.post_stream`).
+    bent : float, optional, degrees
+        The angle tolerance of a program a strategy bent: each tool section is measured at its
+        tool's cutting point (:func:`urdfpost.posting.tools.cutting_points`; ``pivot`` is not
+        used) with ``tol`` bent by it there (:func:`urdfpost.posting.check.bent_tolerances`).
+        None: every piece at ``pivot`` with ``tol``.
 
     Returns
     -------
@@ -304,7 +316,17 @@ def verify_stream(
     rows_per_point = 1.5  # a first guess, then as the pieces so far had
     rows_done = points_done = 0
     lengths: dict[int, float] = {}  # each tool's gauge length, mm
+    points: dict[int, float] = {}  # each tool's cutting point (with ``bent``), mm
+    at: float | None = None if bent is not None else pivot  # the section's (None: not known yet)
     checks: ReadChecks | None = None  # where the pieces are verified, in order
+
+    def tol_at(point: float) -> Tolerances:
+        """The tolerances of a section measured at ``point``."""
+        if bent is None:
+            return tol
+        from urdfpost.posting.check import bent_tolerances
+
+        return bent_tolerances(tol, bent, point)
 
     def check(
         head: Program,
@@ -330,7 +352,8 @@ def verify_stream(
         start = None
         if process is not None:
             start = process.begin(head, part, ended=ended, fresh=starts, tool_length=length)
-        checks.submit(ReadPiece(head, part, length, pivot, rules, start))
+        assert at is not None
+        checks.submit(ReadPiece(head, part, length, at, rules, start, tol_at(at)))
 
     length = tool_length  # of the tool section being checked
     fresh: list[bool] = []  # per piece: it begins a tool section
@@ -344,6 +367,8 @@ def verify_stream(
                     cl_ends = True
                 else:
                     lengths |= gauge_lengths(more, tool_length, table)
+                    if bent is not None:
+                        points |= cutting_points(more)[1]
                     cl = more if cl is None else joined(cl, [more])
             need = int(rows_per_point * want) + REACH + 2
             while not program_ends and (
@@ -363,12 +388,28 @@ def verify_stream(
             if header is None:
                 header = replace(program, blocks=Blocks(()))
             assert cl is not None
-            sections = [Section(0, len(cl), length, None)]
-            if not program.tcp:
-                sections = tool_sections(cl, tool_length, table, length=length)
+            sections = [Section(0, len(cl), length, None, 0, pivot)]
+            if not program.tcp or bent is not None:
+                sections = tool_sections(
+                    cl,
+                    tool_length,
+                    table,
+                    length=length,
+                    by_length=not program.tcp,
+                    by_pivot=bent is not None,
+                    pivot=at,
+                )
                 length = sections[0].length  # (a tool change at the piece's start)
+                at = sections[0].pivot if bent is not None else at
             if len(sections) > 1:  # the section ends in this piece: checked on its own
-                cut_program = program_sections(program, lengths, tool_length)
+                assert at is not None
+                cut_program = program_sections(
+                    program,
+                    lengths,
+                    tool_length,
+                    by_length=not program.tcp,
+                    pivots=None if bent is None else (at, points),
+                )
                 if len(cut_program) == 1 and not program_ends:
                     more_text = True  # its end is further on in the program text
                     continue
@@ -379,11 +420,13 @@ def verify_stream(
                     check(head, toolpath_slice(cl, 0, end), length, None)
                     cl = toolpath_slice(cl, end, len(cl))
                     length, starts = sections[1].length, True
+                    at = sections[1].pivot if bent is not None else at
                     continue
             if cl_ends and program_ends:
                 check(program, cl, length, feed_rules, ended=reader.builder.ended)
                 break
-            cut = _verify_cut(program, machine, cl, tol, length, pivot, want, program_ends)
+            assert at is not None
+            cut = _verify_cut(program, machine, cl, tol_at(at), length, at, want, program_ends)
             if cut is None:  # nowhere to cut yet: a longer piece, and more rows
                 want *= 2
                 continue

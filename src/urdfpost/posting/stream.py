@@ -337,15 +337,23 @@ def post_stream(
             last = exhausted and len(buffer) <= want + lookahead
             window = buffer if last else toolpath_slice(buffer, 0, want + lookahead)
             boundary = None  # where the next tool section begins, in the window
-            if not job.tcp:
-                cuts = tool_sections(
-                    window, job.tool_length, job.tool_table, length=section.tool_length
-                )
-                if cuts[0].length != section.tool_length:  # a tool change at the start
-                    section, base = replace(job, tool_length=cuts[0].length), None
-                if len(cuts) > 1:
-                    boundary, next_length = cuts[1].start, cuts[1].length
-                    window, last = toolpath_slice(buffer, 0, boundary), False
+            # (sections of gauge lengths in machine coordinates, of cutting points in any)
+            cuts = tool_sections(
+                window,
+                job.tool_length,
+                job.tool_table,
+                length=section.tool_length,
+                by_length=not job.tcp,
+                by_pivot=True,
+                pivot=section.pivot,
+            )
+            if (cuts[0].length, cuts[0].pivot) != (section.tool_length, section.pivot):
+                # a tool change at the start (or the first piece's cutting point)
+                section = replace(job, tool_length=cuts[0].length, pivot=cuts[0].pivot)
+                base = None
+            if len(cuts) > 1:
+                boundary, next_section = cuts[1].start, cuts[1]
+                window, last = toolpath_slice(buffer, 0, boundary), False
             if base is None:
                 base = make_problem(window, section)
             if checks is None:
@@ -427,7 +435,7 @@ def post_stream(
                 offset += len(posted.plan.toolpath)
                 buffer = toolpath_slice(buffer, boundary, len(buffer))
                 entry, start, base = start, None, None
-                section = replace(job, tool_length=next_length)
+                section = replace(job, tool_length=next_section.length, pivot=next_section.pivot)
                 continue
             offset += len(posted.plan.toolpath) - 1
             buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)

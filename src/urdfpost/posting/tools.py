@@ -18,6 +18,13 @@ written and checked with its tool's length. The program is one; its sections are
 in the program read back at the tool changes that begin them (:func:`program_sections`).
 TCP programs hold tool tips: their tool lengths are the control's (its tool table and the
 length offset register the TCP switch selects), and they are one section.
+
+A tool change to a cutter of another ball radius begins a section too, in any program
+(``by_pivot``): a strategy that bends the tool axis pivots it about the cutting point, the
+ball centre of a ball-end tool and the tip of any other (:func:`cutting_points`), and the
+program is checked against the CL data at that point. One pivot for a whole job moved a flat
+end mill's tip by the first tool's ball radius times the bend (0.084 mm on the dome, checked
+at the ball centre and passed).
 """
 
 from __future__ import annotations
@@ -119,6 +126,63 @@ def gauge_lengths(
     return out
 
 
+def ball_radius_of(data: Mapping[str, object]) -> float | None:
+    """The ball radius of a cutter (a ``cutter`` or ``tool`` event's data, mm): half its
+    diameter when its corner radius is that (a ball-end tool), else 0; None when the data
+    gives no diameter."""
+    diameter, corner = data.get("diameter"), data.get("corner_radius")
+    if diameter is None:
+        return None
+    d = float(diameter)  # type: ignore[arg-type]
+    if corner is not None and d > 0 and abs(float(corner) - 0.5 * d) <= 1e-6 * max(d, 1.0):  # type: ignore[arg-type]
+        return 0.5 * d
+    return 0.0
+
+
+def cutting_points(toolpath: Toolpath) -> tuple[float, dict[int, float]]:
+    """How far up the tool axis from the tip each tool cuts (mm): the ball radius of a
+    ball-end cutter, 0 for any other (:func:`ball_radius_of`).
+
+    A tool's cutter is the last ``CUTTER`` (or ``LOADTL`` with a diameter) among the events
+    before the same CL point as its tool change, else the next one before another tool
+    change.
+
+    Returns
+    -------
+    first : float, mm
+        The cutting point at the first CL point: the last cutter's before it, else the first
+        cutter's (0 without one).
+    by_tool : dict of int to float, mm
+        Per tool number loaded; a tool with no cutter is not in it (it keeps the cutting point
+        of the tool before).
+    """
+    first: float | None = None
+    start: float | None = None  # the last cutter's before the first point
+    by_tool: dict[int, float] = {}
+    tool: int | None = None
+    events = sorted(toolpath.events, key=lambda e: e.index)
+    k = 0
+    while k < len(events):
+        group = [e for e in events[k:] if e.index == events[k].index]
+        k += len(group)
+        for e in group:
+            if e.kind == "tool":
+                tool = int(e.data.get("number", 0))
+        for e in group:
+            if e.kind in ("cutter", "tool"):
+                radius = ball_radius_of(e.data)
+                if radius is None:
+                    continue
+                first = radius if first is None else first
+                if e.index <= 0:
+                    start = radius
+                if tool is not None:
+                    by_tool[tool] = radius
+    if start is not None:
+        return start, by_tool
+    return (0.0 if first is None else first), by_tool
+
+
 def mcs_shifts(toolpath: Toolpath) -> dict[int, np.ndarray]:
     """Where each MCS of the CL data (its ``msys`` events) sits in the first one.
 
@@ -186,6 +250,8 @@ class Section:
         Its tool number (None: before any tool change).
     mcs : int
         Its MCS (0: the first; :func:`mcs_shifts`), with ``--mcs-offsets`` (else 0).
+    pivot : float, mm
+        Its tool's cutting point up the tool axis from the tip (:func:`cutting_points`).
     """
 
     start: int
@@ -193,6 +259,7 @@ class Section:
     length: float
     tool: int | None
     mcs: int = 0
+    pivot: float = 0.0
 
 
 def tool_sections(
@@ -203,10 +270,13 @@ def tool_sections(
     *,
     by_length: bool = True,
     by_mcs: bool = False,
+    by_pivot: bool = False,
+    pivot: float | None = None,
 ) -> list[Section]:
     """The sections of a job: a new one at each tool change whose gauge length differs from
-    the one before (``by_length``: machine coordinates; equal lengths share a section), and
-    at each MSYS of another MCS (``by_mcs``: a work offset per MCS).
+    the one before (``by_length``: machine coordinates; equal lengths share a section), at
+    each tool change to another cutting point (``by_pivot``, :func:`cutting_points`), and at
+    each MSYS of another MCS (``by_mcs``: a work offset per MCS).
 
     Parameters
     ----------
@@ -218,8 +288,11 @@ def tool_sections(
     length : float, optional, mm
         The length in use where the toolpath starts (a piece of a streamed job); default
         ``default``.
-    by_length, by_mcs : bool
+    by_length, by_mcs, by_pivot : bool
         What begins a section.
+    pivot : float, optional, mm
+        The cutting point in use where the toolpath starts (a piece of a streamed job);
+        default the first cutter's.
 
     Returns
     -------
@@ -227,28 +300,36 @@ def tool_sections(
         At least one; they cover every point in order.
     """
     lengths = gauge_lengths(toolpath, default, table)
+    first, pivots = cutting_points(toolpath)
     n = len(toolpath)
     current = default if length is None else length
+    point = first if pivot is None else pivot
     tool: int | None = None
     mcs = 0
     sections: list[Section] = []
     start = 0
     for e in sorted(toolpath.events, key=lambda e: e.index):
         if e.kind == "tool":
-            new_length, new_mcs = lengths[int(e.data.get("number", 0))], mcs
+            number = int(e.data.get("number", 0))
+            new_length, new_mcs = lengths[number], mcs
+            new_point = pivots.get(number, point)
         elif e.kind == "msys" and by_mcs:
-            new_length, new_mcs = current, int(e.data.get("mcs", 0))
+            new_length, new_mcs, new_point = current, int(e.data.get("mcs", 0)), point
         else:
             continue
-        changes = (by_length and new_length != current) or new_mcs != mcs
+        changes = (
+            (by_length and new_length != current)
+            or (by_pivot and new_point != point)
+            or new_mcs != mcs
+        )
         if start < e.index < n and changes:
-            sections.append(Section(start, e.index, current, tool, mcs))
+            sections.append(Section(start, e.index, current, tool, mcs, point))
             start = e.index
         if e.index < n or not sections:
-            current, mcs = new_length, new_mcs
+            current, mcs, point = new_length, new_mcs, new_point
             if e.kind == "tool":
                 tool = int(e.data.get("number", 0))
-    sections.append(Section(start, n, current, tool, mcs))
+    sections.append(Section(start, n, current, tool, mcs, point))
     return sections
 
 
@@ -286,10 +367,12 @@ def program_sections(
     *,
     by_length: bool = True,
     by_mcs: bool = False,
+    pivots: tuple[float, Mapping[int, float]] | None = None,
 ) -> list[tuple[Program, float, int | None]]:
     """A program read back cut as :func:`tool_sections` cuts its CL data: at the tool changes
-    that change the gauge length (``by_length``), and at the work offset changes
-    (``by_mcs``: a work offset per MCS).
+    that change the gauge length (``by_length``), at those that change the cutting point
+    (``pivots``: :func:`cutting_points` of the CL data; None: not), and at the work offset
+    changes (``by_mcs``: a work offset per MCS).
 
     Each section but the first begins with the block that changes (its
     :class:`~urdfpost.program.WorkOffset` or :class:`~urdfpost.program.ToolChange`); the
@@ -307,24 +390,30 @@ def program_sections(
     cuts: list[tuple[int, float, int | None]] = [(0, default, None)]
     offset: int | None = None
     length = default
+    point = 0.0 if pivots is None else pivots[0]
     moved = False  # a move since the section began: a change now begins another
     for i, part in enumerate(parts):
         if isinstance(part, Move) or (isinstance(part, MoveTable) and len(part)):
             moved = True
             continue
+        new_point = point
         if isinstance(part, ToolChange):
             new_length, new_offset = lengths.get(part.number, default), offset
+            if pivots is not None:
+                new_point = pivots[1].get(part.number, point)
         elif isinstance(part, WorkOffset) and by_mcs:
             new_length, new_offset = length, part.number
         else:
             continue
-        changes = (by_length and new_length != length) or (
-            offset is not None and new_offset != offset
+        changes = (
+            (by_length and new_length != length)
+            or new_point != point
+            or (offset is not None and new_offset != offset)
         )
         if moved and changes:
             cuts.append((i, new_length, new_offset))
             moved = False
-        length, offset = new_length, new_offset
+        length, offset, point = new_length, new_offset, new_point
         cuts[-1] = (cuts[-1][0], length, offset)
     out: list[tuple[Program, float, int | None]] = []
     for k, (i, section_length, number) in enumerate(cuts):
@@ -341,10 +430,11 @@ def paired_sections(
     table: Mapping[int, float] | None = None,
     *,
     by_mcs: bool = False,
+    by_pivot: bool = False,
 ) -> list[tuple[Program, Toolpath, Section]]:
     """A program and its CL data cut into the same sections (:func:`tool_sections`), to be
-    checked each with its gauge length and, ``by_mcs``, on the machine of its MCS
-    (:func:`mcs_machine`).
+    checked each with its gauge length, ``by_pivot`` at its tool's cutting point, and,
+    ``by_mcs``, on the machine of its MCS (:func:`mcs_machine`).
 
     Parameters
     ----------
@@ -358,6 +448,8 @@ def paired_sections(
         The tool table (tool number to gauge length, mm).
     by_mcs : bool
         A work offset per MCS: a section at each MSYS of another MCS.
+    by_pivot : bool
+        A section at each tool change to another cutting point (:func:`cutting_points`).
 
     Returns
     -------
@@ -373,9 +465,14 @@ def paired_sections(
         (the first, then one more for each other MCS).
     """
     by_length = not program.tcp
-    sections = tool_sections(toolpath, default, table, by_length=by_length, by_mcs=by_mcs)
+    sections = tool_sections(
+        toolpath, default, table, by_length=by_length, by_mcs=by_mcs, by_pivot=by_pivot
+    )
     lengths = gauge_lengths(toolpath, default, table)
-    cut = program_sections(program, lengths, default, by_length=by_length, by_mcs=by_mcs)
+    pivots = cutting_points(toolpath) if by_pivot else None
+    cut = program_sections(
+        program, lengths, default, by_length=by_length, by_mcs=by_mcs, pivots=pivots
+    )
     if by_mcs:
         have = [number for _, _, number in cut]
         first = have[0] if have[0] is not None else 1

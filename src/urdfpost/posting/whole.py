@@ -135,21 +135,21 @@ def post(
         spec=job.dialect.spec,
         tcp=job.tcp,
     )
-    sections = [Section(0, len(toolpath), job.tool_length, None)]
     if not job.tcp:
         notes += one_tool_length(toolpath, job.tool_length, job.units, table=job.tool_table)[0]
-    if not job.tcp or job.mcs_offsets:
-        sections = tool_sections(
-            toolpath,
-            job.tool_length,
-            job.tool_table,
-            by_length=not job.tcp,
-            by_mcs=job.mcs_offsets,
-        )
+    sections = tool_sections(
+        toolpath,
+        job.tool_length,
+        job.tool_table,
+        by_length=not job.tcp,
+        by_mcs=job.mcs_offsets,
+        by_pivot=True,
+    )
     if notes:
         toolpath = replace(toolpath, warnings=toolpath.warnings + tuple(notes))
     if several_lengths(sections):
         return _post_sections(toolpath, job, sections, progress)
+    job = replace(job, pivot=sections[0].pivot)
     try:
         posted = post_piece(toolpath, job, progress=progress)
     except UnreachableError as e:
@@ -218,7 +218,9 @@ def _post_sections(
         section_machine = machines.get(section.mcs, machine)
         if section.mcs in shifts:  # its points as its MCS has them
             part = in_own_mcs(part, shifts[section.mcs], transformed)
-        piece_job = replace(job, tool_length=section.length, machine=section_machine)
+        piece_job = replace(
+            job, tool_length=section.length, machine=section_machine, pivot=section.pivot
+        )
         last = k == len(sections) - 1
         other_mcs = k > 0 and section.mcs != sections[k - 1].mcs
         joining = Continuation(

@@ -323,6 +323,9 @@ class ReadPiece:
     process : PieceStart or None
         The start of the piece's process check
         (:meth:`urdfpost.verification.process.ProcessChecker.begin`); None: not checked.
+    tol : Tolerances or None
+        Its tolerances (None: the verifier's; a tool section measured at its own cutting
+        point has its own).
     """
 
     program: Program
@@ -331,6 +334,7 @@ class ReadPiece:
     pivot: float
     feed_rules: FeedRules | None = None
     process: PieceStart | None = None
+    tol: Tolerances | None = None
 
 
 class PieceVerifier:
@@ -444,19 +448,20 @@ class PieceVerifier:
         show of its process (None: not asked for). The process check matches the rows to the
         CL points as the verification did (:func:`urdfpost.verification.verify_matched`) where
         it can (the same tool length, pivot and tolerances; no arc, no canned cycle)."""
+        tol = self.tol if job.tol is None else job.tol
         check, match = verify_matched(
             job.program,
             self.machine,
             job.cl,
             tool_length=job.tool_length,
-            tol=self.tol,
+            tol=tol,
             pivot=job.pivot,
             feed_rules=job.feed_rules,
         )
         start = job.process
         if start is None:
             return check, None
-        if (start.tol, start.pivot, start.tool_length) != (self.tol, job.pivot, job.tool_length):
+        if (start.tol, start.pivot, start.tool_length) != (tol, job.pivot, job.tool_length):
             match = None
         return check, start.compare(job.program, job.cl, self.machine, match)
 

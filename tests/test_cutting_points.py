@@ -1,0 +1,114 @@
+"""Each tool bends about its own cutting point: the ball centre of a ball-end tool, the tip of
+any other.
+
+The post used the first cutter's ball radius for the whole job. In a job with a ball-end
+finisher first and a flat end mill after it, the cone strategy pivoted the flat end mill about
+a point 3 mm up its axis near the pole, which moved its tip 0.084 mm off the CL path, and the
+post's own check (at that same point, with its looser tolerance) passed it. Now a tool change
+to another cutting point begins a tool section (:func:`urdfpost.posting.tools.tool_sections`),
+posted and checked at its own point, whole and streamed, and ``urdfpost verify
+--angle-tolerance`` measures each section at its tool's point.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from urdfpost.cli import main
+from urdfpost.posting.tools import cutting_points, tool_sections
+from urdfpost.readers import read_cl
+
+DOME = Path(__file__).resolve().parents[1] / "examples" / "dome.apt"
+BALL, FLAT = "CUTTER/6.0,3.0", "CUTTER/10.0,0.0"
+
+
+def _job(tmp_path: Path, name: str, cutters: list[tuple[int, str]]) -> Path:
+    """The dome's path once per ``(tool, CUTTER record)``, each after its tool change."""
+    skip = ("PARTNO", "UNITS", "MULTAX", "LOADTL", "CUTTER", "FINI", "$$")
+    body = [line for line in DOME.read_text().splitlines() if not line.startswith(skip)]
+    lines = ["PARTNO TOOLS", "UNITS/MM", "MULTAX/ON"]
+    for number, cutter in cutters:
+        lines += [f"LOADTL/{number}", cutter, *body]
+    path = tmp_path / f"{name}.apt"
+    path.write_text("\n".join([*lines, "FINI"]) + "\n")
+    return path
+
+
+def _tip_deviation(capsys: pytest.CaptureFixture[str]) -> float:
+    out = capsys.readouterr().out
+    found = re.search(r"tool tip deviation max ([0-9.]+)", out)
+    assert found, out
+    return float(found[1])
+
+
+def test_each_tool_has_its_cutting_point_and_a_change_of_it_begins_a_section(
+    tmp_path: Path,
+) -> None:
+    """The ball radius of a ball-end cutter, 0 of a flat one, per tool; a section begins at
+    the tool change to another point (and only with ``by_pivot``)."""
+    path = _job(tmp_path, "two", [(2, BALL), (1, FLAT)])
+    toolpath = read_cl(path)
+    assert cutting_points(toolpath) == (3.0, {2: 3.0, 1: 0.0})
+    sections = tool_sections(toolpath, 100.0, by_length=False, by_pivot=True)
+    assert [s.pivot for s in sections] == [3.0, 0.0]
+    assert sections[0].stop == sections[1].start == len(toolpath) // 2
+    assert len(tool_sections(toolpath, 100.0, by_length=False)) == 1
+    same = read_cl(_job(tmp_path, "same", [(2, BALL), (3, BALL)]))
+    assert len(tool_sections(same, 100.0, by_length=False, by_pivot=True)) == 1
+    # a first CUTTER record replaced before the first point: the one in force there counts
+    text = path.read_text().replace("LOADTL/2", "CUTTER/8.0,0.5\nLOADTL/2", 1)
+    (tmp_path / "again.apt").write_text(text)
+    assert cutting_points(read_cl(tmp_path / "again.apt"))[0] == 3.0
+
+
+@pytest.mark.parametrize("pieces", ["0", "100"])
+@pytest.mark.parametrize("order", ["ball-first", "flat-first"])
+def test_a_flat_end_mill_after_a_ball_end_mill_bends_about_its_tip(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], order: str, pieces: str
+) -> None:
+    """Posted whole and streamed, the two-tool job verifies (whole and streamed) with each
+    section at its own cutting point; its flat tool's section alone, against a CL file of
+    that tool only, keeps its tip within 0.01 mm (it was 0.084 mm off)."""
+    cutters = [(2, BALL), (1, FLAT)] if order == "ball-first" else [(1, FLAT), (2, BALL)]
+    cl = _job(tmp_path, "job", cutters)
+    program = tmp_path / "job.h"
+    post = ["post", str(cl), "-m", "dmu50", "-c", "heidenhain", "-q", "-o", str(program)]
+    assert main([*post, "--piece-points", pieces]) == 0
+    capsys.readouterr()
+    verify = ["verify", str(program), "-m", "dmu50", "--angle-tolerance", "2"]
+    for verify_pieces in ("0", "100"):
+        assert main([*verify, "--cl", str(cl), "--piece-points", verify_pieces]) == 0
+        capsys.readouterr()
+    # the flat tool's half of the program, alone, at its tip (no pivot: a flat cutter first)
+    text = program.read_text().splitlines(keepends=True)
+    calls = [i for i, line in enumerate(text) if "TOOL CALL" in line]
+    assert len(calls) == 2
+    flat_half = text[: calls[1]] if order == "flat-first" else text[: calls[0]] + text[calls[1] :]
+    alone = tmp_path / "flat.h"
+    alone.write_text("".join(flat_half))
+    flat_cl = _job(tmp_path, "flat", [(1, FLAT)])
+    main(["verify", str(alone), "-m", "dmu50", "--angle-tolerance", "2", "--cl", str(flat_cl)])
+    assert _tip_deviation(capsys) <= 0.01
+
+
+def test_verify_measures_a_flat_tool_at_its_tip(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A program whose strategy bent a path about a ball centre, checked against the same path
+    cut with a flat end mill: refused (its tip leaves the path by the ball radius times the
+    bend), where one pivot for the job had passed it."""
+    ball = _job(tmp_path, "ball", [(1, BALL)])
+    program = tmp_path / "ball.h"
+    assert (
+        main(["post", str(ball), "-m", "dmu50", "-c", "heidenhain", "-q", "-o", str(program)]) == 0
+    )
+    capsys.readouterr()
+    flat = _job(tmp_path, "flat", [(1, FLAT)])
+    code = main(
+        ["verify", str(program), "-m", "dmu50", "--cl", str(flat), "--angle-tolerance", "2"]
+    )
+    assert code == 1
+    assert _tip_deviation(capsys) > 0.05
