@@ -347,9 +347,11 @@ def post_stream(
                 by_pivot=True,
                 pivot=section.pivot,
             )
-            if (cuts[0].length, cuts[0].pivot) != (section.tool_length, section.pivot):
+            # (a TCP program keeps the job's length: its tools' lengths are the control's)
+            first_length = section.tool_length if job.tcp else cuts[0].length
+            if (first_length, cuts[0].pivot) != (section.tool_length, section.pivot):
                 # a tool change at the start (or the first piece's cutting point)
-                section = replace(job, tool_length=cuts[0].length, pivot=cuts[0].pivot)
+                section = replace(job, tool_length=first_length, pivot=cuts[0].pivot)
                 base = None
             if len(cuts) > 1:
                 boundary, next_section = cuts[1].start, cuts[1]
@@ -435,7 +437,8 @@ def post_stream(
                 offset += len(posted.plan.toolpath)
                 buffer = toolpath_slice(buffer, boundary, len(buffer))
                 entry, start, base = start, None, None
-                section = replace(job, tool_length=next_section.length, pivot=next_section.pivot)
+                length = job.tool_length if job.tcp else next_section.length
+                section = replace(job, tool_length=length, pivot=next_section.pivot)
                 continue
             offset += len(posted.plan.toolpath) - 1
             buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)
