@@ -12,10 +12,12 @@ posted and checked at its own point, whole and streamed, and ``urdfpost verify
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
 import pytest
+import trimesh
 
 from urdfpost.cli import main
 from urdfpost.posting.tools import cutting_points, tool_sections
@@ -112,3 +114,48 @@ def test_verify_measures_a_flat_tool_at_its_tip(
     )
     assert code == 1
     assert _tip_deviation(capsys) > 0.05
+
+
+def _pass_through_box(tmp_path: Path, cutters: list[tuple[int, str]]) -> Path:
+    """Each tool, 10 degrees off vertical, through the side of a 40 mm high box at 10 mm above
+    its floor: a 20 mm end mill's flutes (60 mm) reach above it, a 6 mm one's (18 mm) do not,
+    so its shank runs through the stock."""
+    tilt = ",".join(
+        f"{c:.6f}" for c in (math.sin(math.radians(10)), 0.0, math.cos(math.radians(10)))
+    )
+    lines = ["PARTNO BOX", "UNITS/MM", "MULTAX/ON"]
+    for number, cutter in cutters:
+        lines += [f"LOADTL/{number}", cutter, "SPINDL/8000,CLW", "RAPID"]
+        lines += [f"GOTO/-40.0,0.0,60.0,{tilt}", "FEDRAT/MMPM,500"]
+        lines += [f"GOTO/{x:.1f},0.0,10.0,{tilt}" for x in range(-40, 41, 5)]
+        lines += ["RAPID", f"GOTO/40.0,0.0,60.0,{tilt}"]
+    path = tmp_path / "box.apt"
+    path.write_text("\n".join([*lines, "FINI"]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("pieces", ["0", "8"])
+def test_collisions_are_checked_with_each_tool_s_own_body(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], pieces: str
+) -> None:
+    """A 6 mm end mill after a 20 mm one, whose shank runs through the stock: refused at its
+    own CL line, whole and streamed (the first cutter's body for the whole job had found no
+    collision and written the program); the 20 mm one alone is clear."""
+    stock = tmp_path / "box.stl"
+    mesh = trimesh.creation.box(extents=(40.0, 40.0, 40.0))
+    mesh.apply_translation((0.0, 0.0, 20.0))
+    mesh.export(stock)
+    out = tmp_path / "box.h"
+    post = ["post", "-m", "dmu50", "--stock", str(stock), "-q", "--piece-points", pieces]
+    big = _pass_through_box(tmp_path, [(1, FLAT.replace("10.0", "20.0"))])
+    assert main([*post, str(big), "-o", str(out)]) == 0
+    capsys.readouterr()
+    out.unlink()
+    both = _pass_through_box(tmp_path, [(1, FLAT.replace("10.0", "20.0")), (2, "CUTTER/6.0,0.0")])
+    assert main([*post, str(both), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    found = re.search(r"box\.apt:(\d+): every branch collides", err)
+    assert found and "shank collides with stock" in err, err
+    second = both.read_text().splitlines().index("LOADTL/2") + 1
+    assert int(found[1]) > second  # on the 6 mm tool's path
+    assert not out.exists()

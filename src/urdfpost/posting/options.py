@@ -221,6 +221,10 @@ class Job:
         The cutting point of the tool section being posted, mm up the tool axis from the tip
         (:func:`urdfpost.posting.tools.cutting_points`); None: the first cutter's of the CL
         data posted.
+    cutter : tuple or None
+        The cutter of the tool section being posted (diameter, corner radius, length, mm;
+        :func:`urdfpost.posting.tools.tool_cutters`), whose body the collisions are checked
+        with; None: the first cutter of the CL data posted.
     """
 
     machine: Machine
@@ -255,6 +259,7 @@ class Job:
     arcs: bool = True
     tilted_planes: bool = True
     pivot: float | None = None
+    cutter: tuple[float | None, float | None, float | None] | None = None
 
 
 def feed_mode_name(name: str | None, tcp: bool, dialect: Dialect) -> str:

@@ -11,7 +11,7 @@ reading it back and checking it follow in :mod:`urdfpost.posting.check`.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -134,19 +134,21 @@ def make_problem(toolpath: Toolpath, job: Job) -> Problem:
 def collision_world(toolpath: Toolpath, job: Job) -> CollisionWorld | None:
     """The FCL world a post checks against, or None when collisions are not checked.
 
-    The tool is the first cutter of the CL data (diameter, corner radius, length) in the
-    holder of the job; the stock mesh is read in program units and placed in the workpiece
-    frame.
+    The tool is the job's cutter (its tool section's, :attr:`Job.cutter`), else the first
+    cutter of the CL data (diameter, corner radius, length), in the holder of the job; the
+    stock mesh is read in program units and placed in the workpiece frame.
     """
     if not job.collisions:
         return None
     from urdfpost.collision import CollisionWorld, ToolBody, load_mesh
 
     scale = mm_per_unit(job.units)
-    cutters = [
+    cutters: list[Mapping[str, object]] = [
         e.data for e in toolpath.events if e.kind in ("cutter", "tool") and e.data.get("diameter")
     ]
-    if len({(c.get("diameter"), c.get("corner_radius")) for c in cutters}) > 1:
+    if job.cutter is not None:  # the tool section's
+        cutters = [dict(zip(("diameter", "corner_radius", "length"), job.cutter, strict=True))]
+    elif len({(c.get("diameter"), c.get("corner_radius")) for c in cutters}) > 1:
         log.warning(
             "%s: several cutters; collisions are checked with the first one", toolpath.source
         )

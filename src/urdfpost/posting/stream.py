@@ -346,12 +346,17 @@ def post_stream(
                 by_length=not job.tcp,
                 by_pivot=True,
                 pivot=section.pivot,
+                by_cutter=job.collisions,
+                cutter=section.cutter,
             )
             # (a TCP program keeps the job's length: its tools' lengths are the control's)
             first_length = section.tool_length if job.tcp else cuts[0].length
-            if (first_length, cuts[0].pivot) != (section.tool_length, section.pivot):
-                # a tool change at the start (or the first piece's cutting point)
-                section = replace(job, tool_length=first_length, pivot=cuts[0].pivot)
+            now = (first_length, cuts[0].pivot, cuts[0].cutter)
+            if now != (section.tool_length, section.pivot, section.cutter):
+                # a tool change at the start (or the first piece's cutter)
+                section = replace(
+                    job, tool_length=first_length, pivot=cuts[0].pivot, cutter=cuts[0].cutter
+                )
                 base = None
             if len(cuts) > 1:
                 boundary, next_section = cuts[1].start, cuts[1]
@@ -438,7 +443,9 @@ def post_stream(
                 buffer = toolpath_slice(buffer, boundary, len(buffer))
                 entry, start, base = start, None, None
                 length = job.tool_length if job.tcp else next_section.length
-                section = replace(job, tool_length=length, pivot=next_section.pivot)
+                section = replace(
+                    job, tool_length=length, pivot=next_section.pivot, cutter=next_section.cutter
+                )
                 continue
             offset += len(posted.plan.toolpath) - 1
             buffer = toolpath_slice(buffer, cut, len(buffer), first_events=False)

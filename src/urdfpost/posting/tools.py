@@ -24,7 +24,10 @@ A tool change to a cutter of another ball radius begins a section too, in any pr
 ball centre of a ball-end tool and the tip of any other (:func:`cutting_points`), and the
 program is checked against the CL data at that point. One pivot for a whole job moved a flat
 end mill's tip by the first tool's ball radius times the bend (0.084 mm on the dome, checked
-at the ball centre and passed).
+at the ball centre and passed). When collisions are checked, a tool change to another cutter
+begins a section as well (``by_cutter``, :func:`tool_cutters`): each is checked with its own
+tool body (the first cutter's for the whole job let a 6 mm end mill's shank run through the
+stock where the 20 mm one before it was clear).
 """
 
 from __future__ import annotations
@@ -139,9 +142,23 @@ def ball_radius_of(data: Mapping[str, object]) -> float | None:
     return 0.0
 
 
-def cutting_points(toolpath: Toolpath) -> tuple[float, dict[int, float]]:
-    """How far up the tool axis from the tip each tool cuts (mm): the ball radius of a
-    ball-end cutter, 0 for any other (:func:`ball_radius_of`).
+Cutter = tuple[float | None, float | None, float | None]
+"""A cutter's diameter, corner radius and length (mm; None where the CL data gives none): what
+its collision body is made of (:meth:`urdfpost.collision.ToolBody.from_cutter`)."""
+
+
+def cutter_of(data: Mapping[str, object]) -> Cutter:
+    """The :data:`Cutter` of a ``cutter`` or ``tool`` event's data."""
+
+    def number(key: str) -> float | None:
+        value = data.get(key)
+        return None if value is None else float(value)  # type: ignore[arg-type]
+
+    return number("diameter"), number("corner_radius"), number("length")
+
+
+def tool_cutters(toolpath: Toolpath) -> tuple[Cutter | None, dict[int, Cutter]]:
+    """The cutter of each tool the CL data loads.
 
     A tool's cutter is the last ``CUTTER`` (or ``LOADTL`` with a diameter) among the events
     before the same CL point as its tool change, else the next one before another tool
@@ -149,16 +166,16 @@ def cutting_points(toolpath: Toolpath) -> tuple[float, dict[int, float]]:
 
     Returns
     -------
-    first : float, mm
-        The cutting point at the first CL point: the last cutter's before it, else the first
-        cutter's (0 without one).
-    by_tool : dict of int to float, mm
-        Per tool number loaded; a tool with no cutter is not in it (it keeps the cutting point
-        of the tool before).
+    first : Cutter or None
+        The cutter at the first CL point: the last one before it, else the first of the CL
+        data (None without one).
+    by_tool : dict of int to Cutter
+        Per tool number loaded; a tool with no cutter is not in it (it keeps the cutter of the
+        tool before).
     """
-    first: float | None = None
-    start: float | None = None  # the last cutter's before the first point
-    by_tool: dict[int, float] = {}
+    first: Cutter | None = None
+    start: Cutter | None = None  # the last cutter before the first point
+    by_tool: dict[int, Cutter] = {}
     tool: int | None = None
     events = sorted(toolpath.events, key=lambda e: e.index)
     k = 0
@@ -169,18 +186,39 @@ def cutting_points(toolpath: Toolpath) -> tuple[float, dict[int, float]]:
             if e.kind == "tool":
                 tool = int(e.data.get("number", 0))
         for e in group:
-            if e.kind in ("cutter", "tool"):
-                radius = ball_radius_of(e.data)
-                if radius is None:
-                    continue
-                first = radius if first is None else first
+            if e.kind in ("cutter", "tool") and e.data.get("diameter") is not None:
+                cutter = cutter_of(e.data)
+                first = cutter if first is None else first
                 if e.index <= 0:
-                    start = radius
+                    start = cutter
                 if tool is not None:
-                    by_tool[tool] = radius
-    if start is not None:
-        return start, by_tool
-    return (0.0 if first is None else first), by_tool
+                    by_tool[tool] = cutter
+    return (first if start is None else start), by_tool
+
+
+def cutting_point(cutter: Cutter | None) -> float:
+    """How far up the tool axis from the tip a cutter cuts (mm): its ball radius when it is a
+    ball-end cutter (:func:`ball_radius_of`), else 0 (the tip)."""
+    if cutter is None:
+        return 0.0
+    diameter, corner, _ = cutter
+    found = ball_radius_of({"diameter": diameter, "corner_radius": corner})
+    return 0.0 if found is None else found
+
+
+def cutting_points(toolpath: Toolpath) -> tuple[float, dict[int, float]]:
+    """How far up the tool axis from the tip each tool cuts (mm), from its cutter
+    (:func:`tool_cutters`, :func:`cutting_point`).
+
+    Returns
+    -------
+    first : float, mm
+        At the first CL point (0 without a cutter).
+    by_tool : dict of int to float, mm
+        Per tool number loaded that has a cutter.
+    """
+    first, by_tool = tool_cutters(toolpath)
+    return cutting_point(first), {n: cutting_point(c) for n, c in by_tool.items()}
 
 
 def mcs_shifts(toolpath: Toolpath) -> dict[int, np.ndarray]:
@@ -252,6 +290,8 @@ class Section:
         Its MCS (0: the first; :func:`mcs_shifts`), with ``--mcs-offsets`` (else 0).
     pivot : float, mm
         Its tool's cutting point up the tool axis from the tip (:func:`cutting_points`).
+    cutter : Cutter or None
+        Its tool's cutter (:func:`tool_cutters`).
     """
 
     start: int
@@ -260,6 +300,7 @@ class Section:
     tool: int | None
     mcs: int = 0
     pivot: float = 0.0
+    cutter: Cutter | None = None
 
 
 def tool_sections(
@@ -272,6 +313,8 @@ def tool_sections(
     by_mcs: bool = False,
     by_pivot: bool = False,
     pivot: float | None = None,
+    by_cutter: bool = False,
+    cutter: Cutter | None = None,
 ) -> list[Section]:
     """The sections of a job: a new one at each tool change whose gauge length differs from
     the one before (``by_length``: machine coordinates; equal lengths share a section), at
@@ -293,6 +336,11 @@ def tool_sections(
     pivot : float, optional, mm
         The cutting point in use where the toolpath starts (a piece of a streamed job);
         default the first cutter's.
+    by_cutter : bool
+        A section at each tool change to another cutter (a collision body of its own).
+    cutter : Cutter, optional
+        The cutter in use where the toolpath starts (a piece of a streamed job; with
+        ``pivot``); default the first.
 
     Returns
     -------
@@ -300,10 +348,11 @@ def tool_sections(
         At least one; they cover every point in order.
     """
     lengths = gauge_lengths(toolpath, default, table)
-    first, pivots = cutting_points(toolpath)
+    first, cutters = tool_cutters(toolpath)
     n = len(toolpath)
     current = default if length is None else length
-    point = first if pivot is None else pivot
+    point = cutting_point(first) if pivot is None else pivot
+    held = first if pivot is None else cutter
     tool: int | None = None
     mcs = 0
     sections: list[Section] = []
@@ -312,24 +361,27 @@ def tool_sections(
         if e.kind == "tool":
             number = int(e.data.get("number", 0))
             new_length, new_mcs = lengths[number], mcs
-            new_point = pivots.get(number, point)
+            new_held = cutters.get(number, held)
+            new_point = point if number not in cutters else cutting_point(new_held)
         elif e.kind == "msys" and by_mcs:
-            new_length, new_mcs, new_point = current, int(e.data.get("mcs", 0)), point
+            new_length, new_mcs = current, int(e.data.get("mcs", 0))
+            new_point, new_held = point, held
         else:
             continue
         changes = (
             (by_length and new_length != current)
             or (by_pivot and new_point != point)
+            or (by_cutter and new_held != held)
             or new_mcs != mcs
         )
         if start < e.index < n and changes:
-            sections.append(Section(start, e.index, current, tool, mcs, point))
+            sections.append(Section(start, e.index, current, tool, mcs, point, held))
             start = e.index
         if e.index < n or not sections:
-            current, mcs, point = new_length, new_mcs, new_point
+            current, mcs, point, held = new_length, new_mcs, new_point, new_held
             if e.kind == "tool":
                 tool = int(e.data.get("number", 0))
-    sections.append(Section(start, n, current, tool, mcs, point))
+    sections.append(Section(start, n, current, tool, mcs, point, held))
     return sections
 
 

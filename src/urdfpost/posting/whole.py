@@ -144,12 +144,13 @@ def post(
         by_length=not job.tcp,
         by_mcs=job.mcs_offsets,
         by_pivot=True,
+        by_cutter=job.collisions,
     )
     if notes:
         toolpath = replace(toolpath, warnings=toolpath.warnings + tuple(notes))
     if several_lengths(sections):
         return _post_sections(toolpath, job, sections, progress)
-    job = replace(job, pivot=sections[0].pivot)
+    job = replace(job, pivot=sections[0].pivot, cutter=sections[0].cutter)
     try:
         posted = post_piece(toolpath, job, progress=progress)
     except UnreachableError as e:
@@ -219,7 +220,11 @@ def _post_sections(
         if section.mcs in shifts:  # its points as its MCS has them
             part = in_own_mcs(part, shifts[section.mcs], transformed)
         piece_job = replace(
-            job, tool_length=section.length, machine=section_machine, pivot=section.pivot
+            job,
+            tool_length=section.length,
+            machine=section_machine,
+            pivot=section.pivot,
+            cutter=section.cutter,
         )
         last = k == len(sections) - 1
         other_mcs = k > 0 and section.mcs != sections[k - 1].mcs
