@@ -221,7 +221,8 @@ def _post_sections(
             part = in_own_mcs(part, shifts[section.mcs], transformed)
         piece_job = replace(
             job,
-            tool_length=section.length,
+            # (a TCP program keeps the job's length: its tools' lengths are the control's)
+            tool_length=job.tool_length if job.tcp else section.length,
             machine=section_machine,
             pivot=section.pivot,
             cutter=section.cutter,
