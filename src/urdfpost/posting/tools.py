@@ -32,6 +32,7 @@ stock where the 20 mm one before it was clear).
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -177,11 +178,10 @@ def tool_cutters(toolpath: Toolpath) -> tuple[Cutter | None, dict[int, Cutter]]:
     start: Cutter | None = None  # the last cutter before the first point
     by_tool: dict[int, Cutter] = {}
     tool: int | None = None
-    events = sorted(toolpath.events, key=lambda e: e.index)
-    k = 0
-    while k < len(events):
-        group = [e for e in events[k:] if e.index == events[k].index]
-        k += len(group)
+    for _, at in itertools.groupby(
+        sorted(toolpath.events, key=lambda e: e.index), key=lambda e: e.index
+    ):
+        group = list(at)  # the events before one CL point
         for e in group:
             if e.kind == "tool":
                 tool = int(e.data.get("number", 0))
