@@ -46,7 +46,9 @@ How the pieces join:
 The singular spans of the report are numbered along the pieces' plan paths joined (each join
 once), as :func:`post` numbers them along its plan's path. Figures that depend on the whole job
 are taken from the first window: the program name
-(``PARTNO``), the ball radius of the first cutter and the tool of the collision world.
+(``PARTNO``). The cutting point the strategy pivots about and the tool of the collision world
+are those of each tool section (:func:`urdfpost.posting.tools.tool_sections`: a tool change to
+another cutting point, or with collisions checked to another cutter, begins one).
 """
 
 from __future__ import annotations
