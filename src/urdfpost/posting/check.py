@@ -54,15 +54,6 @@ class CheckTarget:
     feed_rules: FeedRules | None = None
 
 
-def ball_radius(toolpath: Toolpath) -> float:
-    """Ball radius of the cutter at the first CL point when it is a ball-end tool, else 0
-    (mm): the pivot of a strategy that bends the tool axis (:func:`bent_tolerances`), of the
-    tool section the toolpath begins (:func:`urdfpost.posting.tools.cutting_points`)."""
-    from urdfpost.posting.tools import cutting_points
-
-    return cutting_points(toolpath)[0]
-
-
 def bent_tolerances(tol: Tolerances, angle_tolerance_deg: float, pivot: float) -> Tolerances:
     """Tolerances against the CL data for a program whose strategy bent the tool axis.
 

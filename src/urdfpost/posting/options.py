@@ -219,12 +219,12 @@ class Job:
         resolved with the machine file's setting).
     pivot : float or None
         The cutting point of the tool section being posted, mm up the tool axis from the tip
-        (:func:`urdfpost.posting.tools.cutting_points`); None: the first cutter's of the CL
-        data posted.
+        (:func:`urdfpost.posting.tools.cutting_points`); None: the CL data's at its first
+        point.
     cutter : tuple or None
         The cutter of the tool section being posted (diameter, corner radius, length, mm;
         :func:`urdfpost.posting.tools.tool_cutters`), whose body the collisions are checked
-        with; None: the first cutter of the CL data posted.
+        with; None: the CL data's at its first point.
     """
 
     machine: Machine

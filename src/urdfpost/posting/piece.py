@@ -11,7 +11,7 @@ reading it back and checking it follow in :mod:`urdfpost.posting.check`.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -34,12 +34,13 @@ from urdfpost.planning.strategies import (
 )
 from urdfpost.posting.arcs import arc_spans
 from urdfpost.posting.body import Rows, program_body, program_name
-from urdfpost.posting.check import CheckTarget, ball_radius
+from urdfpost.posting.check import CheckTarget
 from urdfpost.posting.feeds import FeedTiming
 from urdfpost.posting.options import Job
 from urdfpost.posting.planes import PlaneFigures, tilted_planes
 from urdfpost.posting.report import Collisions, PieceFigures, Rewind, StrategyFigures
 from urdfpost.posting.rollover import with_rollover
+from urdfpost.posting.tools import cutting_points, tool_cutters
 from urdfpost.posting.transitions import Transitions
 from urdfpost.program import REWIND_BEGIN, Blocks, Program
 from urdfpost.toolpath import Event, Motion, Toolpath
@@ -122,7 +123,7 @@ def make_problem(toolpath: Toolpath, job: Job) -> Problem:
         tool_length=job.tool_length,
         tol=job.tol,
         angle_tolerance=float(np.radians(job.angle_tolerance_deg)),
-        pivot=ball_radius(toolpath) if job.pivot is None else job.pivot,
+        pivot=cutting_points(toolpath)[0] if job.pivot is None else job.pivot,
         prefer=job.prefer,
         planner=job.planner,
         lift=job.lift,
@@ -134,8 +135,8 @@ def make_problem(toolpath: Toolpath, job: Job) -> Problem:
 def collision_world(toolpath: Toolpath, job: Job) -> CollisionWorld | None:
     """The FCL world a post checks against, or None when collisions are not checked.
 
-    The tool is the job's cutter (its tool section's, :attr:`Job.cutter`), else the first
-    cutter of the CL data (diameter, corner radius, length), in the holder of the job; the
+    The tool is the job's cutter (its tool section's, :attr:`Job.cutter`), else the CL data's
+    at its first point (diameter, corner radius, length), in the holder of the job; the
     stock mesh is read in program units and placed in the workpiece frame.
     """
     if not job.collisions:
@@ -143,17 +144,11 @@ def collision_world(toolpath: Toolpath, job: Job) -> CollisionWorld | None:
     from urdfpost.collision import CollisionWorld, ToolBody, load_mesh
 
     scale = mm_per_unit(job.units)
-    cutters: list[Mapping[str, object]] = [
-        e.data for e in toolpath.events if e.kind in ("cutter", "tool") and e.data.get("diameter")
-    ]
-    if job.cutter is not None:  # the tool section's
-        cutters = [dict(zip(("diameter", "corner_radius", "length"), job.cutter, strict=True))]
-    elif len({(c.get("diameter"), c.get("corner_radius")) for c in cutters}) > 1:
-        log.warning(
-            "%s: several cutters; collisions are checked with the first one", toolpath.source
-        )
+    cutter = tool_cutters(toolpath)[0] if job.cutter is None else job.cutter  # the section's
+    keys = ("diameter", "corner_radius", "length")
+    data = {} if cutter is None else dict(zip(keys, cutter, strict=True))
     tool = ToolBody.from_cutter(
-        cutters[0] if cutters else {},
+        data,
         job.tool_length,
         holder_diameter=job.holder_diameter,
         holder_length=job.holder_length,

@@ -130,19 +130,6 @@ def gauge_lengths(
     return out
 
 
-def ball_radius_of(data: Mapping[str, object]) -> float | None:
-    """The ball radius of a cutter (a ``cutter`` or ``tool`` event's data, mm): half its
-    diameter when its corner radius is that (a ball-end tool), else 0; None when the data
-    gives no diameter."""
-    diameter, corner = data.get("diameter"), data.get("corner_radius")
-    if diameter is None:
-        return None
-    d = float(diameter)  # type: ignore[arg-type]
-    if corner is not None and d > 0 and abs(float(corner) - 0.5 * d) <= 1e-6 * max(d, 1.0):  # type: ignore[arg-type]
-        return 0.5 * d
-    return 0.0
-
-
 Cutter = tuple[float | None, float | None, float | None]
 """A cutter's diameter, corner radius and length (mm; None where the CL data gives none): what
 its collision body is made of (:meth:`urdfpost.collision.ToolBody.from_cutter`)."""
@@ -197,13 +184,14 @@ def tool_cutters(toolpath: Toolpath) -> tuple[Cutter | None, dict[int, Cutter]]:
 
 
 def cutting_point(cutter: Cutter | None) -> float:
-    """How far up the tool axis from the tip a cutter cuts (mm): its ball radius when it is a
-    ball-end cutter (:func:`ball_radius_of`), else 0 (the tip)."""
-    if cutter is None:
+    """How far up the tool axis from the tip a cutter cuts (mm): its ball radius, half its
+    diameter, when its corner radius is that (a ball-end cutter), else 0 (the tip)."""
+    d, corner = (None, None) if cutter is None else cutter[:2]
+    if d is None:
         return 0.0
-    diameter, corner, _ = cutter
-    found = ball_radius_of({"diameter": diameter, "corner_radius": corner})
-    return 0.0 if found is None else found
+    if corner is not None and d > 0 and abs(corner - 0.5 * d) <= 1e-6 * max(d, 1.0):
+        return 0.5 * d
+    return 0.0
 
 
 def cutting_points(toolpath: Toolpath) -> tuple[float, dict[int, float]]:

@@ -42,7 +42,7 @@ from urdfpost.kinematics.forward import (
     interpolation_bounds,
     tip_and_axis_along,
 )
-from urdfpost.linearize import RowPoses, orientation_path_chord2
+from urdfpost.linearize import RowPoses, _frame, orientation_path_chord2
 from urdfpost.machine import Machine
 from urdfpost.program import (
     Arc,
@@ -368,8 +368,6 @@ def _curve_distance2(
     u : ndarray, shape of ``s``
         The parameter of the point of the curve measured to, in [0, 1].
     """
-    from urdfpost.linearize import _frame
-
     _, normal, _ = _frame(arc)
     a, d, v0, omega = seg.a, seg.d, arc.v0, arc.omega
     cos_w, sin_w = np.cos(omega), np.sin(omega)
