@@ -375,3 +375,77 @@ def test_the_machine_file_gives_the_default_feed_mode(tmp_path: Path) -> None:
     heidenhain = load_machine(machine_with('feed_mode="inverse-time"', "heidenhain"))
     with pytest.raises(UrdfpostError, match=r"m\d\.urdf:\d+: <urdfpost feed_mode=\.\.\.>: "):
         post(toolpath, heidenhain, PostOptions(tcp=False, units="mm"))
+
+
+# -- a block at a CL point where the CL feed changes ---------------------------------------------
+
+
+def _pole_pass(phase: int = 2) -> str:
+    """The middle pass of ``bench/make_large_cl.py``'s hemisphere raster near its top, with a
+    FEDRAT before every GOTO (feed-optimised data: 1500 to 2100 mm/min, changing at every CL
+    point). The cone bends the tool axis near the top, and inserts rows next to CL points
+    0.05 mm apart: with this phase of the feeds the matching took, before the fix, a row
+    0.9 um before CL point 463 as the one reaching it, so the block from there to the point was
+    compared with the next point's feed (5.26 % off) and the post refused its own program."""
+    disc = 40.0 * math.sin(math.radians(60.0))
+    x = np.linspace(-disc, disc, 1435)[212:1212]
+    z = np.sqrt(1600.0 - x * x)
+    lines = ["UNITS/MM", "MULTAX/ON", "LOADTL/1", "CUTTER/6.0,3.0", "SPINDL/12000,CLW"]
+    lines.append("FEDRAT/MMPM,1000.0")
+    for k, (xk, zk) in enumerate(zip(x, z, strict=True), start=212):
+        lines.append(f"FEDRAT/MMPM,{1500 + (k + phase) % 7 * 100}.0")
+        lines.append(f"GOTO/{xk:.4f},0.0000,{zk:.4f},{xk / 40:.6f},0.000000,{zk / 40:.6f}")
+    return "\n".join([*lines, "FINI", ""])
+
+
+@pytest.mark.parametrize("piece_points", [None, 100])
+def test_feed_changing_at_every_point_near_the_pole(
+    piece_points: int | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Feed-optimised data through a bent stretch: the post writes its program (whole and in
+    pieces) and ``urdfpost verify`` accepts it; an F of a block between CL points changed by
+    5 % is refused."""
+    cl = tmp_path / "pole.apt"
+    cl.write_text(_pole_pass())
+    program = tmp_path / "pole.h"
+    argv = ["post", str(cl), "-m", "dmu50", "-c", "heidenhain", "--no-tcp", "-o", str(program)]
+    if piece_points is not None:
+        argv += ["--piece-points", str(piece_points)]
+    capsys.readouterr()
+    assert main(argv) == 0, capsys.readouterr()
+    assert "tip feed within tolerance" in capsys.readouterr().out
+    verify = ["verify", str(program), "-m", "dmu50", "--cl", str(cl), "--angle-tolerance", "2.5"]
+    assert main(verify) == 0, capsys.readouterr()
+    assert "tip feed within tolerance" in capsys.readouterr().out
+    # a block well before the bent stretch (free of any axis limit), F 5 % off
+    text = program.read_text()
+    words = list(re.finditer(r" F(\d+\.?\d*)", text))
+    word = words[100]
+    value = float(word[1]) * 1.05
+    program.write_text(text[: word.start()] + f" F{value:.1f}" + text[word.end() :])
+    assert main(verify) == 1
+    assert "tip feed BEYOND TOLERANCE" in capsys.readouterr().out
+
+
+def test_feed_at_a_point_is_either_side_of_it_only() -> None:
+    """A block both of whose ends reach a CL point may be at the feed before the point or
+    after it (``other_cl_feed``), not at any other."""
+    from urdfpost.verification.feeds import FeedRules, measure_feeds
+
+    machine = _machine("heidenhain")
+    q0 = np.zeros((3, len(machine.axes)))
+    q1 = q0.copy()
+    q1[:, 0] = 0.01  # X 0.01 mm: the tip moves 0.01 mm
+    rules = FeedRules(axis_feed_rule="combined", feed_step=0.0, inverse_step=0.0)
+    cl_feed = np.array([1000.0, 1000.0, 1000.0])
+    feed = np.array([900.0, 1000.0, 800.0])  # the last at neither side's feed
+    other = np.array([[900.0, np.nan], [np.nan, np.nan], [np.nan, 900.0]])
+    args = (machine, FEED_PER_MINUTE, False, "mm", q0, q1, feed, cl_feed, np.arange(3), rules)
+    alone = measure_feeds(*args, 0.01, 100.0)
+    assert not alone.ok and alone.max_deviation_pct == pytest.approx(20.0)
+    either = measure_feeds(*args, 0.01, 100.0, other_cl_feed=other)
+    assert not either.ok and either.max_deviation_pct == pytest.approx(100.0 * (1 - 800 / 900))
+    assert either.worst_cl_line == 2
+    feed[2] = 900.0
+    assert measure_feeds(*args, 0.01, 100.0, other_cl_feed=other).ok
+    assert not measure_feeds(*args, 0.01, 100.0).ok

@@ -505,6 +505,7 @@ def measure_feeds(
     tolerance_share: float,
     tool_length: float,
     tip: np.ndarray | None = None,
+    other_cl_feed: np.ndarray | None = None,
 ) -> FeedCheck:
     """The tip feed and axis speeds of feed blocks, against the CL feed.
 
@@ -530,6 +531,10 @@ def measure_feeds(
     tool_length : float, mm
     tip : ndarray, shape (n,), optional
         :func:`tip_lengths` of the blocks, when known.
+    other_cl_feed : ndarray, shape (n, a), mm/min, optional
+        Other CL feeds a block may be programmed at (NaN where not): a block is compared with
+        the one its tip feed is nearest of these and ``cl_feed`` (a block at a CL point where
+        the CL feed changes, :func:`urdfpost.verification.measure._feeds_at_points`).
 
     Returns
     -------
@@ -567,6 +572,10 @@ def measure_feeds(
     compared = timed & ~in_place & np.isfinite(cl_feed) & (cl_feed > 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = tip / time / cl_feed
+        for other in () if other_cl_feed is None else other_cl_feed.T:
+            got = tip / time / other
+            nearer = np.abs(got - 1.0) < np.abs(ratio - 1.0)  # (False where either is NaN)
+            ratio = np.where(nearer, got, ratio)
     slack = 1.0 + tolerance_share
     # at a limit: within the slack of it, or the next F the program could write would be
     # over it (a slow block's F rounded down to its last decimal)

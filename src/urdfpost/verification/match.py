@@ -325,6 +325,29 @@ def _nearness(
     return np.maximum(dist, angle, out=dist)
 
 
+def nearness(
+    tip: np.ndarray, axis: np.ndarray, cl_tip: np.ndarray, cl_axis: np.ndarray, tol: Tolerances
+) -> np.ndarray:
+    """How near program rows are to CL points, pair by pair, in shares of the tolerances
+    (:func:`_nearness`: at most 1 where the row reaches the point).
+
+    Parameters
+    ----------
+    tip, axis : ndarray, shape (k, 3)
+        The program rows' measured points (mm) and unit tool axes.
+    cl_tip, cl_axis : ndarray, shape (k, 3)
+        The CL points' (mm) and their unit tool axes.
+    tol : Tolerances
+
+    Returns
+    -------
+    ndarray, shape (k,)
+    """
+    pairs = np.arange(len(tip))[:, None]
+    got = _nearness(coords(tip), coords(cl_tip), coords(axis), coords(cl_axis), tol, pairs, pairs)
+    return got[:, 0]
+
+
 def _walk(
     cl_xyz: VecArrays,
     xyz: VecArrays,

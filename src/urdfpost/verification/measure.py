@@ -64,7 +64,13 @@ from urdfpost.verification.feeds import (
     tip_lengths,
 )
 from urdfpost.verification.holes import HOLES_NOTE, check_holes, without_holes
-from urdfpost.verification.match import at_pivot, match_points, program_joints, row_poses_at_tip
+from urdfpost.verification.match import (
+    at_pivot,
+    match_points,
+    nearness,
+    program_joints,
+    row_poses_at_tip,
+)
 from urdfpost.verification.planes import clamp_faults, in_own_frame
 
 log = logging.getLogger(__name__)
@@ -1513,6 +1519,7 @@ def _verify_rows(
     for v, c, part in zip(out, checks, parts, strict=True):
         compared = np.ones(len(blocks), dtype=bool) if part.valid is None else part.valid
         cl_feed = np.where(compared, c.toolpath.feed[part.jb], np.nan)
+        other = _feeds_at_points(c, part, blocks, cl_feed)
         check = measure_feeds(
             machine,
             program.feed_mode,
@@ -1527,9 +1534,56 @@ def _verify_rows(
             c.tol.feed_share,
             tool_length,
             tip=tip,
+            other_cl_feed=other,
         )
         measured.append(replace(v, feeds=check, ok=v.ok and check.ok))
     return measured, matches
+
+
+def _feeds_at_points(
+    check: Check, part: _Comparison, blocks: np.ndarray, cl_feed: np.ndarray
+) -> np.ndarray | None:
+    """The other CL feeds a feed block may be programmed at, where the CL feed changes at a
+    CL point and the block lies at that point.
+
+    A block's CL feed is that of the CL point its span ends at (``cl_feed``, the feed of
+    ``jb``). But where the rows of a run of them all reach a CL point (points closer together
+    than the tolerance, rows a strategy inserted next to the point), the row the matching
+    takes for the point (the nearest in shares of both tolerances, :func:`match_points`) need
+    not be the one the post took (the row at the point's position on the path), and a block
+    between the two is at the point, after it or before it as one looks: both of its ends
+    reach the point. Such a block may be programmed at the feed on either side of the point:
+    at that of ``ja`` where both its ends reach ``ja``, at that of ``jb + 1`` where both reach
+    ``jb``.
+
+    Returns
+    -------
+    ndarray, shape (n_blocks, 2), mm/min, or None
+        The feed of ``ja`` and that of ``jb + 1`` where the block may have it, else NaN; None
+        where no block may.
+    """
+    feed, n = check.toolpath.feed, len(check.toolpath)
+    ja, jb = part.ja, part.jb
+    nxt = np.minimum(jb + 1, n - 1)
+    compared = np.isfinite(cl_feed)
+    sides = (
+        (ja, feed[ja], compared & (feed[ja] != cl_feed)),
+        (jb, feed[nxt], compared & (jb + 1 < n) & (feed[nxt] != cl_feed)),
+    )
+    if not any(changes.any() for _, _, changes in sides):
+        return None
+    out = np.full((len(blocks), 2), np.nan)
+    toolpath, rows = check.toolpath, part.rows
+    for side, (point, other, changes) in enumerate(sides):
+        k = np.flatnonzero(changes)
+        js = point[k]
+        cl_tip = toolpath.tip[js] + check.pivot * toolpath.axis[js]
+        cl_axis = toolpath.axis[js]
+        near = np.ones(len(k), dtype=bool)
+        for row in (blocks[k] - 1, blocks[k]):
+            near &= nearness(rows.tip[row], rows.axis[row], cl_tip, cl_axis, check.tol) <= 1.0
+        out[k[near], side] = other[k[near]]
+    return out
 
 
 def _nothing_to_compare(program: Program, values: np.ndarray, check: Check) -> Verification:
