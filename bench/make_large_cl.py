@@ -27,6 +27,7 @@ import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -41,15 +42,26 @@ CLEARANCE = 10.0  # mm along the tool axis, for the links between layers
 LINK_POINTS = 4  # per layer: above the approach, approach, retract, up to the safe height
 
 
-def default_path(points: int) -> Path:
+def default_path(points: int, feed_per_point: bool = False) -> Path:
     """Where :func:`write_hemisphere` puts a file of ``points`` points by default."""
-    return DATA_DIR / f"hemisphere_{points}.apt"
+    return DATA_DIR / f"hemisphere_{'fed_' if feed_per_point else ''}{points}.apt"
 
 
-def _goto_lines(tip: np.ndarray, axis: np.ndarray) -> str:
-    """GOTO records of the rows of ``tip`` (mm) and ``axis``, shapes (k, 3), one per line."""
+def _goto_lines(tip: np.ndarray, axis: np.ndarray, feeds: np.ndarray | None = None) -> str:
+    """GOTO records of the rows of ``tip`` (mm) and ``axis``, shapes (k, 3), one per line; with
+    ``feeds`` (mm/min, shape (k,)), a FEDRAT before each."""
     rows = np.hstack([tip, axis]).tolist()
-    return "\n".join([GOTO % tuple(r) for r in rows]) + "\n"
+    if feeds is None:
+        return "\n".join([GOTO % tuple(r) for r in rows]) + "\n"
+    lines = [f"FEDRAT/MMPM,{f:.1f}\n{GOTO % tuple(r)}" for f, r in zip(feeds, rows, strict=True)]
+    return "\n".join(lines) + "\n"
+
+
+def optimised_feeds(first: int, count: int) -> np.ndarray:
+    """The feeds of cutting moves ``first`` to ``first + count`` of a feed-optimised job, as a
+    feed optimiser writes one per move: 1500 to 2100 mm/min in steps of 100, changing at every
+    move (mm/min, shape (count,))."""
+    return 1500.0 + (np.arange(first, first + count) % 7) * 100.0
 
 
 def pass_layout(points: int, layers: int, radius: float, max_tilt: float) -> list[np.ndarray]:
@@ -92,6 +104,7 @@ def hemisphere_records(
     layers: int = 4,
     radius: float = 40.0,
     max_tilt_deg: float = 60.0,
+    feed_per_point: bool = False,
 ) -> Iterator[str]:
     """Text of the job, in chunks (one per pass and some for the frame records).
 
@@ -106,6 +119,9 @@ def hemisphere_records(
         surface of the part).
     max_tilt_deg : float, degrees
         Largest angle of the tool axis from +Z.
+    feed_per_point : bool
+        A FEDRAT before every cutting move (:func:`optimised_feeds`), as feed-optimised CL
+        data has, instead of one per layer.
 
     Yields
     ------
@@ -116,6 +132,7 @@ def hemisphere_records(
         raise ValueError(f"points: expected at least 20, got {points}")
     max_tilt = math.radians(max_tilt_deg)
     disc = radius * math.sin(max_tilt)
+    cut = 0  # cutting moves so far
     yield (
         "PARTNO HEMISPHERE BENCHMARK\n"
         "UNITS/MM\n"
@@ -145,6 +162,9 @@ def hemisphere_records(
             z = np.sqrt(np.maximum(radius**2 - np.sum(xy**2, axis=1), 0.0))
             tip = np.column_stack([xy[:, :2], z])
             axis = tip / radius
+            first = 1 if k == 0 else 0  # the plunge, at its own feed
+            feeds = optimised_feeds(cut, len(tip) - first) if feed_per_point else None
+            cut += len(tip) - first
             if k == 0:
                 approach = tip[:1] + CLEARANCE * axis[:1]
                 above = approach.copy()
@@ -152,9 +172,9 @@ def hemisphere_records(
                 yield "RAPID\n" + _goto_lines(above, axis[:1])
                 yield "RAPID\n" + _goto_lines(approach, axis[:1])
                 yield f"FEDRAT/MMPM,{PLUNGE_FEED:.1f}\n" + _goto_lines(tip[:1], axis[:1])
-                yield f"FEDRAT/MMPM,{CUT_FEED:.1f}\n" + _goto_lines(tip[1:], axis[1:])
+                yield f"FEDRAT/MMPM,{CUT_FEED:.1f}\n" + _goto_lines(tip[1:], axis[1:], feeds)
             else:
-                yield _goto_lines(tip, axis)
+                yield _goto_lines(tip, axis, feeds)
         retract = tip[-1:] + CLEARANCE * axis[-1:]
         yield f"FEDRAT/MMPM,{RETRACT_FEED:.1f}\n" + _goto_lines(retract, axis[-1:])
         retract[:, 2] = radius + 2.0 * CLEARANCE
@@ -162,7 +182,7 @@ def hemisphere_records(
     yield "COOLNT/OFF\nSPINDL/OFF\nEND\nFINI\n"
 
 
-def write_hemisphere(points: int, path: Path | None = None, **kwargs: float) -> Path:
+def write_hemisphere(points: int, path: Path | None = None, **kwargs: Any) -> Path:
     """Write the hemisphere job of ``points`` points to ``path`` (see :func:`default_path`).
 
     Returns
@@ -170,13 +190,15 @@ def write_hemisphere(points: int, path: Path | None = None, **kwargs: float) -> 
     Path
         The file written.
     """
-    path = Path(path) if path is not None else default_path(points)
+    if path is None:
+        path = default_path(points, bool(kwargs.get("feed_per_point")))
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(path.suffix + ".part")
     with open(tmp, "w", encoding="ascii", newline="\n") as handle:
         buffer: list[str] = []
         size = 0
-        for chunk in hemisphere_records(points, **kwargs):  # type: ignore[arg-type]
+        for chunk in hemisphere_records(points, **kwargs):
             buffer.append(chunk)
             size += len(chunk)
             if size > 1 << 22:
@@ -204,6 +226,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--max-tilt", type=float, default=60.0, help="largest tool tilt from +Z, deg (default 60)"
     )
+    parser.add_argument(
+        "--feed-per-point",
+        action="store_true",
+        help="a FEDRAT before every cutting move, as feed-optimised CL data has "
+        "(default file hemisphere_fed_<points>.apt)",
+    )
     args = parser.parse_args(argv)
     t = time.perf_counter()
     path = write_hemisphere(
@@ -212,6 +240,7 @@ def main(argv: list[str] | None = None) -> int:
         layers=args.layers,
         radius=args.radius,
         max_tilt_deg=args.max_tilt,
+        feed_per_point=args.feed_per_point,
     )
     dt = time.perf_counter() - t
     size = path.stat().st_size / 1e6

@@ -23,7 +23,7 @@ _SCRIPT = textwrap.dedent(
     kernels = KERNELS.load()
     assert kernels is not None and KERNELS.failed is None, KERNELS.failed
     data = np.frombuffer(b"GOTO/1,2,3\\nGOTO/4,5,6\\n", dtype=np.uint8)
-    count, plain = kernels.plain_goto_lines(data)
+    count, plain = kernels.plain_goto_lines(data, False)
     assert (count, plain) == (2, True), (count, plain)
     assert "scipy.linalg" not in sys.modules, "a kernel imported scipy.linalg"
     import numba.np.arraymath

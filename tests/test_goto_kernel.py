@@ -89,10 +89,13 @@ def assert_same_reading(text: str, least: int = 3, piece: int | None = None) -> 
 def kernel(text: str, least: int = 1, piece: int = 1 << 30) -> Iterator[tuple[str, np.ndarray]]:
     """The lines of the kernel's runs with their values (odd lines' as NaN)."""
     data = np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
-    runs, values, _, needed, _ = goto_runs(data, least, piece, 10**4, 10**4)
+    runs, values, _, feeds, _, needed, _, _ = goto_runs(data, least, piece, 10**4, 10**4, 10**4)
     assert needed == len(runs)
-    for start, end, count, width, _comments, first in runs.tolist():
-        lines = text[start:end].split("\n")[:count]
+    for start, end, count, width, _comments, first, first_feed, feed_count in runs.tolist():
+        at = set(feeds[first_feed : first_feed + feed_count, 0].tolist())
+        lines = [line for line in text[start:end].split("\n") if not line.startswith("FEDRAT/")]
+        lines = lines[:count]
+        assert not at or max(at) < count
         rows = values[first : first + count * width].reshape(count, width)
         yield from zip(lines, rows, strict=True)
 
@@ -233,17 +236,18 @@ def test_comments_and_runs_of_mixed_widths():
         + "FEDRAT/100\n"
         + "GOTO/4,5,6\n" * 5
     )
-    runs = goto_runs(np.frombuffer(text.encode(), dtype=np.uint8), 3, 1 << 30, 8, 8)[0]
-    assert runs[:, 2].tolist() == [3, 4, 5]  # lines
+    runs = goto_runs(np.frombuffer(text.encode(), dtype=np.uint8), 3, 1 << 30, 8, 8, 8)[0]
+    assert runs[:, 2].tolist() == [3, 4, 7]  # GOTO lines (the feed line joins the last two)
     assert runs[:, 3].tolist() == [3, 6, 3]  # values per line
     assert runs[:, 4].tolist() == [3, 4, 0]  # comments
+    assert runs[:, 7].tolist() == [0, 0, 1]  # feed lines
     assert_same_reading("MULTAX/ON\n" + text)
 
 
 def test_kernel_cuts_long_runs():
     text = "".join(f"GOTO/{k}.5,{k},0\n" for k in range(1000))
     data = np.frombuffer(text.encode(), dtype=np.uint8)
-    runs = goto_runs(data, 4, 200, 200, 0)[0]
+    runs = goto_runs(data, 4, 200, 200, 0, 0)[0]
     # cut after the line that makes a piece 200 characters long
     assert (runs[:-1, 1] - runs[:-1, 0] >= 200).all()
     assert (runs[:-1, 1] - runs[:-1, 0] < 200 + 18).all()
@@ -258,15 +262,15 @@ def test_kernel_says_when_it_needs_more_room(monkeypatch):
     calls it again with that room."""
     text = "".join(f"GOTO/{k},0,0\nGOTO/{k}e1,1,1\nRAPID\n" for k in range(300))
     data = np.frombuffer(text.encode(), dtype=np.uint8)
-    runs, _, odd, runs_needed, odd_needed = goto_runs(data, 1, 1 << 30, 10, 20)
+    runs, _, odd, _, _, runs_needed, odd_needed, _ = goto_runs(data, 1, 1 << 30, 10, 20, 0)
     assert (len(runs), len(odd), runs_needed, odd_needed) == (10, 20, 300, 300)
-    full = goto_runs(data, 1, 1 << 30, 300, 300)
+    full = goto_runs(data, 1, 1 << 30, 300, 300, 0)
     assert (full[0][:10] == runs).all() and (full[2][:20] == odd).all()
     monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 1)
     got = apt_module._compiled_runs(text, 1 << 30)
     assert got is not None and len(got) == 300
-    assert [[start, end] for start, end, _, _ in got] == full[0][:, :2].tolist()
-    assert bits(np.concatenate([v for _, _, v, _ in got])) == bits(
+    assert [[start, end] for start, end, _, _, _ in got] == full[0][:, :2].tolist()
+    assert bits(np.concatenate([v for _, _, v, _, _ in got])) == bits(
         [[k, 0, 0, 10 * k, 1, 1] for k in range(300)]
     )
     assert_same_reading(text, least=1)
@@ -313,12 +317,74 @@ def goto_lines(draw: st.DrawFn) -> str:
     return line
 
 
+_feed_lines = st.sampled_from(
+    [
+        "FEDRAT/MMPM,500",
+        "FEDRAT/ 800.0000,MMPM",
+        "FEDRAT/IPM,20",
+        "FEDRAT/250",
+        "FEDRAT/ MMPM , 1250.5 ",
+        "FEDRAT/MMPR,0.1",
+        "FEDRAT/IPR,0.004",
+        "FEDRAT/mmpm,300.5",
+        "FEDRAT/MMPM,500 $$ a comment",
+        "FEDRAT/MMPM,0",
+        "FEDRAT/MMPM,-5",
+        "FEDRAT/MMPM,1e3",
+        "FEDRAT/MMPM,99999999",
+        "FEDRAT/MMPR,9999",
+        "FEDRAT/XYZ,5",
+        "FEDRAT/NAN",
+        "FEDRAT/MMPM,IPM,5",
+        "FEDRAT/5,IPM",
+        "FEDRAT/MMPM,$",
+        "FEDRAT/1.0000000000000000001",
+    ]
+)
+
+
+_good_feed_lines = st.sampled_from(
+    [
+        "FEDRAT/MMPM,500",
+        "FEDRAT/ 800.0000,MMPM",
+        "FEDRAT/IPM,20",
+        "FEDRAT/250",
+        "FEDRAT/ MMPM , 1250.5 ",
+        "FEDRAT/MMPR,0.1",
+        "FEDRAT/IPR,0.004",
+        "FEDRAT/mmpm,300.5",
+        "FEDRAT/MMPM,500 $$ a comment",
+    ]
+)
+
+
+@st.composite
+def feed_runs(draw: st.DrawFn) -> str:
+    """GOTO lines with feed lines between them, as feed-optimised CL data writes them: mostly
+    lines the bulk reader takes, sometimes any."""
+    clean = draw(st.booleans())
+    feeds = _good_feed_lines if clean else st.one_of(_good_feed_lines, _feed_lines)
+    lines = [draw(st.sampled_from(["SPINDL/1000,CLW", "SPINDL/OFF", "RAPID", "$$ x"]))]
+    for _ in range(draw(st.integers(1, 12))):
+        for _ in range(draw(st.sampled_from([0, 1, 1, 1, 2]))):
+            lines.append(draw(feeds))
+        if clean:
+            values = [draw(fixed()) for _ in range(3)]
+            lines.append("GOTO/" + ",".join([*values, "0.6,0,0.8"]))
+        else:
+            lines.append(draw(goto_lines()))
+    return "\n".join(lines)
+
+
 @st.composite
 def apt_texts(draw: st.DrawFn) -> str:
     blocks = draw(
         st.lists(
             st.one_of(
                 st.lists(goto_lines(), min_size=1, max_size=12).map("\n".join),
+                feed_runs(),
+                _feed_lines,
+                st.sampled_from(["SPINDL/1000,CLW", "SPINDL/OFF", "UNITS/MM"]),
                 _other_lines,
             ),
             min_size=1,
@@ -333,6 +399,79 @@ def apt_texts(draw: st.DrawFn) -> str:
 @given(apt_texts(), st.sampled_from([1, 3, 32]), st.sampled_from([None, 60]))
 def test_same_reading_as_the_numpy_path(text, least, piece):
     assert_same_reading(text, least, piece)
+
+
+@PROPERTY
+@given(
+    apt_texts(),
+    st.sampled_from([1, 3]),
+    st.sampled_from([None, "mm", "inch"]),
+    st.sampled_from([None, 60]),
+)
+def test_runs_read_as_record_by_record(text, least, units, piece):
+    """Runs with feed lines (or without) read in bulk, by both paths, whole or cut into pieces
+    of ``piece`` characters, give what reading every record alone gives (no run at all), with
+    the file's units or the caller's."""
+
+    def read() -> Toolpath:
+        return read_cl_text(text, source="k.apt", format="apt", units=units)
+
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 1 << 40)
+        alone = outcome(read)
+        monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", least)
+        if piece is not None:
+            monkeypatch.setattr(apt_module, "_BULK_PIECE", piece)
+        numpy_way, compiled = both_ways(read)
+    assert numpy_way == alone
+    assert compiled == alone
+
+
+def test_feed_lines_join_runs():
+    """Feed-optimised data (a FEDRAT before every GOTO) is read as one run by both paths,
+    with each move's feed and line."""
+    lines = ["UNITS/MM", "MULTAX/ON", "SPINDL/1000,CLW", "FEDRAT/MMPM,900"]
+    for k in range(200):
+        if k <= 121:
+            lines.append(f"FEDRAT/MMPM,{1000 + k}.5" if k < 121 else "FEDRAT/MMPR,0.25")
+        lines.append(f"GOTO/{k}.0,1.0,2.0,0.0,0.0,1.0")
+    text = "\n".join([*lines, "FINI", ""])
+    for size in (NEVER, 0):
+        with pytest.MonkeyPatch.context() as monkeypatch:
+            compiled_from(monkeypatch, size)
+            scan = apt_module.scan_text(text, "k.apt")
+            runs = [r for r in scan.records if isinstance(r, apt_module.GotoRun)]
+            # (the first feed line comes before the run's first GOTO: the scanner's)
+            assert len(runs) == 1 and len(runs[0]) == 200 and len(runs[0].feeds) == 121
+            path = read_cl_text(text, source="k.apt", format="apt")
+    expected = [1000.5 + k for k in range(121)] + [0.25 * 1000] * 79  # per rev at 1000 rpm
+    assert path.feed.tolist() == expected
+    assert path.line.tolist() == [6 + 2 * min(k, 121) + max(k - 121, 0) for k in range(200)]
+
+
+@pytest.mark.parametrize("units", [None, "mm", "inch"])
+def test_feed_runs_with_the_callers_units(units):
+    """Feed keywords of other units than the caller's: the first one is warned about (read
+    record by record), the later runs read in bulk with the caller's unit, as record by
+    record."""
+    lines = ["MULTAX/ON"]
+    for run in range(3):
+        lines.append("RAPID")
+        for k in range(40):
+            word = ("MMPM", "IPM", "")[(run + k) % 3]
+            lines += [f"FEDRAT/{word}{',' if word else ''}{10 + k}", f"GOTO/{k},{run},0,0,0,1"]
+    text = "\n".join([*lines, "FINI", ""])
+
+    def read() -> Toolpath:
+        return read_cl_text(text, source="k.apt", format="apt", units=units)
+
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 1 << 40)
+        alone = outcome(read)
+        monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 8)
+        assert both_ways(read) == (alone, alone)
+    scan = apt_module.scan_text(text, "k.apt")
+    assert sum(isinstance(r, apt_module.GotoRun) for r in scan.records) == 3
 
 
 @PROPERTY
@@ -414,16 +553,22 @@ def test_the_kernel_reads_the_runs_of_a_real_file():
 @PROPERTY
 @given(
     st.lists(
-        st.sampled_from(["GOTO/1,2,3", "GOTO/P", "GOTO/$", "GOTO/p", "GOTO", " GOTO/1", "", "X"]),
+        st.sampled_from(
+            [
+                *("GOTO/1,2,3", "GOTO/P", "GOTO/$", "GOTO/p", "GOTO", " GOTO/1", "", "X"),
+                *("FEDRAT/MMPM,5", "FEDRAT/5 $$ x", "FEDRAT/5,$", "FEDRAT", " FEDRAT/5"),
+            ]
+        ),
         max_size=6,
     ),
     st.booleans(),
+    st.booleans(),
 )
-def test_plain_goto_lines_is_the_str_test(lines, end):
+def test_plain_goto_lines_is_the_str_test(lines, end, feeds):
     text = "\n".join(lines) + ("\n" if end else "")
-    count, plain = plain_goto_lines(np.frombuffer(text.encode(), dtype=np.uint8))
+    count, plain = plain_goto_lines(np.frombuffer(text.encode(), dtype=np.uint8), feeds)
     assert count == line_count(text)
-    assert plain == apt_module._only_plain_gotos(text, count)
+    assert plain == apt_module._only_plain_gotos(text, count, feeds)
 
 
 # -- errors, fallbacks -------------------------------------------------------------------------
@@ -540,3 +685,34 @@ def test_the_size_threshold_applies_to_streamed_files(tmp_path, monkeypatch):
     compiled_from(monkeypatch, path.stat().st_size)
     list(read_cl_chunks(path, max_points=100))
     assert calls
+
+
+def test_feed_keywords_by_code():
+    """Both paths give a feed line's keyword the same code, in any case and on either side of
+    the number; an unknown keyword ends the run there (the scanner reads it)."""
+    words = ["MMPM", "ipm", "Mmpr", "IPR", ""]
+    lines = ["SPINDL/1000,CLW", "GOTO/0,0,0"]
+    for k in range(40):
+        word = words[k % 5]
+        if not word:
+            lines.append("FEDRAT/12.5")
+        elif k % 2:
+            lines.append(f"FEDRAT/ {word} , 0.5")
+        else:
+            lines.append(f"FEDRAT/0.5,{word}")
+        lines.append(f"GOTO/{k},0,0")
+    lines += ["FEDRAT/INVERS,5", "GOTO/1,1,1", "GOTO/2,2,2"]
+    text = "\n".join([*lines, "FINI", ""])
+    for size in (NEVER, 0):
+        with pytest.MonkeyPatch.context() as monkeypatch:
+            compiled_from(monkeypatch, size)
+            monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 2)
+            scan = apt_module.scan_text(text, "k.apt")
+        runs = [r for r in scan.records if isinstance(r, apt_module.GotoRun)]
+        assert [len(r) for r in runs] == [41, 2]
+        got = [apt_module.FEED_KEYWORDS[c] for c in runs[0].feeds.keywords.tolist()]
+        assert got == [words[k % 5].upper() for k in range(40)]
+        assert runs[1].feeds is None
+        assert any(
+            getattr(r, "word", "") == "FEDRAT" and r.args[0] == "INVERS" for r in scan.records
+        )

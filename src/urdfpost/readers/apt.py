@@ -31,7 +31,8 @@ Steps 1 and 3 keep their state between calls, so that :func:`read_apt_stream` (t
 first record, the file's units, NX dialect, a continued record cut off by the end of the file,
 from a pre-scan that passes over the runs of plain GOTO lines without parsing them).
 
-Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records. Step 1 finds such runs
+Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records, in feed-optimised data
+with a one-line ``FEDRAT`` before each (:class:`FeedLines`). Step 1 finds such runs
 (:func:`scan_text`) and reads their numbers in bulk into a :class:`GotoRun`, with numpy or, for
 large files with numba installed (:data:`COMPILED_FROM`), with one compiled loop
 over the text's bytes (:mod:`urdfpost.readers._goto_kernel`: the same runs' numbers, bit for
@@ -39,8 +40,9 @@ bit, as ``float()`` reads them). Step 3 applies the modal state to the whole run
 with the same arithmetic in the same order as for one record, so the points are bit-identical.
 A run whose values would need a message (a non-finite number, a length beyond
 :data:`~urdfpost.readers._common.MAX_LENGTH_MM` once in mm, a tool axis of zero or non-unit
-length) or that follows a ``RAPID`` or ``CIRCLE`` is read record by record for those records,
-exactly as any other line; so is everything that is not a plain GOTO line.
+length, a feed that FEDRAT would refuse or warn about) or that follows a ``RAPID`` or
+``CIRCLE`` is read record by record for those records, exactly as any other line; so is
+everything that is not a plain GOTO or feed line.
 
 Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
 
@@ -246,11 +248,23 @@ TANGENT_EVIDENCE = 0.5
 BULK_MIN_RECORDS = 32
 #: Characters of text read in one piece by the bulk reader (bounds its temporary copies).
 _BULK_PIECE = 1 << 22
-#: A line break not followed by a GOTO record at the start of the next line.
-_NOT_GOTO_NEXT = re.compile(r"\n(?!GOTO/)")
+#: A line break not followed by a GOTO or FEDRAT record at the start of the next line.
+_NOT_GOTO_NEXT = re.compile(r"\n(?!GOTO/|FEDRAT/)")
+#: A FEDRAT line (at a line start) with its line break.
+_FEED_LINE_START = re.compile(r"^FEDRAT/[^\n]*(?:\n|\Z)", re.M)
+#: A feed line the bulk reader takes into a run (:func:`_plain_feed_line`): one number, with
+#: or without one keyword before or after it (the numpy path takes none with a comment).
+_PLAIN_FEED = re.compile(
+    r"FEDRAT/[ \t]*(?:([A-Za-z]+)[ \t]*,[ \t]*)?([+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+))"
+    r"[ \t]*(?:,[ \t]*([A-Za-z]+)[ \t]*)?\n?"
+)
 
 _NX_WORDS = frozenset({"TOOL PATH", "TLDATA", "MSYS", "PAINT", "END-OF-PATH"})
 _UNITS_WORDS = {"INCHES": "inch", "INCH": "inch", "MM": "mm"}
+FEED_KEYWORDS = ("", "MMPM", "IPM", "MMPR", "IPR")
+"""The feed keywords of the feed lines of a run (:class:`FeedLines`), by their code (0: none;
+the codes of :mod:`urdfpost.readers._goto_kernel`)."""
+_IPM, _MMPR, _IPR = 2, 3, 4
 _FEED_MODES = {  # keyword: (per revolution, mm per unit)
     "IPM": (False, MM_PER_INCH),
     "MMPM": (False, 1.0),
@@ -294,37 +308,78 @@ class Record:
 
 
 @dataclass(frozen=True)
+class FeedLines:
+    """The feed lines (``FEDRAT/`` and one number, with or without one keyword) between the
+    GOTO records of a :class:`GotoRun`: feed-optimised CL data has one before every move.
+
+    Attributes
+    ----------
+    at : ndarray, shape (f,), int64
+        Per feed line, how many GOTO records of the run come before it (increasing; several
+        feed lines may come before the same record).
+    values : ndarray, shape (f,), float64
+        Their numbers, as written.
+    keywords : ndarray, shape (f,), int
+        Their keywords, by their index in :data:`FEED_KEYWORDS` (0: none).
+    """
+
+    at: np.ndarray
+    values: np.ndarray
+    keywords: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.at.shape[0])
+
+
+@dataclass(frozen=True)
 class GotoRun:
-    """Consecutive one-line ``GOTO`` records whose numbers were read in bulk.
+    """Consecutive one-line ``GOTO`` records whose numbers were read in bulk, with any feed
+    lines between them.
 
     Attributes
     ----------
     line : int
-        1-based line of the first record; record ``i`` is on line ``line + i``.
+        1-based line of the first record; without feed lines, record ``i`` is on line
+        ``line + i`` (:meth:`lines`).
     values : ndarray, shape (k, 3) or (k, 6)
         The numbers as written (file units, frame of the file).
     text : str
         Text the records are part of (``\\n`` line breaks).
     start : int
-        Offset in ``text`` of the first record; the ``k`` records are the ``k`` lines from
-        there.
+        Offset in ``text`` of the first record; the run's records are the :attr:`line_count`
+        lines from there.
+    feeds : FeedLines or None
+        The feed lines among them (None: none).
     """
 
     line: int
     values: np.ndarray
     text: str = field(repr=False)
     start: int
+    feeds: FeedLines | None = None
     word: str = "GOTO"
     args: None = None
 
     def __len__(self) -> int:
         return int(self.values.shape[0])
 
+    @property
+    def line_count(self) -> int:
+        """Lines of the run: its GOTO records and its feed lines."""
+        return len(self) + (0 if self.feeds is None else len(self.feeds))
+
+    def lines(self) -> np.ndarray:
+        """Line of each GOTO record, shape (k,), int64."""
+        lines = np.arange(self.line, self.line + len(self), dtype=np.int64)
+        if self.feeds is not None:  # each record comes after the feed lines before it
+            lines += np.searchsorted(self.feeds.at, np.arange(len(self)), side="right")
+        return lines
+
     def records(self) -> list[Record]:
-        """Every record of the run, as :func:`scan_records` makes them."""
+        """Every record of the run (feed lines too), as :func:`scan_records` makes them."""
         records = []
         pos = self.start
-        for i in range(len(self)):
+        for i in range(self.line_count):
             end = self.text.find("\n", pos)
             end = len(self.text) if end < 0 else end
             code = self.text[pos:end].strip().partition("$$")[0].rstrip()
@@ -481,14 +536,15 @@ def scan_records(lines: Sequence[str], source: str) -> _Scan:
 
 
 def _goto_blocks(text: str) -> Iterator[tuple[int, int]]:
-    """Offsets ``(start, end)`` of the blocks of consecutive lines that start with ``GOTO/``.
+    """Offsets ``(start, end)`` of the blocks of consecutive lines that start with ``GOTO/``
+    or ``FEDRAT/``.
 
     ``text`` has ``\\n`` line breaks only. ``start`` is the start of the block's first line,
     ``end`` the position after its last line break (or the end of the text).
     """
     # the starts of the other lines
     others: Iterator[int] = (m.end() for m in _NOT_GOTO_NEXT.finditer(text))
-    if not text.startswith("GOTO/"):
+    if not text.startswith(("GOTO/", "FEDRAT/")):
         others = itertools.chain([0], others)
     block = 0
     for other in others:
@@ -534,9 +590,12 @@ def _goto_values(lines: str, count: int) -> np.ndarray | None:
     return values
 
 
-def _bulk_runs(
-    text: str, bulk_piece: int | None = None, compiled: bool = False
-) -> Iterator[tuple[int, int, np.ndarray, int]]:
+_Run = tuple[int, int, np.ndarray, int, FeedLines | None]
+"""A run of :func:`_bulk_runs`: its start and end in the text, its GOTO values, its lines with
+a ``$$`` comment and its feed lines."""
+
+
+def _bulk_runs(text: str, bulk_piece: int | None = None, compiled: bool = False) -> Iterator[_Run]:
     """Runs of one-line GOTO records in ``text`` with their numbers read in bulk.
 
     With ``compiled`` and numba installed, found and read by the compiled byte loop
@@ -561,6 +620,8 @@ def _bulk_runs(
     values : ndarray, shape (k, 3) or (k, 6)
     comments : int
         Lines of the run with a trailing ``$$`` comment.
+    feeds : FeedLines or None
+        The run's feed lines (:class:`GotoRun`), None when it has none.
     """
     size = _BULK_PIECE if bulk_piece is None else bulk_piece
     runs = _compiled_runs(text, size) if compiled else None
@@ -624,7 +685,7 @@ def _bytes_of(text: str) -> np.ndarray:
     return np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
 
 
-def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int]] | None:
+def _compiled_runs(text: str, size: int) -> list[_Run] | None:
     """:func:`_bulk_runs` of ``text`` by the compiled loop, or None without it (or when it
     failed here, or when the numbers of an odd GOTO line are not for ``np.loadtxt``: then the
     numpy path reads the text).
@@ -635,22 +696,28 @@ def _compiled_runs(text: str, size: int) -> list[tuple[int, int, np.ndarray, int
     if KERNELS.load() is None:
         return None
     data = _bytes_of(text)
-    rooms = (64, 64)  # rows for runs and odd lines; more when the loop says so
+    # rows for runs, odd lines and feed lines; more when the loop says so
+    rooms = (64, 64, text.count("FEDRAT/") + 1)
     while True:
         got = _compiled("goto_runs", data, BULK_MIN_RECORDS, size, *rooms)
         if got is None:
             return None
-        runs, values, odd, *needed = got
-        if needed[0] <= rooms[0] and needed[1] <= rooms[1]:
+        runs, values, odd, feeds, feed_values, *needed = got
+        if all(need <= room for need, room in zip(needed, rooms, strict=True)):
             break
-        rooms = (max(needed[0], rooms[0]), max(needed[1], rooms[1]))
+        rooms = tuple(max(need, room) for need, room in zip(needed, rooms, strict=True))
     del data
     if len(odd) and not _read_odd(text, odd, values):
         return None
-    return [
-        (start, end, values[first : first + count * width].reshape(count, width), comments)
-        for start, end, count, width, comments, first in runs.tolist()
-    ]
+    out: list[_Run] = []
+    for start, end, count, width, comments, first, first_feed, feed_count in runs.tolist():
+        lines = None
+        if feed_count:
+            rows = slice(first_feed, first_feed + feed_count)
+            lines = FeedLines(feeds[rows, 0].copy(), feed_values[rows], feeds[rows, 1].copy())
+        run = values[first : first + count * width].reshape(count, width)
+        out.append((start, end, run, comments, lines))
+    return out
 
 
 def _read_odd(text: str, odd: np.ndarray, values: np.ndarray) -> bool:
@@ -682,10 +749,11 @@ def _read_odd(text: str, odd: np.ndarray, values: np.ndarray) -> bool:
     return True
 
 
-def _bulk_runs_numpy(text: str, size: int) -> Iterator[tuple[int, int, np.ndarray, int]]:
-    """:func:`_bulk_runs` with numpy: blocks of lines that start with ``GOTO/`` found with a
-    regular expression and their numbers read by ``np.loadtxt``, in pieces of about ``size``
-    characters (long blocks are cut after ``size`` characters when longer than ``2 * size``).
+def _bulk_runs_numpy(text: str, size: int) -> Iterator[_Run]:
+    """:func:`_bulk_runs` with numpy: blocks of lines that start with ``GOTO/`` (or
+    ``FEDRAT/``) found with a regular expression and their numbers read by ``np.loadtxt``, in
+    pieces of about ``size`` characters (long blocks are cut after ``size`` characters when
+    longer than ``2 * size``).
     """
     for start, end in _goto_blocks(text):
         while start < end:
@@ -693,17 +761,103 @@ def _bulk_runs_numpy(text: str, size: int) -> Iterator[tuple[int, int, np.ndarra
             if end - start > 2 * size:
                 cut = text.find("\n", start + size, end) + 1 or end
             piece = text[start:cut]
-            count = piece.count("\n") + (not piece.endswith("\n"))
-            if count >= BULK_MIN_RECORDS:
-                values = _goto_values(piece, count)
-                if values is not None:
-                    yield start, cut, values, 0
-                else:  # mixed value counts, trailing $$ comments, ...: group the plain lines
-                    yield from _bulk_runs_by_line(piece, start)
+            if "FEDRAT/" in piece:
+                yield from _feed_runs(piece, start)
+            else:
+                yield from _plain_runs(piece, start)
             start = cut
 
 
-def _bulk_runs_by_line(block: str, offset: int) -> Iterator[tuple[int, int, np.ndarray, int]]:
+def _plain_runs(piece: str, offset: int) -> Iterator[_Run]:
+    """:func:`_bulk_runs` of a piece of a block of GOTO lines (at ``offset`` in the text)."""
+    count = piece.count("\n") + (not piece.endswith("\n"))
+    if count >= BULK_MIN_RECORDS:
+        values = _goto_values(piece, count)
+        if values is not None:
+            yield offset, offset + len(piece), values, 0, None
+        else:  # mixed value counts, trailing $$ comments, ...: group the plain lines
+            yield from _bulk_runs_by_line(piece, offset)
+
+
+def _plain_feed_line(line: str) -> tuple[int, float] | None:
+    """The keyword (its index in :data:`FEED_KEYWORDS`, 0 for none) and number of a feed line
+    the bulk reader takes into a run (:data:`_PLAIN_FEED`; the line with or without its line
+    break), else None."""
+    match = _PLAIN_FEED.fullmatch(line)
+    if match is None or (match[1] and match[3]):
+        return None
+    word = (match[1] or match[3] or "").upper()
+    if word not in FEED_KEYWORDS:
+        return None
+    return FEED_KEYWORDS.index(word), float(match[2])
+
+
+def _feed_runs(piece: str, offset: int) -> Iterator[_Run]:
+    """:func:`_bulk_runs` of a piece of a block of GOTO and FEDRAT lines (at ``offset`` in the
+    text).
+
+    The GOTO lines between the feed lines of :func:`_plain_feed_line` are read by one
+    ``np.loadtxt`` (:func:`_goto_values`) and make one run with those feed lines; a run starts
+    and ends with a GOTO line. Any other FEDRAT line ends a run (the scanner reads it), and a
+    run whose GOTO lines are not all plain and of one value count is read as the GOTO lines
+    between its feed lines, each block as :func:`_plain_runs`.
+    """
+    segments: list[tuple[int, int]] = []  # of the open run: its blocks of GOTO lines
+    feeds: list[tuple[int, int, float]] = []  # its feed lines: GOTO lines before, keyword, value
+    count = 0  # its GOTO lines
+    pos = 0
+    for start, end in itertools.chain(_feed_line_spans(piece), [(len(piece), len(piece))]):
+        if start > pos:
+            segments.append((pos, start))
+            count += piece.count("\n", pos, start) + (not piece.endswith("\n", pos, start))
+        feed = None if start == len(piece) else _plain_feed_line(piece[start:end])
+        if feed is not None and segments:  # (a feed line before the run's first GOTO: scanned)
+            feeds.append((count, *feed))
+        elif segments:  # the open run ends before this line
+            yield from _feed_run(piece, offset, segments, feeds, count)
+            segments, feeds, count = [], [], 0
+        pos = end
+
+
+def _feed_line_spans(text: str) -> Iterator[tuple[int, int]]:
+    """Offsets of the start of each line of ``text`` that starts with ``FEDRAT/`` and after
+    its line break (or the text's end)."""
+    start = 0 if text.startswith("FEDRAT/") else text.find("\nFEDRAT/") + 1
+    if not start and not text.startswith("FEDRAT/"):
+        return
+    while True:
+        end = text.find("\n", start) + 1 or len(text)
+        yield start, end
+        start = text.find("\nFEDRAT/", end - 1) + 1  # (from the line break ending this one)
+        if not start:
+            return
+
+
+def _feed_run(
+    piece: str,
+    offset: int,
+    segments: list[tuple[int, int]],
+    feeds: list[tuple[int, int, float]],
+    count: int,
+) -> Iterator[_Run]:
+    """The run of :func:`_feed_runs` made of the blocks of GOTO lines ``segments`` (offsets in
+    ``piece``, which is at ``offset`` in the text), ``count`` lines in all, and the feed lines
+    between them (those after the last block are left to the scanner)."""
+    feeds = [feed for feed in feeds if feed[0] < count]
+    if count >= BULK_MIN_RECORDS:
+        values = _goto_values("".join(piece[a:b] for a, b in segments), count)
+        if values is not None:
+            lines = None
+            if feeds:
+                at, keywords, numbers = np.array(feeds).T
+                lines = FeedLines(at.astype(np.int64), numbers, keywords.astype(np.int64))
+            yield offset + segments[0][0], offset + segments[-1][1], values, 0, lines
+            return
+    for a, b in segments:
+        yield from _plain_runs(piece[a:b], offset + a)
+
+
+def _bulk_runs_by_line(block: str, offset: int) -> Iterator[_Run]:
     """:func:`_bulk_runs` within a piece of a block of GOTO lines not read in one go."""
     lines = block.split("\n")
     if block.endswith("\n"):
@@ -723,7 +877,8 @@ def _bulk_runs_by_line(block: str, offset: int) -> Iterator[tuple[int, int, np.n
             values = _goto_values("\n".join(codes[k : k + size]), size)
             if values is not None:
                 comments = sum(bool(sep) for _, sep, _ in parts[k : k + size])
-                yield position, min(position + length, offset + len(block)), values, comments
+                end = min(position + length, offset + len(block))
+                yield position, end, values, comments, None
         position += length
         k += size
 
@@ -781,13 +936,23 @@ def scan_piece(
         scanner reads FINI, the lines of ``text`` after it.
     """
     pos = 0  # start of the next line to scan; its number is ``line``
-    for start, end, values, comments in _bulk_runs(text, bulk_piece, compiled):
+    for start, end, values, comments, feeds in _bulk_runs(text, bulk_piece, compiled):
         if start > pos:
             lines = text[pos : start - 1].split("\n")
             scanned = scanner.feed(lines, line)
             if scanner.fini:
                 return itertools.chain(lines[scanned:], text[start:].split("\n"))
             line += len(lines)
+        if scanner.pending is not None and feeds is not None:  # scanned line by line
+            lines = text[start:end].split("\n")
+            if text.endswith("\n", start, end):
+                lines.pop()
+            scanned = scanner.feed(lines, line)
+            if scanner.fini:
+                return itertools.chain(lines[scanned:], text[end:].split("\n"))
+            line += len(lines)
+            pos = end
+            continue
         if scanner.pending is not None:  # the first GOTO line continues a record
             first_end = text.find("\n", start, end)
             first_end = end if first_end < 0 else first_end + 1
@@ -798,8 +963,9 @@ def scan_piece(
             start, values, line = first_end, values[1:], line + 1
         scanner.scan.trailing_comments += comments
         if len(values):
-            scanner.add_run(GotoRun(line, values, text, start))
-            line += len(values)
+            run = GotoRun(line, values, text, start, feeds)
+            scanner.add_run(run)
+            line += run.line_count
         pos = end
     lines = text[pos:].split("\n")
     scanned = scanner.feed(lines, line)
@@ -826,9 +992,8 @@ def _file_units(records: Sequence[Record | GotoRun]) -> tuple[str, int] | None:
         if units:
             return units, record.line
     for record in records:
-        units = feed_units(record)
-        if units:
-            return units, record.line
+        if said := feed_units(record):
+            return said
     return None
 
 
@@ -839,14 +1004,34 @@ def declared_units(record: Record | GotoRun) -> str | None:
     return None
 
 
-def feed_units(record: Record | GotoRun) -> str | None:
-    """Units of the first feed-unit keyword (``IPM``, ``MMPR``, ...) among the arguments."""
+def feed_units(record: Record | GotoRun) -> tuple[str, int] | None:
+    """Units of the first feed-unit keyword (``IPM``, ``MMPR``, ...) among the arguments (of
+    the feed lines of a run), and the line it is on; None when there is none."""
+    if isinstance(record, GotoRun):
+        feeds = record.feeds
+        if feeds is None:
+            return None
+        said = np.flatnonzero(feeds.keywords)
+        if not said.size:
+            return None
+        j = int(said[0])  # (feed line j comes after at[j] GOTO lines and j feed lines)
+        units = _feed_keyword_units(FEED_KEYWORDS[int(feeds.keywords[j])])
+        return None if units is None else (units, record.line + int(feeds.at[j]) + j)
     for token in record.args or ():
-        upper = token.upper()
-        if upper in ("IPM", "IPR"):
-            return "inch"
-        if upper in ("MMPM", "MMPR"):
-            return "mm"
+        units = _feed_keyword_units(token)
+        if units:
+            return units, record.line
+    return None
+
+
+def _feed_keyword_units(token: str) -> str | None:
+    """The units of a feed keyword: "inch" for ``IPM``, ``IPR``, "mm" for ``MMPM``, ``MMPR``
+    (any case), else None."""
+    upper = token.upper()
+    if upper in ("IPM", "IPR"):
+        return "inch"
+    if upper in ("MMPM", "MMPR"):
+        return "mm"
     return None
 
 
@@ -1057,7 +1242,7 @@ class _AptInterpreter:
     def step(self, record: Record | GotoRun) -> None:
         """Interpret one record (or run of GOTO records)."""
         if isinstance(record, GotoRun):
-            self.record_count += len(record)
+            self.record_count += record.line_count
             self.motion_count += len(record)
             self._goto_run(record)
             return
@@ -1256,41 +1441,94 @@ class _AptInterpreter:
         self.last_point_on_arc = False
 
     def _goto_run(self, run: GotoRun) -> None:
-        """A run of plain GOTO records: as :meth:`_goto` on each, in bulk where it can be.
+        """A run of plain GOTO records (and feed lines): as :meth:`_goto` on each (and
+        :meth:`_fedrat`), in bulk where it can be.
 
         The first record goes alone when it ends an arc or follows RAPID. The others are
         computed with the arithmetic of :meth:`_point` and :meth:`Frame.point` in the same
-        order (so bit for bit the same points); when a value would need a message (not finite,
-        beyond :data:`MAX_LENGTH_MM` in mm, a tool axis of zero or non-unit length), the records
-        are read one by one instead.
+        order (so bit for bit the same points), and their feeds with that of
+        :meth:`_current_feed`; when a value would need a message (not finite, beyond
+        :data:`MAX_LENGTH_MM` in mm, a tool axis of zero or non-unit length, a feed a
+        FEDRAT record would refuse or warn about), the records are read one by one instead.
         """
         first = 0
         if self.cycle_on:  # holes: few, read one by one
-            for record in run.records():
-                self._goto(record)
+            self._run_records(run, 0)
             return
         if self.circle is not None or self.rapid_next:
+            if run.feeds is not None and run.feeds.at[0] == 0:  # (a run cut after a GOTO)
+                self._run_records(run, 0)
+                return
             self._goto(_first_record(run))
             first = 1
         values = run.values[first:]
         k = values.shape[0]
         if not k:
             return
-        points = self._bulk_points(values)
-        if points is None:
-            for record in run.records()[first:]:
-                self._goto(record)
+        feed = self._run_feeds(run.feeds, first, k)
+        points = None if feed is None else self._bulk_points(values)
+        if feed is None or points is None:
+            self._run_records(run, first)
             return
         tip, axis = points
         self._check_arc(tip[0], Motion.FEED)
         self.builder.add_arrays(
             tip,
             axis,
-            np.full(k, self._current_feed()),
+            feed,
             np.full(k, Motion.FEED, dtype=np.int8),
-            np.arange(run.line + first, run.line + first + k, dtype=np.int64),
+            run.lines()[first:],
         )
         self.last_point_on_arc = False
+
+    def _run_records(self, run: GotoRun, first: int) -> None:
+        """The records of ``run`` from its GOTO record ``first`` on (with the feed lines after
+        the GOTO record before it), one by one."""
+        records = run.records()
+        if first:  # (record i of the run is on line run.line + i)
+            records = records[int(run.lines()[first - 1]) - run.line + 1 :]
+        for record in records:
+            self.handlers.get(record.word, self._unknown)(record)
+
+    def _run_feeds(self, feeds: FeedLines | None, first: int, k: int) -> np.ndarray | None:
+        """The feed (mm/min, NaN when unknown) of the GOTO records ``first:first + k`` of a
+        run with ``feeds`` between them, shape (k,), and the modal feed set as the last feed
+        line sets it; None (and no change) when a feed line would get an error or a warning
+        from :meth:`_fedrat`."""
+        if feeds is None or not len(feeds):
+            return np.full(k, self._current_feed())
+        keywords = feeds.keywords
+        inch = (keywords == _IPM) | (keywords == _IPR)
+        if self.forced:  # the keyword's unit is the file's, which the caller overrode
+            says_other = (keywords != 0) & (inch != (self.units == "inch"))
+            if says_other.any() and not self.feed_units_warned:  # _fedrat warns
+                return None
+            scale = np.full(len(feeds), self.scale)
+        else:
+            scale = np.where(keywords == 0, self.scale, np.where(inch, MM_PER_INCH, 1.0))
+        per_rev = (keywords == _MMPR) | (keywords == _IPR)
+        value = feeds.values
+        feed = value * scale
+        rpm = self.rpm
+        if not (
+            (value > 0.0).all()
+            and (np.where(per_rev, feed, 0.0) <= MAX_LENGTH_MM).all()
+            and (np.where(per_rev, 0.0, feed) <= MAX_FEED_MM_PER_MIN).all()
+        ):
+            return None  # not finite, not positive, too fast: _fedrat says so
+        if per_rev.any():
+            if rpm is None or not self.spindle_on:  # _fedrat warns
+                return None
+            if not (np.where(per_rev, feed * rpm, 0.0) <= MAX_FEED_MM_PER_MIN).all():
+                return None
+            feed = np.where(per_rev, feed * rpm, feed)  # _current_feed, term by term
+        # the feed of each record: the last feed line before it, else the one in force
+        before = np.searchsorted(feeds.at, np.arange(first, first + k), side="right")
+        out = np.concatenate([[self._current_feed()], feed])[before]
+        self.feed_value = float(value[-1])
+        self.feed_per_rev = bool(per_rev[-1])
+        self.feed_scale = float(scale[-1])
+        return out
 
     def _bulk_points(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """Tips (mm, workpiece frame) and axes of GOTO values, shape (k, 3) each.
@@ -1613,7 +1851,8 @@ class _AptInterpreter:
         per_rev, feed_scale = _FEED_MODES[words[0]] if words else (False, self.scale)
         if self.forced:  # the keyword's unit is the file's, which the caller overrode
             feed_scale = self.scale
-            says = feed_units(record)
+            said = feed_units(record)
+            says = None if said is None else said[0]
             if says is not None and says != self.units and not self.feed_units_warned:
                 self.feed_units_warned = True
                 self.builder.warn(record.line, _forced_message(says, record.line, self.units))
@@ -2129,7 +2368,15 @@ _STREAM_PART = 1 << 18
 _NOTABLE = ("$", "P", "p")
 #: Blocks of lines the pre-scan passes over: GOTO records (any case and blanks) with none of
 #: :data:`_NOTABLE`, which can say nothing of the file's units or dialect.
-_PLAIN_GOTO_LINES = re.compile(r"(?:^[ \t]*[Gg][Oo][Tt][Oo][ \t]*/[^$Pp\n]*(?:\n|\Z))+", re.M)
+_PLAIN_GOTO_LINES = re.compile(
+    r"(?:^[ \t]*(?:[Gg][Oo][Tt][Oo]|[Ff][Ee][Dd][Rr][Aa][Tt])[ \t]*/[^$Pp\n]*(?:\n|\Z))+", re.M
+)
+#: :data:`_PLAIN_GOTO_LINES`, and any one-line FEDRAT record: once the units are known.
+_PLAIN_MOTION_LINES = re.compile(
+    r"(?:^[ \t]*(?:[Gg][Oo][Tt][Oo][ \t]*/[^$Pp\n]*|[Ff][Ee][Dd][Rr][Aa][Tt][ \t]*/[^$\n]*)"
+    r"(?:\n|\Z))+",
+    re.M,
+)
 
 
 def _apt_parts(source: str, text_piece: int) -> Iterator[str]:
@@ -2147,8 +2394,10 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     """What an APT file says of itself before FINI: declared units and NX dialect.
 
     The records are those of :func:`~urdfpost.readers.apt.scan_text`, except that blocks of
-    :data:`_PLAIN_GOTO_LINES` are passed over (as one record each they could only be GOTO
-    records with no feed-unit keyword).
+    :data:`_PLAIN_GOTO_LINES` are passed over (as one record each they could only be GOTO or
+    FEDRAT records with no feed-unit keyword), and once the units are known, those of
+    :data:`_PLAIN_MOTION_LINES` (FEDRAT records with a feed-unit keyword too: feed-optimised
+    data has one before every move).
 
     Returns
     -------
@@ -2172,14 +2421,15 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     line = 1
     compiled = KERNELS.wanted(_file_size(source))
     for text in _apt_parts(source, size):
-        count, plain = _plain_facts(text, compiled)
+        known = declared is not None or in_feeds is not None  # then FEDRAT says nothing more
+        count, plain = _plain_facts(text, compiled, known)
         if not (scanner.pending is None and plain):
-            _prescan_piece(scanner, text, line)
+            _prescan_piece(scanner, text, line, _PLAIN_MOTION_LINES if known else None)
         for record in scanner.scan.records:
             if declared is None and (units := declared_units(record)):
                 declared = (units, record.line)
-            if in_feeds is None and (units := feed_units(record)):
-                in_feeds = (units, record.line)
+            if in_feeds is None:
+                in_feeds = feed_units(record)
         nx = nx or nx_evidence(scanner.scan.records)
         scanner.scan.records.clear()
         if scanner.fini:
@@ -2192,34 +2442,38 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     return declared or in_feeds, nx
 
 
-def _plain_facts(text: str, compiled: bool) -> tuple[int, bool]:
+def _plain_facts(text: str, compiled: bool, feeds: bool = False) -> tuple[int, bool]:
     """The lines of ``text`` (:func:`~urdfpost.readers._stream.line_count`) and
-    :func:`_only_plain_gotos` of them; by a compiled loop when ``compiled`` and numba is
-    there (:func:`urdfpost.readers._goto_kernel.plain_goto_lines`)."""
+    :func:`_only_plain_gotos` of them (with ``feeds``); by a compiled loop when ``compiled``
+    and numba is there (:func:`urdfpost.readers._goto_kernel.plain_goto_lines`)."""
     got = None
     if compiled:
-        got = _compiled("plain_goto_lines", _bytes_of(text))
+        got = _compiled("plain_goto_lines", _bytes_of(text), feeds)
     if got is not None:
         return int(got[0]), bool(got[1])
     count = line_count(text)
-    return count, _only_plain_gotos(text, count)
+    return count, _only_plain_gotos(text, count, feeds)
 
 
-def _only_plain_gotos(text: str, count: int) -> bool:
-    """Whether all ``count`` lines of ``text`` start with ``GOTO/`` and none holds any of
-    :data:`_NOTABLE` (a quick test for most of a large file)."""
-    return (
-        text.startswith("GOTO/")
-        and text.count("\nGOTO/") == count - 1
-        and not any(c in text for c in _NOTABLE)
-    )
+def _only_plain_gotos(text: str, count: int, feeds: bool = False) -> bool:
+    """Whether all ``count`` lines of ``text`` start with ``GOTO/`` (or, with ``feeds``,
+    ``FEDRAT/``) and none holds any of :data:`_NOTABLE` (``P`` and ``p`` are allowed in a
+    FEDRAT line: a quick test for most of a large file)."""
+    starts = ("GOTO/", "FEDRAT/") if feeds else ("GOTO/",)
+    lines = sum(text.count("\n" + start) for start in starts)
+    if not (text.startswith(starts) and lines == count - 1 and "$" not in text):
+        return False
+    rest = _FEED_LINE_START.sub("", text) if feeds else text  # (lines start with GOTO/)
+    return not any(c in rest for c in _NOTABLE)
 
 
-def _prescan_piece(scanner: _Scanner, text: str, line: int) -> None:
+def _prescan_piece(
+    scanner: _Scanner, text: str, line: int, passed: re.Pattern[str] | None = None
+) -> None:
     """Scan the lines of ``text`` (``\\n`` breaks; its first line is ``line``) into
-    ``scanner``, passing over the blocks of :data:`_PLAIN_GOTO_LINES`."""
+    ``scanner``, passing over the blocks of ``passed`` (default :data:`_PLAIN_GOTO_LINES`)."""
     pos = 0
-    for block in _PLAIN_GOTO_LINES.finditer(text):
+    for block in (passed or _PLAIN_GOTO_LINES).finditer(text):
         start, end = block.span()
         if start > pos:
             lines = text[pos : start - 1].split("\n")
