@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -135,13 +136,17 @@ def expected_blocks(program: Program, dialect: Dialect) -> list[Block]:
     """The non-motion blocks reading ``dialect.write(program)`` gives back, in order.
 
     Inserts are not recoverable; comments come back as written; TCP and spindle blocks only when
-    the state changes; coolant modes without a code come back as flood; consecutive home
+    the state changes; coolant modes without a code come back as flood; a coolant stop right
+    after another (no coolant on, stop or insert between) is not written; consecutive home
     returns are one.
     """
     out: list[Block] = []
     tcp = False
     spindle = ("off", 0.0)
+    coolant_off = False  # the last coolant block written stopped it
     for block in program.blocks:
+        if isinstance(block, Stop | Insert):
+            coolant_off = False
         match block:
             case Insert():
                 # the inserts of Heidenhain and LinuxCNC switch path smoothing on (T0.01, P0.01)
@@ -160,6 +165,9 @@ def expected_blocks(program: Program, dialect: Dialect) -> list[Block]:
                     spindle = state
                     out.append(Spindle(*state))
             case Coolant():
+                if block.mode == "off" and coolant_off:
+                    continue
+                coolant_off = block.mode == "off"
                 out.append(Coolant("flood" if block.mode in ("through", "air") else block.mode))
             case ToolChange():
                 out.append(ToolChange(block.number))
@@ -1063,3 +1071,17 @@ def test_bulk_read_with_other_line_breaks(name, monkeypatch) -> None:
         edited = text.replace("\n", other, 3)
         bulk, single = read_both(monkeypatch, DIALECTS[name], edited)
         assert bulk == single
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_stop_after_a_stop_is_not_written(name: str) -> None:
+    """Spindle and coolant stops when they are stopped already are not written again (a tool
+    change's stop, then the CL data's own before its LOADTL); after a program stop or an
+    insert (the operator's, or text the post cannot follow) the state is unknown: written."""
+    dialect = DIALECTS[name]
+    blocks = (ToolChange(3), Spindle("cw", 5000), Coolant("flood"), Move(True, (1.0,)))
+    blocks += (Spindle("off"), Coolant("off"), Coolant("off"), Spindle("off"))
+    blocks += (Stop(False), Coolant("off"), Spindle("off"), Insert("; text"), Coolant("off"))
+    text = dialect.write(Program("S", ("X",), frozenset(), "mm", False, blocks))
+    codes = re.findall(r"\bM0?([59])\b", text)
+    assert codes == ["5", "9", "9", "5", "9"], text

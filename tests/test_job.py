@@ -513,3 +513,30 @@ def test_machine_coordinates_warn_of_a_tool_without_a_length(
     assert err.count("has no gauge length") == 1
     assert main([*base, "-o", str(tmp_path / "tcp.nc")]) == 0
     assert "tool length" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize("tcp", [True, False], ids=["tcp", "mc"])
+def test_stops_of_the_cl_data_at_a_tool_change_are_not_written_twice(
+    controller: str, tcp: bool
+) -> None:
+    """CL data that stops the spindle and coolant itself before LOADTL and at its end (as NX
+    and most CAM systems write it): one M5 and one M9 before the tool change and at the end,
+    not the post's and the CL data's both."""
+    after = "LOADTL/2\nSPINDL/9000,CLW\nCOOLNT/FLOOD"
+    text = TWO_TOOLS.replace("LOADTL/2", f"COOLNT/OFF\nSPINDL/OFF\n{after}")
+    text = text.replace("FINI", "COOLNT/OFF\nSPINDL/OFF\nFINI")
+    result = post(read_cl_text(text, source="two.apt"), load_machine("dmu50"),
+                  PostOptions(controller=controller, tcp=tcp))  # fmt: skip
+    blocks = blocks_of(result, controller)
+    change = index(blocks, ToolChange, number=2)
+    last_cut = max(k for k in range(change) if isinstance(blocks[k], Move) and not blocks[k].rapid)
+    between = blocks[last_cut:change]
+    assert sum(isinstance(b, Spindle) and b.direction == "off" for b in between) == 1
+    assert sum(isinstance(b, Coolant) and b.mode == "off" for b in between) == 1
+    end = max(k for k, b in enumerate(blocks) if isinstance(b, Move) and not b.rapid)
+    lines = result.text.splitlines()
+    assert sum(isinstance(b, Spindle) and b.direction == "off" for b in blocks[end:]) == 1
+    assert sum(isinstance(b, Coolant) and b.mode == "off" for b in blocks[end:]) == 1
+    stops = [k for k, line in enumerate(lines) if re.search(r"\bM0?[59]\b", line)]
+    assert len(stops) == 4, "\n".join(lines)  # M5 and M9 at the change, at the end

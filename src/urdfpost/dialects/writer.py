@@ -90,6 +90,10 @@ class _Modal:
     offset: int | None = None  # the tool's length offset register
     rpm: str | None = None
     spindle: str = "off"
+    # whether the last spindle (coolant) block written stopped it: a second stop is not
+    # written (a tool change's stop, then the CL data's own before its LOADTL)
+    spindle_stopped: bool = False
+    coolant_stopped: bool = False
     force: bool = True
     plane: str | None = None  # the arc plane last written
     comp_word: str | None = None  # a radius compensation word for the next straight line
@@ -345,10 +349,12 @@ class ProgramWriter:
                 for line in block.text.splitlines():
                     self.emit(line, self.spec.block_numbers_mandatory)
                 self.modal.invalidate()
+                self.modal.spindle_stopped = self.modal.coolant_stopped = False  # unknown
             case Tcp():
                 self.write_tcp(block)
             case Stop():
                 self.emit(self.spec.m_code_for("optional_stop" if block.optional else "stop"))
+                self.modal.spindle_stopped = self.modal.coolant_stopped = False  # the operator's
             case Home():
                 self.leave_inverse_time()
                 if self.spec.home_comment is not None:
@@ -992,8 +998,11 @@ class ProgramWriter:
         code = self.spec.m_code_for(action)
         self.modal.spindle = block.direction
         if block.direction == "off":
-            self.emit(code)
+            if not self.modal.spindle_stopped:  # (stopped already: nothing to write)
+                self.emit(code)
+            self.modal.spindle_stopped = True
             return
+        self.modal.spindle_stopped = False
         rpm = self.spec.rpm.format(block.rpm)
         if self.spec.spindle_speed is not None and rpm != self.modal.rpm:
             self.emit(self.spec.spindle_speed.format(rpm=rpm))  # not merged into a tool call
@@ -1015,6 +1024,9 @@ class ProgramWriter:
             raise DialectError(
                 f"unknown coolant mode {block.mode!r}; expected flood, mist, through, air or off"
             )
+        if mode == "off" and self.modal.coolant_stopped:  # off already: nothing to write
+            return
+        self.modal.coolant_stopped = mode == "off"
         self.emit(self.spec.m_code_for(action))
 
     def write_tcp(self, block: Tcp) -> None:
