@@ -685,6 +685,11 @@ def _bytes_of(text: str) -> np.ndarray:
     return np.frombuffer(text.encode("ascii", "replace"), dtype=np.uint8)
 
 
+_FEED_SAMPLE = 1 << 20
+"""Characters of a text :func:`_compiled_runs` counts feed lines in, to size the loop's
+array of them."""
+
+
 def _compiled_runs(text: str, size: int) -> list[_Run] | None:
     """:func:`_bulk_runs` of ``text`` by the compiled loop, or None without it (or when it
     failed here, or when the numbers of an odd GOTO line are not for ``np.loadtxt``: then the
@@ -696,8 +701,12 @@ def _compiled_runs(text: str, size: int) -> list[_Run] | None:
     if KERNELS.load() is None:
         return None
     data = _bytes_of(text)
-    # rows for runs, odd lines and feed lines; more when the loop says so
-    rooms = (64, 64, text.count("FEDRAT/") + 1)
+    # rows for runs, odd lines and feed lines (as many as the text's first MB suggests, with
+    # a margin: counting them all would take a quarter of the loop's time); more when the
+    # loop says so
+    sample = min(len(text), _FEED_SAMPLE)
+    feeds = text.count("FEDRAT/", 0, sample) * len(text) // max(sample, 1)
+    rooms = (64, 64, 64 + feeds + feeds // 4)
     while True:
         got = _compiled("goto_runs", data, BULK_MIN_RECORDS, size, *rooms)
         if got is None:
