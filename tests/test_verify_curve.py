@@ -23,7 +23,7 @@ from scipy.optimize import minimize_scalar
 
 from urdfpost.cli import main
 from urdfpost.geometry import Arcs, Segments, coords
-from urdfpost.verification.measure import _curve_distance2, _Polyline
+from urdfpost.verification.measure import _FLAT, _curve_distance2, _Polyline
 
 RADIUS = 3.0
 
@@ -96,7 +96,7 @@ def test_a_program_turning_the_axis_by_tens_of_degrees_verifies_at_the_ball_cent
 @settings(max_examples=60, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
-    turn=st.floats(0.0, 170.0),
+    turn=st.one_of(st.floats(0.0, 170.0), st.sampled_from([0.0, 0.01, 0.03, 0.05, 0.2])),
     length=st.sampled_from([0.0, 0.01, 1.0, 10.0, 50.0]),
     radius=st.floats(0.5, 8.0),
     off=st.sampled_from([0.0, 1e-3, 0.05]),
@@ -105,8 +105,9 @@ def test_the_distance_from_the_curve_is_the_nearest_point_s(
     seed: int, turn: float, length: float, radius: float, off: float
 ) -> None:
     """``_curve_distance2`` against a dense scan refined by a bounded search: for a point
-    within 0.05 mm of the curve the same distance (to 1e-8 mm), whatever the turn (up to 170
-    degrees in one segment) and the tip's move (none: a turn in place); for any point never
+    within 0.05 mm of the curve the same distance (to 1e-8 mm; on a segment whose sag is at
+    most ``_FLAT``, measured without Newton steps, to twice the sag), whatever the turn (up to
+    170 degrees in one segment) and the tip's move (none: a turn in place); for any point never
     less (it is the distance to a point of the curve)."""
     rng = np.random.default_rng(seed)
     omega = math.radians(turn)
@@ -149,8 +150,9 @@ def test_the_distance_from_the_curve_is_the_nearest_point_s(
         assert 0.0 <= u[0] <= 1.0
         assert math.isclose(got, float(np.linalg.norm(curve(u[0]) - point)), abs_tol=1e-9)
         assert got >= true - 1e-8
+        sag = radius * (1.0 - math.cos(omega / 2.0))
         if far <= 0.05:
-            assert got <= true + 1e-8
+            assert got <= true + 1e-8 + (2.0 * sag if sag <= _FLAT else 0.0)
 
 
 def test_the_curve_leaves_the_chord_by_its_sag_at_most() -> None:

@@ -280,7 +280,7 @@ def _angles_along(
                 sin_j[j, k] = sin_j[j, k - 1] * cd + cos_j[j, k - 1] * sd
 
 
-_FRAME = 21
+_FRAME = 22
 """Numbers per CL segment in the rows of :func:`_frames`."""
 
 _NEWTON = 8
@@ -289,6 +289,9 @@ _NEWTON = 8
 
 _SETTLED = 1e-12
 """:data:`urdfpost.verification.measure._SETTLED`."""
+
+_FLAT = 1e-6
+""":data:`urdfpost.verification.measure._FLAT`, mm."""
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -313,8 +316,8 @@ def _frames(
     of the window grown by the curve's sag, as
     :func:`urdfpost.verification.measure._segment_errors` grows it), the arc's frame (its
     start, the unit direction it turns towards and their cross product,
-    :func:`urdfpost.linearize._frame`), its angle (rad), the pivot (mm) and the cosine and
-    sine of the angle (the CL segment's curve, :func:`_curve`)."""
+    :func:`urdfpost.linearize._frame`), its angle (rad), the pivot (mm), the cosine and
+    sine of the angle and the curve's sag (mm; the CL segment's curve, :func:`_curve`)."""
     last = px.shape[0] - 1
     for off in range(span):
         a = min(first + off, last)
@@ -325,9 +328,11 @@ def _frames(
         inv_dd = 1.0 / dd if dd > 0 else 0.0
         omega = omega_of[a]
         reach = window
+        sag = 0.0
         if pivot != 0.0:  # measure._sag
             quarter = np.sin(0.25 * omega)
-            reach = window + 2.0 * abs(pivot) * (quarter * quarter)
+            sag = 2.0 * abs(pivot) * (quarter * quarter)
+            reach = window + sag
         half = reach * np.sqrt(inv_dd) if inv_dd > 0 else np.inf
         # the arc (Arcs.of_coords) and its frame (linearize._frame)
         u0, u1, u2 = ax[a], ay[a], az[a]
@@ -357,7 +362,7 @@ def _frames(
         f[6], f[7], f[8], f[9], f[10] = inv_dd, half, u0, u1, u2
         f[11], f[12], f[13], f[14], f[15], f[16] = m0, m1, m2, k0, k1, k2
         f[17] = omega
-        f[18], f[19], f[20] = pivot, np.cos(omega), np.sin(omega)
+        f[18], f[19], f[20], f[21] = pivot, np.cos(omega), np.sin(omega), sag
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -375,6 +380,7 @@ def _curve(
     dx, dy, dz = f[3], f[4], f[5]
     v0, v1, v2, n0, n1, n2 = f[8], f[9], f[10], f[11], f[12], f[13]
     omega, pivot, cos_w, sin_w = f[17], f[18], f[19], f[20]
+    flat = f[21] <= _FLAT  # the first point of the curve is near enough: no steps
     best, best_u = np.inf, u
     for step in range(_NEWTON + 1):
         angle = u * omega
@@ -388,7 +394,7 @@ def _curve(
         d2 = e0 * e0 + e1 * e1 + e2 * e2
         if step == 0 or d2 < best:
             best, best_u = d2, u
-        if step == _NEWTON:
+        if step == _NEWTON or flat:
             break
         da = (1.0 - cos_w) - omega * sin_a
         db = omega * cos_a - sin_w
