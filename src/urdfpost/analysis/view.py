@@ -2,7 +2,8 @@
 
 The machine is drawn from the machine file's ``<visual>`` elements (boxes, cylinders and
 spheres as three.js primitives, meshes read with trimesh), the stock or part mesh rides on the
-workpiece frame, the tool is a cylinder of the cutter's diameter from the tip up the tool axis.
+workpiece frame, the tool is a cylinder from the tip up the tool axis, of the diameter of the
+cutter of the tool loaded (:func:`_tool_sizes`).
 The page plays the program: play/pause, a timeline, the speed, the current block with its line
 of NC text and the axis values; singular spans, rewinds and the worst deviation are marked on
 the timeline.
@@ -58,7 +59,7 @@ from urdfpost.kinematics.inverse import assemble, solve_linear
 from urdfpost.machine import Machine
 from urdfpost.machine.shapes import Box, Cylinder, LinkShape, Mesh, Sphere, link_shapes
 from urdfpost.planning.singularity import conditioning
-from urdfpost.posting.tools import row_lengths
+from urdfpost.posting.tools import row_lengths, row_tool_values, tool_cutters
 from urdfpost.program import (
     FEED_INVERSE_TIME,
     Arc,
@@ -481,6 +482,42 @@ def move_lines(dialect: Any, text: str, path: str, inserts: list[str] | None = N
     return lines.astype(np.int64)
 
 
+def _tool_sizes(
+    program: Program, cl: Toolpath | None, moves: np.ndarray, lengths: np.ndarray | float
+) -> tuple[float, np.ndarray]:
+    """The tool drawn at each sample: the diameter of the cutter the CL data gives the tool the
+    program has loaded (:func:`~urdfpost.posting.tools.tool_cutters`; the first cutter's
+    where it gives none, :data:`DEFAULT_CUTTER` without any), and a length of at least four
+    diameters.
+
+    Parameters
+    ----------
+    program : Program
+    cl : Toolpath or None
+    moves : ndarray, shape (n,), int
+        The move of each sample.
+    lengths : ndarray, shape (n,), or float, mm
+        The tool length at each sample.
+
+    Returns
+    -------
+    first : float, mm
+        The first cutter's diameter.
+    sizes : ndarray, shape (n, 2), mm
+        Diameter and length at each sample.
+    """
+    first = _cutter(cl)
+    by_tool: dict[int, float] = {}
+    if cl is not None:
+        for number, cutter in tool_cutters(cl)[1].items():
+            d = cutter[0]
+            if d is not None and d > 0 and math.isfinite(d):
+                by_tool[number] = float(d)
+    diameter = row_tool_values(program, by_tool, first)[moves] if len(moves) else np.zeros(0)
+    length = np.maximum(np.broadcast_to(lengths, diameter.shape), 4.0 * diameter)
+    return first, np.column_stack([diameter, length])
+
+
 def _cutter(cl: Toolpath | None) -> float:
     """The first cutter diameter of the CL data, mm."""
     if cl is not None:
@@ -618,6 +655,9 @@ def view_data(
     if cl is not None and len(cl):
         deviation = np.where(rapid[line.move], 0.0, _tip_deviation(tip, cl))
     marks = _marks(machine, program, line, rapid[line.move], deviation, move_line)
+    first_cutter, tool_sizes = _tool_sizes(
+        program, cl, line.move, tool_length if sample_lengths is None else sample_lengths
+    )
     trace_color = None
     if color == "deviation" and deviation is not None:
         trace_color = {
@@ -667,7 +707,11 @@ def view_data(
         "text": {str(n): s for n, s in text_of.items()},
         "cl": _b64(cl.tip, "<f4") if cl is not None and len(cl) else None,
         "stock": stock_data,
-        "tool": {"diameter": _cutter(cl), "length": max(tool_length, 4.0 * _cutter(cl))},
+        "tool": {
+            "diameter": first_cutter,
+            "length": max(tool_length, 4.0 * first_cutter),
+            "sizes": _b64(tool_sizes, "<f4"),  # per sample: diameter, length (mm)
+        },
         "marks": marks,
         "color": trace_color,
     }

@@ -544,13 +544,26 @@ def row_lengths(program: Program, lengths: Mapping[int, float], default: float) 
     ndarray, shape (N,), mm
         One per move of :meth:`Program.move_table`.
     """
+    return row_tool_values(program, lengths, default)
+
+
+def row_tool_values(program: Program, values: Mapping[int, float], default: float) -> np.ndarray:
+    """A value of the tool each move of a program is made with (its gauge length, its
+    diameter...): that of the tool loaded before it in ``values`` (a tool not in it and the
+    moves before any tool change: ``default``).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        One per move of :meth:`Program.move_table`.
+    """
     out: list[np.ndarray] = []
-    length = default
+    value = default
     for part in program.parts:
         if isinstance(part, ToolChange):
-            length = lengths.get(part.number, default)
+            value = values.get(part.number, default)
         elif isinstance(part, MoveTable):
-            out.append(np.full(len(part), length))
+            out.append(np.full(len(part), value))
         elif isinstance(part, Move):
-            out.append(np.full(1, length))
+            out.append(np.full(1, value))
     return np.concatenate(out) if out else np.zeros(0)

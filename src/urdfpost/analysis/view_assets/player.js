@@ -115,10 +115,12 @@ export function start(data) {
   const traceLine = new THREE.Line(trace, traceMaterial);
   traceLine.frustumCulled = false;
   work.add(traceLine);
-  const d = data.tool.diameter;
-  const toolGeometry = new THREE.CylinderGeometry(d / 2, d / 2, data.tool.length, 32);
-  toolGeometry.translate(0, data.tool.length / 2, 0); // from the tip up its axis
+  // a cylinder of diameter and length 1, from the tip up its axis, scaled to the tool loaded
+  const toolSizes = data.tool.sizes ? decode(data.tool.sizes, Float32Array) : null;
+  const toolGeometry = new THREE.CylinderGeometry(0.5, 0.5, 1, 32);
+  toolGeometry.translate(0, 0.5, 0);
   const tool = new THREE.Mesh(toolGeometry, new THREE.MeshStandardMaterial({ color: 0xd0d4dc, metalness: 0.6, roughness: 0.3 }));
+  tool.scale.set(data.tool.diameter, data.tool.length, data.tool.diameter);
   work.add(tool);
   const up = new THREE.Vector3(0, 1, 0);
   const tmpAxis = new THREE.Vector3();
@@ -219,6 +221,7 @@ export function start(data) {
       axis[3 * i + 1] + f * (axis[3 * j + 1] - axis[3 * i + 1]),
       axis[3 * i + 2] + f * (axis[3 * j + 2] - axis[3 * i + 2])).normalize();
     tool.quaternion.setFromUnitVectors(up, tmpAxis);
+    if (toolSizes) tool.scale.set(toolSizes[2 * i], toolSizes[2 * i + 1], toolSizes[2 * i]);
     trace.setDrawRange(0, i + 1);
     const shown = f > 0 ? j : i;
     if (cells.length) {
@@ -230,6 +233,8 @@ export function start(data) {
         `block ${move[shown] + 1} of ${data.moves} · NC line ${line[shown]}`;
       document.getElementById('nc').textContent = data.text[String(line[shown])] || '';
       document.getElementById('time').textContent = `${now.toFixed(1)} / ${end.toFixed(1)} s`;
+      const diameter = toolSizes ? toolSizes[2 * shown] : data.tool.diameter;
+      document.getElementById('tool').textContent = `tool \u00d8${diameter.toFixed(3)} mm`;
       slider.value = end > 0 ? now / end : 0;
     }
   }
