@@ -311,7 +311,7 @@ def goto_lines(draw: st.DrawFn) -> str:
     if width == 6:  # mostly unit axes, sometimes not
         axis = draw(st.sampled_from(["0,0,1", "0.6,0,0.8", "-0.707107,0,0.707107", "0,0,1.5"]))
         values += axis.split(",")
-    line = "GOTO/" + ",".join(values)
+    line = draw(st.sampled_from(["GOTO/", "GOTO/", "GOTO  /", "GOTO\t/ "])) + ",".join(values)
     if draw(st.integers(0, 7)) == 0:
         line += draw(st.sampled_from([" $$ x", "$$", " $$ 1,2,3"]))
     return line
@@ -370,7 +370,9 @@ def feed_runs(draw: st.DrawFn) -> str:
             lines.append(draw(feeds))
         if clean:
             values = [draw(fixed()) for _ in range(3)]
-            lines.append("GOTO/" + ",".join([*values, "0.6,0,0.8"]))
+            head = draw(st.sampled_from(["GOTO/", "GOTO  /  "]))
+            axis = draw(st.sampled_from(["0.6,0,0.8", "0.6,0,0.8", "0.6,0,0.8 $$ c", "0,0,1.5"]))
+            lines.append(head + ",".join([*values, axis]))
         else:
             lines.append(draw(goto_lines()))
     return "\n".join(lines)
@@ -447,6 +449,28 @@ def test_feed_lines_join_runs():
     expected = [1000.5 + k for k in range(121)] + [0.25 * 1000] * 79  # per rev at 1000 rpm
     assert path.feed.tolist() == expected
     assert path.line.tolist() == [6 + 2 * min(k, 121) + max(k - 121, 0) for k in range(200)]
+
+
+@pytest.mark.parametrize(
+    "last",
+    ["GOTO/0,0,0,0,0,1.5", "GOTO/0,0,0,0,0,1.5 $$ x", "GOTO/1e999,0,0,0,0,1", "GOTO/5,0,0,0,0,1"],
+)
+def test_a_feed_run_read_record_by_record_starts_from_the_feed_before_it(last):
+    """A run with feed lines whose points need a message (a tool axis of another length, a
+    number beyond the bounds) is read record by record: from the modal state before the run,
+    not the one its feed lines would have left (the first GOTO keeps its unknown feed)."""
+    text = f"SPINDL/1000,CLW\nGOTO/0,0,0,0.6,0,0.8\nFEDRAT/MMPM,500\nGOTO/0,0,0,0,0,1\n{last}\n"
+
+    def read() -> Toolpath:
+        return read_cl_text(text, source="k.apt", format="apt")
+
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 1 << 40)
+        alone = outcome(read)
+        monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 1)
+        assert both_ways(read) == (alone, alone)
+    if not isinstance(alone, tuple):  # (not an error)
+        assert math.isnan(read().feed[0])
 
 
 @pytest.mark.parametrize("units", [None, "mm", "inch"])
@@ -556,6 +580,7 @@ def test_the_kernel_reads_the_runs_of_a_real_file():
         st.sampled_from(
             [
                 *("GOTO/1,2,3", "GOTO/P", "GOTO/$", "GOTO/p", "GOTO", " GOTO/1", "", "X"),
+                *("GOTO  /1,2,3", "GOTO /P", "GOTO 1"),
                 *("FEDRAT/MMPM,5", "FEDRAT/5 $$ x", "FEDRAT/5,$", "FEDRAT", " FEDRAT/5"),
             ]
         ),

@@ -51,17 +51,29 @@ def _line_end(data: np.ndarray, i: int) -> int:
     return i
 
 
-@njit(cache=True, nogil=True)
-def _is_goto(data: np.ndarray, i: int) -> bool:
-    """Whether ``GOTO/`` is at offset ``i``."""
-    return (
-        i + 5 <= data.shape[0]
+@njit(cache=True, nogil=True, inline="always")
+def _goto_head(data: np.ndarray, i: int) -> int:
+    """The offset after ``GOTO/`` at offset ``i`` (blanks allowed before the slash, as CATIA
+    writes ``GOTO  /``), or -1 when the line is not a GOTO."""
+    n = data.shape[0]
+    if not (
+        i + 5 <= n
         and data[i] == 71  # G
         and data[i + 1] == 79  # O
         and data[i + 2] == 84  # T
         and data[i + 3] == 79  # O
-        and data[i + 4] == 47  # /
-    )
+    ):
+        return -1
+    j = i + 4
+    while j < n and _blank(data[j]):
+        j += 1
+    return j + 1 if j < n and data[j] == 47 else -1  # /
+
+
+@njit(cache=True, nogil=True)
+def _is_goto(data: np.ndarray, i: int) -> bool:
+    """Whether a GOTO line (:func:`_goto_head`) starts at offset ``i``."""
+    return _goto_head(data, i) >= 0
 
 
 @njit(cache=True, nogil=True)
@@ -123,9 +135,9 @@ def _plain_number(data: np.ndarray, j: int) -> tuple[bool, float, int]:
 
 
 @njit(cache=True, nogil=True)
-def _plain_line(data: np.ndarray, i: int, out: np.ndarray) -> tuple[int, int, int, int]:
-    """Read the values of the line at ``i`` into ``out`` when it is ``GOTO/`` and 3 or 6
-    numbers this loop reads exactly.
+def _plain_line(data: np.ndarray, head: int, out: np.ndarray) -> tuple[int, int, int, int]:
+    """Read the values of the GOTO line whose values start at ``head`` (after its slash,
+    :func:`_goto_head`) into ``out`` when they are 3 or 6 numbers this loop reads exactly.
 
     Returns
     -------
@@ -140,7 +152,7 @@ def _plain_line(data: np.ndarray, i: int, out: np.ndarray) -> tuple[int, int, in
         where the reading stopped, before the line's end).
     """
     n = data.shape[0]
-    j = i + 5
+    j = head
     count = 0
     while True:
         while j < n and _blank(data[j]):
@@ -275,13 +287,14 @@ def _plain_feed(data: np.ndarray, i: int) -> tuple[int, float, int, int]:
 
 
 @njit(cache=True, nogil=True)
-def _odd_line(data: np.ndarray, i: int, end: int) -> tuple[int, int, int]:
-    """The shape of a ``GOTO/`` line that :func:`_plain_line` could not read: the values
+def _odd_line(data: np.ndarray, head: int, end: int) -> tuple[int, int, int]:
+    """The shape of a GOTO line (its values from ``head``) that :func:`_plain_line` could not
+    read: the values
     ``np.loadtxt`` may read (3 or 6: the line's code, before any ``$$``, holds 2 or 5 commas
     and only digits, letters, signs, points and blanks besides), else 0; and, as
     :func:`_plain_line`, where the code ends and whether there is a comment."""
     commas = 0
-    j = i + 5
+    j = head
     while j < end:
         c = data[j]
         if c == _COMMA:
@@ -424,11 +437,12 @@ def goto_runs(
         comment = 0
         is_odd = False
         code_end = 0
-        if _is_goto(data, i):
-            kind, code_end, comment, end = _plain_line(data, i, row)
+        head = _goto_head(data, i)
+        if head >= 0:
+            kind, code_end, comment, end = _plain_line(data, head, row)
             if not kind:
                 end = _line_end(data, end)
-                kind, code_end, comment = _odd_line(data, i, end)
+                kind, code_end, comment = _odd_line(data, head, end)
                 is_odd = kind != 0
         elif start >= 0 and _is_fedrat(data, i):
             keyword, value, comment, end = _plain_feed(data, i)

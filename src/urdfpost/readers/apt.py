@@ -249,7 +249,9 @@ BULK_MIN_RECORDS = 32
 #: Characters of text read in one piece by the bulk reader (bounds its temporary copies).
 _BULK_PIECE = 1 << 22
 #: A line break not followed by a GOTO or FEDRAT record at the start of the next line.
-_NOT_GOTO_NEXT = re.compile(r"\n(?!GOTO/|FEDRAT/)")
+_NOT_GOTO_NEXT = re.compile(r"\n(?!GOTO[ \t]*/|FEDRAT/)")
+#: A GOTO record's word and slash at a line start (CATIA writes ``GOTO  /``).
+_GOTO_HEAD = re.compile(r"^GOTO[ \t]*/", re.M)
 #: A FEDRAT line (at a line start) with its line break.
 _FEED_LINE_START = re.compile(r"^FEDRAT/[^\n]*(?:\n|\Z)", re.M)
 #: A feed line the bulk reader takes into a run (:func:`_plain_feed_line`): one number, with
@@ -544,7 +546,7 @@ def _goto_blocks(text: str) -> Iterator[tuple[int, int]]:
     """
     # the starts of the other lines
     others: Iterator[int] = (m.end() for m in _NOT_GOTO_NEXT.finditer(text))
-    if not text.startswith(("GOTO/", "FEDRAT/")):
+    if not (text.startswith("FEDRAT/") or _GOTO_HEAD.match(text)):
         others = itertools.chain([0], others)
     block = 0
     for other in others:
@@ -561,9 +563,10 @@ def _goto_blocks(text: str) -> Iterator[tuple[int, int]]:
 def _goto_values(lines: str, count: int) -> np.ndarray | None:
     """The numbers of ``count`` GOTO lines ``GOTO/x,y,z[,i,j,k]``, or None.
 
-    Every line of ``lines`` starts with ``GOTO/``. None unless every line is ``GOTO/`` and
-    the same number of values (3 or 6) that :func:`parse_number` accepts (blanks around them
-    allowed), and nothing else: no ``$`` continuation or comment, no other characters.
+    Every line of ``lines`` starts with ``GOTO/`` (blanks allowed before the slash). None
+    unless every line is that and the same number of values (3 or 6) that
+    :func:`parse_number` accepts (blanks around them allowed), and nothing else: no ``$``
+    continuation or comment, no other characters.
 
     Returns
     -------
@@ -572,8 +575,10 @@ def _goto_values(lines: str, count: int) -> np.ndarray | None:
     if not lines.isascii() or "_" in lines:  # float() reads 1_000; parse_number does not
         return None
     numbers = lines.replace("GOTO/", "")
-    if len(lines) - len(numbers) != 5 * count:  # a GOTO/ elsewhere than at a line start
-        return None
+    if len(lines) - len(numbers) != 5 * count:  # blanks before a slash, or a GOTO/ elsewhere
+        numbers, heads = _GOTO_HEAD.subn("", lines)
+        if heads != count or "GOTO" in numbers:
+            return None
     try:
         # loadtxt parses like float() on the stripped field, and insists on one column count
         values = np.loadtxt(
@@ -1474,11 +1479,14 @@ class _AptInterpreter:
         k = values.shape[0]
         if not k:
             return
-        feed = self._run_feeds(run.feeds, first, k)
-        points = None if feed is None else self._bulk_points(values)
-        if feed is None or points is None:
+        feeds = self._run_feeds(run.feeds, first, k)
+        points = None if feeds is None else self._bulk_points(values)
+        if feeds is None or points is None:
             self._run_records(run, first)
             return
+        feed, modal = feeds
+        if modal is not None:  # the feed the last feed line sets
+            self.feed_value, self.feed_per_rev, self.feed_scale = modal
         tip, axis = points
         self._check_arc(tip[0], Motion.FEED)
         self.builder.add_arrays(
@@ -1499,13 +1507,15 @@ class _AptInterpreter:
         for record in records:
             self.handlers.get(record.word, self._unknown)(record)
 
-    def _run_feeds(self, feeds: FeedLines | None, first: int, k: int) -> np.ndarray | None:
+    def _run_feeds(
+        self, feeds: FeedLines | None, first: int, k: int
+    ) -> tuple[np.ndarray, tuple[float, bool, float] | None] | None:
         """The feed (mm/min, NaN when unknown) of the GOTO records ``first:first + k`` of a
-        run with ``feeds`` between them, shape (k,), and the modal feed set as the last feed
-        line sets it; None (and no change) when a feed line would get an error or a warning
-        from :meth:`_fedrat`."""
+        run with ``feeds`` between them, shape (k,), and the modal feed the last feed line
+        sets (value, per revolution, scale; None without feed lines), for the caller to set;
+        None when a feed line would get an error or a warning from :meth:`_fedrat`."""
         if feeds is None or not len(feeds):
-            return np.full(k, self._current_feed())
+            return np.full(k, self._current_feed()), None
         keywords = feeds.keywords
         inch = (keywords == _IPM) | (keywords == _IPR)
         if self.forced:  # the keyword's unit is the file's, which the caller overrode
@@ -1534,10 +1544,7 @@ class _AptInterpreter:
         # the feed of each record: the last feed line before it, else the one in force
         before = np.searchsorted(feeds.at, np.arange(first, first + k), side="right")
         out = np.concatenate([[self._current_feed()], feed])[before]
-        self.feed_value = float(value[-1])
-        self.feed_per_rev = bool(per_rev[-1])
-        self.feed_scale = float(scale[-1])
-        return out
+        return out, (float(value[-1]), bool(per_rev[-1]), float(scale[-1]))
 
     def _bulk_points(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """Tips (mm, workpiece frame) and axes of GOTO values, shape (k, 3) each.
@@ -2465,12 +2472,15 @@ def _plain_facts(text: str, compiled: bool, feeds: bool = False) -> tuple[int, b
 
 
 def _only_plain_gotos(text: str, count: int, feeds: bool = False) -> bool:
-    """Whether all ``count`` lines of ``text`` start with ``GOTO/`` (or, with ``feeds``,
-    ``FEDRAT/``) and none holds any of :data:`_NOTABLE` (``P`` and ``p`` are allowed in a
-    FEDRAT line: a quick test for most of a large file)."""
-    starts = ("GOTO/", "FEDRAT/") if feeds else ("GOTO/",)
-    lines = sum(text.count("\n" + start) for start in starts)
-    if not (text.startswith(starts) and lines == count - 1 and "$" not in text):
+    """Whether all ``count`` lines of ``text`` start with ``GOTO/`` (blanks allowed before the
+    slash; or, with ``feeds``, ``FEDRAT/``) and none holds any of :data:`_NOTABLE` (``P`` and
+    ``p`` are allowed in a FEDRAT line: a quick test for most of a large file)."""
+    heads = text.count("\nGOTO/") + text.startswith("GOTO/")
+    if heads != count:  # (blanks before a slash: CATIA's GOTO  /)
+        heads = len(_GOTO_HEAD.findall(text))
+    if feeds:
+        heads += text.count("\nFEDRAT/") + text.startswith("FEDRAT/")
+    if not (heads == count and "$" not in text):
         return False
     rest = _FEED_LINE_START.sub("", text) if feeds else text  # (lines start with GOTO/)
     return not any(c in rest for c in _NOTABLE)
