@@ -20,6 +20,7 @@ import pytest
 import trimesh
 
 from urdfpost.cli import main
+from urdfpost.errors import CLDataError
 from urdfpost.posting.tools import cutting_points, tool_sections
 from urdfpost.readers import read_cl
 
@@ -159,3 +160,44 @@ def test_collisions_are_checked_with_each_tool_s_own_body(
     second = both.read_text().splitlines().index("LOADTL/2") + 1
     assert int(found[1]) > second  # on the 6 mm tool's path
     assert not out.exists()
+
+
+# -- one tool number, one tool -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("streamed", [False, True])
+def test_one_tool_number_for_two_cutters_is_refused(
+    tmp_path: Path, streamed: bool, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Tool 1 loaded as the 6 mm ball and later as the 10 mm end mill: every tool's geometry
+    is looked up by its number (and the machine has one tool in a pocket), so the post bent
+    both about the end mill's tip and checked both bodies as the end mill's. Now the CL data is
+    refused at the second cutter's line, naming the first; nothing is written."""
+    cl = _job(tmp_path, "same", [(1, BALL), (1, FLAT)])
+    out = tmp_path / "same.h"
+    argv = ["post", str(cl), "-m", "dmu50", "-o", str(out), "-q"]
+    if streamed:
+        argv += ["--piece-points", "100"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    second = next(k for k, x in enumerate(cl.read_text().splitlines(), 1) if x == FLAT)
+    assert f"same.apt:{second}: tool 1 is a cutter of diameter 10" in err, err
+    assert "a cutter of diameter 6, corner 3 at line 5" in err, err
+    assert not out.exists()
+
+
+def test_a_tool_loaded_again_as_itself_is_fine(tmp_path: Path) -> None:
+    """The same tool loaded again with the same cutter (every operation repeating it), and
+    two numbers with two cutters: read, one section per cutting point."""
+    tp = read_cl(_job(tmp_path, "again", [(1, BALL), (2, FLAT), (1, BALL)]))
+    sections = tool_sections(tp, 100.0, by_length=False, by_pivot=True)
+    assert [s.pivot for s in sections] == [3.0, 0.0, 3.0]
+
+
+def test_one_tool_number_for_two_lengths_is_refused(tmp_path: Path) -> None:
+    """LOADTL/1,LENGTH,100 and later LOADTL/1,LENGTH,120: refused at the second."""
+    cl = _job(tmp_path, "lengths", [(1, BALL), (1, BALL)])
+    text = cl.read_text().replace("LOADTL/1", "LOADTL/1,LENGTH,100", 1)
+    cl.write_text(text.replace("LOADTL/1\n", "LOADTL/1,LENGTH,120\n", 1))
+    with pytest.raises(CLDataError, match=r"tool 1 is LENGTH 120 here but LENGTH 100 at line 4"):
+        read_cl(cl)

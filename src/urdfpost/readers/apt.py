@@ -128,7 +128,7 @@ import re
 import types
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -1203,6 +1203,10 @@ class _AptInterpreter:
         self.spindle_on = False
         self.coolant_mode = "flood"
         self.tool_data: dict[str, object] = {}
+        # one tool per tool number: the cutter (diameter, corner radius) and the LOADTL LENGTH
+        # each number was first given, with its line; the number of the tool loaded
+        self.tools_seen: dict[tuple[int, str], tuple[object, int, int]] = {}
+        self.loaded: tuple[int, int] | None = None  # the tool's number and its change's line
         self.circle: _PendingCircle | None = None
         self.last_point_on_arc = False
         self.ignored: dict[str, int] = {}
@@ -2005,6 +2009,11 @@ class _AptInterpreter:
             )
         self.tool_data = {}
         self.builder.add_event("tool", record.line, **data)
+        self.loaded = (int(number), record.line)
+        if "LENGTH" in given:
+            self._one_tool(record, "LENGTH", data["length"])
+        if data.get("diameter") is not None:
+            self._one_tool(record, "cutter", (data["diameter"], data.get("corner_radius")))
 
     def _register(self, record: Record, token: str, what: str) -> int:
         """The length-offset register after ``ADJUST`` (``what``: which value it is).
@@ -2040,9 +2049,45 @@ class _AptInterpreter:
 
     def _set_cutter(self, record: Record, data: dict[str, float]) -> None:
         self.largest_cutter = max(self.largest_cutter or 0.0, data["diameter"])
-        if not self.builder.amend_last_event("tool", **data):
+        if self.builder.amend_last_event("tool", **data):  # the cutter of the tool just loaded
+            self._one_tool(record, "cutter", (data["diameter"], data.get("corner_radius")))
+        else:  # (NX: TLDATA before LOAD/TOOL) for the next tool change
             self.tool_data.update(data)
         self.builder.add_event("cutter", record.line, **data)
+
+    def _one_tool(self, record: Record, what: str, value: object) -> None:
+        """Note the cutter (``what`` "cutter": diameter and corner radius, mm) or the LOADTL
+        LENGTH (mm) of the tool loaded (a later one of the same tool change replaces it).
+
+        Raises
+        ------
+        CLDataError
+            When another change to the same tool number gave it another: one number, two
+            tools (the machine has one tool in that pocket, and every tool's geometry is looked
+            up by its number).
+        """
+        assert self.loaded is not None
+        number, change = self.loaded
+        seen = self.tools_seen.setdefault((number, what), (value, record.line, change))
+        if seen[0] == value or seen[2] == change:
+            self.tools_seen[number, what] = (value, record.line, change)
+            return
+
+        def said(v: object) -> str:
+            if what == "LENGTH":
+                return f"LENGTH {format_number(float(v) / self.scale)}"  # type: ignore[arg-type]
+            d, corner = cast(tuple[float, float | None], v)
+            text = f"a cutter of diameter {format_number(d / self.scale)}"
+            return text + (
+                "" if corner is None else f", corner {format_number(corner / self.scale)}"
+            )
+
+        raise self.error(
+            record,
+            f"tool {number} is {said(value)} here but {said(seen[0])} at line {seen[1]}: "
+            "one tool number for two tools (a machine has one tool in a pocket); give each "
+            "tool its own number in the CAM system",
+        )
 
     def _cutter(self, record: Record) -> None:
         args = record.args or []
