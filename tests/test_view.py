@@ -322,10 +322,9 @@ def test_page_draws_and_plays_in_chromium(dome_posts: dict[str, Path], tmp_path:
     assert changed.mean() > 0.01, changed.mean()  # the machine moved between the two times
 
 
-def test_each_tool_is_drawn_at_its_own_size(tmp_path: Path) -> None:
-    """A job of two tools (the dome with a 6 mm ball, then its first passes with a 10 mm end
-    mill): the tool drawn has the diameter of the cutter of the tool loaded at each sample,
-    and a length of at least four diameters."""
+def _two_tools(tmp_path: Path) -> tuple[Path, Path, dict]:
+    """The dome with its 6 mm ball, then its first passes with a 10 mm end mill as tool 5,
+    posted on dmu50 (TCP, Heidenhain): the CL file, the program and its view data."""
     lines = DOME.read_text().splitlines()
     body = [x for x in lines if x not in ("FINI", "END", "GOHOME")]
     second = ["LOADTL/5", "CUTTER/10.0", "SPINDL/8000,CLW", *lines[8:60], "FINI"]
@@ -333,11 +332,17 @@ def test_each_tool_is_drawn_at_its_own_size(tmp_path: Path) -> None:
     cl.write_text("\n".join([*body, *second]) + "\n")
     program_path = tmp_path / "two.h"
     assert main(["post", str(cl), "-m", "dmu50", "-o", str(program_path), "-q"]) == 0
-    machine = load_machine("dmu50")
     dialect = dialect_for(None, str(program_path))
     text = program_path.read_text()
     program = dialect.read(text, path=str(program_path))
-    data = view_data(machine, program, text, dialect, cl=read_cl(str(cl)))
+    data = view_data(load_machine("dmu50"), program, text, dialect, cl=read_cl(str(cl)))
+    return cl, program_path, data
+
+
+def test_each_tool_is_drawn_at_its_own_size(tmp_path: Path) -> None:
+    """A job of two tools: the tool drawn has the diameter of the cutter of the tool loaded at
+    each sample, and a length of at least four diameters."""
+    _, program_path, data = _two_tools(tmp_path)
     assert data["tool"]["diameter"] == 6.0
     sizes = _array(data["tool"]["sizes"], "<f4", (data["samples"], 2))
     diameters = sizes[:, 0]
@@ -345,7 +350,9 @@ def test_each_tool_is_drawn_at_its_own_size(tmp_path: Path) -> None:
     assert change > 0 and (diameters[:change] == 6.0).all() and (diameters[change:] == 10.0).all()
     assert (sizes[:, 1] >= 4.0 * diameters).all()
     move = _array(data["move"], "<i4", (data["samples"],))
-    changes = [k for k, line in enumerate(text.splitlines()) if "TOOL CALL 5" in line]
+    changes = [
+        k for k, line in enumerate(program_path.read_text().splitlines()) if "TOOL CALL 5" in line
+    ]
     assert len(changes) == 1 and move[change] > move[change - 1]
 
 
@@ -353,19 +360,9 @@ def test_each_tool_is_drawn_at_its_own_size(tmp_path: Path) -> None:
 def test_the_page_shows_each_tool_at_its_size(tmp_path: Path) -> None:
     """The two-tool job's page in a real browser: the panel names the diameter of the tool
     drawn, 6 mm before the tool change and 10 mm after it."""
-    lines = DOME.read_text().splitlines()
-    body = [x for x in lines if x not in ("FINI", "END", "GOHOME")]
-    second = ["LOADTL/5", "CUTTER/10.0", "SPINDL/8000,CLW", *lines[8:60], "FINI"]
-    cl = tmp_path / "two.apt"
-    cl.write_text("\n".join([*body, *second]) + "\n")
-    program_path = tmp_path / "two.h"
+    cl, program_path, data = _two_tools(tmp_path)
     page = tmp_path / "two.html"
-    assert main(["post", str(cl), "-m", "dmu50", "-o", str(program_path), "-q"]) == 0
     assert main(["view", str(program_path), "-m", "dmu50", "--cl", str(cl), "-o", str(page)]) == 0
-    machine = load_machine("dmu50")
-    dialect = dialect_for(None, str(program_path))
-    text = program_path.read_text()
-    data = view_data(machine, dialect.read(text), text, dialect, cl=read_cl(str(cl)))
     t = _array(data["t"], "<f8", (data["samples"],))
     sizes = _array(data["tool"]["sizes"], "<f4", (data["samples"], 2))
     change = int(np.argmax(sizes[:, 0] == 10.0))
