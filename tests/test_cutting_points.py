@@ -192,6 +192,9 @@ def test_a_tool_loaded_again_as_itself_is_fine(tmp_path: Path) -> None:
     tp = read_cl(_job(tmp_path, "again", [(1, BALL), (2, FLAT), (1, BALL)]))
     sections = tool_sections(tp, 100.0, by_length=False, by_pivot=True)
     assert [s.pivot for s in sections] == [3.0, 0.0, 3.0]
+    # written with more digits, or without its corner radius of 0: the same tool
+    same = [(2, "CUTTER/10"), (1, BALL), (2, "CUTTER/10.000000,0.0"), (1, "CUTTER/6.0000001,3")]
+    assert len(read_cl(_job(tmp_path, "same", same))) == 4 * len(read_cl(DOME))
 
 
 def test_one_tool_number_for_two_lengths_is_refused(tmp_path: Path) -> None:

@@ -1078,6 +1078,15 @@ def nx_evidence(
     return found
 
 
+def _same_tool_value(a: object, b: object) -> bool:
+    """Whether two cutters (diameter and corner radius, mm; no corner radius is 0) or two
+    LOADTL lengths (mm) of a tool number are the same to 1e-6 mm (the same tool written with
+    more or fewer digits, or with its corner radius left out)."""
+    first = np.array(a if isinstance(a, tuple) else (a,), dtype=float)
+    second = np.array(b if isinstance(b, tuple) else (b,), dtype=float)
+    return bool(np.allclose(np.nan_to_num(first), np.nan_to_num(second), rtol=0.0, atol=1e-6))
+
+
 def _split_tokens(record: Record, source: str) -> tuple[list[str], list[float]]:
     """Keywords (upper case) and numbers of a record's arguments, in their own order.
 
@@ -2069,7 +2078,7 @@ class _AptInterpreter:
         assert self.loaded is not None
         number, change = self.loaded
         seen = self.tools_seen.setdefault((number, what), (value, record.line, change))
-        if seen[0] == value or seen[2] == change:
+        if _same_tool_value(seen[0], value) or seen[2] == change:
             self.tools_seen[number, what] = (value, record.line, change)
             return
 
