@@ -459,11 +459,11 @@ def test_catia_sample():
         by_kind.setdefault(event.kind, []).append(event)
     assert by_kind["partno"][0].data == {"text": "PART TO BE MACHINED"}
     assert by_kind["cutter"][0].data == {"diameter": 10.0, "corner_radius": 2.0, "length": 100.0}
-    assert by_kind["tool"][0].data == {
+    assert by_kind["tool"][0].data == {  # (the cutter's length is no gauge length)
         "number": 1,
         "diameter": 10.0,
         "corner_radius": 2.0,
-        "length": 100.0,
+        "cutter_length": 100.0,
     }
     assert by_kind["spindle"][0].data == {"rpm": 3000.0, "direction": "cw"}
     assert by_kind["coolant"][0].data == {"mode": "mist"}
@@ -719,7 +719,7 @@ def test_tool_records():
                 "name": "EM10",
                 "diameter": 10.0,
                 "corner_radius": 1.0,
-                "length": 50.0,
+                "cutter_length": 50.0,
                 "adjust": 3,
             },
         ),

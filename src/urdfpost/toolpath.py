@@ -42,7 +42,9 @@ class Event:
         - ``"comment"``: ``data["text"]`` (``$$`` comments, PPRINT)
         - ``"insert"``: ``data["text"]`` passed through verbatim to the program
         - ``"tool"``: tool change, ``data["number"]`` (int), optional ``data["diameter"]``,
-          ``data["corner_radius"]``, ``data["length"]`` (mm), ``data["name"]``
+          ``data["corner_radius"]``, ``data["cutter_length"]`` (mm: the cutter's own length,
+          of CUTTER or TLDATA), ``data["length"]`` (mm: the gauge length, LOADTL LENGTH),
+          ``data["name"]``
         - ``"spindle"``: ``data["rpm"]`` (float), ``data["direction"]`` ("cw", "ccw" or "off")
         - ``"coolant"``: ``data["mode"]`` ("flood", "mist", "through", "air", "off")
         - ``"home"``: GOHOME

@@ -135,14 +135,16 @@ Cutter = tuple[float | None, float | None, float | None]
 its collision body is made of (:meth:`urdfpost.collision.ToolBody.from_cutter`)."""
 
 
-def cutter_of(data: Mapping[str, object]) -> Cutter:
-    """The :data:`Cutter` of a ``cutter`` or ``tool`` event's data."""
+def cutter_of(data: Mapping[str, object], kind: str = "cutter") -> Cutter:
+    """The :data:`Cutter` of a ``cutter`` or ``tool`` (``kind``) event's data: a tool event's
+    cutter length is its ``cutter_length`` (its ``length`` is the gauge length)."""
 
     def number(key: str) -> float | None:
         value = data.get(key)
         return None if value is None else float(value)  # type: ignore[arg-type]
 
-    return number("diameter"), number("corner_radius"), number("length")
+    length = "cutter_length" if kind == "tool" else "length"
+    return number("diameter"), number("corner_radius"), number(length)
 
 
 def tool_cutters(toolpath: Toolpath) -> tuple[Cutter | None, dict[int, Cutter]]:
@@ -174,7 +176,7 @@ def tool_cutters(toolpath: Toolpath) -> tuple[Cutter | None, dict[int, Cutter]]:
                 tool = int(e.data.get("number", 0))
         for e in group:
             if e.kind in ("cutter", "tool") and e.data.get("diameter") is not None:
-                cutter = cutter_of(e.data)
+                cutter = cutter_of(e.data, e.kind)
                 first = cutter if first is None else first
                 if e.index <= 0:
                     start = cutter

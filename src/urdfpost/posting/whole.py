@@ -150,7 +150,9 @@ def post(
         toolpath = replace(toolpath, warnings=toolpath.warnings + tuple(notes))
     if several_lengths(sections):
         return _post_sections(toolpath, job, sections, progress)
-    job = replace(job, pivot=sections[0].pivot, cutter=sections[0].cutter)
+    only = sections[0]  # one section: machine coordinates with its tool's gauge length
+    length = job.tool_length if job.tcp else only.length
+    job = replace(job, tool_length=length, pivot=only.pivot, cutter=only.cutter)
     try:
         posted = post_piece(toolpath, job, progress=progress)
     except UnreachableError as e:

@@ -53,10 +53,11 @@ Event kinds and data keys emitted (lengths in mm, feeds in mm/min):
 - ``"cutter"``: ``diameter``, and ``corner_radius``, ``length`` when given (``CUTTER/``,
   NX ``TLDATA/MILL``). The same values are also put into the ``"tool"`` event of the tool
   change they belong to (the next one, or the last one when no motion came in between).
-- ``"tool"``: ``number`` (int), and ``diameter``, ``corner_radius``, ``length``, ``name`` when
-  known (``LOADTL/``, NX ``LOAD/TOOL``, ``SELECT/TOOL``), and ``adjust`` (int: the
-  length-offset register, ``LOADTL/3,ADJUST,7`` or ``LOAD/TOOL,3,ADJUST,7``) when given;
-  ``LENGTH,l`` gives ``length``. Other values after the tool number get a warning and are
+- ``"tool"``: ``number`` (int), and ``diameter``, ``corner_radius``, ``cutter_length`` (the
+  cutter's own length of ``CUTTER``/``TLDATA``), ``name`` when known (``LOADTL/``, NX
+  ``LOAD/TOOL``, ``SELECT/TOOL``), and ``adjust`` (int: the length-offset register,
+  ``LOADTL/3,ADJUST,7`` or ``LOAD/TOOL,3,ADJUST,7``) when given; ``LENGTH,l`` gives
+  ``length`` (the gauge length). Other values after the tool number get a warning and are
   ignored; an ADJUST that is not a whole number >= 0 is an error at the record
 - ``"spindle"``: ``rpm`` (float; 0.0 for off, NaN for ``SPINDL/ON`` with no speed yet) and
   ``direction`` ("cw", "ccw", "off")
@@ -2017,10 +2018,15 @@ class _AptInterpreter:
                 "understood; ignored (LENGTH and ADJUST are read)",
             )
         self.tool_data = {}
+        seen = self.tools_seen.get((int(number), "LENGTH"))
+        if "LENGTH" not in given and seen is not None and seen[0] is not None:
+            data["length"] = seen[0]  # the tool loaded again: its LENGTH, given before
         self.builder.add_event("tool", record.line, **data)
         self.loaded = (int(number), record.line)
         if "LENGTH" in given:
             self._one_tool(record, "LENGTH", data["length"])
+        elif seen is None:  # (a later LENGTH for this number would make it two tools)
+            self.tools_seen[int(number), "LENGTH"] = (None, record.line, record.line)
         if data.get("diameter") is not None:
             self._one_tool(record, "cutter", (data["diameter"], data.get("corner_radius")))
 
@@ -2058,10 +2064,13 @@ class _AptInterpreter:
 
     def _set_cutter(self, record: Record, data: dict[str, float]) -> None:
         self.largest_cutter = max(self.largest_cutter or 0.0, data["diameter"])
-        if self.builder.amend_last_event("tool", **data):  # the cutter of the tool just loaded
+        # in the tool event, the cutter's own length (tip to holder) is "cutter_length":
+        # "length" there is the gauge length of LOADTL LENGTH
+        tool = {("cutter_length" if k == "length" else k): v for k, v in data.items()}
+        if self.builder.amend_last_event("tool", **tool):  # the cutter of the tool just loaded
             self._one_tool(record, "cutter", (data["diameter"], data.get("corner_radius")))
         else:  # (NX: TLDATA before LOAD/TOOL) for the next tool change
-            self.tool_data.update(data)
+            self.tool_data.update(tool)
         self.builder.add_event("cutter", record.line, **data)
 
     def _one_tool(self, record: Record, what: str, value: object) -> None:
@@ -2084,6 +2093,8 @@ class _AptInterpreter:
 
         def said(v: object) -> str:
             if what == "LENGTH":
+                if v is None:
+                    return "no LENGTH (the job's tool length)"
                 return f"LENGTH {format_number(float(v) / self.scale)}"  # type: ignore[arg-type]
             d, corner = cast(tuple[float, float | None], v)
             text = f"a cutter of diameter {format_number(d / self.scale)}"
