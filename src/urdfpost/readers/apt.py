@@ -1082,7 +1082,9 @@ def nx_evidence(
 def _same_tool_value(a: object, b: object) -> bool:
     """Whether two cutters (diameter and corner radius, mm; no corner radius is 0) or two
     LOADTL lengths (mm) of a tool number are the same to 1e-6 mm (the same tool written with
-    more or fewer digits, or with its corner radius left out)."""
+    more or fewer digits, or with its corner radius left out; no LENGTH is no number)."""
+    if (a is None) != (b is None):
+        return False
     first = np.array(a if isinstance(a, tuple) else (a,), dtype=float)
     second = np.array(b if isinstance(b, tuple) else (b,), dtype=float)
     return bool(np.allclose(np.nan_to_num(first), np.nan_to_num(second), rtol=0.0, atol=1e-6))
