@@ -59,7 +59,7 @@ from urdfpost.kinematics.inverse import assemble, solve_linear
 from urdfpost.machine import Machine
 from urdfpost.machine.shapes import Box, Cylinder, LinkShape, Mesh, Sphere, link_shapes
 from urdfpost.planning.singularity import conditioning
-from urdfpost.posting.tools import row_lengths, row_tool_values, tool_cutters
+from urdfpost.posting.tools import row_tool_values, tool_cutters
 from urdfpost.program import (
     FEED_INVERSE_TIME,
     Arc,
@@ -219,7 +219,7 @@ def timeline(
         Samples at most.
     lengths : ndarray, shape (N,), mm, optional
         A machine-coordinate program posted with each tool's gauge length: the length of
-        each row (:func:`urdfpost.posting.tools.row_lengths`); default ``tool_length``.
+        each row (:func:`urdfpost.posting.tools.row_tool_values`); default ``tool_length``.
 
     Returns
     -------
@@ -629,7 +629,7 @@ def view_data(
     q, rapid, feed = program_rows(machine, program, tool_length, dialect.spec.axis_feed_rule)
     lengths = None
     if tool_lengths and not program.tcp:
-        lengths = row_lengths(program, tool_lengths, tool_length)
+        lengths = row_tool_values(program, tool_lengths, tool_length)
     line = timeline(machine, program, q, rapid, feed, tool_length, max_samples, lengths)
     sample_lengths = None if lengths is None else lengths[line.move]
     tip, axis = tips_and_axes(machine, line.q, tool_length, sample_lengths)

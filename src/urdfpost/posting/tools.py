@@ -536,19 +536,6 @@ def paired_sections(
     ]
 
 
-def row_lengths(program: Program, lengths: Mapping[int, float], default: float) -> np.ndarray:
-    """The gauge length each move of a machine-coordinate program was computed with: that of
-    the tool loaded before it (``lengths``, mm; a tool not in it and the moves before any
-    tool change: ``default``).
-
-    Returns
-    -------
-    ndarray, shape (N,), mm
-        One per move of :meth:`Program.move_table`.
-    """
-    return row_tool_values(program, lengths, default)
-
-
 def row_tool_values(program: Program, values: Mapping[int, float], default: float) -> np.ndarray:
     """A value of the tool each move of a program is made with (its gauge length, its
     diameter...): that of the tool loaded before it in ``values`` (a tool not in it and the

@@ -267,13 +267,15 @@ _UNITS_WORDS = {"INCHES": "inch", "INCH": "inch", "MM": "mm"}
 FEED_KEYWORDS = ("", "MMPM", "IPM", "MMPR", "IPR")
 """The feed keywords of the feed lines of a run (:class:`FeedLines`), by their code (0: none;
 the codes of :mod:`urdfpost.readers._goto_kernel`)."""
-_IPM, _MMPR, _IPR = 2, 3, 4
 _FEED_MODES = {  # keyword: (per revolution, mm per unit)
     "IPM": (False, MM_PER_INCH),
     "MMPM": (False, 1.0),
     "IPR": (True, MM_PER_INCH),
     "MMPR": (True, 1.0),
 }
+# _FEED_MODES by the code of FEED_KEYWORDS (none: feed per minute, the file's unit)
+_KEYWORD_PER_REV = np.array([False] + [_FEED_MODES[w][0] for w in FEED_KEYWORDS[1:]])
+_KEYWORD_SCALE = np.array([np.nan] + [_FEED_MODES[w][1] for w in FEED_KEYWORDS[1:]])
 _COOLANT_MODES = {
     "FLOOD": "flood",
     "MIST": "mist",
@@ -1533,15 +1535,14 @@ class _AptInterpreter:
         if feeds is None or not len(feeds):
             return np.full(k, self._current_feed()), None
         keywords = feeds.keywords
-        inch = (keywords == _IPM) | (keywords == _IPR)
+        per_rev, scale = _KEYWORD_PER_REV[keywords], _KEYWORD_SCALE[keywords]
         if self.forced:  # the keyword's unit is the file's, which the caller overrode
-            says_other = (keywords != 0) & (inch != (self.units == "inch"))
+            says_other = (keywords != 0) & ((scale != 1.0) != (self.units == "inch"))
             if says_other.any() and not self.feed_units_warned:  # _fedrat warns
                 return None
             scale = np.full(len(feeds), self.scale)
         else:
-            scale = np.where(keywords == 0, self.scale, np.where(inch, MM_PER_INCH, 1.0))
-        per_rev = (keywords == _MMPR) | (keywords == _IPR)
+            scale = np.where(keywords == 0, self.scale, scale)
         value = feeds.values
         feed = value * scale
         rpm = self.rpm
