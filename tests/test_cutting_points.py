@@ -204,3 +204,67 @@ def test_one_tool_number_for_two_lengths_is_refused(tmp_path: Path) -> None:
     cl.write_text(text.replace("LOADTL/1\n", "LOADTL/1,LENGTH,120\n", 1))
     with pytest.raises(CLDataError, match=r"tool 1 is LENGTH 120 here but LENGTH 100 at line 4"):
         read_cl(cl)
+
+
+def _midway(tmp_path: Path, name: str, head: list[str], cutter: str) -> Path:
+    """The dome's path with ``head`` before it and ``cutter`` given halfway along it (after
+    the tool's first moves, with no tool change)."""
+    skip = ("PARTNO", "UNITS", "MULTAX", "LOADTL", "CUTTER", "FINI", "$$")
+    body = [line for line in DOME.read_text().splitlines() if not line.startswith(skip)]
+    half = len(body) // 2
+    lines = ["PARTNO MIDWAY", "UNITS/MM", "MULTAX/ON", *head]
+    lines += [*body[:half], cutter, *body[half:], "FINI"]
+    path = tmp_path / f"{name}.apt"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("streamed", [False, True])
+@pytest.mark.parametrize("loaded", [True, False])
+def test_another_cutter_after_a_tool_s_first_move_is_refused(
+    tmp_path: Path, streamed: bool, loaded: bool, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A CUTTER that changes the cutter halfway along a tool's moves, with no tool change: a
+    tool's cutting point and body come from its tool change, so the post bent the ball's moves
+    before it about the end mill's tip (whole) or kept the ball for all (streamed, the tool
+    change in an earlier piece), and the machine has no other tool there. Refused at the
+    CUTTER's line, naming the cutter moved with; nothing is written."""
+    head = ["LOADTL/1", BALL] if loaded else [BALL]
+    cl = _midway(tmp_path, "midway", head, FLAT)
+    out = tmp_path / "midway.h"
+    argv = ["post", str(cl), "-m", "dmu50", "-o", str(out), "-q"]
+    if streamed:
+        argv += ["--piece-points", "100"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    lines = cl.read_text().splitlines()
+    at = lines.index(FLAT) + 1
+    first = next(k for k, x in enumerate(lines, 1) if x.startswith("GOTO"))
+    tool = "tool 1" if loaded else "the job"
+    assert (
+        f"midway.apt:{at}: CUTTER gives a cutter of diameter 10, corner 0 after the first move "
+        f"of {tool} (line {first}), made with a cutter of diameter 6, corner 3 (line "
+        f"{lines.index(BALL) + 1})" in err
+    ), err
+    assert "put a tool change before the new cutter" in err, err
+    assert not out.exists()
+
+
+def test_a_cutter_after_the_first_move_is_checked_at_the_next_move(tmp_path: Path) -> None:
+    """What a cutter given after a tool's moves is for is known at the next record: the same
+    cutter again (CAM systems repeat it per operation) is fine; one before the next tool change
+    (NX writes TLDATA before LOAD/TOOL) is that tool's; one at the end of the file changes
+    nothing; one given after moves made with no cutter at all is refused too."""
+    same = read_cl(_midway(tmp_path, "same", ["LOADTL/1", BALL], "CUTTER/6.0000,3.0000"))
+    assert cutting_points(same) == (3.0, {1: 3.0})
+    nx = read_cl(_midway(tmp_path, "nx", ["LOADTL/1", BALL], f"{FLAT}\nLOADTL/2"))
+    assert cutting_points(nx) == (3.0, {1: 3.0, 2: 0.0})
+    sections = tool_sections(nx, 100.0, by_length=False, by_pivot=True)
+    assert [s.pivot for s in sections] == [3.0, 0.0]
+    end = _midway(tmp_path, "end", ["LOADTL/1", BALL], "")
+    end.write_text(end.read_text().replace("FINI", f"{FLAT}\nFINI"))
+    assert cutting_points(read_cl(end)) == (3.0, {1: 3.0})
+    none = _midway(tmp_path, "none", ["LOADTL/1"], BALL)
+    first = next(k for k, x in enumerate(none.read_text().splitlines(), 1) if "GOTO" in x)
+    with pytest.raises(CLDataError, match=rf"tool 1 \(line {first}\), made with no cutter"):
+        read_cl(none)

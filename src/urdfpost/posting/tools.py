@@ -151,8 +151,9 @@ def tool_cutters(toolpath: Toolpath) -> tuple[Cutter | None, dict[int, Cutter]]:
     """The cutter of each tool the CL data loads.
 
     A tool's cutter is the last ``CUTTER`` (or ``LOADTL`` with a diameter) among the events
-    before the same CL point as its tool change, else the next one before another tool
-    change.
+    before the same CL point as its tool change. One given after the tool's first point is
+    not the tool's (the APT reader refuses one that changes the cutter moves follow with; one
+    after the last point cuts nothing).
 
     Returns
     -------
@@ -166,14 +167,15 @@ def tool_cutters(toolpath: Toolpath) -> tuple[Cutter | None, dict[int, Cutter]]:
     first: Cutter | None = None
     start: Cutter | None = None  # the last cutter before the first point
     by_tool: dict[int, Cutter] = {}
-    tool: int | None = None
-    for _, at in itertools.groupby(
+    n = len(toolpath)
+    for index, at in itertools.groupby(
         sorted(toolpath.events, key=lambda e: e.index), key=lambda e: e.index
     ):
+        if index >= n and n > 0:
+            break  # after the last point
         group = list(at)  # the events before one CL point
-        for e in group:
-            if e.kind == "tool":
-                tool = int(e.data.get("number", 0))
+        tools = [int(e.data.get("number", 0)) for e in group if e.kind == "tool"]
+        tool = tools[-1] if tools else None  # (loaded at this point)
         for e in group:
             if e.kind in ("cutter", "tool") and e.data.get("diameter") is not None:
                 cutter = cutter_of(e.data, e.kind)

@@ -127,7 +127,7 @@ import math
 import os
 import re
 import types
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -1081,6 +1081,13 @@ def nx_evidence(
     return found
 
 
+def _cutter_value(data: Mapping[str, object]) -> tuple[float, float | None]:
+    """A cutter's diameter and corner radius (mm; None for none given) from a CUTTER, TLDATA
+    or tool event's data."""
+    corner = data.get("corner_radius")
+    return float(data["diameter"]), (None if corner is None else float(corner))  # type: ignore[arg-type]
+
+
 def _same_tool_value(a: object, b: object) -> bool:
     """Whether two cutters (diameter and corner radius, mm; no corner radius is 0) or two
     LOADTL lengths (mm) of a tool number are the same to 1e-6 mm (the same tool written with
@@ -1221,6 +1228,12 @@ class _AptInterpreter:
         # each number was first given, with its line; the number of the tool loaded
         self.tools_seen: dict[tuple[int, str], tuple[object, int, int]] = {}
         self.loaded: tuple[int, int] | None = None  # the tool's number and its change's line
+        # the cutter the moves are made with (diameter, corner radius; None before any) and
+        # its line; the line of the first move since the last tool change (None: none yet);
+        # a cutter given after that move, with no tool change since (checked at the next move)
+        self.cutter_in_use: tuple[tuple[float, float | None] | None, int] = (None, 0)
+        self.first_move: int | None = None
+        self.late_cutter: tuple[Record, tuple[float, float | None]] | None = None
         self.circle: _PendingCircle | None = None
         self.last_point_on_arc = False
         self.ignored: dict[str, int] = {}
@@ -1273,6 +1286,9 @@ class _AptInterpreter:
 
     def step(self, record: Record | GotoRun) -> None:
         """Interpret one record (or run of GOTO records)."""
+        if self.first_move is None or self.late_cutter is not None:
+            if isinstance(record, GotoRun) or record.word in _MOTION_WORDS:
+                self._moving(record.line)
         if isinstance(record, GotoRun):
             self.record_count += record.line_count
             self.motion_count += len(record)
@@ -2026,12 +2042,15 @@ class _AptInterpreter:
             data["length"] = seen[0]  # the tool loaded again: its LENGTH, given before
         self.builder.add_event("tool", record.line, **data)
         self.loaded = (int(number), record.line)
+        self.first_move, self.late_cutter = None, None  # (a cutter given since is the tool's)
+        if data.get("diameter") is not None:
+            self.cutter_in_use = (_cutter_value(data), record.line)
         if "LENGTH" in given:
             self._one_tool(record, "LENGTH", data["length"])
         elif seen is None:  # (a later LENGTH for this number would make it two tools)
             self.tools_seen[int(number), "LENGTH"] = (None, record.line, record.line)
         if data.get("diameter") is not None:
-            self._one_tool(record, "cutter", (data["diameter"], data.get("corner_radius")))
+            self._one_tool(record, "cutter", _cutter_value(data))
 
     def _register(self, record: Record, token: str, what: str) -> int:
         """The length-offset register after ``ADJUST`` (``what``: which value it is).
@@ -2070,11 +2089,58 @@ class _AptInterpreter:
         # in the tool event, the cutter's own length (tip to holder) is "cutter_length":
         # "length" there is the gauge length of LOADTL LENGTH
         tool = {("cutter_length" if k == "length" else k): v for k, v in data.items()}
+        value = _cutter_value(data)
         if self.builder.amend_last_event("tool", **tool):  # the cutter of the tool just loaded
-            self._one_tool(record, "cutter", (data["diameter"], data.get("corner_radius")))
+            self._one_tool(record, "cutter", value)
+        elif self.first_move is None and self.loaded is not None:  # (records between)
+            self._one_tool(record, "cutter", value)  # the tool's, not the next one's
         else:  # (NX: TLDATA before LOAD/TOOL) for the next tool change
             self.tool_data.update(tool)
+        if self.first_move is None:
+            self.cutter_in_use = (value, record.line)
+        else:  # the next tool's, unless a move comes first (:meth:`_moving`)
+            self.late_cutter = (record, value)
         self.builder.add_event("cutter", record.line, **data)
+
+    def _moving(self, line: int) -> None:
+        """A move on ``line``: the first of the tool loaded, or the first after a cutter given
+        after that (:attr:`late_cutter`).
+
+        Raises
+        ------
+        CLDataError
+            When that cutter is another than the one the tool has moved with: the moves of one
+            tool are one cutter's, whole or in pieces (:func:`~urdfpost.posting.tools.tool_cutters`
+            takes a tool's cutter from its tool change).
+        """
+        if self.first_move is None:
+            self.first_move = line
+        if self.late_cutter is None:
+            return
+        (record, value), self.late_cutter = self.late_cutter, None
+        in_use, since = self.cutter_in_use
+        if in_use is not None and _same_tool_value(in_use, value):
+            return
+        tool = "the job" if self.loaded is None else f"tool {self.loaded[0]}"
+        made = "no cutter" if in_use is None else f"{self._said('cutter', in_use)} (line {since})"
+        raise self.error(
+            record,
+            f"{record.word} gives {self._said('cutter', value)} after the first move of {tool} "
+            f"(line {self.first_move}), made with {made}, and moves follow with no tool change: "
+            "a tool has one cutter; put a tool change before the new cutter, or the cutter "
+            "before the tool's first move",
+        )
+
+    def _said(self, what: str, value: object) -> str:
+        """A cutter (``what`` "cutter": diameter and corner radius, mm) or a LOADTL LENGTH
+        (mm, None for none) in words, in the file's units."""
+        if what == "LENGTH":
+            if value is None:
+                return "no LENGTH (the job's tool length)"
+            return f"LENGTH {format_number(float(value) / self.scale)}"  # type: ignore[arg-type]
+        d, corner = cast(tuple[float, float | None], value)
+        text = f"a cutter of diameter {format_number(d / self.scale)}"
+        return text + ("" if corner is None else f", corner {format_number(corner / self.scale)}")
 
     def _one_tool(self, record: Record, what: str, value: object) -> None:
         """Note the cutter (``what`` "cutter": diameter and corner radius, mm) or the LOADTL
@@ -2093,21 +2159,10 @@ class _AptInterpreter:
         if _same_tool_value(seen[0], value) or seen[2] == change:
             self.tools_seen[number, what] = (value, record.line, change)
             return
-
-        def said(v: object) -> str:
-            if what == "LENGTH":
-                if v is None:
-                    return "no LENGTH (the job's tool length)"
-                return f"LENGTH {format_number(float(v) / self.scale)}"  # type: ignore[arg-type]
-            d, corner = cast(tuple[float, float | None], v)
-            text = f"a cutter of diameter {format_number(d / self.scale)}"
-            return text + (
-                "" if corner is None else f", corner {format_number(corner / self.scale)}"
-            )
-
         raise self.error(
             record,
-            f"tool {number} is {said(value)} here but {said(seen[0])} at line {seen[1]}: "
+            f"tool {number} is {self._said(what, value)} here but {self._said(what, seen[0])} "
+            f"at line {seen[1]}: "
             "one tool number for two tools (a machine has one tool in a pocket); give each "
             "tool its own number in the CAM system",
         )
