@@ -496,3 +496,29 @@ def test_verify_in_pieces_carries_a_plane_across_them(
     bad = tmp_path / f"bad{out.suffix}"
     bad.write_text("".join(lines))
     assert main([*argv, str(bad)]) == 1
+
+
+@pytest.mark.parametrize("controller", WITH_PLANES)
+@pytest.mark.parametrize("between", ["OPSTOP", "STOP", "INSERT/M8"])
+def test_a_stop_between_two_cuts_begins_no_plane(controller: str, between: str) -> None:
+    """A program stop (or an inserted block) between two feed moves of an operation at a fixed
+    tilt: the tool is on the part there, so the moves after it are not an operation entered at
+    a rapid (the post switched TCP off and a plane on right there, and the moves before it
+    into a plane of their own). That operation keeps its five-axis form; the other one is
+    still a plane, and a stop between operations (after the retract) begins one as before."""
+    mid = indexed_job().replace(
+        "GOTO/40,0,0,0.5,0,0.8660254\n", f"GOTO/40,0,0,0.5,0,0.8660254\n{between}\n", 1
+    )
+    machine = load_machine("dmu50")
+    options = PostOptions(controller=controller)
+    result = post(read_cl_text(mid, source="mid.apt"), machine, options)
+    assert result.verification.ok
+    back = DIALECTS[controller].read(result.text)
+    assert plane_count(back) == plane_count(result.program) == 1
+    # the remaining plane is the second operation's (its tool axis leans about -X)
+    z = planes_of(back)[0].frame()[:, 2]
+    assert z @ np.array([0.0, -0.3420201, 0.9396926]) > 0.99999
+    after = indexed_job().replace("RAPID\nGOTO/0,-40,20", f"{between}\nRAPID\nGOTO/0,-40,20", 1)
+    result = post(read_cl_text(after, source="after.apt"), machine, options)
+    assert result.verification.ok
+    assert plane_count(DIALECTS[controller].read(result.text)) == 2

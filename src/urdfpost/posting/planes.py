@@ -3,7 +3,8 @@
 An *operation at a fixed tilt* is a stretch of a TCP program's motion in which the rotary axes
 stand still at values whose tool axis is off the program's Z, with at least one cut (a feed
 move or a canned cycle) in it, and which the tool enters and leaves at a rapid (or at a block
-that is not motion: a tool change, TCP off, the retract): the rotary axes turn only between
+that is not motion: a tool change, TCP off, the retract; not at a program stop or an inserted
+block, which may come with the tool on the part): the rotary axes turn only between
 operations. :func:`tilted_planes` writes each such stretch in a tilted working plane
 (:class:`~urdfpost.program.TiltedPlane`: Heidenhain ``PLANE SPATIAL ... STAY``, Siemens
 ``CYCLE800``, Fanuc ``G68.2`` + ``G53.1``):
@@ -54,11 +55,13 @@ from urdfpost.program import (
     CutterComp,
     Cycle,
     Dwell,
+    Insert,
     Move,
     MoveTable,
     Program,
     Smoothing,
     Spindle,
+    Stop,
     Tcp,
     TiltedPlane,
     expand_cycle,
@@ -78,6 +81,11 @@ ALONG_Z = 1e-6
 
 _NEUTRAL = (Comment, Coolant, Spindle, Dwell, Smoothing)
 """Blocks that may come between the moves of an operation in a plane."""
+
+_INSIDE = (Arc, CutterComp, Stop, Insert)
+"""Blocks that end a stretch but neither begin nor end an operation: they may come with the
+tool on the part (a stop or an inserted block between two cuts: the operation after it is not
+entered at a rapid, and TCP is not switched off there for a plane)."""
 
 
 @dataclass(frozen=True)
@@ -110,8 +118,9 @@ def _rows(parts: Sequence[Block | MoveTable], width: int):
     """The program's motion rows: positions (N, m) as written (NaN: not written), rapid (N,),
     CL line (N,), the part of each (N,), the rows before which a block comes that ends an
     operation (a set), the rows of tilted holes (a set: a :class:`Cycle` with ``up``), and the
-    rows before which an arc or a radius compensation switch comes (a set: in the middle of an
-    operation, which neither begins nor ends it)."""
+    rows before which an arc, a radius compensation switch, a program stop or an inserted
+    block comes and no block that ends an operation away from the part (a set: what comes in
+    the middle of an operation, the tool on the part, which neither begins nor ends it)."""
     position: list[np.ndarray] = []
     rapid: list[np.ndarray] = []
     line: list[np.ndarray] = []
@@ -119,6 +128,7 @@ def _rows(parts: Sequence[Block | MoveTable], width: int):
     breaks: set[int] = set()
     tilted: set[int] = set()
     dirty: set[int] = set()
+    lifted: set[int] = set()  # rows after a block that ends an operation away from the part
     count = 0
     for k, part in enumerate(parts):
         if isinstance(part, MoveTable | Move):
@@ -136,13 +146,14 @@ def _rows(parts: Sequence[Block | MoveTable], width: int):
             if part.up is not None:
                 tilted.add(count)
         else:
-            if not isinstance(part, _NEUTRAL) and not (isinstance(part, Tcp) and part.on):
-                breaks.add(count)
-            if isinstance(part, Arc | CutterComp):
-                dirty.add(count)
+            if isinstance(part, _NEUTRAL) or (isinstance(part, Tcp) and part.on):
+                continue
+            breaks.add(count)
+            (dirty if isinstance(part, _INSIDE) else lifted).add(count)
             continue
         owner.append(np.full(n, k))
         count += n
+    dirty -= lifted  # (a tool change after a stop: the tool is away)
     if not position:
         empty = np.zeros(0, dtype=np.int64)
         return np.zeros((0, width)), np.zeros(0, bool), empty, empty, breaks, tilted, dirty
