@@ -49,6 +49,7 @@ class Event:
         - ``"coolant"``: ``data["mode"]`` ("flood", "mist", "through", "air", "off")
         - ``"home"``: GOHOME
         - ``"stop"``: ``data["optional"]`` (bool)
+        - ``"dwell"``: ``data["seconds"]`` (float, s; APT ``DELAY``)
         - ``"operation"``: start of an operation (NX ``TOOL PATH/``), ``data["name"]``,
           optional ``data["tool_name"]``
         - ``"cutter"``: tool size (CUTTER, TLDATA): ``data["diameter"]``, optional

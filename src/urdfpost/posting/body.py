@@ -28,6 +28,7 @@ from urdfpost.program import (
     Coolant,
     CutterComp,
     Cycle,
+    Dwell,
     Home,
     Insert,
     MachineMove,
@@ -101,6 +102,8 @@ def _event_blocks(event: Event, tcp_state: list[bool], tcp: bool) -> list[Block]
         out.append(Home())
     elif kind == "stop":
         out.append(Stop(optional=bool(data.get("optional", False))))
+    elif kind == "dwell":
+        out.append(Dwell(float(data["seconds"])))
     elif kind == "cycle":  # its holes become a Cycle block (program_body); named here
         if data.get("cycle") != "off":
             out.append(Comment(f"cycle {data.get('cycle')}"))

@@ -1258,6 +1258,7 @@ class _AptInterpreter:
             "LOAD": self._load,
             "SELECT": self._load,
             "CUTTER": self._cutter,
+            "DELAY": self._delay,
             "TLDATA": self._tldata,
             "TOOL PATH": self._tool_path,
             "MSYS": self._msys,
@@ -2356,6 +2357,37 @@ class _AptInterpreter:
             self.builder.add_event(kind, record.line, text=text)
 
         return handler
+
+    def _delay(self, record: Record) -> None:
+        """``DELAY/t`` (or ``DELAY/SEC,t``): a dwell of ``t`` seconds; ``DELAY/REV,n``: of
+        ``n`` turns of the spindle at the speed programmed (a ``dwell`` event, in seconds).
+
+        Raises
+        ------
+        CLDataError
+            For a time or a count of turns that is not one finite number >= 0, another
+            keyword, or turns with the spindle stopped or its speed unknown.
+        """
+        words, values = _split_tokens(record, self.source)
+        if len(values) != 1 or len(words) > 1 or any(w not in ("SEC", "REV") for w in words):
+            raise self.error(
+                record,
+                f"expected DELAY/seconds, DELAY/SEC,seconds or DELAY/REV,turns, got "
+                f"'{quote(record.text)}'",
+            )
+        value = values[0]
+        if not (math.isfinite(value) and value >= 0.0):
+            raise self.error(record, f"expected a dwell >= 0 in DELAY, got {value:g}")
+        if words == ["REV"]:
+            if not (self.spindle_on and self.rpm):
+                raise self.error(
+                    record,
+                    "DELAY/REV: a dwell in spindle turns with the spindle "
+                    + ("stopped" if not self.spindle_on else "speed unknown")
+                    + "; expected a SPINDL with its speed before it, or DELAY/seconds",
+                )
+            value = 60.0 * value / self.rpm
+        self.builder.add_event("dwell", record.line, seconds=value)
 
     def _bare_event(self, kind: str, **data: object) -> Callable[[Record], None]:
         def handler(record: Record) -> None:
