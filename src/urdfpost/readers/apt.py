@@ -1081,6 +1081,11 @@ def nx_evidence(
     return found
 
 
+_STILL = 1e-6
+"""A move whose tool tip moves at most this far (mm) does not move it (an inverse-time feed
+then gives no tip feed: :meth:`_AptInterpreter._move_feed`)."""
+
+
 def _cutter_value(data: Mapping[str, object]) -> tuple[float, float | None]:
     """A cutter's diameter and corner radius (mm; None for none given) from a CUTTER, TLDATA
     or tool event's data."""
@@ -1218,6 +1223,7 @@ class _AptInterpreter:
         self.cycle_on = False  # between CYCLE/<kind> and CYCLE/OFF: GOTOs are holes
         self.feed_value = math.nan
         self.feed_per_rev = False
+        self.inverse: tuple[float, int] | None = None  # FEDRAT/INVERS: 1/min, and its line
         self.feed_scale = self.scale
         self.rpm: float | None = None
         self.spindle_direction = "cw"
@@ -1486,7 +1492,8 @@ class _AptInterpreter:
             self.builder.add_point(tip, self.axis, math.nan, Motion.RAPID, record.line)
             self.rapid_next = False
         else:
-            self.builder.add_point(tip, self.axis, self._current_feed(), Motion.FEED, record.line)
+            feed = self._move_feed(record, np.array([tip]))
+            self.builder.add_point(tip, self.axis, feed, Motion.FEED, record.line)
         self.last_point_on_arc = False
 
     def _goto_run(self, run: GotoRun) -> None:
@@ -1501,7 +1508,7 @@ class _AptInterpreter:
         FEDRAT record would refuse or warn about), the records are read one by one instead.
         """
         first = 0
-        if self.cycle_on:  # holes: few, read one by one
+        if self.cycle_on or self.inverse is not None:  # holes: few; a feed per move's length
             self._run_records(run, 0)
             return
         if self.circle is not None or self.rapid_next:
@@ -1522,6 +1529,7 @@ class _AptInterpreter:
         feed, modal = feeds
         if modal is not None:  # the feed the last feed line sets
             self.feed_value, self.feed_per_rev, self.feed_scale = modal
+            self.inverse = None
         tip, axis = points
         self._check_arc(tip[0], Motion.FEED)
         self.builder.add_arrays(
@@ -1673,7 +1681,7 @@ class _AptInterpreter:
         tip = (start[0] + delta[0], start[1] + delta[1], start[2] + delta[2])
         motion = Motion.RAPID if self.rapid_next else Motion.FEED
         self._check_arc(tip, motion)
-        feed = math.nan if self.rapid_next else self._current_feed()
+        feed = math.nan if self.rapid_next else self._move_feed(record, np.array([tip]))
         self.builder.add_point(tip, self.axis, feed, motion, record.line)
         self.rapid_next = False
         self.last_point_on_arc = False
@@ -1802,9 +1810,8 @@ class _AptInterpreter:
             points=int(arc.points.shape[0]),
             sweep=arc.sweep,
         )
-        self.builder.add_points(
-            arc.points, axis_before, self._current_feed(), Motion.FEED, circle.line
-        )
+        feed = self._move_feed(record, arc.points)  # (its start: the point before the event)
+        self.builder.add_points(arc.points, axis_before, feed, Motion.FEED, circle.line)
         if has_axis:
             self.builder.set_last_axis(self.axis)
             if float(np.dot(axis_before, self.axis)) < math.cos(1e-6):
@@ -1890,6 +1897,9 @@ class _AptInterpreter:
 
     def _fedrat(self, record: Record) -> None:
         words, numbers = _split_tokens(record, self.source)
+        if words == ["INVERS"]:
+            self._inverse_time(record, numbers)
+            return
         if any(w not in _FEED_MODES for w in words) or len(words) > 1:
             self._unknown(record)
             return
@@ -1908,11 +1918,64 @@ class _AptInterpreter:
                 self.builder.warn(record.line, _forced_message(says, record.line, self.units))
         self._check_feed(record, value, per_rev, feed_scale, self.rpm)
         self.feed_value, self.feed_per_rev, self.feed_scale = value, per_rev, feed_scale
+        self.inverse = None
         if per_rev and (self.rpm is None or not self.spindle_on):
             self.builder.warn(
                 record.line,
                 "feed per revolution with no spindle speed; feed left unset until a SPINDL record",
             )
+
+    def _inverse_time(self, record: Record, numbers: Sequence[float]) -> None:
+        """``FEDRAT/INVERS,f``: each feed move after it takes ``1/f`` minutes (until the next
+        FEDRAT), so its tool tip moves at ``f`` times its length per minute
+        (:meth:`_move_feed`).
+
+        Raises
+        ------
+        CLDataError
+            For anything but one finite number > 0.
+        """
+        if len(numbers) != 1:
+            raise self.error(
+                record, f"expected one inverse-time feed in FEDRAT/INVERS, got {len(numbers)}"
+            )
+        value = numbers[0]
+        if not (math.isfinite(value) and value > 0.0):
+            raise self.error(
+                record, f"expected a positive inverse-time feed in FEDRAT/INVERS, got {value:g}"
+            )
+        self.inverse = (value, record.line)
+
+    def _move_feed(self, record: Record, tips: np.ndarray) -> float:
+        """The feed (mm/min; NaN when unknown) of a feed move from the last point through
+        ``tips`` (shape (k, 3), mm): :meth:`_current_feed`, or at an inverse-time feed, the
+        length of the move times it.
+
+        Raises
+        ------
+        CLDataError
+            At an inverse-time feed, for a move with no point before it or one that does not
+            move the tool tip (its time is what the CL data gives, and the post times a move
+            by the feed of its tip), or a feed beyond the fastest accepted.
+        """
+        if self.inverse is None:
+            return self._current_feed()
+        inverse, line = self.inverse
+        start = self.builder.last_tip
+        said = f"at the inverse-time feed of FEDRAT/INVERS,{format_number(inverse)} (line {line})"
+        if start is None:
+            raise self.error(record, f"a first move {said}: no point before it to time it from")
+        path = np.vstack([np.asarray(start, dtype=float), tips])
+        length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+        if not length > _STILL:
+            raise self.error(
+                record,
+                f"a move that does not move the tool tip {said}: the post times each move "
+                "by its tip's feed; expected the CL data with feeds per minute (FEDRAT/MMPM)",
+            )
+        feed = inverse * length
+        self._check_feed(record, feed, False, 1.0, None)
+        return feed
 
     def _check_feed(
         self, record: Record, value: float, per_rev: bool, feed_scale: float, rpm: float | None
