@@ -877,3 +877,33 @@ def test_testpath_to_standard_output(
     assert main(["testpath", "sweep-1", "-o", "file.apt"]) == 0
     assert text == (tmp_path / "file.apt").read_text()
     assert files(tmp_path) == {"file.apt"}
+
+
+@pytest.mark.parametrize("pieces", [[], ["--piece-points", "100"]])
+def test_verify_says_how_to_verify_a_program_its_strategy_bent(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], pieces: list[str]
+) -> None:
+    """The dome posted as the README does (strategy cone, which bends the tool axis by up to
+    2 deg near the pole): verified against the CL tool axis it is refused, and verify says
+    what the header says, the --angle-tolerance to give; with it, it passes. A program whose
+    header line is gone gets no such advice."""
+    dome = DOME
+    out = tmp_path / "dome.h"
+    assert main(["post", str(dome), "-m", "dmu50", "-o", str(out), "-q"]) == 0
+    capsys.readouterr()
+    verify = ["verify", str(out), "-m", "dmu50", "--cl", str(dome), *pieces]
+    assert main(verify) == 1
+    printed = capsys.readouterr().out
+    advice = re.search(
+        r"dome\.h: the tool axis is off the CL data's by up to ([0-9.]+) deg, and the header says "
+        r"the post's singularity strategy may bend it by up to 2 deg: verify it with "
+        r"--angle-tolerance 2 ",
+        printed,
+    )
+    assert advice and 0.5 < float(advice[1]) <= 2.5, printed
+    assert main([*verify, "--angle-tolerance", "2"]) == 0
+    capsys.readouterr()
+    text = out.read_text()
+    out.write_text(re.sub(r"^\d+ ; tool axis: .*\n", "", text, flags=re.M))
+    assert main(verify) == 1
+    assert "--angle-tolerance 2" not in capsys.readouterr().out

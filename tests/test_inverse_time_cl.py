@@ -31,10 +31,8 @@ def test_each_move_takes_one_over_f_minutes() -> None:
     """Lines, a GODLTA, a run of many GOTOs, then FEDRAT/MMPM again: each move's feed is its
     tip length times f; the moves before and after keep their feed per minute."""
     zigzag = [f"GOTO/{10 + 0.5 * k:.4f},{(k % 2) * 3.0:.4f},10,0,0,1" for k in range(400)]
-    body = "\n".join(
-        ["FEDRAT/INVERS,20", "GOTO/10,0,10,0,0,1", "GODLTA/0,0,2", *zigzag[1:]]
-        + ["FEDRAT/MMPM,600", "GOTO/0,0,12,0,0,1"]
-    )
+    head = ["FEDRAT/INVERS,20", "GOTO/10,0,10,0,0,1", "GODLTA/0,0,2"]
+    body = "\n".join([*head, *zigzag[1:], "FEDRAT/MMPM,600", "GOTO/0,0,12,0,0,1"])
     tp = _read(body)
     tips = np.asarray(tp.tip)
     lengths = np.linalg.norm(np.diff(tips, axis=0), axis=1)

@@ -407,6 +407,35 @@ def test_header_names_machine_offset_tools_and_axis_ranges(controller: str) -> N
     )
 
 
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize(
+    ("options", "line", "stated"),
+    [
+        ({}, "tool axis: within 2 deg of the cl data's at singular spans, strategy cone: "
+         "urdfpost verify --angle-tolerance 2", 2.0),
+        ({"angle_tolerance": 1.5, "strategy": "spline"}, "tool axis: within 1.5 deg of "
+         "the cl data's at singular spans, strategy spline: urdfpost verify --angle-tolerance "
+         "1.5", 1.5),
+        ({"strategy": "none"}, "tool axis: the cl data's, strategy none", None),
+    ],
+)  # fmt: skip
+def test_header_says_how_far_the_strategy_may_bend_the_tool_axis(
+    controller: str, options: dict, line: str, stated: float | None
+) -> None:
+    """The header's last line names the singularity strategy and how far it may bend the tool
+    axis: what ``urdfpost verify --angle-tolerance`` needs (:func:`bent_in_header` reads it
+    back from every control's comments, Fanuc's in upper case)."""
+    from urdfpost.posting.header import bent_in_header
+
+    tp = read_cl_text(TWO_TOOLS, source="two.apt")
+    result = post(tp, load_machine("dmu50"), PostOptions(controller=controller, **options))
+    comments = [
+        b.text.lower() for b in blocks_of(result, controller) if type(b).__name__ == "Comment"
+    ]
+    assert line in comments
+    assert bent_in_header(DIALECTS[controller].read(result.text)) == stated
+
+
 def test_heidenhain_blank_form_from_the_stock() -> None:
     root = Path(__file__).resolve().parent.parent / "examples"
     dome = read_cl_text((root / "dome.apt").read_text(), source="dome.apt")

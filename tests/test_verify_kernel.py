@@ -373,7 +373,10 @@ def test_compiled_verification_is_the_numpy_verification(
     text, tool_length = _posted(tcp)
     if damage:
         lines = text.splitlines(keepends=True)
-        a, b = len(lines) // 3, len(lines) // 3 + 40
+        a = next(
+            k for k in range(len(lines) // 3, len(lines)) if re.search(r"\bY-?[0-9]", lines[k])
+        )
+        b = a + 40  # (from a Y word on: the passes run along X, Y written at their starts)
         lines[a:b] = [re.sub(r"Y(-?[0-9.]+)", lambda w: f"Y{float(w[1]) + 0.05:.4f}", x)
                       for x in lines[a:b]]  # fmt: skip
         text = "".join(lines)

@@ -880,6 +880,9 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         rollover = machine.settings.rollover
         program, ended = read_with_end(dialect, text, path=args.program, rollover=rollover)
         toolpath, chunks = _read_cl(args, machine), None
+    from urdfpost.posting.header import bent_in_header
+
+    stated_bend = bent_in_header(program)  # what the post's strategy may bend, as it says
     scale = mm_per_unit(program.units)
     machine = _job_machine(args, machine, scale)
     tol = Tolerances.for_units(program.units, args.tolerance)
@@ -1026,6 +1029,19 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         print(f"worst tip feed near CL line {at}")
     elif not check.ok and check.worst_cl_line:
         print(f"worst deviation near CL line {check.worst_cl_line}")
+    off = check.max_orientation_deviation_deg  # (beyond the CL axis: as a bending strategy)
+    if (
+        not check.ok
+        and args.angle_tolerance == 0
+        and stated_bend
+        and off > check.orientation_tolerance_deg
+    ):
+        print(
+            f"{args.program}: the tool axis is off the CL data's by up to {off:.4f} deg, and "
+            f"the header says the post's singularity strategy may bend it by up to "
+            f"{stated_bend:g} deg: verify it with --angle-tolerance {stated_bend:g} (the ball "
+            "centre of a ball-end tool is then measured, as the post checked it)"
+        )
     print(f"{args.program}: {process_check.summary()}")
     for line in faults:
         print(line)

@@ -13,23 +13,28 @@ Example (a TCP job on dmu50, Heidenhain, mm)::
     ; work offset: preset 1
     ; tools: T3 D6.000 L100.000
     ; axis ranges: X-14.871..14.871 Y-14.871..14.871 Z0.000..40.000 B0.0000..56.6392 ...
+    ; tool axis: within 2 deg of the CL data's at singular spans, strategy cone: urdfpost ...
+
+The last line says how far the post's singularity strategy may bend the tool axis, which
+``urdfpost verify`` must be told (:func:`bent_in_header` reads it back for its message).
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from urdfpost.program import Cycle, Move, MoveTable, Program, ToolChange
+from urdfpost.program import Comment, Cycle, Move, MoveTable, Program, ToolChange
 from urdfpost.units import mm_per_unit
 
 if TYPE_CHECKING:
     from urdfpost.posting.options import Job
 
-__all__ = ["HeaderFigures", "header_text", "job_header", "stock_box"]
+__all__ = ["HeaderFigures", "bent_in_header", "header_text", "job_header", "stock_box"]
 
 
 @dataclass
@@ -110,6 +115,7 @@ def header_text(
     tool_lengths: Mapping[int, float] | None = None,
     offsets: Mapping[str, np.ndarray] | None = None,
     rollover: frozenset[str] = frozenset(),
+    strategy: tuple[str, float] | None = None,
 ) -> str:
     """The header's comment lines (without comment marks), one per line.
 
@@ -136,12 +142,15 @@ def header_text(
     rollover : frozenset of str
         Rotary axes the control rolls over: their range counts turns, the program writes
         them modulo 360 (the line says so).
+    strategy : tuple of (str, float), optional
+        The singularity strategy's name and how far it may bend the tool axis (degrees): a
+        line says so, and what ``urdfpost verify`` needs to be told (none: no such line).
 
     Returns
     -------
     str
-        Four lines with TCP, five in machine coordinates (the tool length the positions
-        assume, which the control's tool table must not add again).
+        Five lines with TCP, six in machine coordinates (the tool length the positions
+        assume, which the control's tool table must not add again), and the strategy's line.
     """
     scale = mm_per_unit(units)
     decimals = 4 if units == "inch" else 3
@@ -171,6 +180,8 @@ def header_text(
         f"tools: {tools or 'none'}",
         f"axis ranges: {' '.join(ranges) or 'no motion'}",
     ]
+    if strategy is not None:
+        lines.append(_strategy_line(*strategy))
     if not tcp and tool_lengths and len(set(tool_lengths.values())) > 1:
         each = ", ".join(f"T{n} {x:.3f}" for n, x in sorted(tool_lengths.items()))
         lines.append(
@@ -185,6 +196,34 @@ def header_text(
             "is in the positions)"
         )
     return "\n".join(lines)
+
+
+def _strategy_line(name: str, bend_deg: float) -> str:
+    """The header's line of the singularity strategy ``name`` that may bend the tool axis by
+    ``bend_deg`` degrees (0, or the strategy ``none``: it follows the CL data's)."""
+    if name == "none" or bend_deg <= 0.0:
+        return f"tool axis: the CL data's, strategy {name}"
+    return (
+        f"tool axis: within {bend_deg:g} deg of the CL data's at singular spans, strategy "
+        f"{name}: urdfpost verify --angle-tolerance {bend_deg:g}"
+    )
+
+
+_BENT = re.compile(r"tool axis: within (\S+) deg .*verify --angle-tolerance (\S+)", re.I)
+
+
+def bent_in_header(program: Program) -> float | None:
+    """How far the program's header says its strategy may bend the tool axis (degrees; the
+    line of :func:`header_text`, in any letter case), or None where it says nothing of it."""
+    for part in program.parts:
+        if isinstance(part, Comment) and (found := _BENT.search(part.text)):
+            try:
+                return float(found[2])
+            except ValueError:
+                return None
+        if isinstance(part, Move | MoveTable):  # (the header comes before the first move)
+            return None
+    return None
 
 
 def job_header(
@@ -221,6 +260,7 @@ def job_header(
         tool_lengths=tool_lengths,
         offsets=None if not offsets else {named(n): v for n, v in sorted(offsets.items())},
         rollover=job.rollover,
+        strategy=(job.strategy, job.angle_tolerance_deg),
     )
 
 
