@@ -407,9 +407,20 @@ def test_cutcom_register_and_plane() -> None:
     assert comp.data == {"side": "right", "register": 7}
     result = post(tp, load_machine("dmu50"), PostOptions(controller="fanuc"))
     assert re.search(r"^G17 G42 D7$", result.text, re.MULTILINE)
-    # controls that take the radius of the tool called refuse another register
-    with pytest.raises(DialectError, match="offset register 7"):
-        post(tp, load_machine("dmu50"), PostOptions(controller="heidenhain"))
+    # controls that take the radius of the tool called (no register word) refuse another
+    # register than the tool's, at the CUTCOM line; the tool's own number is that radius
+    for controller in ("heidenhain", "siemens"):
+        with pytest.raises(
+            CLDataError,
+            match=rf"cutcom\.apt:9: cutter radius compensation from offset register 7 with tool "
+            rf"3 called: {controller} takes the radius of the tool called",
+        ):
+            post(tp, load_machine("dmu50"), PostOptions(controller=controller))
+        own = read_cl_text(text.replace("RIGHT,7", "RIGHT,3"), source="cutcom.apt")
+        result = post(own, load_machine("dmu50"), PostOptions(controller=controller))
+        back = DIALECTS[controller].read(result.text)
+        comps = [p for p in back.parts if isinstance(p, CutterComp)]
+        assert [(c.side, c.register) for c in comps] == [("right", None), ("off", None)]
 
 
 def test_the_feed_of_an_arc_is_checked() -> None:

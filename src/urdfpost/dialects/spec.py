@@ -616,6 +616,33 @@ class DialectSpec:
                 return f"M{code}"
         raise DialectError(f"{self.name}: no M-code for {action!r}")
 
+    def comp_register_fault(self, register: int | None, tool: int | None) -> str | None:
+        """What is wrong with cutter radius compensation from offset register ``register``
+        (the CL's ``CUTCOM/LEFT,n``; None: none given) with tool ``tool`` called (None: not
+        known here), or None.
+
+        A control that takes the radius of the tool called (Heidenhain's tool table, Siemens'
+        tool edge: no register word) is given no register, or the tool's own number (the
+        radius is then the same); one with a D word takes any.
+
+        Examples
+        --------
+        >>> spec = DialectSpec("x", (".x",), "(", ")", cutter_comp_words={"left": "RL"})
+        >>> spec.comp_register_fault(3, 3) is None, spec.comp_register_fault(None, 3) is None
+        (True, True)
+        >>> print(spec.comp_register_fault(2, 3))  # doctest: +ELLIPSIS
+        cutter radius compensation from offset register 2 with tool 3 called: x takes the ...
+        """
+        template = self.cutter_comp.get("left", "")
+        if register is None or "{register}" in template or register == tool:
+            return None
+        called = "no tool called" if tool is None else f"tool {tool} called"
+        return (
+            f"cutter radius compensation from offset register {register} with {called}: "
+            f"{self.name} takes the radius of the tool called and has no register word; expected "
+            "no register, or the tool's own number"
+        )
+
     def tool_fault(self, number: int, offset: int | None = None, *, tcp: bool = True) -> str | None:
         """What is wrong with calling tool ``number`` with length offset register ``offset``
         on this control, or None.

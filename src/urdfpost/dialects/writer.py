@@ -589,11 +589,8 @@ class ProgramWriter:
             action = {"XY": "plane_xy", "ZX": "plane_zx", "YZ": "plane_yz"}[block.plane]
             plane = spec.g_code_for(action) if action in spec.g_codes.values() else ""
             template = spec.cutter_comp[block.side]
-            if block.register is not None and "{register}" not in template:
-                raise DialectError(
-                    f"{spec.name}: cutter compensation with offset register {block.register}: "
-                    "the control takes the radius of the tool's own edge; expected no register"
-                )
+            if fault := spec.comp_register_fault(block.register, self.modal.tool):
+                raise DialectError(fault)
             register = block.register if block.register is not None else self.modal.tool
             if register is None and "{register}" in template:
                 raise DialectError(
@@ -607,11 +604,8 @@ class ProgramWriter:
             return
         if not spec.cutter_comp_words:
             raise DialectError(f"{spec.name} writes no cutter radius compensation")
-        if block.register is not None:
-            raise DialectError(
-                f"{spec.name}: cutter compensation with offset register {block.register}: the "
-                "control takes the radius from the tool table; expected no register"
-            )
+        if fault := spec.comp_register_fault(block.register, self.modal.tool):
+            raise DialectError(fault)
         if block.plane != "XY":
             raise DialectError(
                 f"{spec.name}: cutter radius compensation in the {block.plane} plane; expected "

@@ -88,7 +88,8 @@ def check_tools(toolpath: Toolpath, spec: DialectSpec, tcp: bool) -> None:
     CLDataError
         At the line of the first tool change (``LOADTL``) whose tool number is outside the
         control's, or whose length offset register (``ADJUST``, else the tool number) the
-        control cannot select.
+        control cannot select; or of a ``CUTCOM`` whose offset register the control cannot
+        select with the tool called (:meth:`DialectSpec.comp_register_fault`).
 
     Examples
     --------
@@ -100,9 +101,16 @@ def check_tools(toolpath: Toolpath, spec: DialectSpec, tcp: bool) -> None:
     ...
     urdfpost.errors.CLDataError: a.apt:1: tool number 123456 is outside the tool numbers of ...
     """
-    for e in toolpath.events:
+    tool: int | None = None  # (the tool called before the toolpath starts: not known here)
+    for e in sorted(toolpath.events, key=lambda e: e.index):
+        if e.kind == "cutcom" and e.data.get("side") != "off":
+            register = e.data.get("register")
+            wrong = spec.comp_register_fault(None if register is None else int(register), tool)
+            if wrong is not None and tool is not None:
+                raise CLDataError(toolpath.source, e.line, wrong)
         if e.kind != "tool":
             continue
+        tool = int(e.data.get("number", 0))
         adjust = e.data.get("adjust")
         fault = spec.tool_fault(
             int(e.data.get("number", 0)), None if adjust is None else int(adjust), tcp=tcp
