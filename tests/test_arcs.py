@@ -421,6 +421,11 @@ def test_cutcom_register_and_plane() -> None:
         back = DIALECTS[controller].read(result.text)
         comps = [p for p in back.parts if isinstance(p, CutterComp)]
         assert [(c.side, c.register) for c in comps] == [("right", None), ("off", None)]
+    # Heidenhain's RL/RR is in the working plane only: refused at the CUTCOM line
+    zx = read_cl_text(cutcom_job().replace("LEFT,XYPLAN", "LEFT,ZXPLAN"), source="cutcom.apt")
+    with pytest.raises(CLDataError, match=r"cutcom\.apt:9: .* in the ZX plane: heidenhain has"):
+        post(zx, load_machine("dmu50"), PostOptions(controller="heidenhain"))
+    assert "G18 G41" in post(zx, load_machine("dmu50"), PostOptions(controller="fanuc")).text
 
 
 def test_the_feed_of_an_arc_is_checked() -> None:

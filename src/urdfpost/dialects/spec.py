@@ -616,24 +616,33 @@ class DialectSpec:
                 return f"M{code}"
         raise DialectError(f"{self.name}: no M-code for {action!r}")
 
-    def comp_register_fault(self, register: int | None, tool: int | None) -> str | None:
-        """What is wrong with cutter radius compensation from offset register ``register``
-        (the CL's ``CUTCOM/LEFT,n``; None: none given) with tool ``tool`` called (None: not
-        known here), or None.
+    def comp_fault(self, register: int | None, tool: int | None, plane: str = "XY") -> str | None:
+        """What is wrong with cutter radius compensation in ``plane`` ("XY", "ZX" or "YZ")
+        from offset register ``register`` (the CL's ``CUTCOM/LEFT,n``; None: none given)
+        with tool ``tool`` called (None: not known here), or None.
 
         A control that takes the radius of the tool called (Heidenhain's tool table, Siemens'
         tool edge: no register word) is given no register, or the tool's own number (the
-        radius is then the same); one with a D word takes any.
+        radius is then the same); one with a D word takes any. A control that writes the
+        compensation on the next straight line (Heidenhain ``RL``) has it in the working plane
+        only.
 
         Examples
         --------
         >>> spec = DialectSpec("x", (".x",), "(", ")", cutter_comp_words={"left": "RL"})
-        >>> spec.comp_register_fault(3, 3) is None, spec.comp_register_fault(None, 3) is None
+        >>> spec.comp_fault(3, 3) is None, spec.comp_fault(None, 3) is None
         (True, True)
-        >>> print(spec.comp_register_fault(2, 3))  # doctest: +ELLIPSIS
+        >>> print(spec.comp_fault(2, 3))  # doctest: +ELLIPSIS
         cutter radius compensation from offset register 2 with tool 3 called: x takes the ...
+        >>> print(spec.comp_fault(None, 3, "ZX"))
+        cutter radius compensation in the ZX plane: x has it in the working plane; expected XY
         """
         template = self.cutter_comp.get("left", "")
+        if not template and plane != "XY":
+            return (
+                f"cutter radius compensation in the {plane} plane: {self.name} has it in the "
+                "working plane; expected XY"
+            )
         if register is None or "{register}" in template or register == tool:
             return None
         called = "no tool called" if tool is None else f"tool {tool} called"

@@ -589,7 +589,7 @@ class ProgramWriter:
             action = {"XY": "plane_xy", "ZX": "plane_zx", "YZ": "plane_yz"}[block.plane]
             plane = spec.g_code_for(action) if action in spec.g_codes.values() else ""
             template = spec.cutter_comp[block.side]
-            if fault := spec.comp_register_fault(block.register, self.modal.tool):
+            if fault := spec.comp_fault(block.register, self.modal.tool):
                 raise DialectError(fault)
             register = block.register if block.register is not None else self.modal.tool
             if register is None and "{register}" in template:
@@ -604,13 +604,8 @@ class ProgramWriter:
             return
         if not spec.cutter_comp_words:
             raise DialectError(f"{spec.name} writes no cutter radius compensation")
-        if fault := spec.comp_register_fault(block.register, self.modal.tool):
+        if fault := spec.comp_fault(block.register, self.modal.tool, block.plane):
             raise DialectError(fault)
-        if block.plane != "XY":
-            raise DialectError(
-                f"{spec.name}: cutter radius compensation in the {block.plane} plane; expected "
-                "the working plane XY"
-            )
         self.modal.comp_word = spec.cutter_comp_words[block.side]
 
     def write_arc(self, arc: Arc) -> None:
