@@ -411,12 +411,12 @@ def test_header_names_machine_offset_tools_and_axis_ranges(controller: str) -> N
 @pytest.mark.parametrize(
     ("options", "line", "stated"),
     [
-        ({}, "tool axis: within 2 deg of the cl data's at singular spans, strategy cone: "
+        ({}, "tool axis: within 2 deg of the cl tool axis at singular spans, strategy cone: "
          "urdfpost verify --angle-tolerance 2", 2.0),
         ({"angle_tolerance": 1.5, "strategy": "spline"}, "tool axis: within 1.5 deg of "
-         "the cl data's at singular spans, strategy spline: urdfpost verify --angle-tolerance "
+         "the cl tool axis at singular spans, strategy spline: urdfpost verify --angle-tolerance "
          "1.5", 1.5),
-        ({"strategy": "none"}, "tool axis: the cl data's, strategy none", None),
+        ({"strategy": "none"}, "tool axis: as in the cl data, strategy none", None),
     ],
 )  # fmt: skip
 def test_header_says_how_far_the_strategy_may_bend_the_tool_axis(

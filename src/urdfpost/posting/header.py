@@ -13,7 +13,7 @@ Example (a TCP job on dmu50, Heidenhain, mm)::
     ; work offset: preset 1
     ; tools: T3 D6.000 L100.000
     ; axis ranges: X-14.871..14.871 Y-14.871..14.871 Z0.000..40.000 B0.0000..56.6392 ...
-    ; tool axis: within 2 deg of the CL data's at singular spans, strategy cone: urdfpost ...
+    ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy cone: urdfpost ...
 
 The last line says how far the post's singularity strategy may bend the tool axis, which
 ``urdfpost verify`` must be told (:func:`bent_in_header` reads it back for its message).
@@ -202,9 +202,9 @@ def _strategy_line(name: str, bend_deg: float) -> str:
     """The header's line of the singularity strategy ``name`` that may bend the tool axis by
     ``bend_deg`` degrees (0, or the strategy ``none``: it follows the CL data's)."""
     if name == "none" or bend_deg <= 0.0:
-        return f"tool axis: the CL data's, strategy {name}"
+        return f"tool axis: as in the CL data, strategy {name}"
     return (
-        f"tool axis: within {bend_deg:g} deg of the CL data's at singular spans, strategy "
+        f"tool axis: within {bend_deg:g} deg of the CL tool axis at singular spans, strategy "
         f"{name}: urdfpost verify --angle-tolerance {bend_deg:g}"
     )
 

@@ -3,7 +3,7 @@
 2 ; work offset: preset 1; program zero at 15.000 -10.000 110.000 mm on c_table
 3 ; tools: T3
 4 ; axis ranges: X10.000..44.000 Y-20.000..10.000 Z-15.000..435.000 B0.0000..30.0000 C0.0000..0.0000
-5 ; tool axis: within 2 deg of the CL data's at singular spans, strategy cone: urdfpost verify --angle-tolerance 2
+5 ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy cone: urdfpost verify --angle-tolerance 2
 6 FUNCTION RESET TCPM
 7 PLANE RESET STAY
 8 M126

@@ -3,7 +3,7 @@
 2 ; work offset: preset 1; program zero at 15.000 -10.000 110.000 mm on c_table
 3 ; tools: T1
 4 ; axis ranges: X-2.445..20.234 Y-10.000..35.000 Z-438.201..0.000 B0.0000..25.0000 C0.0000..270.0000
-5 ; tool axis: within 2 deg of the CL data's at singular spans, strategy cone: urdfpost verify --angle-tolerance 2
+5 ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy cone: urdfpost verify --angle-tolerance 2
 6 ; machine coordinates with tool length 100.000 mm from the gauge point: the tool table length must be 0, and the work offset zero (the program zero's place is in the positions)
 7 FUNCTION RESET TCPM
 8 PLANE RESET STAY

@@ -3,7 +3,7 @@
 2 ; work offset: preset 1; program zero at 215.000 -130.000 100.000 mm on base
 3 ; tools: T1
 4 ; axis ranges: X0.000..40.000 Y-40.000..0.000 Z0.000..800.000 A0.0000..30.0000 C0.0000..90.0000
-5 ; tool axis: within 2 deg of the CL data's at singular spans, strategy cone: urdfpost verify --angle-tolerance 2
+5 ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy cone: urdfpost verify --angle-tolerance 2
 6 FUNCTION RESET TCPM
 7 PLANE RESET STAY
 8 CYCL DEF 247 DATUM SETTING ~

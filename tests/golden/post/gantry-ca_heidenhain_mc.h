@@ -3,7 +3,7 @@
 2 ; work offset: preset 1; program zero at 215.000 -130.000 100.000 mm on base
 3 ; tools: T5 D10.000
 4 ; axis ranges: X-2.475..442.469 Y-134.000..-119.371 Z-851.656..0.000 A-30.0604..0.0000 C-86.0049..86.0049
-5 ; tool axis: within 2 deg of the CL data's at singular spans, strategy recursive: urdfpost verify --angle-tolerance 2
+5 ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy recursive: urdfpost verify --angle-tolerance 2
 6 ; machine coordinates with tool length 150.000 mm from the gauge point: the tool table length must be 0, and the work offset zero (the program zero's place is in the positions)
 7 FUNCTION RESET TCPM
 8 PLANE RESET STAY

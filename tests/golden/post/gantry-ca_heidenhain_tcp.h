@@ -3,7 +3,7 @@
 2 ; work offset: preset 1; program zero at 215.000 -130.000 100.000 mm on base
 3 ; tools: T5 D10.000
 4 ; axis ranges: X-20.000..27.994 Y-4.175..-3.302 Z3.000..800.000 A-30.0604..0.0000 C-86.0049..86.0049
-5 ; tool axis: within 2 deg of the CL data's at singular spans, strategy recursive: urdfpost verify --angle-tolerance 2
+5 ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy recursive: urdfpost verify --angle-tolerance 2
 6 FUNCTION RESET TCPM
 7 PLANE RESET STAY
 8 CYCL DEF 247 DATUM SETTING ~

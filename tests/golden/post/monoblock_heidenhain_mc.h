@@ -3,7 +3,7 @@
 2 ; work offset: preset 1; program zero at 25.000 -18.000 60.000 mm on c_table
 3 ; tools: T5 D10.000
 4 ; axis ranges: X-216.413..17.919 Y-22.000..34.107 Z-471.739..0.000 B-30.0604..0.0000 C-176.0049..0.0000
-5 ; tool axis: within 2 deg of the CL data's at singular spans, strategy recursive: urdfpost verify --angle-tolerance 2
+5 ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy recursive: urdfpost verify --angle-tolerance 2
 6 ; machine coordinates with tool length 100.000 mm from the gauge point: the tool table length must be 0, and the work offset zero (the program zero's place is in the positions)
 7 FUNCTION RESET TCPM
 8 PLANE RESET STAY

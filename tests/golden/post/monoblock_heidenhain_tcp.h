@@ -3,7 +3,7 @@
 2 ; work offset: preset 1; program zero at 25.000 -18.000 60.000 mm on c_table
 3 ; tools: T5 D10.000
 4 ; axis ranges: X-20.000..27.994 Y-4.175..-3.302 Z3.000..430.000 B-30.0604..0.0000 C-176.0049..0.0000
-5 ; tool axis: within 2 deg of the CL data's at singular spans, strategy recursive: urdfpost verify --angle-tolerance 2
+5 ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy recursive: urdfpost verify --angle-tolerance 2
 6 FUNCTION RESET TCPM
 7 PLANE RESET STAY
 8 M126

@@ -3,7 +3,7 @@
 2 ; work offset: preset 1; program zero at 15.000 -10.000 110.000 mm on c_table
 3 ; tools: T3 D6.000
 4 ; axis ranges: X-20.000..160.707 Y-20.000..20.000 Z-1.980..396.590 B0.0000..20.0000 C0.0000..1170.0000 (rolls over: written modulo 360)
-5 ; tool axis: within 2 deg of the CL data's at singular spans, strategy cone: urdfpost verify --angle-tolerance 2
+5 ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy cone: urdfpost verify --angle-tolerance 2
 6 FUNCTION RESET TCPM
 7 PLANE RESET STAY
 8 M126
