@@ -830,6 +830,8 @@ def _cmd_post(args: argparse.Namespace) -> int:
             f"({' and '.join(hits.nearest or [])}) at CL line {hits.at_cl_line}"
         )
     print(result.verification.summary(units))
+    if report.figures is not None and report.figures.feeds is not None:
+        print(report.figures.feeds.duration())
     if view is not None:
         print(_view_summary(Path(args.view), view))
     return 0

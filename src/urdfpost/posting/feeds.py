@@ -15,9 +15,15 @@ The block time is the tip path length (:func:`urdfpost.verification.feeds.tip_le
 measure the verifier takes of the text read back) over the CL feed, but never less than what
 the fastest axis needs at its URDF velocity limit (``max_i |dq_i| / v_i``), nor, in inverse
 time, than one over the control's largest F: there the F is lower than the tip feed asks for
-(reported as capped blocks, :class:`~urdfpost.posting.report.FeedFigures`). Rapids are not
-timed. Lengths are taken of the positions as written (rounded to the control's decimals), so
+(reported as capped blocks, :class:`~urdfpost.posting.report.FeedFigures`). Rapids get no
+F. Lengths are taken of the positions as written (rounded to the control's decimals), so
 the verifier measures the same blocks.
+
+The same figures give how long the program runs (:meth:`FeedFigures.duration`): the feed
+blocks' times (arcs along the arc; a turn in place under TCP, which the control times, at its
+axes' velocity limits), the rapids at the axes' velocity limits, the dwells, and the motion of
+the canned cycles as :func:`~urdfpost.program.expand_cycles` makes it; not the axes'
+acceleration, the tool changes nor the retracts between sections.
 """
 
 from __future__ import annotations
@@ -36,9 +42,12 @@ from urdfpost.program import (
     JOB_FEED_MODES,
     Arc,
     Blocks,
+    Cycle,
+    Dwell,
     Move,
     MoveTable,
     Program,
+    expand_cycles,
 )
 from urdfpost.units import mm_per_unit
 from urdfpost.verification.feeds import (
@@ -166,19 +175,57 @@ def timed_program(
         else per minute.
     figures : FeedFigures
     """
+    if any(isinstance(p, Cycle) for p in program.parts):
+        # the cycles' motion is the control's (timed by it); its time counts in the figures
+        timed, figures = _timed(program, machine, mode, spec, tool_length, before)
+        try:
+            expanded = expand_cycles(program)
+        except ValueError:  # (a cycle the control runs in a tilted plane: along its axis)
+            expanded = program
+        _, motion = _timed(expanded, machine, mode, spec, tool_length, before)
+        return timed, replace(
+            figures,
+            feed_minutes=motion.feed_minutes,
+            rapid_minutes=motion.rapid_minutes,
+            dwell_seconds=motion.dwell_seconds,
+        )
+    return _timed(program, machine, mode, spec, tool_length, before)
+
+
+def _timed(
+    program: Program,
+    machine: Machine,
+    mode: str,
+    spec: DialectSpec,
+    tool_length: float,
+    before: np.ndarray | None = None,
+) -> tuple[Program, FeedFigures]:
+    """:func:`timed_program` of a program's moves (its canned cycles untimed)."""
+    dwells = sum(p.seconds for p in program.parts if isinstance(p, Dwell))
     if any(isinstance(p, Arc) for p in program.parts):
         # an arc keeps its CL feed per minute (its rotary axes stand still: the tip feed is the
         # linear axes' own), in inverse time one over its time along it; the blocks after it
         # are timed from its end, where the axes stand
         flat, on_arc = _arcs_as_ends(program)
-        timed, figures = timed_program(flat, machine, mode, spec, tool_length, before)
+        timed, figures = _timed(flat, machine, mode, spec, tool_length, before)
         feeds = timed.move_table().feed[~on_arc]
         parts = _with_feeds(program, feeds)
+        # (timed along its chord there: the rest of its length at its feed)
+        longer = sum(
+            (length - chord) / part.feed
+            for part, (length, chord) in zip(
+                (p for p in program.parts if isinstance(p, Arc)),
+                _arc_lengths(flat, on_arc, program),
+                strict=True,
+            )
+            if part.feed
+        )
+        figures = replace(figures, feed_minutes=figures.feed_minutes + longer)
         if mode == FEED_INVERSE:
             parts = _inverse_arcs(parts, flat, on_arc, spec)
         return replace(program, blocks=parts, feed_mode=timed.feed_mode), figures
     inverse = mode == FEED_INVERSE
-    figures = FeedFigures(mode=mode)
+    figures = FeedFigures(mode=mode, dwell_seconds=float(dwells))
     table = program.move_table()
     n = len(table)
     feed_mode = FEED_INVERSE_TIME if inverse else FEED_PER_MINUTE
@@ -215,6 +262,15 @@ def timed_program(
     # its F left at the CL feed
     capped = limited & (tip >= IN_PLACE)
     untimed = tcp & ~inverse & (tip < IN_PLACE)
+    # how long the program runs: a turn in place the control times runs at the axes' limits
+    fast = np.flatnonzero(rapid)
+    r0 = machine_joints(machine, rows[fast], tcp, tool_length)
+    r1 = machine_joints(machine, rows[fast + 1], tcp, tool_length)
+    figures = replace(
+        figures,
+        feed_minutes=float(np.nansum(np.where(untimed, limit, time))),
+        rapid_minutes=float(np.nansum(limit_times(machine, r1 - r0)[0])),
+    )
     time = np.where(untimed, 0.0, time)
     still = time <= 0.0  # (or no motion in the written values: any F)
     # near an axis limit the F is rounded down: the written F never drives an axis beyond it
@@ -240,8 +296,8 @@ def timed_program(
         k = int(np.argmin(share))
         lines = _following_lines(table.cl_line)
         names = [RANGE_CAP if c == -2 else machine.axis_names[c] for c in cause[capped].tolist()]
-        figures = FeedFigures(
-            mode=mode,
+        figures = replace(
+            figures,
             feed_blocks=len(blocks),
             capped_blocks=int(capped.sum()),
             worst_cl_line=int(lines[blocks[k]]) if lines[blocks[k]] >= 0 else None,
@@ -282,11 +338,11 @@ def _arcs_as_ends(program: Program) -> tuple[Program, np.ndarray]:
     return replace(program, blocks=Blocks(parts)), mask
 
 
-def _inverse_arcs(blocks: Blocks, flat: Program, on_arc: np.ndarray, spec: DialectSpec) -> Blocks:
-    """``blocks`` with each arc's F one over its time (1/min): its length along the arc
-    (:meth:`~urdfpost.program.Arc.points`, from where the axes stand before it: the row
-    before it in ``flat``, :func:`_arcs_as_ends`) at its CL feed, and no shorter than the
-    control's largest F allows."""
+def _arc_lengths(flat: Program, on_arc: np.ndarray, program: Program) -> list[tuple[float, float]]:
+    """Per :class:`~urdfpost.program.Arc` of ``program``, in order: its length along the arc
+    (:meth:`~urdfpost.program.Arc.points`, from where the axes stand before it: the row before
+    it in ``flat``, :func:`_arcs_as_ends`) and its chord, mm (0, 0 for an arc with no row
+    before it)."""
     table = flat.move_table()
     filled = table.position.copy()
     for j in range(filled.shape[1]):  # modal: an axis not written stays where it was
@@ -296,19 +352,32 @@ def _inverse_arcs(blocks: Blocks, flat: Program, on_arc: np.ndarray, spec: Diale
         filled[:, j] = np.where(index >= 0, column[np.maximum(index, 0)], np.nan)
     xyz = [flat.axes.index(a) for a in "XYZ"]
     rows = np.flatnonzero(on_arc)
+    out: list[tuple[float, float]] = []
+    arcs = [p for p in program.parts if isinstance(p, Arc)]
+    for part, row in zip(arcs, rows.tolist(), strict=True):
+        if row == 0:
+            out.append((0.0, 0.0))
+            continue
+        start = [float(v) for v in filled[row - 1, xyz]]
+        radius = max(max(part.radii(start, flat.axes)), 1e-6)
+        points = part.points(start, flat.axes, max(radius * 1e-3, 1e-4))
+        path = np.vstack([start, points])
+        length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+        out.append((length, float(np.linalg.norm(path[-1] - path[0]))))
+    return out
+
+
+def _inverse_arcs(blocks: Blocks, flat: Program, on_arc: np.ndarray, spec: DialectSpec) -> Blocks:
+    """``blocks`` with each arc's F one over its time (1/min): its length along the arc
+    (:func:`_arc_lengths`) at its CL feed, and no shorter than the control's largest F
+    allows."""
+    program = replace(flat, blocks=blocks)
+    lengths = iter(_arc_lengths(flat, on_arc, program))
     parts: list = []
-    k = 0
     for part in blocks.parts:
         if isinstance(part, Arc):
-            row = int(rows[k])
-            k += 1
-            if part.feed is not None and row > 0:
-                start = [float(v) for v in filled[row - 1, xyz]]
-                radius = max(max(part.radii(start, flat.axes)), 1e-6)
-                points = part.points(start, flat.axes, max(radius * 1e-3, 1e-4))
-                length = float(
-                    np.linalg.norm(np.diff(np.vstack([start, points]), axis=0), axis=1).sum()
-                )
+            length, _ = next(lengths)
+            if part.feed is not None and length > 0.0:
                 time = length / part.feed
                 if spec.inverse_time_max:
                     time = max(time, 1.0 / spec.inverse_time_max)

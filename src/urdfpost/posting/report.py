@@ -110,6 +110,13 @@ class FeedFigures:
         The share of the CL tip feed that block keeps (0.25: a quarter).
     capped_by : dict of str to int
         Blocks capped per axis (or "F range").
+    feed_minutes, rapid_minutes : float
+        How long the program's feed moves (at the F written, along arcs; a turn in place
+        under TCP at its axes' velocity limits) and its rapids (at the axes' velocity limits)
+        take, minutes: the motion of canned cycles included; acceleration, tool changes and
+        the retracts between sections not.
+    dwell_seconds : float
+        The program's dwells (canned cycles' included), s.
     """
 
     mode: str
@@ -118,6 +125,9 @@ class FeedFigures:
     worst_cl_line: int | None = None
     worst_share: float | None = None
     capped_by: dict[str, int] = field(default_factory=dict)
+    feed_minutes: float = 0.0
+    rapid_minutes: float = 0.0
+    dwell_seconds: float = 0.0
 
     def joined(self, other: FeedFigures) -> FeedFigures:
         """These figures and those of the next piece, added up."""
@@ -136,6 +146,18 @@ class FeedFigures:
             worst_cl_line=worst.worst_cl_line,
             worst_share=worst.worst_share,
             capped_by=dict(sorted(by.items())),
+            feed_minutes=self.feed_minutes + other.feed_minutes,
+            rapid_minutes=self.rapid_minutes + other.rapid_minutes,
+            dwell_seconds=self.dwell_seconds + other.dwell_seconds,
+        )
+
+    def duration(self) -> str:
+        """How long the program runs, in words (:attr:`feed_minutes` and the others)."""
+        total = self.feed_minutes + self.rapid_minutes + self.dwell_seconds / 60.0
+        return (
+            f"run time about {_minutes(total)}: feed moves {_minutes(self.feed_minutes)}, "
+            f"rapids {_minutes(self.rapid_minutes)}, dwells {self.dwell_seconds:.1f} s (at the "
+            "F written and the axes' velocity limits; acceleration and tool changes not counted)"
         )
 
     def warning(self, source: str) -> str | None:
@@ -158,6 +180,17 @@ class FeedFigures:
         share = out.pop("worst_share")
         out["worst_percent_of_programmed"] = None if share is None else 100.0 * share
         return out
+
+
+def _minutes(minutes: float) -> str:
+    """A time in minutes as "1 h 02 min 03 s", "12 min 03 s" or "4.2 s"."""
+    seconds = minutes * 60.0
+    if seconds < 60.0:
+        return f"{seconds:.1f} s"
+    whole = round(seconds)
+    h, rest = divmod(whole, 3600)
+    m, sec = divmod(rest, 60)
+    return f"{h} h {m:02d} min {sec:02d} s" if h else f"{m} min {sec:02d} s"
 
 
 @dataclass(frozen=True)
