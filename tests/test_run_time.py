@@ -124,3 +124,35 @@ def test_the_post_prints_it_and_reports_it_whole_and_in_pieces(
     whole, pieces = figures
     for key in ("feed_minutes", "rapid_minutes", "dwell_seconds"):
         assert pieces[key] == pytest.approx(whole[key], rel=1e-5), key
+
+
+@pytest.mark.parametrize("controller", ["heidenhain", "fanuc"])
+def test_the_header_says_it_whole_and_in_pieces(tmp_path: Path, controller: str) -> None:
+    """The header's run time line: the report's figures, whole and in pieces (the streamed
+    post's placeholder line replaced), and in tool sections (the sections' times added)."""
+    from jobs import TWO_TOOLS
+
+    from urdfpost.posting.report import FeedFigures
+
+    for cl, args in ((DOME, []), (DOME, ["--piece-points", "100"])):
+        out = tmp_path / f"p{DIALECTS[controller].extensions[0]}"
+        argv = ["post", str(cl), "-m", "dmu50", "-c", controller, "-o", str(out), "-q"]
+        assert main([*argv, "--report", str(tmp_path / "r.json"), *args]) == 0
+        import json
+
+        feeds = json.loads((tmp_path / "r.json").read_text())["feeds"]
+        figures = FeedFigures(
+            mode=feeds["mode"],
+            feed_minutes=feeds["feed_minutes"],
+            rapid_minutes=feeds["rapid_minutes"],
+            dwell_seconds=feeds["dwell_seconds"],
+        )
+        line = DIALECTS[controller].spec.comment_text(figures.header_line())
+        assert line in out.read_text(), (args, line)
+        assert "run time: not known" not in out.read_text().lower()
+    # a machine-coordinate job in two tool sections (two gauge lengths)
+    two = read_cl_text(TWO_TOOLS.replace("LOADTL/2", "LOADTL/2,LENGTH,120"), source="two.apt")
+    result = post(two, load_machine("dmu50"), PostOptions(controller=controller, tcp=False))
+    line = DIALECTS[controller].spec.comment_text(result.report.figures.feeds.header_line())
+    assert line in result.text
+    assert result.report.figures.feeds.feed_minutes > 0

@@ -14,9 +14,11 @@ Example (a TCP job on dmu50, Heidenhain, mm)::
     ; tools: T3 D6.000 L100.000
     ; axis ranges: X-14.871..14.871 Y-14.871..14.871 Z0.000..40.000 B0.0000..56.6392 ...
     ; tool axis: within 2 deg of the CL tool axis at singular spans, strategy cone: urdfpost ...
+    ; run time about 26.6 s: feed 23.2 s, rapid 3.5 s, dwell 0.0 s; without acceleration and ...
 
-The last line says how far the post's singularity strategy may bend the tool axis, which
-``urdfpost verify`` must be told (:func:`bent_in_header` reads it back for its message).
+The fifth line says how far the post's singularity strategy may bend the tool axis, which
+``urdfpost verify`` must be told (:func:`bent_in_header` reads it back for its message); the
+sixth how long the program runs (:meth:`~urdfpost.posting.report.FeedFigures.header_line`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from urdfpost.units import mm_per_unit
 
 if TYPE_CHECKING:
     from urdfpost.posting.options import Job
+    from urdfpost.posting.report import FeedFigures
 
 __all__ = ["HeaderFigures", "bent_in_header", "header_text", "job_header", "stock_box"]
 
@@ -116,6 +119,7 @@ def header_text(
     offsets: Mapping[str, np.ndarray] | None = None,
     rollover: frozenset[str] = frozenset(),
     strategy: tuple[str, float] | None = None,
+    run: str | None = None,
 ) -> str:
     """The header's comment lines (without comment marks), one per line.
 
@@ -145,12 +149,16 @@ def header_text(
     strategy : tuple of (str, float), optional
         The singularity strategy's name and how far it may bend the tool axis (degrees): a
         line says so, and what ``urdfpost verify`` needs to be told (none: no such line).
+    run : str, optional
+        How long the program runs (:meth:`~urdfpost.posting.report.FeedFigures.header_line`;
+        None: a line that says it is not known, as in a streamed post's placeholder).
 
     Returns
     -------
     str
         Five lines with TCP, six in machine coordinates (the tool length the positions
-        assume, which the control's tool table must not add again), and the strategy's line.
+        assume, which the control's tool table must not add again), then the strategy's line
+        and the run time's.
     """
     scale = mm_per_unit(units)
     decimals = 4 if units == "inch" else 3
@@ -182,6 +190,7 @@ def header_text(
     ]
     if strategy is not None:
         lines.append(_strategy_line(*strategy))
+        lines.append(run or "run time: not known")
     if not tcp and tool_lengths and len(set(tool_lengths.values())) > 1:
         each = ", ".join(f"T{n} {x:.3f}" for n, x in sorted(tool_lengths.items()))
         lines.append(
@@ -232,10 +241,12 @@ def job_header(
     tool_length: float,
     tool_lengths: Mapping[int, float] | None = None,
     offsets: Mapping[int, np.ndarray] | None = None,
+    run: FeedFigures | None = None,
 ) -> str:
     """:func:`header_text` for a job's program (``tool_length`` mm: the program's;
     ``tool_lengths``: each tool's, of a program in tool sections; ``offsets``: each work
-    offset number's MCS origin in the first MCS, mm, with ``--mcs-offsets``)."""
+    offset number's MCS origin in the first MCS, mm, with ``--mcs-offsets``; ``run``: the feed
+    timing's figures, for the run time)."""
     spec = job.dialect.spec
 
     def named(number: int) -> str:
@@ -261,6 +272,7 @@ def job_header(
         offsets=None if not offsets else {named(n): v for n, v in sorted(offsets.items())},
         rollover=job.rollover,
         strategy=(job.strategy, job.angle_tolerance_deg),
+        run=None if run is None else run.header_line(),
     )
 
 

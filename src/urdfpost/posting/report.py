@@ -151,6 +151,15 @@ class FeedFigures:
             dwell_seconds=self.dwell_seconds + other.dwell_seconds,
         )
 
+    def header_line(self) -> str:
+        """The program header's line of :meth:`duration` (no apostrophe: ISO 840 comments)."""
+        total = self.feed_minutes + self.rapid_minutes + self.dwell_seconds / 60.0
+        return (
+            f"run time about {_minutes(total)}: feed {_minutes(self.feed_minutes)}, rapid "
+            f"{_minutes(self.rapid_minutes)}, dwell {self.dwell_seconds:.1f} s; without "
+            "acceleration and tool changes"
+        )
+
     def duration(self) -> str:
         """How long the program runs, in words (:attr:`feed_minutes` and the others)."""
         total = self.feed_minutes + self.rapid_minutes + self.dwell_seconds / 60.0

@@ -512,7 +512,7 @@ def post_stream(
         )
         assert header is not None and first_program is not None
         final = _with_header(
-            tmp, out, dialect, first_program, job, header, tool_length, placeholder, lengths
+            tmp, out, dialect, first_program, job, header, tool_length, placeholder, lengths, feeds
         )
         tmp.unlink()
         tmp = final
@@ -571,6 +571,7 @@ def _with_header(
     tool_length: float,
     placeholder: int,
     lengths: dict[int, float] | None = None,
+    run: FeedFigures | None = None,
 ) -> Path:
     """A copy of the streamed program ``tmp`` whose opening has the real header.
 
@@ -579,7 +580,8 @@ def _with_header(
     its first ``placeholder`` bytes is copied behind it, into a new temporary file beside
     ``out``, which is returned.
     """
-    opening = _opening(dialect, program, job, job_header(job, header, tool_length, lengths))
+    header_text = job_header(job, header, tool_length, lengths, run=run)
+    opening = _opening(dialect, program, job, header_text)
     fd, final = temp_file(out)
     try:
         with os.fdopen(fd, "wb") as dst, open(tmp, "rb") as src:

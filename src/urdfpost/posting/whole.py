@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -18,7 +19,7 @@ from urdfpost.posting.options import Job, PostOptions, resolve
 from urdfpost.posting.piece import Continuation, PostedPiece, post_piece
 from urdfpost.posting.process import checked_process, one_tool_length
 from urdfpost.posting.readback import merge_verifications
-from urdfpost.posting.report import Collisions, Report
+from urdfpost.posting.report import Collisions, FeedFigures, Report
 from urdfpost.posting.tools import (
     Section,
     gauge_lengths,
@@ -78,7 +79,8 @@ def written(
         Of :func:`urdfpost.posting.check.check_piece`.
     """
     dialect, program = job.dialect, posted.program
-    header = job_header(job, HeaderFigures.empty(program).add(program), program.tool_length)
+    figures = HeaderFigures.empty(program).add(program)
+    header = job_header(job, figures, program.tool_length, run=posted.figures.feeds)
     text = dialect.write(
         program, block_numbers=job.block_numbers, header=header, blank=stock_box(job)
     )
@@ -260,7 +262,11 @@ def _post_sections(
     figures = HeaderFigures.empty(program).add(program)
     writer = dialect.writer(program, block_numbers=job.block_numbers)
     offsets = {job.work_offset + k: shift for k, shift in shifts.items()}
-    header = job_header(job, figures, sections[0].length, lengths if not job.tcp else None, offsets)
+    feeds = [p.figures.feeds for p in pieces]
+    run = None if None in feeds else functools.reduce(FeedFigures.joined, feeds)  # type: ignore[arg-type]
+    header = job_header(
+        job, figures, sections[0].length, lengths if not job.tcp else None, offsets, run
+    )
     writer.open(header, stock_box(job))
     path = f"<{dialect.name} program>"
     # (the process of each section checked from the verification's read of it)
