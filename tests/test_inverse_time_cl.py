@@ -49,6 +49,25 @@ def test_each_move_takes_one_over_f_minutes() -> None:
     np.testing.assert_array_equal(again.feed, tp.feed)
 
 
+@pytest.mark.parametrize("forced", [True, False])
+def test_an_inverse_time_feed_before_every_move(forced: bool) -> None:
+    """CL data with a FEDRAT/INVERS before every GOTO (each move its own time), long enough
+    for the bulk readers (compiled and numpy): each move's feed is its own f times its
+    length (an INVERS line is no feed line of a run)."""
+    lines, fs = [], []
+    for k in range(1, 3000):
+        fs.append(5 + k % 7)
+        lines += [f"FEDRAT/INVERS,{fs[-1]}", f"GOTO/{k * 0.5:.4f},{(k % 2) * 2:.4f},10,0,0,1"]
+    previous = KERNELS.forced
+    try:
+        KERNELS.forced = forced
+        tp = _read("\n".join(lines))
+    finally:
+        KERNELS.forced = previous
+    length = np.linalg.norm(np.diff(np.asarray(tp.tip), axis=0), axis=1)
+    np.testing.assert_allclose(tp.feed[2:], np.array(fs) * length[1:], rtol=1e-12)
+
+
 def test_an_arc_takes_one_over_f_minutes() -> None:
     """A quarter circle of radius 10 at FEDRAT/INVERS,6: every point of it at 6 times its
     length (the chords' sum, within the chord tolerance of 15.708 mm) per minute."""
