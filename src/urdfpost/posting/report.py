@@ -153,20 +153,21 @@ class FeedFigures:
 
     def header_line(self) -> str:
         """The program header's line of :meth:`duration` (no apostrophe: ISO 840 comments)."""
-        total = self.feed_minutes + self.rapid_minutes + self.dwell_seconds / 60.0
-        return (
-            f"run time about {_minutes(total)}: feed {_minutes(self.feed_minutes)}, rapid "
-            f"{_minutes(self.rapid_minutes)}, dwell {self.dwell_seconds:.1f} s; without "
-            "acceleration and tool changes"
-        )
+        return self._run_time("feed", "rapid", "dwell") + "; without acceleration and tool changes"
 
     def duration(self) -> str:
         """How long the program runs, in words (:attr:`feed_minutes` and the others)."""
+        return self._run_time("feed moves", "rapids", "dwells") + (
+            " (at the F written and the axes' velocity limits; acceleration and tool changes "
+            "not counted)"
+        )
+
+    def _run_time(self, feed: str, rapid: str, dwell: str) -> str:
+        """ "run time about T: ``feed`` F, ``rapid`` R, ``dwell`` D s"."""
         total = self.feed_minutes + self.rapid_minutes + self.dwell_seconds / 60.0
         return (
-            f"run time about {_minutes(total)}: feed moves {_minutes(self.feed_minutes)}, "
-            f"rapids {_minutes(self.rapid_minutes)}, dwells {self.dwell_seconds:.1f} s (at the "
-            "F written and the axes' velocity limits; acceleration and tool changes not counted)"
+            f"run time about {_minutes(total)}: {feed} {_minutes(self.feed_minutes)}, {rapid} "
+            f"{_minutes(self.rapid_minutes)}, {dwell} {self.dwell_seconds:.1f} s"
         )
 
     def warning(self, source: str) -> str | None:
