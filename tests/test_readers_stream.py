@@ -389,8 +389,17 @@ def test_generated_apt(tmp_path_factory, text, max_points, text_piece, bulk_piec
         monkeypatch.setattr(apt_module, "BULK_MIN_RECORDS", 3)
         monkeypatch.setattr(apt_module, "_STREAM_PART", bulk_piece)
         # the quick pre-scan finds what the whole-file scan finds (or its error)
-        facts = outcome(lambda: apt_module._apt_facts(str(path), text_piece))
+        facts = outcome(lambda: apt_module._apt_facts(str(path), text_piece)[:2])
         assert facts == whole_file_facts(text, str(path))
+        # the streaming reader's pass stops at the part with the first UNITS record: the
+        # same units, and the NX evidence where it says it is complete (else none yet)
+        part = outcome(lambda: apt_module._apt_facts(str(path), text_piece, whole=False))
+        if isinstance(part, tuple) and len(part) == 3 and isinstance(part[2], bool):
+            if not isinstance(facts[0], str):  # (facts is no error)
+                assert part[0] == facts[0]
+                assert part[1] == (facts[1] if part[2] else None)
+        else:  # an error it meets before it stops is the whole pass's
+            assert part == facts
         pieces = check_file(path, max_points, text_piece, format="apt", chord_tolerance=0.05)
         if pieces is not None:
             whole = read_cl(path, format="apt", chord_tolerance=0.05)
@@ -426,7 +435,7 @@ def test_generated_apt(tmp_path_factory, text, max_points, text_piece, bulk_piec
 def test_prescan_finds_what_the_whole_scan_finds(tmp_path, text, facts, text_piece):
     path = tmp_path / "facts.apt"
     path.write_text(text)
-    found = outcome(lambda: apt_module._apt_facts(str(path), text_piece))
+    found = outcome(lambda: apt_module._apt_facts(str(path), text_piece)[:2])
     assert found == whole_file_facts(text, str(path))
     if facts[0] == "CLDataError":
         assert (found[0], found[2]) == facts
@@ -811,3 +820,46 @@ def test_a_wide_file_in_pieces_of_one_character(tmp_path, data, text, text_piece
     assert text is None or expected == text
     assert "".join(text_pieces(str(path), text_piece)) == expected
     check_file(path, 1, text_piece)
+
+
+# -- the streaming reader's facts pass stops at the units --------------------------------------
+
+
+def _far(tail: list[str], head: tuple[str, ...] = ("UNITS/MM", "MULTAX/ON")) -> str:
+    """A file whose first UNITS record is at its start, then more GOTO lines than a few text
+    parts hold, then ``tail``."""
+    run = [f"GOTO/{k * 0.01:.4f},0,5,0,0,1" for k in range(3000)]
+    end = [] if tail[-1].endswith("$") else ["FINI"]  # (an open record at the very end)
+    return "\n".join([*head, "FEDRAT/MMPM,500", *run, *tail, *end]) + "\n"
+
+
+@pytest.mark.parametrize("text_piece", [64, 4096, 1 << 20])
+@pytest.mark.parametrize(
+    "tail",
+    [
+        # an arc, NX evidence after it: the arc's sense is the NX one, as in the whole read
+        ["CIRCLE/0.5,30,5,0,0,1,0.5", "GOTO/30.5,30,5", "TOOL PATH/OP1,TOOL,T1", "GOTO/1,1,5"],
+        # an arc and no NX evidence: the APT sense
+        ["CIRCLE/0.5,30,5,0,0,1,0.5", "GOTO/30.5,30,5"],
+        # a bad record, then a record left open by the end of the file: the whole read says
+        # the end first (before it interprets any record)
+        ["GOTO/1,x,3", "GOTO/1,2,3", "GOTO/1,2,$"],
+        # only the open record at the end
+        ["GOTO/1,2,$"],
+    ],
+)
+def test_the_units_pass_stops_early_and_the_reading_is_the_same(
+    tmp_path: Path, tail: list[str], text_piece: int
+) -> None:
+    path = tmp_path / "far.apt"
+    path.write_text(_far(tail))
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(apt_module, "_STREAM_PART", 4096)
+        units, nx, complete = apt_module._apt_facts(str(path), text_piece, whole=False)
+        assert units == ("mm", 1) and (nx, complete) == (None, False)
+        check_file(path, 500, text_piece, format="apt", chord_tolerance=0.05)
+    whole = outcome(lambda: read_cl(path, format="apt", chord_tolerance=0.05))
+    if tail[0].startswith("CIRCLE") and not isinstance(whole, tuple):
+        arcs = [e for e in whole.events if e.kind == "arc"]
+        nx_sense = any(line.startswith("TOOL PATH") for line in tail)
+        assert arcs and (arcs[0].data["normal"][2] < 0) == nx_sense  # clockwise in NX

@@ -29,7 +29,10 @@ Steps 1 and 3 keep their state between calls, so that :func:`read_apt_stream` (t
 (:func:`scan_piece`, :meth:`_AptInterpreter.step`) after a quick pass for step 2
 (:func:`_apt_facts`: what the reader needs from the whole file before it can interpret the
 first record, the file's units, NX dialect, a continued record cut off by the end of the file,
-from a pre-scan that passes over the runs of plain GOTO lines without parsing them).
+from a pre-scan that passes over the runs of plain GOTO lines without parsing them; the
+streaming reader's stops at the part of the file with the first UNITS record, and the NX
+dialect, which sets only the arc sense, is then looked for in the whole file at the first
+CIRCLE, and the cut-off record at the first error or at the end).
 
 Large files are mostly runs of one-line ``GOTO/x,y,z[,i,j,k]`` records, in feed-optimised data
 with a one-line ``FEDRAT`` before each (:class:`FeedLines`). Step 1 finds such runs
@@ -1199,6 +1202,9 @@ class _AptInterpreter:
         self.chord_tolerance = chord_tolerance
         self.arc_sense = -1.0 if nx else 1.0
         self.nx = nx
+        # where the NX evidence of the whole file is not known yet (a streaming reader that
+        # looked only at the file's start): what finds it, asked at the first CIRCLE
+        self.nx_of_file: Callable[[], tuple[int, str] | None] | None = None
         self.sense_noted = False  # whether the warning on the inferred sense was given
         self.arc_end: _ArcCheck | None = None  # the last arc, until the move after it
         self.builder = ToolpathBuilder(source)
@@ -1693,6 +1699,9 @@ class _AptInterpreter:
         self.rapid_next = True
 
     def _circle(self, record: Record) -> None:
+        if self.nx_of_file is not None:  # the arc sense needs the whole file's NX evidence
+            self.nx, self.nx_of_file = self.nx_of_file(), None
+            self.arc_sense = -1.0 if self.nx else 1.0
         args = record.args or []
         if len(args) < 7:
             raise self.error(record, f"expected at least 7 values in CIRCLE, got {len(args)}")
@@ -2624,7 +2633,9 @@ def _apt_parts(source: str, text_piece: int) -> Iterator[str]:
         del text
 
 
-def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[int, str] | None]:
+def _apt_facts(
+    source: str, size: int, *, whole: bool = True
+) -> tuple[tuple[str, int] | None, tuple[int, str] | None, bool]:
     """What an APT file says of itself before FINI: declared units and NX dialect.
 
     The records are those of :func:`~urdfpost.readers.apt.scan_text`, except that blocks of
@@ -2633,6 +2644,11 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
     :data:`_PLAIN_MOTION_LINES` (FEDRAT records with a feed-unit keyword too: feed-optimised
     data has one before every move).
 
+    With ``whole`` False the pass stops after the part of the file in which it finds the
+    first UNITS record: the units are known then, and so is the NX evidence if that part
+    has it; otherwise the evidence (which only the arc sense depends on) is left for a whole
+    pass at the first CIRCLE, and the end of the file for the reader's own scan.
+
     Returns
     -------
     units : tuple of (str, int), or None
@@ -2640,13 +2656,17 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
         first feed-unit keyword, and its line; else None.
     nx : tuple of (int, str), or None
         As :func:`nx_evidence` of the whole file: where it first shows that it is an NX CLSF
-        listing (a listing line or an NX-only record); None when it does not.
+        listing (a listing line or an NX-only record); None when it does not (or, with
+        ``whole`` False and ``complete`` False, not in the part looked at).
+    complete : bool
+        Whether ``nx`` is that of the whole file (the pass read it to its end, or to FINI, or
+        found the evidence).
 
     Raises
     ------
     CLDataError
         When the file ends inside a continued record (as the whole-file reader raises it,
-        before any record is interpreted).
+        before any record is interpreted; a pass that stops early does not look there).
     """
     scanner = _Scanner(source)
     declared: tuple[str, int] | None = None
@@ -2668,12 +2688,17 @@ def _apt_facts(source: str, size: int) -> tuple[tuple[str, int] | None, tuple[in
         scanner.scan.records.clear()
         if scanner.fini:
             break
+        if not whole and declared is not None:  # the units known: the rest is the reader's
+            listing = scanner.scan.first_listing
+            if listing and (nx is None or listing < nx[0]):
+                nx = (listing, "an NX listing line")
+            return declared, nx, nx is not None
         line += count
         del text
     scan = scanner.finish()
     if scan.first_listing and (nx is None or scan.first_listing < nx[0]):
         nx = (scan.first_listing, "an NX listing line")
-    return declared or in_feeds, nx
+    return declared or in_feeds, nx, True
 
 
 def _plain_facts(text: str, compiled: bool, feeds: bool = False) -> tuple[int, bool]:
@@ -2771,7 +2796,7 @@ def read_apt_stream(
     """:func:`read_apt_text` of a file, in pieces (``FORMAT.read_stream``)."""
     normalise_units(units)  # bad units refused before reading
     check_chord_tolerance(chord_tolerance)
-    declared, nx = _apt_facts(source, text_piece)
+    declared, nx, complete = _apt_facts(source, text_piece, whole=False)
     file_units = _read_units(units, declared)
     logger.debug("%s: units %s, dialect %s", source, file_units, "NX CLSF" if nx else "APT")
     interpreter = _AptInterpreter(
@@ -2783,6 +2808,28 @@ def read_apt_stream(
         forced=units is not None,
         separate_mcs=separate_mcs,
     )
+    if not complete:  # (the file's start had no NX evidence: the first CIRCLE asks)
+        interpreter.nx_of_file = lambda: _apt_facts(source, text_piece)[1]
+    try:
+        yield from _stream_records(
+            source, interpreter, file_units, max_points=max_points, text_piece=text_piece
+        )
+    except CLDataError:
+        if not complete:  # a continued record cut off by the file's end is said first, as
+            _apt_facts(source, text_piece)  # the whole-file reader says it (it raises)
+        raise
+
+
+def _stream_records(
+    source: str,
+    interpreter: _AptInterpreter,
+    file_units: str,
+    *,
+    max_points: int,
+    text_piece: int,
+) -> Iterator[Toolpath]:
+    """The pieces of :func:`read_apt_stream`: the file's records scanned and interpreted by
+    ``interpreter``, part by part."""
     builder = interpreter.builder
     scanner = _Scanner(source)
     compiled = KERNELS.wanted(_file_size(source))
