@@ -156,9 +156,9 @@ def header_text(
     Returns
     -------
     str
-        Five lines with TCP, six in machine coordinates (the tool length the positions
-        assume, which the control's tool table must not add again), then the strategy's line
-        and the run time's.
+        Four lines, with ``strategy`` the strategy's line and the run time's after them,
+        and in machine coordinates a last one (the tool length the positions assume, which
+        the control's tool table must not add again).
     """
     scale = mm_per_unit(units)
     decimals = 4 if units == "inch" else 3
