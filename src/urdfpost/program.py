@@ -1029,6 +1029,18 @@ def expand_cycle(
     return out
 
 
+def modal_filled(position: np.ndarray) -> np.ndarray:
+    """Positions as written (shape (N, m), NaN where a block does not write an axis) with each
+    NaN the column's last value before it, as a control keeps a modal value (NaN before the
+    first)."""
+    n = len(position)
+    idx = np.where(~np.isnan(position), np.arange(n)[:, None], -1)
+    np.maximum.accumulate(idx, axis=0, out=idx)
+    out = position[np.maximum(idx, 0), np.arange(position.shape[1])]
+    out[idx < 0] = np.nan
+    return out
+
+
 def expand_cycles(program: Program) -> Program:
     """``program`` with every :class:`Cycle` block replaced by its motion
     (:func:`expand_cycle`); the program itself when it has none.

@@ -48,6 +48,7 @@ from urdfpost.program import (
     MoveTable,
     Program,
     expand_cycles,
+    modal_filled,
 )
 from urdfpost.units import mm_per_unit
 from urdfpost.verification.feeds import (
@@ -343,13 +344,7 @@ def _arc_lengths(flat: Program, on_arc: np.ndarray, program: Program) -> list[tu
     (:meth:`~urdfpost.program.Arc.points`, from where the axes stand before it: the row before
     it in ``flat``, :func:`_arcs_as_ends`) and its chord, mm (0, 0 for an arc with no row
     before it)."""
-    table = flat.move_table()
-    filled = table.position.copy()
-    for j in range(filled.shape[1]):  # modal: an axis not written stays where it was
-        column = filled[:, j]
-        known = np.where(~np.isnan(column), np.arange(len(column)), -1)
-        index = np.maximum.accumulate(known)
-        filled[:, j] = np.where(index >= 0, column[np.maximum(index, 0)], np.nan)
+    filled = modal_filled(flat.move_table().position)  # an axis not written stays put
     xyz = [flat.axes.index(a) for a in "XYZ"]
     rows = np.flatnonzero(on_arc)
     out: list[tuple[float, float]] = []

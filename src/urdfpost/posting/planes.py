@@ -65,6 +65,7 @@ from urdfpost.program import (
     Tcp,
     TiltedPlane,
     expand_cycle,
+    modal_filled,
     plane_count,
 )
 
@@ -168,16 +169,6 @@ def _rows(parts: Sequence[Block | MoveTable], width: int):
     )
 
 
-def _filled(position: np.ndarray) -> np.ndarray:
-    """``position`` with each NaN the column's last value before it (NaN before the first)."""
-    n = len(position)
-    idx = np.where(~np.isnan(position), np.arange(n)[:, None], -1)
-    np.maximum.accumulate(idx, axis=0, out=idx)
-    out = position[np.maximum(idx, 0), np.arange(position.shape[1])]
-    out[idx < 0] = np.nan
-    return out
-
-
 def _stretches(
     program: Program,
     machine: Machine,
@@ -265,7 +256,7 @@ def tilted_planes(
     parts = list(program.parts)
     width = len(program.axes)
     position, rapid, line, owner, breaks, tilted, dirty = _rows(parts, width)
-    filled = _filled(position)
+    filled = modal_filled(position)
     rotary = [j for j, a in enumerate(program.axes) if a in program.rotary]
     entries = {
         r
